@@ -1,0 +1,35 @@
+"""``python -m pipeline <stage> [hydra overrides...]``: one thin Hydra entry point per stage.
+
+Each stage lives in ``pipeline/stages/<stage>.py`` with a ``main()`` decorated by ``hydra.main``
+and composes ``conf/<stage>.yaml``.
+"""
+from __future__ import annotations
+
+import importlib
+import pkgutil
+import sys
+
+import pipeline.stages as _stages
+
+
+def available_stages() -> list[str]:
+    return sorted(m.name for m in pkgutil.iter_modules(_stages.__path__) if not m.name.startswith("_"))
+
+
+def main(argv: list[str] | None = None) -> None:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    stages = available_stages()
+    if not argv or argv[0] in ("-h", "--help"):
+        print("usage: python -m pipeline <stage> [key=value ...]\nstages: " + ", ".join(stages))
+        raise SystemExit(0 if argv else 2)
+    stage = argv.pop(0)
+    if stage not in stages:
+        print(f"error: unknown stage {stage!r}; available stages: {', '.join(stages)}", file=sys.stderr)
+        raise SystemExit(2)
+    module = importlib.import_module(f"pipeline.stages.{stage}")
+    sys.argv = [f"pipeline {stage}", *argv]
+    module.main()
+
+
+if __name__ == "__main__":
+    main()
