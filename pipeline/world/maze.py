@@ -1,0 +1,184 @@
+"""Maze layouts as plain text (paper section 4.1, Figures 6 and 11).
+
+One row per line: ``S`` start, ``G`` goal, ``X`` obstacle, ``.`` free. Blank lines at the end of
+the file and trailing whitespace are ignored; ``#`` starts a comment line. Cells are numbered
+``row * width + col``; actions are 0 N, 1 E, 2 S, 3 W, one cell a step.
+"""
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+#: Action -> (d_row, d_col). 0 N, 1 E, 2 S, 3 W (the order of ``pictures.FACE_NAMES``).
+MOVES: tuple[tuple[int, int], ...] = ((-1, 0), (0, 1), (1, 0), (0, -1))
+ACTION_NAMES: tuple[str, ...] = ("N", "E", "S", "W")
+N_ACTIONS = 4
+BUILTIN_DIR = Path(__file__).resolve().parents[2] / "conf" / "mazes"
+
+
+class MazeError(ValueError):
+    """A layout file that cannot be a maze; the message names the file, line and problem."""
+
+
+@dataclass(frozen=True)
+class Layout:
+    """A rectangular grid world. ``obstacles`` are cell indices in row-major order."""
+
+    rows: tuple[str, ...]
+    source: str = "<string>"
+
+    @property
+    def height(self) -> int:
+        return len(self.rows)
+
+    @property
+    def width(self) -> int:
+        return len(self.rows[0])
+
+    @property
+    def n_cells(self) -> int:
+        return self.height * self.width
+
+    def _find(self, ch: str) -> list[int]:
+        return [r * self.width + c for r, row in enumerate(self.rows) for c, x in enumerate(row) if x == ch]
+
+    @property
+    def start(self) -> int:
+        return self._find("S")[0]
+
+    @property
+    def goal(self) -> int:
+        return self._find("G")[0]
+
+    @property
+    def obstacles(self) -> tuple[int, ...]:
+        return tuple(self._find("X"))
+
+    @property
+    def name(self) -> str:
+        return Path(self.source).stem if self.source != "<string>" else f"{self.height}x{self.width}"
+
+    def is_obstacle(self) -> np.ndarray:
+        """Boolean mask over cells."""
+        mask = np.zeros(self.n_cells, dtype=bool)
+        mask[list(self.obstacles)] = True
+        return mask
+
+    def cell(self, index: int) -> tuple[int, int]:
+        return divmod(index, self.width)
+
+    def text(self) -> str:
+        return "\n".join(self.rows) + "\n"
+
+
+def _neighbour(layout_h: int, layout_w: int, cell: int, action: int) -> int | None:
+    r, c = divmod(cell, layout_w)
+    dr, dc = MOVES[action]
+    r2, c2 = r + dr, c + dc
+    if 0 <= r2 < layout_h and 0 <= c2 < layout_w:
+        return r2 * layout_w + c2
+    return None
+
+
+def shortest_path_length(layout: Layout) -> int | None:
+    """Breadth-first search from start to goal around obstacles; None if the goal is unreachable."""
+    blocked = layout.is_obstacle()
+    dist = {layout.start: 0}
+    queue = deque([layout.start])
+    while queue:
+        s = queue.popleft()
+        if s == layout.goal:
+            return dist[s]
+        for a in range(N_ACTIONS):
+            n = _neighbour(layout.height, layout.width, s, a)
+            if n is not None and not blocked[n] and n not in dist:
+                dist[n] = dist[s] + 1
+                queue.append(n)
+    return None
+
+
+def count_shortest_paths(layout: Layout) -> int:
+    """Number of distinct shortest start->goal paths (0 if unreachable)."""
+    blocked = layout.is_obstacle()
+    dist = {layout.start: 0}
+    ways = {layout.start: 1}
+    queue = deque([layout.start])
+    while queue:
+        s = queue.popleft()
+        for a in range(N_ACTIONS):
+            n = _neighbour(layout.height, layout.width, s, a)
+            if n is None or blocked[n]:
+                continue
+            if n not in dist:
+                dist[n] = dist[s] + 1
+                ways[n] = ways[s]
+                queue.append(n)
+            elif dist[n] == dist[s] + 1:
+                ways[n] += ways[s]
+    return ways.get(layout.goal, 0)
+
+
+def parse_layout(text: str, source: str = "<string>") -> Layout:
+    """Parse and validate a layout; raise :class:`MazeError` naming ``source``, the line and the problem."""
+    rows: list[str] = []
+    line_numbers: list[int] = []
+    for number, raw in enumerate(text.splitlines(), start=1):
+        line = raw.rstrip()
+        if line.lstrip().startswith("#"):
+            continue
+        if not line:
+            if rows:
+                rows.append("")
+                line_numbers.append(number)
+            continue
+        rows.append(line)
+        line_numbers.append(number)
+    while rows and rows[-1] == "":
+        rows.pop()
+        line_numbers.pop()
+    if not rows:
+        raise MazeError(f"{source}: empty layout (expected rows of S, G, X and .)")
+    width = len(rows[0])
+    counts = {"S": [], "G": []}
+    for row, number in zip(rows, line_numbers):
+        if not row:
+            raise MazeError(f"{source}:{number}: blank line inside the layout")
+        if len(row) != width:
+            raise MazeError(
+                f"{source}:{number}: ragged row: {len(row)} cells where line {line_numbers[0]} has {width}")
+        for col, ch in enumerate(row, start=1):
+            if ch not in "SGX.":
+                raise MazeError(f"{source}:{number}:{col}: unknown character {ch!r} (allowed: S G X .)")
+            if ch in counts:
+                counts[ch].append(f"line {number} column {col}")
+    for ch, what in (("S", "start"), ("G", "goal")):
+        if not counts[ch]:
+            raise MazeError(f"{source}: no {what} cell {ch!r}")
+        if len(counts[ch]) > 1:
+            raise MazeError(f"{source}: {len(counts[ch])} {what} cells {ch!r} (at {', '.join(counts[ch])}); exactly one allowed")
+    layout = Layout(rows=tuple(rows), source=source)
+    if shortest_path_length(layout) is None:
+        r, c = layout.cell(layout.goal)
+        raise MazeError(f"{source}:{line_numbers[r]}:{c + 1}: the goal is unreachable from the start")
+    return layout
+
+
+def load_layout(spec: str | Path) -> Layout:
+    """Load a layout by built-in name (``5x5``, ``7x7``, ``11x11``: files in ``conf/mazes/``) or path."""
+    path = Path(spec)
+    if not path.suffix and not path.exists():
+        builtin = BUILTIN_DIR / f"{spec}.txt"
+        if not builtin.exists():
+            names = sorted(p.stem for p in BUILTIN_DIR.glob("*.txt"))
+            raise MazeError(f"maze {str(spec)!r}: neither a file nor a built-in maze ({', '.join(names)})")
+        path = builtin
+    if not path.exists():
+        raise MazeError(f"{path}: maze file not found")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise MazeError(f"{path}: not a text file ({exc.reason})") from None
+    return parse_layout(text, source=str(path))
