@@ -20,7 +20,7 @@ from pipeline.world.maze import MazeError, load_layout
 
 _cs = ConfigStore.instance()
 for _name, _spec in METHODS.items():
-    _cs.store(group="method", name=_name, node=_spec)
+    _cs.store(group="method", name=_name, node=asdict(_spec))
 
 
 def method_from_config(cfg: DictConfig) -> MethodSpec:

@@ -1,0 +1,65 @@
+"""Small deterministic recognisers and an in-memory episode sink for the tests."""
+from __future__ import annotations
+
+import numpy as np
+
+from pipeline.world.pictures import N_CATEGORIES, N_PICTURES, picture_category
+
+TRUE = np.array([picture_category(p) for p in range(N_PICTURES)], dtype=np.int8)
+
+
+class TableRecogniser:
+    """Names the true category for pictures in ``correct`` and the next category otherwise.
+    With ``dynamic=True`` a misrecognised picture is learnt (becomes correct) after a collision,
+    a caricature of the dynamic support set."""
+
+    def __init__(self, correct=(), dynamic=False):
+        self.correct0 = set(correct)
+        self.dynamic = dynamic
+        self.correct: dict[int, set] = {}
+        self.learnt: list[tuple[int, int, int]] = []
+
+    def start_run(self, run, seed):
+        self.correct[run] = set(self.correct0)
+
+    def predictions(self, run):
+        pred = (TRUE + 1) % N_CATEGORIES
+        for p in self.correct[run]:
+            pred[p] = TRUE[p]
+        return pred.astype(np.int8)
+
+    def scores(self, run, picture_ids):
+        pred = self.predictions(run)
+        out = np.full((len(picture_ids), N_CATEGORIES), 0.1, dtype=np.float32)
+        out[np.arange(len(picture_ids)), pred[np.asarray(picture_ids, dtype=int)]] = 0.9
+        return out
+
+    def learn_from_collision(self, run, picture_id, true_category):
+        self.learnt.append((run, picture_id, true_category))
+        if not self.dynamic:
+            return -1
+        self.correct[run].add(picture_id)
+        return len(self.learnt) % 5
+
+
+def always_right():
+    return TableRecogniser(correct=range(N_PICTURES))
+
+
+def always_wrong():
+    return TableRecogniser(correct=())
+
+
+class ListSink:
+    def __init__(self):
+        self.episodes: list[dict] = []
+        self.substitutions: list[dict] = []
+
+    def episode(self, **fields):
+        self.episodes.append(fields)
+
+    def substitution(self, **fields):
+        self.substitutions.append(fields)
+
+    def by_run(self, run):
+        return sorted((e for e in self.episodes if e["run"] == run), key=lambda e: e["episode"])

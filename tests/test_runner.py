@@ -1,0 +1,106 @@
+import numpy as np
+import pytest
+
+from fakes import ListSink, TableRecogniser, always_right, always_wrong
+from pipeline.rl.agents import TabularAgent, run_episode
+from pipeline.rl.gym_env import SafeNavigationEnv
+from pipeline.rl.methods import METHODS, get_method
+from pipeline.rl.rng import run_seeds
+from pipeline.rl.runner import run_trials
+from pipeline.rl.sink import FLAG_COLLIDED
+from pipeline.world.geometry import build_geometry
+from pipeline.world.maze import load_layout
+
+MAZE = load_layout("5x5")
+
+
+def collisions_by(sink, run, key):
+    seen = {}
+    for ep in sink.by_run(run):
+        hit = (ep["flags"] & FLAG_COLLIDED) != 0
+        for s, a in zip(ep["states"][hit], ep["actions"][hit]):
+            k = key(int(s), int(a))
+            seen[k] = seen.get(k, 0) + 1
+    return seen
+
+
+def test_shield_never_collides_twice_from_the_same_pair():
+    sink = ListSink()
+    result = run_trials(MAZE, get_method("shield"), runs=4, episodes=60, seed=1, sink=sink, progress=False)
+    for run in range(4):
+        seen = collisions_by(sink, run, lambda s, a: (s, a))
+        assert seen and max(seen.values()) == 1
+        assert sum(seen.values()) == result.collisions[run].sum()
+
+
+def test_ssrl_never_collides_twice_with_the_same_obstacle():
+    g = build_geometry(MAZE)
+    sink = ListSink()
+    run_trials(MAZE, get_method("ssrl"), runs=4, episodes=60, seed=2, sink=sink, progress=False)
+    for run in range(4):
+        seen = collisions_by(sink, run, lambda s, a: int(g.obstacle[s, a]))
+        assert seen and max(seen.values()) == 1
+
+
+def test_fewshot_with_a_perfect_recogniser_never_collides():
+    result = run_trials(MAZE, get_method("fewshot"), runs=3, episodes=40, seed=3,
+                        recogniser=always_right(), progress=False)
+    assert result.collisions.sum() == 0 and result.prevented.sum() > 0
+
+
+def test_fewshot_with_a_blind_recogniser_collides_once_per_pair_like_the_shield():
+    blind = run_trials(MAZE, get_method("fewshot"), runs=3, episodes=40, seed=3,
+                       recogniser=always_wrong(), progress=False)
+    assert blind.prevented.sum() == 0
+    # every collision is a distinct (s, a): never more than the dangerous pairs
+    assert (blind.collisions.sum(axis=1) <= len(build_geometry(MAZE).dangerous_pairs)).all()
+
+
+def test_dynamic_support_set_learns_from_every_misrecognition():
+    rec = TableRecogniser(correct=(), dynamic=True)
+    sink = ListSink()
+    result = run_trials(MAZE, get_method("fewshot_dss"), runs=2, episodes=30, seed=4,
+                        recogniser=rec, sink=sink, progress=False)
+    assert len(rec.learnt) == result.collisions.sum() == len(sink.substitutions)
+    # after learning a picture the robot recognises it: no picture collides twice in a run
+    for run in range(2):
+        pics = [e["recognitions"]["picture"][e["recognitions"]["predicted"] != e["recognitions"]["true"]]
+                for e in sink.by_run(run)]
+        pics = np.concatenate(pics)
+        assert len(pics) == len(set(pics.tolist()))
+
+
+def test_same_seed_same_results_and_runs_do_not_depend_on_the_batch():
+    a = run_trials(MAZE, get_method("qlearning"), runs=5, episodes=50, seed=7, progress=False)
+    b = run_trials(MAZE, get_method("qlearning"), runs=5, episodes=50, seed=7, progress=False)
+    c = run_trials(MAZE, get_method("qlearning"), runs=2, episodes=50, seed=7, progress=False)
+    d = run_trials(MAZE, get_method("qlearning"), runs=5, episodes=50, seed=8, progress=False)
+    assert a.summary() == b.summary()
+    np.testing.assert_array_equal(a.steps[:2], c.steps)
+    assert not np.array_equal(a.steps, d.steps)
+
+
+def test_summary_fields():
+    s = run_trials(MAZE, get_method("ssrl"), runs=3, episodes=80, seed=0, progress=False).summary()
+    assert s["n_runs"] == 3 and len(s["runs"]) == 3
+    assert set(s["runs"][0]) >= {"collisions", "steps", "converged_episode"}
+    assert s["collisions"]["mean"] == pytest.approx(np.mean([r["collisions"] for r in s["runs"]]))
+
+
+@pytest.mark.parametrize("name", sorted(METHODS))
+def test_gym_and_batched_runner_give_identical_trajectories(name):
+    method = get_method(name)
+    seed, episodes = 11, 25
+    recs = {}
+    if method.uses_recogniser:
+        recs = {"runner": TableRecogniser(correct=range(0, 40, 2), dynamic=method.dynamic_support),
+                "gym": TableRecogniser(correct=range(0, 40, 2), dynamic=method.dynamic_support)}
+    sink = ListSink()
+    run_trials(MAZE, method, runs=1, episodes=episodes, seed=seed, sink=sink,
+               recogniser=recs.get("runner"), progress=False)
+    env = SafeNavigationEnv(MAZE, method, recogniser=recs.get("gym"))
+    agent = TabularAgent(method, MAZE.n_cells, run_seeds(seed, 0).agent)
+    for ep, recorded in enumerate(sink.by_run(0)):
+        gym_ep = run_episode(env, agent, seed=seed if ep == 0 else None)
+        for key in ("states", "actions", "rewards", "flags"):
+            np.testing.assert_array_equal(gym_ep[key], recorded[key], err_msg=f"episode {ep} {key}")
