@@ -153,11 +153,16 @@ def _emit(sink, r, run_id, first_ep, last_ep, res, buf, scores, cursors):
 def run_trials(layout: Layout, method: MethodSpec, runs: int, episodes: int, seed: int = 0, *,
                recogniser: Recogniser | None = None, sink: EpisodeSink | None = None,
                run_offset: int = 0, progress: bool = True, chunk_episodes: int = 25,
-               trace_capacity: int = 16384) -> TrialResult:
+               trace_capacity: int = 16384, shared_support: bool = False) -> TrialResult:
     """Run ``runs`` independent runs (ids ``run_offset ..``) of ``episodes`` episodes each.
 
     Run ``r`` draws its obstacle placement, its agent's random stream and its recogniser seed from
     ``run_seeds(seed, r)``, so a run's outcome does not depend on the batch it is in.
+
+    ``shared_support`` (long-term autonomy, paper Figure 10): the runs are consecutive experiments
+    of one robot. They execute one after another and all use recogniser slot ``run_offset``, so a
+    recogniser built to carry its support set over hands each run the set the previous run left.
+    Q, A_d and the obstacle placement are still fresh for every run.
     """
     if runs < 1:
         raise ValueError(f"runs={runs}: must be >= 1")
@@ -176,10 +181,15 @@ def run_trials(layout: Layout, method: MethodSpec, runs: int, episodes: int, see
     true_category = np.stack([w.true_category for w in worlds]).astype(np.int8) if n_obs else np.zeros((runs, 1), np.int8)
     predicted = np.zeros((runs, N_PICTURES), dtype=np.int8)
     rng = np.array([run_seeds(seed, run_offset + r).agent for r in range(runs)], dtype=np.uint64)
-    if recogniser is not None and method.uses_recogniser:
-        for r in range(runs):
-            recogniser.start_run(run_offset + r, run_seeds(seed, run_offset + r).recogniser)
-            predicted[r] = recogniser.predictions(run_offset + r)
+    uses_recogniser = recogniser is not None and method.uses_recogniser
+
+    def slot(r: int) -> int:
+        return run_offset if shared_support else run_offset + r
+
+    def start(r: int) -> None:
+        if uses_recogniser:
+            recogniser.start_run(slot(r), run_seeds(seed, run_offset + r).recogniser)
+            predicted[r] = recogniser.predictions(slot(r))
 
     q = np.zeros((runs, n_cells, 4))
     unsafe = np.zeros((runs, n_cells, 4), dtype=np.bool_)
@@ -211,7 +221,7 @@ def run_trials(layout: Layout, method: MethodSpec, runs: int, episodes: int, see
                         int(method.constrained), int(method.dynamic_support), method.max_steps,
                         layout.start, layout.goal, opt_len, int(record)], dtype=np.int64)
     status = np.zeros(runs, np.int64)
-    want_scores = record and recogniser is not None and method.uses_recogniser
+    want_scores = record and uses_recogniser
 
     def score_pending(r: int) -> None:
         if not want_scores:
@@ -219,14 +229,9 @@ def run_trials(layout: Layout, method: MethodSpec, runs: int, episodes: int, see
         lo, hi = len(scores[r]), int(buf["rec_len"][r])
         if hi > lo:
             pics = buf["rec"][r, lo:hi, 4].astype(np.int64)
-            scores[r].extend(np.asarray(recogniser.scores(run_offset + r, pics), dtype=np.float32))
+            scores[r].extend(np.asarray(recogniser.scores(slot(r), pics), dtype=np.float32))
 
-    bar = tqdm(total=runs * episodes, disable=not progress, unit="ep",
-               desc=f"{method.name} {layout.name}", leave=False)
-    for limit in range(min(chunk_episodes, episodes), episodes + chunk_episodes, chunk_episodes):
-        limit = min(limit, episodes)
-        pending = np.arange(runs, dtype=np.int64)
-        before = int(cur[:, 0].sum())
+    def advance(pending: np.ndarray, limit: int) -> None:
         while pending.size:
             kernel.advance_batch(pending, status, limit, params, iparams,
                                  geometry.next_cell, geometry.obstacle, geometry.ssrl_pairs,
@@ -241,11 +246,11 @@ def run_trials(layout: Layout, method: MethodSpec, runs: int, episodes: int, see
                 score_pending(r)
                 if status[r] == kernel.STATUS_SUBSTITUTE:
                     ep, step, pic, cat = (int(x) for x in buf["sub"][r])
-                    position = recogniser.learn_from_collision(run_offset + r, pic, cat)
+                    position = recogniser.learn_from_collision(slot(r), pic, cat)
                     if sink is not None:
                         sink.substitution(run=run_offset + r, episode=ep, step=step, picture=pic,
                                           category=cat, position=int(position))
-                    predicted[r] = recogniser.predictions(run_offset + r)
+                    predicted[r] = recogniser.predictions(slot(r))
                     again.append(r)
                 elif status[r] == kernel.STATUS_FLUSH:
                     _emit(sink, r, run_offset + r, emitted[r], int(cur[r, 0]),
@@ -253,9 +258,18 @@ def run_trials(layout: Layout, method: MethodSpec, runs: int, episodes: int, see
                     emitted[r] = int(cur[r, 0])
                     again.append(r)
             pending = np.array(again, dtype=np.int64)
-        bar.update(int(cur[:, 0].sum()) - before)
-        if limit == episodes:
-            break
+
+    limits = list(range(min(chunk_episodes, episodes), episodes, chunk_episodes)) + [episodes]
+    bar = tqdm(total=runs * episodes, disable=not progress, unit="ep",
+               desc=f"{method.name} {layout.name}", leave=False)
+    groups = [np.array([r], np.int64) for r in range(runs)] if shared_support else [np.arange(runs, dtype=np.int64)]
+    for group in groups:
+        for r in group:
+            start(int(r))
+        for limit in limits:
+            before = int(cur[group, 0].sum())
+            advance(group, limit)
+            bar.update(int(cur[group, 0].sum()) - before)
     bar.close()
     if record:
         for r in range(runs):
