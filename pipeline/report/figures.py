@@ -1,0 +1,135 @@
+"""Figures of the report (paper Figures 7-10 re-made, learning curves, recognition accuracy).
+
+Every figure is drawn from recorded data by a pure function and saved without timestamps, so the
+same records give the same PNG bytes.
+"""
+from __future__ import annotations
+
+from collections import Counter
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from pipeline.report.stats import describe  # noqa: E402
+
+CATEGORY_COLOURS = ("#8c564b", "#1f77b4", "#ff7f0e", "#2ca02c", "#9467bd")
+CATEGORY_NAMES = ("chair", "kettle", "carton", "basin", "basket")
+MOVES = ((-1, 0), (0, 1), (1, 0), (0, -1))
+
+
+def save(fig, path: Path) -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110, metadata={"Software": None}, bbox_inches="tight")
+    plt.close(fig)
+    return path
+
+
+def bars(labels, samples, title, ylabel, path: Path, paper: dict | None = None):
+    """Mean with s.d. (thin) and 95% bootstrap interval (thick) per label, the runs as dots, and the
+    paper's value as a red marker where it is published."""
+    fig, ax = plt.subplots(figsize=(1.3 * len(labels) + 2, 3.6))
+    rng = np.random.default_rng(0)
+    for i, (label, v) in enumerate(zip(labels, samples)):
+        d = describe(v)
+        ax.bar(i, d["mean"], color="#9ecae1", edgecolor="#3182bd")
+        ax.errorbar(i, d["mean"], yerr=d["std"], color="#555", capsize=4, lw=1)
+        ax.vlines(i, d["ci_low"], d["ci_high"], color="black", lw=3)
+        ax.scatter(i + rng.uniform(-0.25, 0.25, len(v)), v, s=4, color="#3182bd", alpha=0.4, zorder=3)
+        ax.text(i, d["mean"], f"{d['mean']:.1f}", ha="center", va="bottom", fontsize=8)
+        if paper and paper.get(label) is not None:
+            ax.scatter(i, paper[label], marker="_", s=600, color="red", zorder=4,
+                       label="paper" if i == 0 or "paper" not in ax.get_legend_handles_labels()[1] else None)
+    ax.set_xticks(range(len(labels)), labels, rotation=20)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title, fontsize=10)
+    if paper:
+        ax.legend(fontsize=8)
+    return save(fig, path)
+
+
+def learning_curves(curves: dict[str, np.ndarray], title: str, path: Path, ylabel="collisions per episode",
+                    window: int = 10):
+    """Mean over runs per episode, smoothed with a moving average of ``window`` episodes."""
+    fig, ax = plt.subplots(figsize=(6.4, 3.6))
+    for label, per_episode in curves.items():
+        y = np.asarray(per_episode, dtype=float)
+        w = max(1, min(window, len(y)))
+        smooth = np.convolve(y, np.ones(w) / w, mode="valid")
+        ax.plot(np.arange(w - 1, len(y)), smooth, label=label, lw=1.3)
+    ax.set_xlabel("episode")
+    ax.set_ylabel(ylabel)
+    ax.set_title(title, fontsize=10)
+    ax.legend(fontsize=8)
+    return save(fig, path)
+
+
+def long_term(restore: np.ndarray, carry: np.ndarray, path: Path):
+    """Figure 10: collisions of each consecutive experiment, support set restored vs carried over."""
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(9, 3.6), gridspec_kw={"width_ratios": [3, 1]})
+    x = np.arange(1, len(restore) + 1)
+    ax1.plot(x, restore, label="restore the support set", lw=1.2)
+    ax1.plot(x, carry, label="carry it over (long-term autonomy)", lw=1.2)
+    ax1.set_xlabel("experiment (consecutive runs)")
+    ax1.set_ylabel("collisions in 500 episodes" if len(restore) else "collisions")
+    ax1.legend(fontsize=8)
+    for i, v in enumerate((restore, carry)):
+        d = describe(v)
+        ax2.bar(i, d["mean"], color=("#9ecae1", "#fdae6b")[i])
+        ax2.vlines(i, d["ci_low"], d["ci_high"], color="black", lw=3)
+    ax2.set_xticks([0, 1], ["restore", "carry"])
+    ax2.set_title("mean, 95% CI", fontsize=9)
+    fig.suptitle("Figure 10: long-term autonomy", fontsize=10)
+    return save(fig, path)
+
+
+def optimal_path(layout: list[str], obstacles: list[dict], path_cells: list[int], title: str, path: Path):
+    """Figure 7: the maze, obstacles coloured by category, and the learned path."""
+    h, w = len(layout), len(layout[0])
+    fig, ax = plt.subplots(figsize=(0.6 * w + 1.5, 0.6 * h + 0.8))
+    ax.set_xlim(-0.5, w - 0.5)
+    ax.set_ylim(h - 0.5, -0.5)
+    ax.set_aspect("equal")
+    ax.set_xticks(np.arange(-0.5, w, 1), [])
+    ax.set_yticks(np.arange(-0.5, h, 1), [])
+    ax.grid(color="#ccc")
+    by_cell = {o["cell"]: o for o in obstacles}
+    for r, row in enumerate(layout):
+        for c, ch in enumerate(row):
+            if ch == "X":
+                o = by_cell.get(r * w + c)
+                colour = CATEGORY_COLOURS[o["category"]] if o else "black"
+                ax.add_patch(plt.Rectangle((c - 0.5, r - 0.5), 1, 1, color=colour))
+            elif ch == "S":
+                ax.add_patch(plt.Rectangle((c - 0.4, r - 0.4), 0.8, 0.8, color="red"))
+            elif ch == "G":
+                ax.add_patch(matplotlib.patches.Ellipse((c, r), 0.8, 0.5, color="gold"))
+    if path_cells:
+        rc = np.array([divmod(s, w) for s in path_cells])
+        ax.plot(rc[:, 1], rc[:, 0], "o-", color="#1f77b4", ms=6)
+    handles = [matplotlib.patches.Patch(color=c, label=n) for c, n in zip(CATEGORY_COLOURS, CATEGORY_NAMES)]
+    ax.legend(handles=handles, fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1))
+    ax.set_title(title, fontsize=9)
+    return save(fig, path)
+
+
+def modal_final_path(steps_df, width: int, goal: int) -> list[int]:
+    """The most common path of the runs' last episodes that reached the goal in the fewest steps."""
+    last = steps_df[steps_df["episode"] == steps_df.groupby("run")["episode"].transform("max")]
+    paths = []
+    for _, g in last.sort_values(["run", "step"]).groupby("run"):
+        states = g["state"].tolist()
+        actions = g["action"].tolist()
+        if not states:
+            continue
+        r, c = divmod(states[-1], width)
+        dr, dc = MOVES[actions[-1]]
+        if (r + dr) * width + (c + dc) == goal:
+            paths.append(tuple(states) + (goal,))
+    if not paths:
+        return []
+    shortest = min(len(p) for p in paths)
+    return list(Counter(p for p in paths if len(p) == shortest).most_common(1)[0][0])
