@@ -2,8 +2,9 @@
 
 Inputs: the MCAP records of the experiments (``<runs_dir>/<experiment>/<cell>/records.mcap``), the
 accuracy study's data files and the validation metrics of the model, the render stage's contact
-sheets. Outputs: ``index.md``, ``tables/*.md|csv``, ``figures/*.png``. Deleting the output folder and
-building again gives the same bytes.
+sheets. Outputs: ``index.md``, ``tables/*.md|csv``, ``figures/*.png`` (these three are replaced on every build;
+the rest of the folder, e.g. ``benchmarks/``, is left alone). Deleting them and building again
+gives the same bytes.
 """
 from __future__ import annotations
 
@@ -198,8 +199,10 @@ def contact_sheets(rep: Report, contact_dir: Path) -> None:
 
 
 def build_report(inputs: Inputs) -> Path:
-    if inputs.out.exists():
-        shutil.rmtree(inputs.out)
+    for old in ("tables", "figures"):
+        if (inputs.out / old).exists():
+            shutil.rmtree(inputs.out / old)
+    (inputs.out / "index.md").unlink(missing_ok=True)
     rep = Report(inputs.out)
     rep.add("# Few-shot reasoning-based safe RL: our results beside the paper's\n\n"
             "Built by `python -m pipeline report` from the recorded data only (MCAP records of every "

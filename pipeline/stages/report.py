@@ -1,6 +1,6 @@
 """Stage ``report``: tables and figures of the paper, ours beside the paper's, from the records.
 
-    python -m pipeline report [out=reports/results]
+    python -m pipeline report [out=reports]
 """
 from __future__ import annotations
 
