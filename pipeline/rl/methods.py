@@ -21,7 +21,10 @@ to the previous safe state and the episode goes on; without it the collision end
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
+from pathlib import Path
+
+import yaml
 
 LEARNERS = {"q": 0, "sarsa": 1}
 SAFETY = {"none": 0, "shield": 1, "ssrl": 2, "fewshot": 3}
@@ -62,15 +65,25 @@ class MethodSpec:
         return replace(self, **kw)
 
 
-METHODS: dict[str, MethodSpec] = {
-    "qlearning": MethodSpec("qlearning"),
-    "sarsa": MethodSpec("sarsa", learner="sarsa"),
-    "shield": MethodSpec("shield", safety="shield", recovery=True),
-    "ssrl": MethodSpec("ssrl", safety="ssrl", recovery=True),
-    "constrained": MethodSpec("constrained", constrained=True),
-    "fewshot": MethodSpec("fewshot", safety="fewshot", recovery=True),
-    "fewshot_dss": MethodSpec("fewshot_dss", safety="fewshot", recovery=True, dynamic_support=True),
-}
+def load_method(path: str | Path) -> MethodSpec:
+    """A method spec from a YAML file of MethodSpec fields (``conf/method/<name>.yaml``)."""
+    path = Path(path)
+    try:
+        data = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except (OSError, yaml.YAMLError) as exc:
+        raise ValueError(f"{path}: cannot read method config ({exc})") from None
+    if not isinstance(data, dict):
+        raise ValueError(f"{path}: a method config is a mapping of MethodSpec fields")
+    unknown = set(data) - {f.name for f in fields(MethodSpec)}
+    if unknown:
+        raise ValueError(f"{path}: unknown method fields {sorted(unknown)}")
+    return MethodSpec(**data)
+
+
+#: The methods of the paper, one YAML file each in ``conf/method/`` (the single source: Hydra
+#: composes the same files, and DVC stages depend on exactly the files they use).
+METHOD_DIR = Path(__file__).resolve().parents[2] / "conf" / "method"
+METHODS: dict[str, MethodSpec] = {p.stem: load_method(p) for p in sorted(METHOD_DIR.glob("*.yaml"))}
 
 
 def get_method(name: str, **overrides) -> MethodSpec:

@@ -16,7 +16,6 @@ from pathlib import Path
 
 import hydra
 import numba
-from hydra.core.config_store import ConfigStore
 from omegaconf import DictConfig, OmegaConf
 
 from pipeline.rl.methods import METHODS, MethodSpec
@@ -26,10 +25,6 @@ from pipeline.stages._common import CONF_DIR, ConfigError, require, write_json_a
 from pipeline.world.geometry import build_geometry
 from pipeline.world.maze import MazeError, load_layout
 from pipeline.world.pictures import CATEGORIES
-
-_cs = ConfigStore.instance()
-for _name, _spec in METHODS.items():
-    _cs.store(group="method", name=_name, node=asdict(_spec))
 
 CELL_KEYS = {"method", "maze", "substitution", "support"}
 
