@@ -145,6 +145,7 @@ def _emit(sink, r, run_id, first_ep, last_ep, res, buf, scores, cursors):
                 "steps": n, "collisions": int(res["col"][r, ep]), "return_": float(res["ret"][r, ep]),
                 "reached_goal": bool(res["goal"][r, ep]), "prevented": int(res["prev"][r, ep]),
                 "epsilon": float(res["eps"][r, ep]),
+                "greedy_optimal": bool(res["greedy"][r, ep]),
             },
         )
     buf["trace_len"][r] = 0
@@ -254,7 +255,7 @@ def run_trials(layout: Layout, method: MethodSpec, runs: int, episodes: int, see
                     again.append(r)
                 elif status[r] == kernel.STATUS_FLUSH:
                     _emit(sink, r, run_offset + r, emitted[r], int(cur[r, 0]),
-                          {k: res[k] for k in ("steps", "col", "ret", "goal", "prev", "eps")}, buf, scores, cursors)
+                          {k: res[k] for k in ("steps", "col", "ret", "goal", "prev", "eps", "greedy")}, buf, scores, cursors)
                     emitted[r] = int(cur[r, 0])
                     again.append(r)
             pending = np.array(again, dtype=np.int64)
@@ -274,7 +275,7 @@ def run_trials(layout: Layout, method: MethodSpec, runs: int, episodes: int, see
     if record:
         for r in range(runs):
             _emit(sink, r, run_offset + r, emitted[r], episodes,
-                  {k: res[k] for k in ("steps", "col", "ret", "goal", "prev", "eps")}, buf, scores, cursors)
+                  {k: res[k] for k in ("steps", "col", "ret", "goal", "prev", "eps", "greedy")}, buf, scores, cursors)
     return TrialResult(layout, method, seed, res["steps"], res["col"], res["ret"], res["goal"],
                        res["prev"], res["greedy"], res["eps"], [w.placement for w in worlds],
                        unsafe.reshape(runs, -1).sum(axis=1))

@@ -20,7 +20,8 @@ Episode fields (numpy arrays are 1-D, one entry per executed step unless stated)
     unsafe_added                 dict of arrays, one entry per (s, a) added to A_d:
         step int32, state int32, action int8, source int8 (0 recognition, 1 collision, 2 ssrl rule)
     summary                      dict: steps, collisions, return_, reached_goal, prevented,
-                                 epsilon (at the end of the episode)
+                                 epsilon (at the end of the episode), greedy_optimal (the
+                                 greedy policy walks an optimal path after this episode)
 """
 from __future__ import annotations
 

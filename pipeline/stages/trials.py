@@ -159,6 +159,11 @@ def run(cfg: DictConfig) -> dict:
         n: {k: s[k] for k in ("method", "maze", "substitution", "support", "collisions", "converged_runs", "seconds")}
         for n, s in summaries.items()}}
     write_json_atomic(out / "summary.json", index)
+    if cfg.get("metrics_file"):
+        write_json_atomic(cfg.metrics_file, {n: {"collisions_mean": s["collisions"]["mean"],
+                                                 "collisions_std": s["collisions"]["std"],
+                                                 "converged_runs": s["converged_runs"]}
+                                             for n, s in summaries.items()})
     return index
 
 
