@@ -267,7 +267,7 @@ def run_trials(layout: Layout, method: MethodSpec, runs: int, episodes: int, see
     for group in groups:
         for r in group:
             start(int(r))
-        for limit in limits:
+        for limit in ([episodes] if shared_support else limits):
             before = int(cur[group, 0].sum())
             advance(group, limit)
             bar.update(int(cur[group, 0].sum()) - before)
