@@ -25,6 +25,7 @@ import numpy as np
 from mcap.writer import CompressionType, Writer
 
 from . import schema as S
+from . import wire as W
 
 LIBRARY = "pipeline.records/" + S.FORMAT_VERSION
 LAYOUT_CHARS = frozenset("SGX.")
@@ -319,75 +320,122 @@ class RecordWriter:
         self.close(complete=exc_type is None)
 
 
-def encode_episode(fields: Mapping[str, Any], where: str = "episode record") -> bytes:
-    """Serialize one episode (sink fields) as an :data:`~pipeline.records.schema.Episode` message."""
+def normalise_episode(fields: Mapping[str, Any], where: str = "episode record") -> dict[str, Any]:
+    """Check one episode's sink fields and return them as typed numpy arrays (the boundary check)."""
     states = _arr(fields, "states", where, np.int64)
     n = len(states)
-    actions = _arr(fields, "actions", where, np.int64, n)
-    rewards = _arr(fields, "rewards", where, np.float32, n)
-    flags = _arr(fields, "flags", where, np.int64, n)
-    msg = S.Episode(run=int(fields["run"]), episode=int(fields["episode"]))
-    st = msg.steps
-    st.states.extend(states.tolist())
-    st.actions.extend(actions.tolist())
-    st.rewards.extend(rewards.tolist())
-    st.flags.extend(flags.tolist())
-
+    out: dict[str, Any] = {"run": int(fields["run"]), "episode": int(fields["episode"]), "states": states,
+                           "actions": _arr(fields, "actions", where, np.int64, n),
+                           "rewards": _arr(fields, "rewards", where, np.float32, n),
+                           "flags": _arr(fields, "flags", where, np.int64, n)}
     rec = fields["recognitions"] or {}
-    if rec:
+    m = len(rec["step"]) if rec else 0
+    if m:
         w = where + ".recognitions"
-        step = _arr(rec, "step", w, np.int64)
-        m = len(step)
-        if m:
-            r = msg.recognitions
-            r.step.extend(step.tolist())
-            r.state.extend(_arr(rec, "state", w, np.int64, m).tolist())
-            r.action.extend(_arr(rec, "action", w, np.int64, m).tolist())
-            r.picture.extend(_arr(rec, "picture", w, np.int64, m).tolist())
-            r.predicted.extend(_arr(rec, "predicted", w, np.int64, m).tolist())
-            r.true_category.extend(_arr(rec, "true", w, np.int64, m).tolist())
-            scores = np.asarray(rec.get("scores", ()), dtype=np.float32)
-            if scores.size:
-                if scores.ndim != 2 or scores.shape[0] != m:
-                    raise ValueError(f"{w}.scores: expected shape ({m}, n_categories), got {scores.shape}")
-                r.n_categories = scores.shape[1]
-                r.scores.extend(scores.ravel().tolist())
-
+        for k in RECOGNITION_KEYS:
+            out["rec_" + k] = _arr(rec, k, w, np.int64, m)
+        scores = np.asarray(rec.get("scores", ()), dtype=np.float32)
+        if scores.size:
+            if scores.ndim != 2 or scores.shape[0] != m:
+                raise ValueError(f"{w}.scores: expected shape ({m}, n_categories), got {scores.shape}")
+        else:
+            scores = np.zeros((m, 0), np.float32)
+        out["rec_scores"] = scores
     un = fields["unsafe_added"] or {}
-    if un:
+    k_un = len(un["step"]) if un else 0
+    if k_un:
         w = where + ".unsafe_added"
-        step = _arr(un, "step", w, np.int64)
-        m = len(step)
-        if m:
-            u = msg.unsafe_added
-            u.step.extend(step.tolist())
-            u.state.extend(_arr(un, "state", w, np.int64, m).tolist())
-            u.action.extend(_arr(un, "action", w, np.int64, m).tolist())
-            u.source.extend(_arr(un, "source", w, np.int64, m).tolist())
-
+        for k in UNSAFE_KEYS:
+            out["un_" + k] = _arr(un, k, w, np.int64, k_un)
     summary = fields["summary"]
     missing = [k for k in SUMMARY_KEYS if k not in summary]
     if missing:
         raise ValueError(f"{where}.summary: missing {missing}; expected {list(SUMMARY_KEYS)}")
-    sm = msg.summary
-    sm.steps = int(summary["steps"])
-    sm.collisions = int(summary["collisions"])
-    sm.return_ = float(summary["return_"])
-    sm.reached_goal = bool(summary["reached_goal"])
-    sm.prevented = int(summary["prevented"])
-    sm.epsilon = float(summary["epsilon"])
+    sm = {"steps": int(summary["steps"]), "collisions": int(summary["collisions"]),
+          "return_": float(summary["return_"]), "reached_goal": bool(summary["reached_goal"]),
+          "prevented": int(summary["prevented"]), "epsilon": float(summary["epsilon"])}
+    extra = {}
     for k in sorted(summary.keys() - set(SUMMARY_KEYS)):
         try:
-            sm.extra[str(k)] = float(summary[k])
+            extra[str(k)] = float(summary[k])
         except (TypeError, ValueError):
             raise ValueError(f"{where}.summary[{k!r}]: extra summary values must be numbers, "
                              f"got {summary[k]!r}") from None
-
+    out["summary"], out["extra"] = sm, extra
     q = fields.get("q_values")
     if q is not None:
         q = np.asarray(q, dtype=np.float32)
         if q.ndim != 2:
             raise ValueError(f"{where}.q_values: expected shape (n_states, n_actions), got {q.shape}")
-        msg.n_actions = q.shape[1]
-        msg.q_values.extend(q.ravel().tolist())
+        out["q_values"] = q
+    return out
+
+
+def encode_episode_wire(fields: Mapping[str, Any], where: str = "episode record") -> bytes:
+    """Serialize one episode (sink fields) as an ``fsrl.records.Episode`` message, vectorised
+    (:mod:`.wire`); byte-identical to :func:`encode_episode_protobuf` except for the order of
+    extra summary entries (a map: any order is valid; ours is sorted by key)."""
+    e = normalise_episode(fields, where)
+    steps = (W.packed_int_field(1, e["states"]) + W.packed_int_field(2, e["actions"])
+             + W.packed_float_field(3, e["rewards"]) + W.packed_int_field(4, e["flags"]))
+    parts = [W.uint_field(1, e["run"]), W.uint_field(2, e["episode"]),
+             W.key(3, 2) + W.varint(len(steps)) + steps]
+    if "rec_step" in e:
+        sc = e["rec_scores"]
+        parts.append(W.len_field(4, b"".join((
+            W.packed_int_field(1, e["rec_step"]), W.packed_int_field(2, e["rec_state"]),
+            W.packed_int_field(3, e["rec_action"]), W.packed_int_field(4, e["rec_picture"]),
+            W.packed_int_field(5, e["rec_predicted"]), W.packed_int_field(6, e["rec_true"]),
+            W.uint_field(7, sc.shape[1] if sc.size else 0), W.packed_float_field(8, sc.ravel())))))
+    if "un_step" in e:
+        parts.append(W.len_field(5, b"".join(W.packed_int_field(i, e["un_" + k])
+                                             for i, k in enumerate(UNSAFE_KEYS, 1))))
+    sm = e["summary"]
+    summary = b"".join((W.uint_field(1, sm["steps"]), W.uint_field(2, sm["collisions"]),
+                        W.double_field(3, sm["return_"]), W.uint_field(4, int(sm["reached_goal"])),
+                        W.uint_field(5, sm["prevented"]), W.double_field(6, sm["epsilon"]),
+                        *(W.len_field(7, W.map_entry_string_double(k, v)) for k, v in e["extra"].items())))
+    parts.append(W.key(6, 2) + W.varint(len(summary)) + summary)
+    if "q_values" in e:
+        q = e["q_values"]
+        parts.append(W.uint_field(7, q.shape[1]))
+        parts.append(W.packed_float_field(8, q.ravel()))
+    return b"".join(parts)
+
+
+def encode_episode_protobuf(fields: Mapping[str, Any], where: str = "episode record") -> bytes:
+    """Reference encoder through the Protobuf ``Message`` API (slow; the tests compare)."""
+    e = normalise_episode(fields, where)
+    msg = S.Episode(run=e["run"], episode=e["episode"])
+    msg.steps.SetInParent()
+    msg.steps.states.extend(e["states"].tolist())
+    msg.steps.actions.extend(e["actions"].tolist())
+    msg.steps.rewards.extend(e["rewards"].tolist())
+    msg.steps.flags.extend(e["flags"].tolist())
+    if "rec_step" in e:
+        r = msg.recognitions
+        r.step.extend(e["rec_step"].tolist())
+        r.state.extend(e["rec_state"].tolist())
+        r.action.extend(e["rec_action"].tolist())
+        r.picture.extend(e["rec_picture"].tolist())
+        r.predicted.extend(e["rec_predicted"].tolist())
+        r.true_category.extend(e["rec_true"].tolist())
+        if e["rec_scores"].size:
+            r.n_categories = e["rec_scores"].shape[1]
+            r.scores.extend(e["rec_scores"].ravel().tolist())
+    if "un_step" in e:
+        u = msg.unsafe_added
+        for k in UNSAFE_KEYS:
+            getattr(u, k).extend(e["un_" + k].tolist())
+    msg.summary.SetInParent()
+    for k, v in e["summary"].items():
+        setattr(msg.summary, k, v)
+    for k, v in e["extra"].items():
+        msg.summary.extra[k] = v
+    if "q_values" in e:
+        msg.n_actions = e["q_values"].shape[1]
+        msg.q_values.extend(e["q_values"].ravel().tolist())
     return msg.SerializeToString(deterministic=True)
+
+
+encode_episode = encode_episode_protobuf
