@@ -1,0 +1,137 @@
+"""Synthetic episode records, structurally valid (same fields, dtypes and flag semantics as the trial
+runner hands to its sink), for the records tests and the write-speed benchmark. Not a simulation:
+the robot random-walks on the free cells, a step toward an obstacle is a recognition, a wrong
+recognition a collision with self-recovery.
+"""
+from __future__ import annotations
+
+import io
+from typing import Any, Iterator
+
+import numpy as np
+
+from . import schema as S
+
+LAYOUT_5X5 = ["S...X", ".X...", "...X.", "X....", "..X.G"]
+
+
+def maze_layout(size: int = 11, n_obstacles: int | None = None, seed: int = 0) -> list[str]:
+    """A square layout with start top-left, goal bottom-right and ``n_obstacles`` obstacle cells."""
+    rng = np.random.default_rng(seed)
+    n_obstacles = n_obstacles if n_obstacles is not None else max(1, size * size // 8)
+    grid = np.full((size, size), ".")
+    cells = rng.choice(np.arange(1, size * size - 1), size=n_obstacles, replace=False)
+    grid.flat[cells] = "X"
+    grid[0, 0], grid[-1, -1] = "S", "G"
+    return ["".join(r) for r in grid]
+
+
+def obstacle_assignment(layout: list[str], run: int, seed: int = 0) -> list[dict[str, int]]:
+    """A per-run assignment of the 10 physical obstacles to the layout's obstacle cells."""
+    rng = np.random.default_rng([seed, run])
+    width = len(layout[0])
+    cells = [r * width + c for r, row in enumerate(layout) for c, ch in enumerate(row) if ch == "X"]
+    physical = rng.permutation(np.resize(rng.permutation(10), len(cells)))
+    return [{"cell": cell, "physical": int(p), "category": int(p) // 2, "instance": int(p) % 2,
+             "orientation": int(rng.integers(4))} for cell, p in zip(cells, physical)]
+
+
+def tiny_png(seed: int, size: int = 8) -> bytes:
+    """A small deterministic PNG (needs Pillow)."""
+    from PIL import Image
+
+    rng = np.random.default_rng(seed)
+    img = Image.fromarray(rng.integers(0, 256, (size, size, 3), dtype=np.uint8))
+    buf = io.BytesIO()
+    img.save(buf, format="PNG")
+    return buf.getvalue()
+
+
+def episodes(layout: list[str], *, runs: int, episodes_per_run: int, seed: int = 0,
+             min_steps: int = 20, max_steps: int = 200, n_categories: int = 5,
+             scores: bool = True) -> Iterator[dict[str, Any]]:
+    """Yield sink ``episode`` fields in run-major order, plus a ``_substitutions`` list of
+    substitution keyword dicts (pass those to ``sink.substitution``)."""
+    height, width = len(layout), len(layout[0])
+    obstacle = np.array([ch == "X" for row in layout for ch in row])
+    deltas = np.array(S.ACTION_DELTAS)
+    for run in range(runs):
+        rng = np.random.default_rng([seed, run])
+        assignment = {o["cell"]: o for o in obstacle_assignment(layout, run, seed)}
+        for ep in range(episodes_per_run):
+            n = int(rng.integers(min_steps, max_steps + 1))
+            acts = rng.integers(0, 4, n).astype(np.int8)
+            states = np.empty(n, np.int32)
+            flags = np.zeros(n, np.uint8)
+            rewards = np.zeros(n, np.float32)
+            r_rows = []
+            u_rows = []
+            subs = []
+            pos = 0
+            for t in range(n):
+                states[t] = pos
+                row, col = divmod(pos, width)
+                nr, nc = row + deltas[acts[t], 0], col + deltas[acts[t], 1]
+                if not (0 <= nr < height and 0 <= nc < width):
+                    continue
+                nxt = nr * width + nc
+                if obstacle[nxt]:
+                    ob = assignment[nxt]
+                    pic = ob["category"] * 8 + ob["instance"] * 4 + int((acts[t] + 2 - ob["orientation"]) % 4)
+                    correct = rng.random() < 0.8
+                    pred = ob["category"] if correct else int((ob["category"] + 1 + rng.integers(4)) % n_categories)
+                    r_rows.append((t, pos, acts[t], pic, pred, ob["category"]))
+                    if correct:
+                        flags[t] |= S.FLAG_RESELECTED
+                        u_rows.append((t, pos, acts[t], 0))
+                    else:
+                        flags[t] |= S.FLAG_COLLIDED | S.FLAG_RECOVERED
+                        rewards[t] = -1.0
+                        u_rows.append((t, pos, acts[t], 1))
+                        subs.append({"run": run, "episode": ep, "step": t, "picture": pic,
+                                     "category": ob["category"], "position": int(rng.integers(5))})
+                    continue
+                pos = nxt
+            if n < max_steps:
+                flags[-1] |= S.FLAG_GOAL
+                rewards[-1] = 1.0
+            else:
+                flags[-1] |= S.FLAG_TRUNCATED
+            m = len(r_rows)
+            rec = {k: np.array([r[i] for r in r_rows], dtype=dt) for i, (k, dt) in enumerate(
+                [("step", np.int32), ("state", np.int32), ("action", np.int8), ("picture", np.int16),
+                 ("predicted", np.int8), ("true", np.int8)])}
+            rec["scores"] = (rng.random((m, n_categories)).astype(np.float32) if scores
+                             else np.zeros((0, 0), np.float32))
+            unsafe = {k: np.array([u[i] for u in u_rows], dtype=dt) for i, (k, dt) in enumerate(
+                [("step", np.int32), ("state", np.int32), ("action", np.int8), ("source", np.int8)])}
+            yield {"run": run, "episode": ep, "states": states, "actions": acts, "rewards": rewards,
+                   "flags": flags, "recognitions": rec, "unsafe_added": unsafe,
+                   "summary": {"steps": n, "collisions": int(((flags & S.FLAG_COLLIDED) != 0).sum()),
+                               "return_": float(rewards.sum()), "reached_goal": n < max_steps,
+                               "prevented": int(((flags & S.FLAG_RESELECTED) != 0).sum()),
+                               "epsilon": 0.1},
+                   "_substitutions": subs}
+
+
+def write_synthetic(path, *, runs: int = 3, episodes_per_run: int = 10, seed: int = 0, size: int = 5,
+                    flush_every: int = 5, pictures: bool = True, **kw) -> list[dict[str, Any]]:
+    """Write a small synthetic record file; return the episode fields written (with substitutions)."""
+    from .writer import RecordWriter
+
+    layout = LAYOUT_5X5 if size == 5 else maze_layout(size, seed=seed)
+    written = []
+    pics = {pid: tiny_png(pid) for pid in range(40)} if pictures else None
+    with RecordWriter(path, metadata={"config": {"experiment": "synthetic", "seed": seed, "runs": runs},
+                                      "seeds": list(range(runs))},
+                      maze={"layout": layout, "categories": ["chair", "kettle", "carton", "basin", "basket"]},
+                      runs=[obstacle_assignment(layout, r, seed) for r in range(runs)],
+                      pictures=pics, flush_every=flush_every, **kw) as w:
+        for fields in episodes(layout, runs=runs, episodes_per_run=episodes_per_run, seed=seed):
+            subs = fields.pop("_substitutions")
+            w.episode(**fields)
+            for s in subs:
+                w.substitution(**s)
+            fields["_substitutions"] = subs
+            written.append(fields)
+    return written

@@ -1,0 +1,270 @@
+"""MCAP records: schema, writer, reader, truncated files (DESIGN.md "Records")."""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pipeline.records import RecordWriter, RecordsWarning, read_records
+from pipeline.records import schema as S
+from pipeline.records.synthetic import LAYOUT_5X5, episodes, obstacle_assignment, tiny_png, write_synthetic
+
+
+def _episode(run=0, episode=0, n=3, **over):
+    f = {"run": run, "episode": episode, "states": np.arange(n, dtype=np.int32),
+         "actions": np.ones(n, np.int8), "rewards": np.zeros(n, np.float32), "flags": np.zeros(n, np.uint8),
+         "recognitions": {}, "unsafe_added": {},
+         "summary": {"steps": n, "collisions": 0, "return_": 0.0, "reached_goal": False, "prevented": 0,
+                     "epsilon": 0.1}}
+    f.update(over)
+    return f
+
+
+def test_flags_and_sources_mirror_the_sink_protocol():
+    from pipeline.rl import sink
+
+    for name, bit in S.FLAG_NAMES.items():
+        assert getattr(sink, f"FLAG_{name.upper()}") == bit
+    for i, name in enumerate(S.SOURCE_NAMES):
+        assert getattr(sink, f"SOURCE_{name.upper()}") == i
+
+
+def test_log_time_is_derived_from_run_episode_step():
+    assert S.log_time_ns(0, 0, 0) == 0
+    assert S.log_time_ns(3, 120, 7) == 3 * 10**15 + 120 * 10**9 + 7 * 10**6
+    assert S.split_log_time(S.log_time_ns(99, 499, 199)) == (99, 499, 199)
+    with pytest.raises(ValueError, match="step 1000"):
+        S.log_time_ns(0, 0, 1000)
+
+
+def test_write_then_read_back_equals_what_was_written(tmp_path):
+    written = write_synthetic(tmp_path / "a.mcap", runs=3, episodes_per_run=7, seed=1)
+    recs = read_records(tmp_path / "a.mcap")
+    assert not (tmp_path / "a.mcap.partial").exists()
+    assert len(recs.episodes) == 21
+    steps = recs.steps.groupby(["run", "episode"])
+    recg = recs.recognitions.groupby(["run", "episode"])
+    unsafe = recs.unsafe.groupby(["run", "episode"])
+    for f in written:
+        key = (f["run"], f["episode"])
+        st = steps.get_group(key)
+        np.testing.assert_array_equal(st.state.to_numpy(), f["states"])
+        np.testing.assert_array_equal(st.action.to_numpy(), f["actions"])
+        np.testing.assert_array_equal(st.reward.to_numpy(), f["rewards"])
+        np.testing.assert_array_equal(st["flags"].to_numpy(), f["flags"])
+        np.testing.assert_array_equal(st.step.to_numpy(), np.arange(len(f["states"])))
+        np.testing.assert_array_equal(st.collided.to_numpy(), (f["flags"] & S.FLAG_COLLIDED) != 0)
+        rec = f["recognitions"]
+        if len(rec["step"]):
+            r = recg.get_group(key)
+            for col, k in [("step", "step"), ("state", "state"), ("action", "action"),
+                           ("picture", "picture"), ("predicted", "predicted"), ("true", "true")]:
+                np.testing.assert_array_equal(r[col].to_numpy(), rec[k])
+            np.testing.assert_array_equal(r[[f"score_{j}" for j in range(5)]].to_numpy(), rec["scores"])
+        un = f["unsafe_added"]
+        if len(un["step"]):
+            u = unsafe.get_group(key)
+            for k in ("step", "state", "action", "source"):
+                np.testing.assert_array_equal(u[k].to_numpy(), un[k])
+        e = recs.episodes.set_index(["run", "episode"]).loc[key]
+        for k, v in f["summary"].items():
+            assert e[k] == v, k
+    subs = [s for f in written for s in f["_substitutions"]]
+    assert len(recs.substitutions) == len(subs)
+    got = recs.substitutions[["run", "episode", "step", "picture", "category", "position"]].to_dict("records")
+    assert got == sorted(subs, key=lambda s: (s["run"], s["episode"], s["step"]))  # stable per step
+    m = recs.meta
+    assert m.complete and m.closed == {"complete": "true", "episodes": "21", "substitutions": str(len(subs))}
+    assert m.config == {"experiment": "synthetic", "seed": 1, "runs": 3}
+    assert "experiment: synthetic" in m.config_yaml
+    assert m.seeds == [0, 1, 2]
+    assert m.maze["layout"] == LAYOUT_5X5 and m.maze["width"] == 5 and m.maze["categories"][0] == "chair"
+    assert m.obstacles == {r: obstacle_assignment(LAYOUT_5X5, r, 1) for r in range(3)}
+    assert m.pictures == {pid: tiny_png(pid) for pid in range(40)}
+    assert m.versions["mcap"] and m.versions["python"]
+
+
+def test_same_data_gives_the_same_bytes(tmp_path):
+    write_synthetic(tmp_path / "a.mcap", runs=2, episodes_per_run=5)
+    write_synthetic(tmp_path / "b.mcap", runs=2, episodes_per_run=5)
+    assert (tmp_path / "a.mcap").read_bytes() == (tmp_path / "b.mcap").read_bytes()
+
+
+def test_pictures_are_stored_once_per_file(tmp_path):
+    from mcap.reader import make_reader
+
+    write_synthetic(tmp_path / "a.mcap", runs=2, episodes_per_run=20)
+    with open(tmp_path / "a.mcap", "rb") as f:
+        reader = make_reader(f)
+        topics = [ch.topic for _, ch, _ in reader.iter_messages()]
+    pictures = [t for t in topics if t.startswith("/pictures/")]
+    assert len(pictures) == len(set(pictures)) == 40
+    assert topics.count("/episodes") == 40
+
+
+def test_q_values_extra_summary_and_missing_scores_round_trip(tmp_path):
+    q = np.arange(25 * 4, dtype=np.float32).reshape(25, 4) / 7
+    rec = {"step": np.array([1, 2]), "state": np.array([3, 4]), "action": np.array([0, 1]),
+           "picture": np.array([5, 6]), "predicted": np.array([1, 2]), "true": np.array([1, 3]),
+           "scores": np.zeros((0, 0))}
+    with RecordWriter(tmp_path / "q.mcap") as w:
+        w.episode(**_episode(0, 0, q_values=q, recognitions=rec,
+                             summary={"steps": 3, "collisions": 1, "return_": -1.0, "reached_goal": False,
+                                      "prevented": 1, "epsilon": 0.07, "violations": 2}))
+        w.episode(**_episode(0, 1))
+    r = read_records(tmp_path / "q.mcap")
+    np.testing.assert_array_equal(r.q_values[(str(tmp_path / "q.mcap"), 0, 0)], q)
+    assert list(r.episodes.violations.fillna(-1)) == [2.0, -1.0]
+    assert "score_0" not in r.recognitions and list(r.recognitions.correct) == [True, False]
+
+
+def test_bad_input_is_refused_with_a_message_naming_it(tmp_path):
+    with pytest.raises(ValueError, match="end in .mcap"):
+        RecordWriter(tmp_path / "x.bin")
+    with pytest.raises(ValueError, match="unknown cell characters"):
+        RecordWriter(tmp_path / "x.mcap", maze={"layout": ["S.#", "..G"]})
+    with pytest.raises(ValueError, match="lacks \\['orientation'\\]"):
+        RecordWriter(tmp_path / "x.mcap", runs=[[{"cell": 1, "physical": 0, "category": 0, "instance": 0}]])
+    with RecordWriter(tmp_path / "x.mcap") as w:
+        with pytest.raises(TypeError, match="missing fields \\['summary'\\]"):
+            w.episode(**{k: v for k, v in _episode().items() if k != "summary"})
+        with pytest.raises(ValueError, match="actions: length 2 differs"):
+            w.episode(**_episode(actions=np.zeros(2)))
+        w.episode(**_episode())
+        with pytest.raises(ValueError, match="recorded twice"):
+            w.episode(**_episode())
+
+
+def test_an_exception_leaves_a_finished_partial_file(tmp_path):
+    with pytest.raises(RuntimeError):
+        with RecordWriter(tmp_path / "r.mcap", flush_every=1) as w:
+            w.episode(**_episode())
+            raise RuntimeError("trial crashed")
+    assert not (tmp_path / "r.mcap").exists()
+    with pytest.warns(RecordsWarning, match="closed after an error"):
+        r = read_records(tmp_path / "r.mcap.partial")
+    assert len(r.episodes) == 1
+
+
+def _chunks(path: Path) -> list[tuple[int, int, int]]:
+    """(end offset, first log time, last log time) of each chunk record of a finished file."""
+    from mcap.reader import make_reader
+
+    with open(path, "rb") as f:
+        summary = make_reader(f).get_summary()
+    return sorted((ci.chunk_start_offset + ci.chunk_length, ci.message_start_time, ci.message_end_time)
+                  for ci in summary.chunk_indexes)
+
+
+def _chunk_ends(path: Path) -> list[int]:
+    return [c[0] for c in _chunks(path)]
+
+
+def test_a_file_truncated_at_many_points_reads_up_to_its_last_complete_chunk(tmp_path):
+    written = write_synthetic(tmp_path / "full.mcap", runs=2, episodes_per_run=12, flush_every=3)
+    data = (tmp_path / "full.mcap").read_bytes()
+    full = read_records(tmp_path / "full.mcap")
+    chunks = _chunks(tmp_path / "full.mcap")
+    ends = [c[0] for c in chunks]
+    assert len(chunks) >= 1 + 24 // 3  # the pictures, one chunk per 3 episodes (+ late substitutions)
+    times = np.array([S.log_time_ns(f["run"], f["episode"]) for f in written])
+    rng = np.random.default_rng(0)
+    cuts = set(rng.integers(9, len(data) - 1, 60).tolist())
+    cuts |= {e + d for e in ends for d in (-1, 0, 1)}
+    for cut in sorted(cuts):
+        cut_path = tmp_path / "cut.mcap"
+        cut_path.write_bytes(data[:cut])
+        with pytest.warns(RecordsWarning) as caught:
+            r = read_records(cut_path)
+        msg = " ".join(str(w.message) for w in caught)
+        assert str(cut_path) in msg and "truncated" in msg, (cut, msg)
+        # exactly the episodes of the complete chunks before the cut, equal to the full read
+        expected = sum(int(((times >= lo) & (times <= hi)).sum()) for end, lo, hi in chunks[1:] if end <= cut)
+        assert len(r.episodes) == expected, (cut, msg)
+        assert ("no complete episode" in msg) == (expected == 0)
+        assert r.episodes.drop(columns="file").equals(full.episodes.drop(columns="file").iloc[:expected])
+        n_steps = int(full.episodes.steps.iloc[:expected].sum())
+        assert r.steps.drop(columns="file").equals(full.steps.drop(columns="file").iloc[:n_steps])
+        if cut >= ends[0]:
+            assert len(r.meta.pictures) == 40 and r.meta.maze["layout"] == LAYOUT_5X5
+
+
+def test_a_corrupt_chunk_is_skipped_with_a_warning(tmp_path):
+    write_synthetic(tmp_path / "full.mcap", runs=1, episodes_per_run=12, flush_every=3)
+    data = bytearray((tmp_path / "full.mcap").read_bytes())
+    ends = _chunk_ends(tmp_path / "full.mcap")
+    data[ends[2] - 40] ^= 0xFF  # inside the third chunk's compressed data or its message index
+    (tmp_path / "bad.mcap").write_bytes(bytes(data))
+    with pytest.warns(RecordsWarning, match="bad.mcap"):
+        r = read_records(tmp_path / "bad.mcap")
+    assert 9 <= len(r.episodes) <= 12
+
+
+def test_a_killed_writer_loses_at_most_the_episodes_since_its_last_flush(tmp_path):
+    script = f"""
+import os, sys
+sys.path.insert(0, {str(Path(__file__).resolve().parents[1])!r})
+from pipeline.records.synthetic import LAYOUT_5X5, episodes
+from pipeline.records import RecordWriter
+w = RecordWriter({str(tmp_path / 'k.mcap')!r}, maze={{"layout": LAYOUT_5X5}}, flush_every=4)
+for f in episodes(LAYOUT_5X5, runs=1, episodes_per_run=11):
+    f.pop("_substitutions")
+    w.episode(**f)
+os._exit(9)  # killed: no close(), no interpreter clean-up
+"""
+    res = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
+    assert res.returncode == 9, res.stderr
+    assert not (tmp_path / "k.mcap").exists()
+    with pytest.warns(RecordsWarning, match="k.mcap.partial"):
+        r = read_records(tmp_path)  # a folder: the .partial of the killed run is found
+    assert list(r.episodes.episode) == list(range(8))  # flushed after 4 and 8; 3 lost
+
+
+def test_reading_a_folder_and_filtering_one_episode(tmp_path):
+    write_synthetic(tmp_path / "x" / "a.mcap", runs=2, episodes_per_run=5, seed=0)
+    write_synthetic(tmp_path / "x" / "b.mcap", runs=3, episodes_per_run=5, seed=1)
+    r = read_records(tmp_path / "x")
+    assert len(r.files) == 2 and len(r.episodes) == 25
+    assert r.episodes.groupby("file", observed=True).size().tolist() == [10, 15]
+    one = read_records(tmp_path / "x" / "b.mcap", run=2, episode=3)
+    assert len(one.episodes) == 1 and set(one.steps.episode) == {3} and set(one.steps.run) == {2}
+    assert one.steps.equals(r.steps[(r.steps.file == str(tmp_path / "x" / "b.mcap")) & (r.steps.run == 2)
+                                    & (r.steps.episode == 3)].reset_index(drop=True)
+                            .assign(file=lambda d: d.file.cat.remove_unused_categories()))
+
+
+def test_a_file_that_is_no_mcap_is_refused(tmp_path):
+    (tmp_path / "n.mcap").write_bytes(b"hello world, not mcap")
+    with pytest.raises(ValueError, match="not an MCAP file"):
+        read_records(tmp_path / "n.mcap")
+    with pytest.raises(FileNotFoundError):
+        read_records(tmp_path / "missing.mcap")
+
+
+def test_rerun_mcap_convert_yields_the_pictures(tmp_path):
+    import rerun.chunk
+
+    write_synthetic(tmp_path / "a.mcap", runs=1, episodes_per_run=3)
+    rerun_cli = Path(sys.executable).with_name("rerun")
+    res = subprocess.run([str(rerun_cli), "mcap", "convert", str(tmp_path / "a.mcap"), "-o",
+                          str(tmp_path / "a.rrd")], capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, res.stderr
+    images = {}
+    episodes_seen = 0
+    for ch in rerun.chunk.RrdReader(tmp_path / "a.rrd").stream().to_chunks():
+        rb = ch.to_record_batch()
+        path = str(ch.entity_path)
+        if "EncodedImage:blob" in rb.schema.names:
+            images[path] = rb.column("EncodedImage:blob").to_pylist()
+        if path == "/episodes" and "fsrl.records.Episode:message" in rb.schema.names:
+            episodes_seen += ch.num_rows
+    assert len(images) == 40
+    blob = images["/pictures/7"][0]
+    flat = blob[0] if isinstance(blob, list) and blob and isinstance(blob[0], list) else blob
+    assert bytes(flat) == tiny_png(7)
+    assert episodes_seen == 3
