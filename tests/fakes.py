@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from pipeline.rl.sink import split_batch
 from pipeline.world.pictures import N_CATEGORIES, N_PICTURES, picture_category
 
 TRUE = np.array([picture_category(p) for p in range(N_PICTURES)], dtype=np.int8)
@@ -52,14 +53,16 @@ def always_wrong():
 
 class ListSink:
     def __init__(self):
-        self.episodes: list[dict] = []
+        self.batches: list[dict] = []
+        self.all_episodes: list[dict] = []
         self.substitutions: list[dict] = []
 
-    def episode(self, **fields):
-        self.episodes.append(fields)
+    def episodes(self, **batch):
+        self.batches.append(batch)
+        self.all_episodes.extend(split_batch(batch))
 
     def substitution(self, **fields):
         self.substitutions.append(fields)
 
     def by_run(self, run):
-        return sorted((e for e in self.episodes if e["run"] == run), key=lambda e: e["episode"])
+        return sorted((e for e in self.all_episodes if e["run"] == run), key=lambda e: e["episode"])

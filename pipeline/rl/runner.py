@@ -108,44 +108,37 @@ class TrialResult:
 
 
 def _emit(sink, r, run_id, first_ep, last_ep, res, buf, scores, cursors):
-    """Hand episodes ``first_ep..last_ep-1`` of run ``r`` to the sink, splitting the buffers."""
-    steps = res["steps"][r]
-    pos = 0
-    for ep in range(first_ep, last_ep):
-        n = int(steps[ep])
-        sl = slice(pos, pos + n)
-        pos += n
-        rec_lo = cursors["rec"][r]
-        rec_hi = rec_lo
-        while rec_hi < buf["rec_len"][r] and buf["rec"][r, rec_hi, 0] == ep:
-            rec_hi += 1
-        add_lo = cursors["add"][r]
-        add_hi = add_lo
-        while add_hi < buf["add_len"][r] and buf["add"][r, add_hi, 0] == ep:
-            add_hi += 1
-        cursors["rec"][r], cursors["add"][r] = rec_hi, add_hi
-        rec = buf["rec"][r, rec_lo:rec_hi]
-        add = buf["add"][r, add_lo:add_hi]
-        sc = scores[r][rec_lo:rec_hi] if scores[r] else []
-        sink.episode(
-            run=run_id, episode=ep,
-            states=buf["trace_s"][r, sl].copy(), actions=buf["trace_a"][r, sl].copy(),
-            rewards=buf["trace_r"][r, sl].copy(), flags=buf["trace_f"][r, sl].copy(),
+    """Hand episodes ``first_ep..last_ep-1`` of run ``r`` to the sink as one columnar batch."""
+    if last_ep > first_ep:
+        eps = slice(first_ep, last_ep)
+        steps = res["steps"][r, eps]
+        n = int(steps.sum())
+        lo, hi = cursors["rec"][r], int(buf["rec_len"][r])
+        rec = buf["rec"][r, lo:hi]
+        part = scores[r][lo:hi]
+        sc = np.stack(part).astype(np.float32) if len(part) == hi - lo and hi > lo else np.zeros((hi - lo, 0), np.float32)
+        alo, ahi = cursors["add"][r], int(buf["add_len"][r])
+        add = buf["add"][r, alo:ahi]
+        cursors["rec"][r], cursors["add"][r] = hi, ahi
+        sink.episodes(
+            run=run_id, episode=np.arange(first_ep, last_ep, dtype=np.int32), steps=steps.astype(np.int32),
+            states=buf["trace_s"][r, :n].copy(), actions=buf["trace_a"][r, :n].copy(),
+            rewards=buf["trace_r"][r, :n].copy(), flags=buf["trace_f"][r, :n].copy(),
             recognitions={
-                "step": rec[:, 1].astype(np.int32), "state": rec[:, 2].astype(np.int32),
-                "action": rec[:, 3].astype(np.int8), "picture": rec[:, 4].astype(np.int16),
-                "predicted": rec[:, 5].astype(np.int8), "true": rec[:, 6].astype(np.int8),
-                "scores": np.asarray(sc, dtype=np.float32).reshape(len(rec), -1) if len(sc) else np.zeros((len(rec), 0), np.float32),
+                "episode": rec[:, 0].astype(np.int32), "step": rec[:, 1].astype(np.int32),
+                "state": rec[:, 2].astype(np.int32), "action": rec[:, 3].astype(np.int8),
+                "picture": rec[:, 4].astype(np.int16), "predicted": rec[:, 5].astype(np.int8),
+                "true": rec[:, 6].astype(np.int8), "scores": sc,
             },
             unsafe_added={
-                "step": add[:, 1].astype(np.int32), "state": add[:, 2].astype(np.int32),
-                "action": add[:, 3].astype(np.int8), "source": add[:, 4].astype(np.int8),
+                "episode": add[:, 0].astype(np.int32), "step": add[:, 1].astype(np.int32),
+                "state": add[:, 2].astype(np.int32), "action": add[:, 3].astype(np.int8),
+                "source": add[:, 4].astype(np.int8),
             },
             summary={
-                "steps": n, "collisions": int(res["col"][r, ep]), "return_": float(res["ret"][r, ep]),
-                "reached_goal": bool(res["goal"][r, ep]), "prevented": int(res["prev"][r, ep]),
-                "epsilon": float(res["eps"][r, ep]),
-                "greedy_optimal": bool(res["greedy"][r, ep]),
+                "collisions": res["col"][r, eps].copy(), "return_": res["ret"][r, eps].copy(),
+                "reached_goal": res["goal"][r, eps].copy(), "prevented": res["prev"][r, eps].copy(),
+                "epsilon": res["eps"][r, eps].copy(), "greedy_optimal": res["greedy"][r, eps].copy(),
             },
         )
     buf["trace_len"][r] = 0
@@ -255,7 +248,7 @@ def run_trials(layout: Layout, method: MethodSpec, runs: int, episodes: int, see
                     again.append(r)
                 elif status[r] == kernel.STATUS_FLUSH:
                     _emit(sink, r, run_offset + r, emitted[r], int(cur[r, 0]),
-                          {k: res[k] for k in ("steps", "col", "ret", "goal", "prev", "eps", "greedy")}, buf, scores, cursors)
+                          res, buf, scores, cursors)
                     emitted[r] = int(cur[r, 0])
                     again.append(r)
             pending = np.array(again, dtype=np.int64)
@@ -271,11 +264,16 @@ def run_trials(layout: Layout, method: MethodSpec, runs: int, episodes: int, see
             before = int(cur[group, 0].sum())
             advance(group, limit)
             bar.update(int(cur[group, 0].sum()) - before)
+            if record:  # hand finished episodes over as we go: a killed run loses little
+                for r in group:
+                    r = int(r)
+                    _emit(sink, r, run_offset + r, emitted[r], int(cur[r, 0]), res, buf, scores, cursors)
+                    emitted[r] = int(cur[r, 0])
     bar.close()
     if record:
         for r in range(runs):
             _emit(sink, r, run_offset + r, emitted[r], episodes,
-                  {k: res[k] for k in ("steps", "col", "ret", "goal", "prev", "eps", "greedy")}, buf, scores, cursors)
+                  res, buf, scores, cursors)
     return TrialResult(layout, method, seed, res["steps"], res["col"], res["ret"], res["goal"],
                        res["prev"], res["greedy"], res["eps"], [w.placement for w in worlds],
                        unsafe.reshape(runs, -1).sum(axis=1))

@@ -1,12 +1,16 @@
 """What the trial runner hands to whoever records its episodes (DESIGN.md "Records").
 
-The runner calls ``sink.episode(**fields)`` once per finished episode of every run, in run-major,
-episode order per run (episodes of different runs may interleave), and ``sink.substitution(...)``
-whenever a run's dynamic support set changed. ``rl`` does not import ``records``: the MCAP writer
-implements this protocol, and so can anything else (a list in a test).
+The runner calls ``sink.episodes(**batch)`` with a batch of consecutive finished episodes of one
+run (columnar: the steps of all the batch's episodes concatenated, so a recorder encodes arrays,
+not Python objects per episode), in episode order per run (batches of different runs may
+interleave), and ``sink.substitution(...)`` whenever a run's dynamic support set changed. ``rl``
+does not import ``records``: the MCAP writer implements this protocol, and so can anything else
+(a list in a test; :func:`split_batch` gives one dict per episode).
 
-Episode fields (numpy arrays are 1-D, one entry per executed step unless stated):
-    run, episode                 int
+Batch fields (numpy arrays):
+    run                          int
+    episode                      int32[E]   episode indices (consecutive)
+    steps                        int32[E]   executed steps of each episode (sum = T)
     states                       int32[T]   cell index ``row * width + col`` before the step
     actions                      int8[T]    0 N, 1 E, 2 S, 3 W (the executed action)
     rewards                      float32[T]
@@ -15,17 +19,21 @@ Episode fields (numpy arrays are 1-D, one entry per executed step unless stated)
                                             (self-recovery reverted the robot), bit 3 GOAL,
                                             bit 4 TRUNCATED (200-step limit)
     recognitions                 dict of arrays, one entry per picture seen:
-        step int32, state int32, action int8, picture int16, predicted int8, true int8,
-        scores float32[n, C] (or empty when the recogniser gives none)
+        episode int32, step int32, state int32, action int8, picture int16, predicted int8,
+        true int8, scores float32[n, C] (C = 0 when the recogniser gives none)
     unsafe_added                 dict of arrays, one entry per (s, a) added to A_d:
-        step int32, state int32, action int8, source int8 (0 recognition, 1 collision, 2 ssrl rule)
-    summary                      dict: steps, collisions, return_, reached_goal, prevented,
-                                 epsilon (at the end of the episode), greedy_optimal (the
-                                 greedy policy walks an optimal path after this episode)
+        episode int32, step int32, state int32, action int8, source int8 (0 recognition,
+        1 collision, 2 ssrl rule)
+    summary                      dict of arrays [E]: collisions int32, return_ float32,
+                                 reached_goal bool, prevented int32, epsilon float32 (at the
+                                 end of the episode), greedy_optimal bool (the greedy policy
+                                 walks an optimal path after this episode)
 """
 from __future__ import annotations
 
 from typing import Any, Protocol
+
+import numpy as np
 
 FLAG_RESELECTED = 1
 FLAG_COLLIDED = 2
@@ -39,7 +47,29 @@ SOURCE_SSRL_RULE = 2
 
 
 class EpisodeSink(Protocol):
-    def episode(self, **fields: Any) -> None: ...
+    def episodes(self, **batch: Any) -> None: ...
 
     def substitution(self, *, run: int, episode: int, step: int, picture: int, category: int,
                      position: int) -> None: ...
+
+
+def split_batch(batch: dict) -> list[dict]:
+    """One dict per episode of a batch: run, episode, steps, states, actions, rewards, flags,
+    recognitions, unsafe_added (each a dict of arrays) and summary (a dict of scalars)."""
+    out = []
+    ends = np.cumsum(batch["steps"])
+    starts = ends - batch["steps"]
+    rec, add, summ = batch["recognitions"], batch["unsafe_added"], batch["summary"]
+    for i, ep in enumerate(batch["episode"]):
+        sl = slice(int(starts[i]), int(ends[i]))
+        rsel = rec["episode"] == ep
+        asel = add["episode"] == ep
+        out.append({
+            "run": int(batch["run"]), "episode": int(ep), "steps": int(batch["steps"][i]),
+            "states": batch["states"][sl], "actions": batch["actions"][sl],
+            "rewards": batch["rewards"][sl], "flags": batch["flags"][sl],
+            "recognitions": {k: v[rsel] for k, v in rec.items()},
+            "unsafe_added": {k: v[asel] for k, v in add.items()},
+            "summary": {k: v[i].item() for k, v in summ.items()},
+        })
+    return out
