@@ -70,6 +70,7 @@ def validate(cfg: DictConfig) -> PlanConfig:
         raise ValueError(f"config key 'catalogue.fill' must be in (0, 1], got {cc.fill}")
     _positive_int(cfg, "quality.shadow_size")
     _positive_int(cfg, "quality.offsamples", 0)
+    _positive_int(cfg, "quality.supersample")
     return PlanConfig(int(cfg.seed), tuple(cats), int(cfg.n_train_classes), int(cfg.n_val_classes),
                       int(cfg.per_class), int(cfg.views_per_instance), int(cfg.support_per_category), mz, cc)
 
@@ -130,7 +131,8 @@ def run(cfg: DictConfig) -> dict:
         return tqdm(it, total=n, desc="render batches", unit="batch")
 
     n = render_all(batches, str(out), int(cfg.size), int(cfg.workers), int(cfg.quality.offsamples),
-                   int(cfg.quality.shadow_size), float(cfg.maze.cell), progress=bar)
+                   int(cfg.quality.shadow_size), float(cfg.maze.cell), int(cfg.quality.supersample),
+                   progress=bar)
     missing = [r["file"] for r in rows if not (out / r["file"]).is_file()]
     if missing:
         raise RuntimeError(f"{len(missing)} pictures missing after rendering, e.g. {missing[:3]}")

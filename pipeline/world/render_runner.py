@@ -39,13 +39,13 @@ def write_atomic(path: Path, data: bytes) -> None:
     os.replace(tmp, path)
 
 
-def render_batch(batch: Batch, out_dir: str, size: int, offsamples: int = 4, shadow_size: int = 512,
-                 cell: float = 1.0) -> int:
+def render_batch(batch: Batch, out_dir: str, size: int, offsamples: int = 0, shadow_size: int = 512,
+                 cell: float = 1.0, supersample: int = 2) -> int:
     """Render every shot of ``batch`` into ``out_dir``; returns the number of pictures."""
     spec, layout = build_scene(batch.setting, batch.objects, cell=cell, shadow_size=shadow_size,
                                offsamples=offsamples)
     root = Path(out_dir)
-    with SceneRenderer(spec, layout, size) as r:
+    with SceneRenderer(spec, layout, size, supersample) as r:
         for shot, rel in zip(batch.shots, batch.files):
             write_atomic(root / rel, png_bytes(r.render(shot)))
     return len(batch.shots)
@@ -55,13 +55,13 @@ def _worker_init(threads: int) -> None:
     os.environ.setdefault("LP_NUM_THREADS", str(threads))
 
 
-def render_all(batches: list[Batch], out_dir: str, size: int, workers: int = 2, offsamples: int = 4,
-               shadow_size: int = 512, cell: float = 1.0,
+def render_all(batches: list[Batch], out_dir: str, size: int, workers: int = 2, offsamples: int = 0,
+               shadow_size: int = 512, cell: float = 1.0, supersample: int = 2,
                progress: Callable[[Iterable, int], Iterable] | None = None) -> int:
     """Render all batches (largest first, for load balance) with ``workers`` processes."""
     order = sorted(range(len(batches)), key=lambda i: -len(batches[i].shots))
     total = sum(len(b.shots) for b in batches)
-    kw = dict(offsamples=offsamples, shadow_size=shadow_size, cell=cell)
+    kw = dict(offsamples=offsamples, shadow_size=shadow_size, cell=cell, supersample=supersample)
     done = 0
     if workers <= 1:
         it = (render_batch(batches[i], out_dir, size, **kw) for i in order)

@@ -10,6 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from PIL import Image
 
 from pipeline.world.camera import CameraPose
 from pipeline.world.renderer_env import make_renderer, mujoco
@@ -49,11 +50,19 @@ class Shot:
 
 
 class SceneRenderer:
-    """Renders :class:`Shot` s of one scene at ``size`` x ``size`` pixels (RGB uint8)."""
+    """Renders :class:`Shot` s of one scene at ``size`` x ``size`` pixels (RGB uint8).
 
-    def __init__(self, spec, layout: SceneLayout, size: int):
+    Anti-aliasing by supersampling: the scene is drawn at ``size * supersample`` pixels and each
+    ``supersample`` x ``supersample`` block averaged (PIL ``reduce``). On llvmpipe this costs
+    about half of 4x MSAA for the same smoothing.
+    """
+
+    def __init__(self, spec, layout: SceneLayout, size: int, supersample: int = 1):
         if int(size) <= 0:
             raise ValueError(f"picture size must be positive, got {size}")
+        if int(supersample) <= 0:
+            raise ValueError(f"supersample must be a positive integer, got {supersample}")
+        self.supersample = int(supersample)
         self.layout = layout
         self.model = spec.compile()
         self.data = mujoco.MjData(self.model)
@@ -68,7 +77,10 @@ class SceneRenderer:
         self._backdrop = m.geom("backdrop").id if layout.has_backdrop else -1
         self._cam = mujoco.MjvCamera()
         self._cam.type = mujoco.mjtCamera.mjCAMERA_FREE
-        self._renderer = make_renderer(m, int(size), int(size))
+        side = int(size) * self.supersample
+        if side > min(m.vis.global_.offwidth, m.vis.global_.offheight):
+            m.vis.global_.offwidth = m.vis.global_.offheight = side
+        self._renderer = make_renderer(m, side, side)
 
     def close(self) -> None:
         if self._renderer is not None:
@@ -124,4 +136,7 @@ class SceneRenderer:
         self._cam.elevation = cam.elevation
         mujoco.mj_kinematics(m, self.data)
         self._renderer.update_scene(self.data, camera=self._cam)
-        return self._renderer.render().copy()
+        img = self._renderer.render()
+        if self.supersample > 1:
+            return np.asarray(Image.fromarray(img).reduce(self.supersample))
+        return img.copy()

@@ -7,7 +7,10 @@ from __future__ import annotations
 
 import ctypes.util
 import os
+import sys
 
+# mujoco reads MUJOCO_GL once, at import: remember whether someone imported it before us unset
+_IMPORTED_TOO_EARLY = "mujoco" in sys.modules and "MUJOCO_GL" not in os.environ
 os.environ.setdefault("MUJOCO_GL", "egl")
 if os.environ["MUJOCO_GL"] in ("egl", "osmesa"):
     os.environ.setdefault("PYOPENGL_PLATFORM", os.environ["MUJOCO_GL"])
@@ -50,6 +53,11 @@ def make_renderer(model, height: int, width: int):
     except Exception as exc:  # EGL/OSMesa failures surface as assorted exception types
         gl = os.environ.get("MUJOCO_GL", "")
         fix = _HINTS.get(gl, _HINTS["egl"])[1]
+        if _IMPORTED_TOO_EARLY:
+            raise RendererUnavailable(
+                "mujoco was imported before MUJOCO_GL was set, so it chose a windowed backend "
+                f"({type(exc).__name__}: {exc}). Set MUJOCO_GL=egl in the environment (export MUJOCO_GL=egl) "
+                "or import pipeline.world.renderer_env before mujoco.") from exc
         raise RendererUnavailable(
             f"could not start MuJoCo's offscreen renderer with MUJOCO_GL={gl} ({type(exc).__name__}: {exc}). "
             f"Install the system packages: {fix}; or try MUJOCO_GL=osmesa with libosmesa6.") from exc

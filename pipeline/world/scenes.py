@@ -110,7 +110,7 @@ def _add_part(spec, body, part: Part, name: str, mesh_name: str) -> None:
 
 
 def build_scene(setting: str, objects: list[ObjectModel], cell: float = 1.0, shadow_size: int = 512,
-                offsamples: int = 4):
+                offsamples: int = 0):
     """``(MjSpec, SceneLayout)`` of ``objects`` (all at the origin) in ``setting``."""
     if setting not in SETTINGS:
         raise ValueError(f"unknown setting {setting!r}; expected one of {SETTINGS}")
