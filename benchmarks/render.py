@@ -32,7 +32,7 @@ def per_setting(size: int, supersample: int) -> dict:
     out = {}
     for b in batches:
         t0 = time.perf_counter()
-        spec, layout = build_scene(b.setting, b.objects)
+        spec, layout = build_scene(b.setting, b.objects, shadows=b.setting != "studio")  # as the stage
         r = SceneRenderer(spec, layout, size, supersample)
         t1 = time.perf_counter()
         r.render(b.shots[0])

@@ -71,6 +71,9 @@ def validate(cfg: DictConfig) -> PlanConfig:
     _positive_int(cfg, "quality.shadow_size")
     _positive_int(cfg, "quality.offsamples", 0)
     _positive_int(cfg, "quality.supersample")
+    for key in ("quality.studio_shadows", "contact_sheets"):
+        if not isinstance(OmegaConf.select(cfg, key), bool):
+            raise ValueError(f"config key '{key}' must be true or false, got {OmegaConf.select(cfg, key)!r}")
     return PlanConfig(int(cfg.seed), tuple(cats), int(cfg.n_train_classes), int(cfg.n_val_classes),
                       int(cfg.per_class), int(cfg.views_per_instance), int(cfg.support_per_category), mz, cc)
 
@@ -132,7 +135,7 @@ def run(cfg: DictConfig) -> dict:
 
     n = render_all(batches, str(out), int(cfg.size), int(cfg.workers), int(cfg.quality.offsamples),
                    int(cfg.quality.shadow_size), float(cfg.maze.cell), int(cfg.quality.supersample),
-                   progress=bar)
+                   bool(cfg.quality.studio_shadows), progress=bar)
     missing = [r["file"] for r in rows if not (out / r["file"]).is_file()]
     if missing:
         raise RuntimeError(f"{len(missing)} pictures missing after rendering, e.g. {missing[:3]}")

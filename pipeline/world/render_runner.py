@@ -40,10 +40,11 @@ def write_atomic(path: Path, data: bytes) -> None:
 
 
 def render_batch(batch: Batch, out_dir: str, size: int, offsamples: int = 0, shadow_size: int = 512,
-                 cell: float = 1.0, supersample: int = 2) -> int:
+                 cell: float = 1.0, supersample: int = 2, studio_shadows: bool = False) -> int:
     """Render every shot of ``batch`` into ``out_dir``; returns the number of pictures."""
+    shadows = batch.setting != "studio" or studio_shadows
     spec, layout = build_scene(batch.setting, batch.objects, cell=cell, shadow_size=shadow_size,
-                               offsamples=offsamples)
+                               offsamples=offsamples, shadows=shadows)
     root = Path(out_dir)
     with SceneRenderer(spec, layout, size, supersample) as r:
         for shot, rel in zip(batch.shots, batch.files):
@@ -56,12 +57,13 @@ def _worker_init(threads: int) -> None:
 
 
 def render_all(batches: list[Batch], out_dir: str, size: int, workers: int = 2, offsamples: int = 0,
-               shadow_size: int = 512, cell: float = 1.0, supersample: int = 2,
+               shadow_size: int = 512, cell: float = 1.0, supersample: int = 2, studio_shadows: bool = False,
                progress: Callable[[Iterable, int], Iterable] | None = None) -> int:
     """Render all batches (largest first, for load balance) with ``workers`` processes."""
     order = sorted(range(len(batches)), key=lambda i: -len(batches[i].shots))
     total = sum(len(b.shots) for b in batches)
-    kw = dict(offsamples=offsamples, shadow_size=shadow_size, cell=cell, supersample=supersample)
+    kw = dict(offsamples=offsamples, shadow_size=shadow_size, cell=cell, supersample=supersample,
+              studio_shadows=studio_shadows)
     done = 0
     if workers <= 1:
         it = (render_batch(batches[i], out_dir, size, **kw) for i in order)

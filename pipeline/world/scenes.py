@@ -110,8 +110,9 @@ def _add_part(spec, body, part: Part, name: str, mesh_name: str) -> None:
 
 
 def build_scene(setting: str, objects: list[ObjectModel], cell: float = 1.0, shadow_size: int = 512,
-                offsamples: int = 0):
-    """``(MjSpec, SceneLayout)`` of ``objects`` (all at the origin) in ``setting``."""
+                offsamples: int = 0, shadows: bool = True):
+    """``(MjSpec, SceneLayout)`` of ``objects`` (all at the origin) in ``setting``; ``shadows``
+    says whether the key light casts shadows (they double the drawing time on llvmpipe)."""
     if setting not in SETTINGS:
         raise ValueError(f"unknown setting {setting!r}; expected one of {SETTINGS}")
     spec = mujoco.MjSpec()
@@ -160,6 +161,8 @@ def build_scene(setting: str, objects: list[ObjectModel], cell: float = 1.0, sha
         wb.add_light(name="fill", type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL, pos=[0, 0, 4], dir=[-0.4, 0.5, -0.6],
                      diffuse=[0.3, 0.3, 0.3], specular=[0.0, 0.0, 0.0], castshadow=False)
         has_backdrop = True
+    for light in spec.lights:
+        light.castshadow = bool(shadows) and light.name == "key"
     spec.visual.headlight.ambient = [0.1, 0.1, 0.1]
     spec.visual.headlight.diffuse = [0.2, 0.2, 0.2]
     spec.visual.headlight.specular = [0.0, 0.0, 0.0]
