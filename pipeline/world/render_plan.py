@@ -1,0 +1,183 @@
+"""What to render: batches of pictures (one scene, one renderer each) and their manifest rows.
+
+* query (paper section 4.1, Figure 6 middle): for each category, geometric instance 0 stands in
+  the maze; instance 0 is photographed unturned and instance 1 is the same object turned 45
+  degrees clockwise; each from world sides N, E, S, W (faces 0..3) by the robot's camera at a
+  fixed distance and height. 5 x 2 x 4 = 40 pictures, ids from ``pictures.picture_id``.
+* support (Figure 6 right): per category ``support_per_category`` OTHER geometric instances
+  (instance ids 2, 3, ...), one catalogue picture each: studio backdrop, bright light, raised
+  camera, a three-quarter front view, object framed to fill the picture.
+* train / val: meta-training archetypes (``metaset.py``), ``per_class`` pictures per class from
+  ``ceil(per_class / views_per_instance)`` instances, random view, colour, light, background.
+
+Every random draw comes from a ``SeedSequence`` keyed by (seed, purpose, indices), so a picture
+does not depend on which worker renders it or in which order.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from pipeline.world.camera import CameraPose, framing_distance, robot_camera
+from pipeline.world.metaset import Archetype, build_meta_instance, jitter_palette, make_archetypes
+from pipeline.world.obstacle_models import build_obstacle, category_index, hsv, obstacle_seed
+from pipeline.world.pictures import CATEGORIES, INSTANCES_PER_CATEGORY, N_FACES, picture_id
+from pipeline.world.renderer import Background, Lighting, Shot
+from pipeline.world.scenes import BACKGROUND_MATERIALS
+from pipeline.world.shapes import ObjectModel
+
+MANIFEST_COLUMNS = ("split", "category", "class_name", "instance", "face", "orientation_deg", "picture_id", "file")
+SPLITS = ("query", "support", "train", "val")
+QUERY_ORIENTATIONS_DEG = (0.0, 45.0)  # instance 1 = instance 0 turned 45 degrees clockwise
+
+
+@dataclass(frozen=True)
+class MazeCamera:
+    cell: float = 1.0
+    camera_distance: float = 1.0
+    camera_height: float = 0.35
+    target_height: float = 0.22
+    fovy: float = 55.0
+
+
+@dataclass(frozen=True)
+class CatalogueCamera:
+    fovy: float = 40.0
+    elevation: tuple[float, float] = (-35.0, -20.0)
+    turn: tuple[float, float] = (20.0, 50.0)
+    fill: float = 0.8
+
+
+@dataclass(frozen=True)
+class PlanConfig:
+    seed: int = 0
+    categories: tuple[str, ...] = CATEGORIES
+    n_train_classes: int = 64
+    n_val_classes: int = 16
+    per_class: int = 60
+    views_per_instance: int = 3
+    support_per_category: int = 5
+    maze: MazeCamera = MazeCamera()
+    catalogue: CatalogueCamera = CatalogueCamera()
+
+
+@dataclass
+class Batch:
+    """Pictures sharing one scene (and so one compiled model and one renderer)."""
+
+    name: str
+    setting: str
+    objects: list[ObjectModel]
+    shots: list[Shot] = field(default_factory=list)
+    files: list[str] = field(default_factory=list)
+
+
+def _rng(*key: int) -> np.random.Generator:
+    return np.random.default_rng(np.random.SeedSequence([int(k) for k in key]))
+
+
+def _row(split, category, class_name, instance, face, orientation, pid, file) -> dict:
+    return dict(zip(MANIFEST_COLUMNS, (split, int(category), class_name, int(instance), int(face),
+                                       round(float(orientation), 3), int(pid), file)))
+
+
+def query_batch(cfg: PlanConfig) -> tuple[Batch, list[dict]]:
+    cats = [category_index(c) for c in cfg.categories]
+    objs = [build_obstacle(c, np.random.default_rng(obstacle_seed(cfg.seed, c, 0))) for c in cats]
+    batch, rows = Batch("query", "maze", objs), []
+    mz = cfg.maze
+    for k, c in enumerate(cats):
+        for inst in range(INSTANCES_PER_CATEGORY):
+            orient = QUERY_ORIENTATIONS_DEG[inst]
+            for face in range(N_FACES):
+                cam = robot_camera(face, mz.camera_distance, mz.camera_height, mz.target_height, mz.fovy)
+                pid = picture_id(c, inst, face)
+                f = f"query/{CATEGORIES[c]}/q{pid:02d}_i{inst}_f{face}.png"
+                batch.shots.append(Shot(k, -orient, objs[k].palette, cam))
+                batch.files.append(f)
+                rows.append(_row("query", c, CATEGORIES[c], inst, face, orient, pid, f))
+    return batch, rows
+
+
+def support_batch(cfg: PlanConfig) -> tuple[Batch, list[dict]]:
+    cats = [category_index(c) for c in cfg.categories]
+    batch, rows = Batch("support", "catalogue", []), []
+    cc = cfg.catalogue
+    for c in cats:
+        for j in range(cfg.support_per_category):
+            inst = INSTANCES_PER_CATEGORY + j  # never a query instance
+            obj = build_obstacle(c, np.random.default_rng(obstacle_seed(cfg.seed, c, inst)))
+            batch.objects.append(obj)
+            r = _rng(cfg.seed, 4, c, inst)
+            turn = float(r.uniform(*cc.turn)) * (1 if r.random() < 0.5 else -1)
+            h, rad = obj.extent()
+            cam = CameraPose((0.0, 0.0, h * 0.45), framing_distance(h, rad, cc.fovy, cc.fill),
+                             -90.0 + float(r.uniform(-5, 5)), float(r.uniform(*cc.elevation)), cc.fovy)
+            bg = hsv(r.uniform(0, 1), r.uniform(0.0, 0.12), r.uniform(0.85, 1.0))
+            shot = Shot(len(batch.objects) - 1, turn, obj.palette, cam,
+                        Lighting((float(r.uniform(-0.3, 0.3)), 0.6, -1.0), (0.8, 0.8, 0.8), (0.5, 0.5, 0.5)),
+                        Background(bg, "bg_plain", bg, "bg_plain"))
+            f = f"support/{CATEGORIES[c]}/s_i{inst}.png"
+            batch.shots.append(shot)
+            batch.files.append(f)
+            rows.append(_row("support", c, CATEGORIES[c], inst, -1, -turn, -1, f))
+    return batch, rows
+
+
+def meta_batch(cfg: PlanConfig, split: str, index: int, arch: Archetype) -> tuple[Batch, list[dict]]:
+    """One meta-training class: ``per_class`` studio pictures of jittered instances."""
+    sid = SPLITS.index(split)
+    n_inst = math.ceil(cfg.per_class / cfg.views_per_instance)
+    objs = [build_meta_instance(arch, _rng(cfg.seed, 5, sid, index, i)) for i in range(n_inst)]
+    batch, rows = Batch(f"{split}{index:03d}", "studio", objs), []
+    for k in range(cfg.per_class):
+        i = k // cfg.views_per_instance
+        r = _rng(cfg.seed, 6, sid, index, k)
+        yaw = float(r.uniform(0, 360))
+        h, rad = objs[i].extent()
+        fovy = float(r.uniform(35, 55))
+        dist = framing_distance(h, rad, fovy, float(r.uniform(0.55, 0.9)))
+        look = (float(r.normal(0, 0.03)), float(r.normal(0, 0.03)), h * float(r.uniform(0.4, 0.55)))
+        cam = CameraPose(look, dist, float(r.uniform(0, 360)), float(r.uniform(-45, -5)), fovy)
+        la, le = r.uniform(0, 2 * np.pi), r.uniform(0.4, 1.4)
+        key = (float(np.cos(la) * np.cos(le)), float(np.sin(la) * np.cos(le)), -float(np.sin(le)))
+        inten = float(r.uniform(0.6, 1.0))
+        tint = hsv(r.uniform(0, 1), r.uniform(0, 0.25), 1.0)
+        amb = float(r.uniform(0.3, 0.5))
+        light = Lighting(key, tuple(inten * t for t in tint), (amb, amb, amb))
+        bgr = Background(hsv(r.uniform(0, 1), r.uniform(0, 0.6), r.uniform(0.2, 0.95)),
+                         str(r.choice(BACKGROUND_MATERIALS)),
+                         hsv(r.uniform(0, 1), r.uniform(0, 0.6), r.uniform(0.2, 0.95)),
+                         str(r.choice(BACKGROUND_MATERIALS)))
+        batch.shots.append(Shot(i, yaw, jitter_palette(arch, r), cam, light, bgr))
+        f = f"{split}/c{index:03d}/p{k:03d}.png"
+        batch.files.append(f)
+        rows.append(_row(split, index, arch.name, i, -1, -yaw % 360, -1, f))
+    return batch, rows
+
+
+def make_plan(cfg: PlanConfig) -> tuple[list[Batch], list[dict]]:
+    """All batches and the manifest rows (in manifest order: query, support, train, val)."""
+    for key in ("n_train_classes", "n_val_classes", "per_class", "views_per_instance", "support_per_category"):
+        v = getattr(cfg, key)
+        if not isinstance(v, (int, np.integer)) or v < (0 if key.startswith("n_") else 1):
+            raise ValueError(f"{key} must be a {'non-negative' if key.startswith('n_') else 'positive'} integer, got {v!r}")
+    if not cfg.categories:
+        raise ValueError("categories must name at least one category")
+    for c in cfg.categories:
+        category_index(c)
+    batches, rows = [], []
+    for make in (query_batch, support_batch):
+        b, r = make(cfg)
+        batches.append(b)
+        rows += r
+    archs = make_archetypes(cfg.n_train_classes + cfg.n_val_classes, cfg.seed)
+    for split, lo, hi in (("train", 0, cfg.n_train_classes),
+                          ("val", cfg.n_train_classes, cfg.n_train_classes + cfg.n_val_classes)):
+        for idx, arch in enumerate(archs[lo:hi]):
+            b, r = meta_batch(cfg, split, idx, arch)
+            batches.append(b)
+            rows += r
+    return batches, rows

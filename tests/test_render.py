@@ -1,0 +1,186 @@
+"""Render stage: determinism, counts, split disjointness, query faces, bad input, atomic writes."""
+from __future__ import annotations
+
+import csv
+import hashlib
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hydra import compose, initialize_config_dir
+
+from pipeline.world.camera import side_azimuth
+from pipeline.world.metaset import make_archetypes
+from pipeline.world.obstacle_models import build_obstacle, category_index
+from pipeline.world.pictures import CATEGORIES, N_PICTURES, picture_id
+from pipeline.world.render_plan import MANIFEST_COLUMNS, PlanConfig, make_plan
+from pipeline.world.render_runner import render_batch, write_atomic
+
+CONF = str(Path(__file__).resolve().parents[1] / "conf")
+SMALL = ["n_train_classes=3", "n_val_classes=2", "per_class=4", "views_per_instance=2", "size=32",
+         "contact_sheets=true", "contact_train_classes=2", "contact_per_class=3"]
+
+
+def _cfg(tmp: Path, *extra: str):
+    with initialize_config_dir(config_dir=CONF, version_base="1.3"):
+        return compose("render", overrides=[*SMALL, f"out_dir={tmp / 'images'}", f"figures_dir={tmp / 'figures'}",
+                                            *extra])
+
+
+def _run(tmp: Path, *extra: str) -> dict:
+    from pipeline.stages.render import run
+    return run(_cfg(tmp, *extra))
+
+
+def _manifest(out: Path) -> list[dict]:
+    with open(out / "manifest.csv", newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+def _digest(out: Path) -> dict[str, str]:
+    return {str(p.relative_to(out)): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(out.rglob("*")) if p.is_file()}
+
+
+@pytest.fixture(scope="module")
+def rendered(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("render")
+    figures = _run(tmp, "workers=2")
+    return tmp, figures
+
+
+def test_counts_columns_and_query_faces(rendered):
+    tmp, figures = rendered
+    out = tmp / "images"
+    rows = _manifest(out)
+    assert tuple(rows[0].keys()) == MANIFEST_COLUMNS
+    by = {s: [r for r in rows if r["split"] == s] for s in ("query", "support", "train", "val")}
+    assert len(by["query"]) == N_PICTURES == 40
+    assert len(by["support"]) == 5 * 5
+    assert len(by["train"]) == 3 * 4 and len(by["val"]) == 2 * 4
+    assert figures["pictures"] == len(rows) == 85
+    for r in rows:  # every file exists and is a picture of the configured size
+        from PIL import Image
+        with Image.open(out / r["file"]) as im:
+            assert im.size == (32, 32) and im.mode == "RGB"
+    ids = sorted(int(r["picture_id"]) for r in by["query"])
+    assert ids == list(range(40))
+    for r in by["query"]:
+        c, i, f = int(r["category"]), int(r["instance"]), int(r["face"])
+        assert int(r["picture_id"]) == picture_id(c, i, f)
+        assert r["class_name"] == CATEGORIES[c]
+        assert float(r["orientation_deg"]) == (0.0 if i == 0 else 45.0)
+    assert {(int(r["category"]), int(r["instance"]), int(r["face"])) for r in by["query"]} == \
+        {(c, i, f) for c in range(5) for i in range(2) for f in range(4)}
+    for s in ("support", "train", "val"):
+        assert all(int(r["picture_id"]) == -1 and int(r["face"]) == -1 for r in by[s])
+    for name in ("contact_query", "contact_support", "contact_train", "contact_val"):
+        assert (tmp / "figures" / f"{name}.png").is_file()
+    assert not list(out.rglob("*.tmp"))
+
+
+def test_splits_are_disjoint(rendered):
+    rows = _manifest(rendered[0] / "images")
+    q = {(r["category"], r["instance"]) for r in rows if r["split"] == "query"}
+    s = {(r["category"], r["instance"]) for r in rows if r["split"] == "support"}
+    assert q.isdisjoint(s) and {int(r["instance"]) for r in rows if r["split"] == "support"} == {2, 3, 4, 5, 6}
+    train = {r["class_name"] for r in rows if r["split"] == "train"}
+    val = {r["class_name"] for r in rows if r["split"] == "val"}
+    assert len(train) == 3 and len(val) == 2 and train.isdisjoint(val)
+    assert not (train | val) & set(CATEGORIES)
+    files = [r["file"] for r in rows]
+    assert len(set(files)) == len(files)
+
+
+def test_same_config_same_bytes(rendered, tmp_path):
+    """One process vs two workers, a second run: identical bytes for every picture and the manifest."""
+    first = _digest(rendered[0] / "images")
+    _run(tmp_path, "workers=1", "contact_sheets=false")
+    assert _digest(tmp_path / "images") == first
+
+
+def test_seed_changes_pictures(rendered, tmp_path):
+    cfg = PlanConfig(seed=1, n_train_classes=1, n_val_classes=0, per_class=1, views_per_instance=1)
+    batches, _ = make_plan(cfg)
+    render_batch(batches[0], str(tmp_path), 32)
+    f = batches[0].files[0]
+    assert (tmp_path / f).read_bytes() != (rendered[0] / "images" / f).read_bytes()
+
+
+def test_archetypes_distinct_and_seeded():
+    a = make_archetypes(80, seed=0)
+    assert len({x.signature() for x in a}) == 80
+    assert len({x.name for x in a}) == 80
+    assert [x.name for x in a] == [x.name for x in make_archetypes(80, seed=0)]
+    assert [x.name for x in a] != [x.name for x in make_archetypes(80, seed=1)]
+
+
+def test_obstacle_instances_vary():
+    for c in CATEGORIES:
+        objs = [build_obstacle(c, np.random.default_rng(k)) for k in range(4)]
+        assert all(o.name == c for o in objs)
+        sizes = {round(o.extent()[0], 4) for o in objs}
+        assert len(sizes) > 1, f"{c}: instances do not vary"
+
+
+def test_side_azimuth_looks_at_origin():
+    # camera on the north side looks south (-y), east looks west, and so on
+    assert [side_azimuth(s) for s in range(4)] == [270.0, 180.0, 90.0, 0.0]
+
+
+# ----------------------------------------------------------------------------- bad input
+
+def test_unknown_category_is_a_clear_error(tmp_path):
+    with pytest.raises(ValueError, match="unknown category 'sofa'.*chair, kettle"):
+        category_index("sofa")
+    with pytest.raises(ValueError, match="unknown category id 7"):
+        category_index(7)
+    with pytest.raises(ValueError, match="config key 'categories'.*sofa"):
+        _run(tmp_path, "categories=[chair,sofa]")
+
+
+def test_negative_size_is_a_clear_error(tmp_path):
+    with pytest.raises(ValueError, match="config key 'size' must be an integer >= 1, got -5"):
+        _run(tmp_path, "size=-5")
+
+
+def test_missing_parent_is_a_clear_error(tmp_path):
+    from pipeline.stages.render import run
+    with initialize_config_dir(config_dir=CONF, version_base="1.3"):
+        cfg = compose("render", overrides=[*SMALL, f"out_dir={tmp_path / 'nope' / 'images'}",
+                                           f"figures_dir={tmp_path / 'figures'}"])
+    with pytest.raises(FileNotFoundError, match="config key 'out_dir'.*does not exist"):
+        run(cfg)
+    assert not (tmp_path / "nope").exists()
+
+
+def test_interrupted_write_leaves_no_half_picture(tmp_path, monkeypatch):
+    """A crash while writing leaves neither a partial file under the final name nor a manifest."""
+    import os
+    target = tmp_path / "query" / "x.png"
+    real_replace = os.replace
+
+    def boom(src, dst):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(os, "replace", boom)
+    with pytest.raises(KeyboardInterrupt):
+        write_atomic(target, b"\x89PNG partial")
+    monkeypatch.setattr(os, "replace", real_replace)
+    assert not target.exists()
+    assert [p.name for p in target.parent.iterdir()][0].endswith(".tmp")
+
+
+def test_interrupted_stage_leaves_no_manifest(tmp_path, monkeypatch):
+    """An old manifest is removed before rendering; one killed mid-render leaves none behind."""
+    import pipeline.stages.render as stage
+    (tmp_path / "images").mkdir()
+    (tmp_path / "images" / "manifest.csv").write_text("stale\n")
+
+    def killed(*a, **k):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(stage, "render_all", killed)
+    with pytest.raises(KeyboardInterrupt):
+        stage.run(_cfg(tmp_path))
+    assert not (tmp_path / "images" / "manifest.csv").exists()
