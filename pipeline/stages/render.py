@@ -17,6 +17,7 @@ import hydra
 from omegaconf import DictConfig, OmegaConf
 from tqdm import tqdm
 
+from pipeline.stages._common import CONF_DIR
 from pipeline.world.contact_sheet import contact_sheet, save_png_atomic
 from pipeline.world.obstacle_models import category_index
 from pipeline.world.pictures import CATEGORIES
@@ -58,7 +59,8 @@ def validate(cfg: DictConfig) -> PlanConfig:
         raise FileNotFoundError(f"config key 'out_dir': the parent folder of {str(out)!r} does not exist "
                                 f"({out.resolve().parent}); create it or choose another out_dir")
     fig = Path(cfg.figures_dir)
-    if cfg.contact_sheets and not fig.resolve().parent.is_dir():
+    inside_out = fig.resolve().is_relative_to(out.resolve())
+    if cfg.contact_sheets and not inside_out and not fig.resolve().parent.is_dir():
         raise FileNotFoundError(f"config key 'figures_dir': the parent folder of {str(fig)!r} does not exist")
     mz = MazeCamera(**{k: float(v) for k, v in cfg.maze.items()})
     for k, v in vars(mz).items():
@@ -153,7 +155,7 @@ def run(cfg: DictConfig) -> dict:
     return figures
 
 
-@hydra.main(version_base="1.3", config_path="../../conf", config_name="render")
+@hydra.main(version_base="1.3", config_path=CONF_DIR, config_name="render")
 def main(cfg: DictConfig) -> None:
     run(cfg)
 
