@@ -84,6 +84,8 @@ def experiment_fig8(rep: Report, cells: dict[str, Cell]) -> None:
            "collisions", rep.out / "figures" / "fig8_collisions.png")
     rep.figure("figures/fig8_collisions.png", "Figure 8 re-made: mean (bar), s.d. (thin), 95% bootstrap CI (thick), runs (dots).")
     curves = {n: cells[n].episodes.groupby("episode")["collisions"].mean().to_numpy() for n in order}
+    pd.DataFrame({"episode": np.arange(len(next(iter(curves.values())))), **curves}).to_csv(
+        rep.out / "tables" / "learning_curves.csv", index=False, lineterminator="\n", float_format="%.6g")
     F.learning_curves(curves, "Collisions per episode (mean over runs), 5x5", rep.out / "figures" / "fig8_learning_curves.png")
     rep.figure("figures/fig8_learning_curves.png", "Learning curves: collisions per episode, mean over runs, 10-episode moving average.")
     acc = {}

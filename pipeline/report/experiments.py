@@ -49,7 +49,7 @@ def load_experiment(folder: Path) -> dict[str, Cell]:
     for path in sorted(folder.glob("*/records.mcap")):
         recs = read_records(path, pictures=False)
         meta = recs.meta
-        info = meta.info
+        info = meta.info.get("info", meta.info)
         cells[path.parent.name] = Cell(folder.name, path.parent.name, info, list(meta.maze["layout"]),
                                        meta.obstacles, recs.episodes, recs.recognitions)
     return cells
