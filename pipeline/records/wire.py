@@ -63,15 +63,50 @@ def key(field: int, wire_type: int) -> bytes:
     return varint((field << 3) | wire_type)
 
 
+_VARINTS = [varint(i) for i in range(1 << 14)]  # lengths and small scalars: a table lookup
+
+
+def varint_small(n: int) -> bytes:
+    return _VARINTS[n] if n < 16384 else varint(n)
+
+
+KEY_EPISODE_STEPS = bytes(((3 << 3) | _LEN,))
+KEY_EPISODE_SUMMARY = bytes(((6 << 3) | _LEN,))
+
+
+_THRESHOLDS = np.array([1 << (7 * i) for i in range(1, 10)], dtype=np.uint64)
+
+
+def varints_with_ends(a: np.ndarray) -> tuple[bytes, np.ndarray]:
+    """Varint encoding of the int64 values ``a`` (negatives as 10-byte two's complement) and the
+    byte offsets ``[0, end of value 0, end of value 1, ...]``. One vector pass per byte level."""
+    if len(a) == 0:
+        return b"", np.zeros(1, np.int64)
+    u = a.astype(np.int64, copy=False).view(np.uint64)
+    nbytes = np.searchsorted(_THRESHOLDS, u, side="right") + 1
+    cum = np.concatenate(([0], np.cumsum(nbytes)))
+    out = np.empty(int(cum[-1]), dtype=np.uint8)
+    out[cum[:-1]] = (u & np.uint64(0x7F)).astype(np.uint8)
+    for level in range(1, int(nbytes.max())):
+        idx = np.flatnonzero(nbytes > level)
+        out[cum[idx] + level - 1] |= 0x80  # the previous byte continues
+        out[cum[idx] + level] = ((u[idx] >> np.uint64(7 * level)) & np.uint64(0x7F)).astype(np.uint8)
+    return out.tobytes(), cum
+
+
+_LEN_KEYS = [bytes(((f << 3) | _LEN,)) for f in range(16)]
+_VARINT_KEYS = [bytes(((f << 3) | _VARINT,)) for f in range(16)]
+
+
 def len_field(field: int, payload: bytes) -> bytes:
     """A length-delimited field (packed array, string, bytes, sub-message); empty -> omitted."""
     if not payload:
         return b""
-    return key(field, _LEN) + varint(len(payload)) + payload
+    return _LEN_KEYS[field] + varint_small(len(payload)) + payload
 
 
 def uint_field(field: int, n: int) -> bytes:
-    return key(field, _VARINT) + varint(int(n)) if n else b""
+    return _VARINT_KEYS[field] + (varint_small(n) if 0 <= n < 16384 else varint(n)) if n else b""
 
 
 def double_field(field: int, x: float) -> bytes:
