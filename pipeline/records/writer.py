@@ -394,52 +394,53 @@ def normalise_episode(fields: Mapping[str, Any], where: str = "episode record") 
 _N_INT_FIELDS = 13  # Steps 1, 2, 4; Recognitions 1-6; UnsafeAdditions 1-4 (in this order)
 
 
+_NO_EXTRA_SIZES = [0] * 10
+
+
 def stage_episode(fields: Mapping[str, Any]):
     """Copy one episode's fields into a compact staged form for :func:`encode_staged`: all its
     integer arrays concatenated (one copy), the float arrays as bytes, the summary as a tuple.
     Returns None for anything unusual (extra summary keys, a Q table, inconsistent input): the
     caller then takes the checked path, :func:`encode_episode_protobuf`."""
     try:
-        if "q_values" in fields:
-            return None
-        states, actions, rewards, flags = (fields["states"], fields["actions"], fields["rewards"],
-                                           fields["flags"])
-        rec, un, summary = fields["recognitions"] or {}, fields["unsafe_added"] or {}, fields["summary"]
+        rec, un, summary = fields["recognitions"], fields["unsafe_added"], fields["summary"]
+        states, actions, flags = fields["states"], fields["actions"], fields["flags"]
+        rewards = np.asarray(fields["rewards"], dtype="<f4")
         n = len(states)
         m = len(rec["step"]) if rec else 0
         k = len(un["step"]) if un else 0
-        if len(summary) != len(SUMMARY_KEYS):
+        if (len(actions) != n or len(flags) != n or rewards.shape != (n,) or len(summary) != 6
+                or "q_values" in fields):
             return None
-        arrays = [states, actions, flags]
-        if m:
-            arrays += [rec[key] for key in RECOGNITION_KEYS]
-        if k:
-            arrays += [un[key] for key in UNSAFE_KEYS]
-        sizes = [n, n, n] + [m] * 6 + [k] * 4
-        for a, size in zip(arrays, sizes):
-            if len(a) != size:
+        ncat, scores = 0, b""
+        if m or k:  # rare: an episode with recognitions or unsafe-set additions
+            arrays = [states, actions, flags]
+            if m:
+                arrays += [rec[key] for key in RECOGNITION_KEYS]
+            if k:
+                arrays += [un[key] for key in UNSAFE_KEYS]
+            sizes = [n, n, n] + [m] * 6 + [k] * 4
+            if any(len(x) != size for x, size in zip(arrays, sizes)):
                 return None
-        rewards = np.asarray(rewards, dtype="<f4")
-        if rewards.shape != (n,):
+            ints = np.concatenate(arrays, dtype=np.int64, casting="same_kind")
+            sc = np.asarray(rec.get("scores", ()), dtype="<f4") if m else None
+            if sc is not None and sc.size:
+                if sc.ndim != 2 or sc.shape[0] != m:
+                    return None
+                ncat, scores = sc.shape[1], sc.tobytes()
+        else:
+            sizes = [n, n, n] + _NO_EXTRA_SIZES
+            ints = np.concatenate((states, actions, flags), dtype=np.int64, casting="same_kind")
+        if ints.ndim != 1:
             return None
-        ints = np.concatenate(arrays, dtype=np.int64, casting="same_kind")  # 2-D input raises
-        if ints.shape != (3 * n + 6 * m + 4 * k,):
-            return None
-        scores = np.asarray(rec.get("scores", ()), dtype="<f4") if m else None
-        ncat = 0
-        if scores is not None and scores.size:
-            if scores.ndim != 2 or scores.shape[0] != m:
-                return None
-            ncat = scores.shape[1]
         sm = (int(summary["steps"]), int(summary["collisions"]), float(summary["return_"]),
               int(bool(summary["reached_goal"])), int(summary["prevented"]), float(summary["epsilon"]))
         run, episode = int(fields["run"]), int(fields["episode"])
-        if min(sm[0], sm[1], sm[4], run, episode) < 0:
+        if sm[0] < 0 or sm[1] < 0 or sm[4] < 0:
             return None
     except (KeyError, TypeError, ValueError):
         return None
-    return (run, episode, ints, sizes, rewards.tobytes(),
-            scores.tobytes() if ncat else b"", ncat, sm)
+    return (run, episode, ints, sizes, rewards.tobytes(), scores, ncat, sm)
 
 
 def encode_staged(staged: list) -> list[bytes]:
