@@ -290,3 +290,34 @@ def test_the_vectorised_encoder_matches_protobuf_byte_for_byte():
     # a batch of small values only (the one-byte path) agrees too
     small = [f for f in episodes(LAYOUT_5X5, runs=1, episodes_per_run=10, max_steps=100)]
     assert encode_staged([stage_episode(f) for f in small]) == [encode_episode_protobuf(f) for f in small]
+
+
+def test_vectorised_decoding_equals_the_protobuf_runtime(tmp_path):
+    from pipeline.records import reader
+    from pipeline.records.scan import scan
+    from pipeline.records.synthetic import maze_layout
+
+    layout = maze_layout(11, seed=4)
+    eps = [f for f in episodes(layout, runs=2, episodes_per_run=15, seed=4, max_steps=300)]
+    eps[1]["states"] = eps[1]["states"] + 70000
+    eps[2]["recognitions"]["predicted"][:] = -1
+    eps[3]["recognitions"]["scores"] = np.zeros((0, 0), np.float32)
+    eps[4]["summary"] = dict(eps[4]["summary"], violations=3)
+    eps[5]["q_values"] = np.arange(484, dtype=np.float32).reshape(121, 4)
+    with RecordWriter(tmp_path / "v.mcap") as w:
+        for f in eps:
+            f.pop("_substitutions")
+            w.episode(**f)
+    msgs = scan(tmp_path / "v.mcap").messages["/episodes"]
+    from pipeline.records.decode import decode_episodes
+    assert decode_episodes([d for _, d in msgs]) is not None  # the fast path handles all of these
+    assert reader._columns_from_fast(decode_episodes([d for _, d in msgs]), "v") is not None
+    fast = reader._decode_episodes(msgs, "v")
+    slow = reader._decode_episodes_protobuf(msgs, "v")
+    for key in ("steps", "recognitions", "unsafe", "episodes"):
+        assert fast[key].keys() == slow[key].keys(), key
+        for col in fast[key]:
+            np.testing.assert_array_equal(fast[key][col], slow[key][col], err_msg=f"{key}.{col}")
+            assert fast[key][col].dtype == slow[key][col].dtype, (key, col)
+    assert fast["q_values"].keys() == slow["q_values"].keys() == {("v", 0, 5)}
+    np.testing.assert_array_equal(fast["q_values"][("v", 0, 5)], eps[5]["q_values"])
