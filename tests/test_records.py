@@ -321,3 +321,15 @@ def test_vectorised_decoding_equals_the_protobuf_runtime(tmp_path):
             assert fast[key][col].dtype == slow[key][col].dtype, (key, col)
     assert fast["q_values"].keys() == slow["q_values"].keys() == {("v", 0, 5)}
     np.testing.assert_array_equal(fast["q_values"][("v", 0, 5)], eps[5]["q_values"])
+
+
+def test_the_info_command_lists_runs_and_warns_about_truncation(tmp_path, capsys):
+    from pipeline.records.__main__ import main
+
+    write_synthetic(tmp_path / "a.mcap", runs=2, episodes_per_run=4)
+    data = (tmp_path / "a.mcap").read_bytes()
+    (tmp_path / "b.mcap").write_bytes(data[: len(data) // 2])
+    main([str(tmp_path), "--runs"])
+    out = capsys.readouterr().out
+    assert "a.mcap: complete; 2 runs, 8 episodes" in out
+    assert "warning: " in out and "b.mcap: the file is truncated" in out and "b.mcap: INCOMPLETE" in out
