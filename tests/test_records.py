@@ -268,6 +268,14 @@ def test_rerun_mcap_convert_yields_the_pictures(tmp_path):
     flat = blob[0] if isinstance(blob, list) and blob and isinstance(blob[0], list) else blob
     assert bytes(flat) == tiny_png(7)
     assert episodes_seen == 3
+    # a killed run's file: Rerun needs --recover (without it, it writes an empty recording)
+    data = (tmp_path / "a.mcap").read_bytes()
+    (tmp_path / "cut.mcap").write_bytes(data[: len(data) - 3000])
+    res = subprocess.run([str(rerun_cli), "mcap", "convert", "--recover", str(tmp_path / "cut.mcap"), "-o",
+                          str(tmp_path / "cut.rrd")], capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, res.stderr
+    paths = {str(ch.entity_path) for ch in rerun.chunk.RrdReader(tmp_path / "cut.rrd").stream().to_chunks()}
+    assert "/pictures/39" in paths
 
 
 def test_the_vectorised_encoder_matches_protobuf_byte_for_byte():
