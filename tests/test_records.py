@@ -1,10 +1,8 @@
 """MCAP records: schema, writer, reader, truncated files (DESIGN.md "Records")."""
 from __future__ import annotations
 
-import os
 import subprocess
 import sys
-import warnings
 from pathlib import Path
 
 import numpy as np

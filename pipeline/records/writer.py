@@ -522,4 +522,4 @@ def encode_episode_protobuf(fields: Mapping[str, Any], where: str = "episode rec
     return msg.SerializeToString(deterministic=True)
 
 
-encode_episode = encode_episode_wire
+encode_episode = encode_episode_wire  # the default encoder for one episode
