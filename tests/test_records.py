@@ -339,3 +339,22 @@ def test_the_info_command_lists_runs_and_warns_about_truncation(tmp_path, capsys
     out = capsys.readouterr().out
     assert "a.mcap: complete; 2 runs, 8 episodes" in out
     assert "warning: " in out and "b.mcap: the file is truncated" in out and "b.mcap: INCOMPLETE" in out
+
+
+def test_the_file_is_self_describing_for_generic_protobuf_readers(tmp_path):
+    """Decode with the schemas stored in the file (what Foxglove and mcap tools do), not our classes."""
+    from mcap.reader import make_reader
+    from mcap_protobuf.decoder import DecoderFactory
+
+    written = write_synthetic(tmp_path / "a.mcap", runs=1, episodes_per_run=3)
+    with open(tmp_path / "a.mcap", "rb") as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        decoded = {}
+        for _, channel, _, msg in reader.iter_decoded_messages():
+            decoded.setdefault(channel.topic, []).append(msg)
+    eps = decoded["/episodes"]
+    assert [type(m).DESCRIPTOR.full_name for m in eps[:1]] == ["fsrl.records.Episode"]
+    assert [list(m.steps.states) for m in eps] == [f["states"].tolist() for f in written]
+    assert eps[0].summary.return_ == written[0]["summary"]["return_"]
+    assert decoded["/pictures/5"][0].format == "png" and decoded["/pictures/5"][0].data == tiny_png(5)
+    assert len(decoded["/substitutions"]) == sum(len(f["_substitutions"]) for f in written)
