@@ -1,10 +1,8 @@
 """MCAP records: schema, writer, reader, truncated files (DESIGN.md "Records")."""
 from __future__ import annotations
 
-import os
 import subprocess
 import sys
-import warnings
 from pathlib import Path
 
 import numpy as np
@@ -268,3 +266,95 @@ def test_rerun_mcap_convert_yields_the_pictures(tmp_path):
     flat = blob[0] if isinstance(blob, list) and blob and isinstance(blob[0], list) else blob
     assert bytes(flat) == tiny_png(7)
     assert episodes_seen == 3
+    # a killed run's file: Rerun needs --recover (without it, it writes an empty recording)
+    data = (tmp_path / "a.mcap").read_bytes()
+    (tmp_path / "cut.mcap").write_bytes(data[: len(data) - 3000])
+    res = subprocess.run([str(rerun_cli), "mcap", "convert", "--recover", str(tmp_path / "cut.mcap"), "-o",
+                          str(tmp_path / "cut.rrd")], capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, res.stderr
+    paths = {str(ch.entity_path) for ch in rerun.chunk.RrdReader(tmp_path / "cut.rrd").stream().to_chunks()}
+    assert "/pictures/39" in paths
+
+
+def test_the_vectorised_encoder_matches_protobuf_byte_for_byte():
+    from pipeline.records.synthetic import maze_layout
+    from pipeline.records.writer import encode_episode_protobuf, encode_staged, stage_episode
+
+    layout = maze_layout(11, seed=2)
+    eps = [f for f in episodes(layout, runs=2, episodes_per_run=30, seed=2, max_steps=300)]
+    eps[3]["states"] = eps[3]["states"] + 20000  # multi-byte varints
+    eps[4]["recognitions"]["predicted"][:] = -1  # negative int32: 10-byte varints
+    eps[5] = dict(eps[5], states=eps[5]["states"][:0], actions=eps[5]["actions"][:0],
+                  rewards=eps[5]["rewards"][:0], flags=eps[5]["flags"][:0])
+    eps[6]["recognitions"]["scores"] = np.zeros((0, 0), np.float32)
+    eps[7]["summary"] = dict(eps[7]["summary"], steps=0, collisions=0, return_=-0.0, reached_goal=False)
+    staged = [stage_episode(f) for f in eps]
+    assert all(s is not None for s in staged)
+    fast = encode_staged(staged)
+    for f, data in zip(eps, fast):
+        assert data == encode_episode_protobuf(f)
+    # a batch of small values only (the one-byte path) agrees too
+    small = [f for f in episodes(LAYOUT_5X5, runs=1, episodes_per_run=10, max_steps=100)]
+    assert encode_staged([stage_episode(f) for f in small]) == [encode_episode_protobuf(f) for f in small]
+
+
+def test_vectorised_decoding_equals_the_protobuf_runtime(tmp_path):
+    from pipeline.records import reader
+    from pipeline.records.scan import scan
+    from pipeline.records.synthetic import maze_layout
+
+    layout = maze_layout(11, seed=4)
+    eps = [f for f in episodes(layout, runs=2, episodes_per_run=15, seed=4, max_steps=300)]
+    eps[1]["states"] = eps[1]["states"] + 70000
+    eps[2]["recognitions"]["predicted"][:] = -1
+    eps[3]["recognitions"]["scores"] = np.zeros((0, 0), np.float32)
+    eps[4]["summary"] = dict(eps[4]["summary"], violations=3)
+    eps[5]["q_values"] = np.arange(484, dtype=np.float32).reshape(121, 4)
+    with RecordWriter(tmp_path / "v.mcap") as w:
+        for f in eps:
+            f.pop("_substitutions")
+            w.episode(**f)
+    msgs = scan(tmp_path / "v.mcap").messages["/episodes"]
+    from pipeline.records.decode import decode_episodes
+    assert decode_episodes([d for _, d in msgs]) is not None  # the fast path handles all of these
+    assert reader._columns_from_fast(decode_episodes([d for _, d in msgs]), "v") is not None
+    fast = reader._decode_episodes(msgs, "v")
+    slow = reader._decode_episodes_protobuf(msgs, "v")
+    for key in ("steps", "recognitions", "unsafe", "episodes"):
+        assert fast[key].keys() == slow[key].keys(), key
+        for col in fast[key]:
+            np.testing.assert_array_equal(fast[key][col], slow[key][col], err_msg=f"{key}.{col}")
+            assert fast[key][col].dtype == slow[key][col].dtype, (key, col)
+    assert fast["q_values"].keys() == slow["q_values"].keys() == {("v", 0, 5)}
+    np.testing.assert_array_equal(fast["q_values"][("v", 0, 5)], eps[5]["q_values"])
+
+
+def test_the_info_command_lists_runs_and_warns_about_truncation(tmp_path, capsys):
+    from pipeline.records.__main__ import main
+
+    write_synthetic(tmp_path / "a.mcap", runs=2, episodes_per_run=4)
+    data = (tmp_path / "a.mcap").read_bytes()
+    (tmp_path / "b.mcap").write_bytes(data[: len(data) // 2])
+    main([str(tmp_path), "--runs"])
+    out = capsys.readouterr().out
+    assert "a.mcap: complete; 2 runs, 8 episodes" in out
+    assert "warning: " in out and "b.mcap: the file is truncated" in out and "b.mcap: INCOMPLETE" in out
+
+
+def test_the_file_is_self_describing_for_generic_protobuf_readers(tmp_path):
+    """Decode with the schemas stored in the file (what Foxglove and mcap tools do), not our classes."""
+    from mcap.reader import make_reader
+    from mcap_protobuf.decoder import DecoderFactory
+
+    written = write_synthetic(tmp_path / "a.mcap", runs=1, episodes_per_run=3)
+    with open(tmp_path / "a.mcap", "rb") as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        decoded = {}
+        for _, channel, _, msg in reader.iter_decoded_messages():
+            decoded.setdefault(channel.topic, []).append(msg)
+    eps = decoded["/episodes"]
+    assert [type(m).DESCRIPTOR.full_name for m in eps[:1]] == ["fsrl.records.Episode"]
+    assert [list(m.steps.states) for m in eps] == [f["states"].tolist() for f in written]
+    assert eps[0].summary.return_ == written[0]["summary"]["return_"]
+    assert decoded["/pictures/5"][0].format == "png" and decoded["/pictures/5"][0].data == tiny_png(5)
+    assert len(decoded["/substitutions"]) == sum(len(f["_substitutions"]) for f in written)

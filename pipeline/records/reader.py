@@ -23,6 +23,7 @@ import numpy as np
 import pandas as pd
 
 from . import schema as S
+from .decode import decode_episodes, decode_summaries
 from .scan import Scan, scan
 
 STEP_COLUMNS = ("run", "episode", "step", "state", "action", "reward", "flags")
@@ -124,6 +125,84 @@ def _step_index(lengths: np.ndarray) -> np.ndarray:
 
 
 def _decode_episodes(messages: list[tuple[int, bytes]], name: str) -> dict[str, Any]:
+    """Columns of the Episode messages: vectorised (:mod:`.decode`), or through the Protobuf
+    runtime when a message has a shape the fast path does not handle."""
+    fast = decode_episodes([d for _, d in messages])
+    if fast is not None:
+        out = _columns_from_fast(fast, name)
+        if out is not None:
+            return out
+    return _decode_episodes_protobuf(messages, name)
+
+
+def _columns_from_fast(d: dict[str, Any], name: str) -> dict[str, Any] | None:
+    c = d["counts"]
+    lens = c["states"]
+    if not (np.array_equal(c["actions"], lens) and np.array_equal(c["flags"], lens)
+            and np.array_equal(c["rewards"], lens)):
+        return None
+    rec_lens = c["r_step"]
+    if any(not np.array_equal(c[k], rec_lens) for k in ("r_state", "r_action", "r_picture", "r_predicted", "r_true")):
+        return None
+    un_lens = c["u_step"]
+    if any(not np.array_equal(c[k], un_lens) for k in ("u_state", "u_action", "u_source")):
+        return None
+    ncat = d["n_categories"]
+    if not np.array_equal(c["scores"], np.where(c["scores"] > 0, rec_lens * ncat, 0)):
+        return None
+    ep_run_a, ep_ep_a = d["run"].astype(np.int32), d["episode"].astype(np.int32)
+    flags_a = d["flags"].astype(np.uint8)
+    steps = {"run": np.repeat(ep_run_a, lens), "episode": np.repeat(ep_ep_a, lens), "step": _step_index(lens),
+             "state": d["states"].astype(np.int32), "action": d["actions"].astype(np.int8),
+             "reward": d["rewards"].astype(np.float32), "flags": flags_a}
+    for flag_name, bit in S.FLAG_NAMES.items():
+        steps[flag_name] = (flags_a & bit) != 0
+    rec = {"run": np.repeat(ep_run_a, rec_lens), "episode": np.repeat(ep_ep_a, rec_lens),
+           "step": d["r_step"].astype(np.int32), "state": d["r_state"].astype(np.int32),
+           "action": d["r_action"].astype(np.int8), "picture": d["r_picture"].astype(np.int16),
+           "predicted": d["r_predicted"].astype(np.int8), "true": d["r_true"].astype(np.int8)}
+    rec["correct"] = rec["predicted"] == rec["true"]
+    n_rec = len(rec["step"])
+    has_scores = c["scores"] > 0
+    width = int(ncat[has_scores].max()) if has_scores.any() else 0
+    if width:
+        if has_scores[rec_lens > 0].all() and (ncat[has_scores] == width).all():
+            scores = d["scores"].astype(np.float32).reshape(n_rec, width)
+        else:
+            scores = np.full((n_rec, width), np.nan, dtype=np.float32)
+            row, pos = 0, 0
+            for m, k, has in zip(rec_lens, ncat, has_scores):
+                if has:
+                    scores[row:row + m, :k] = d["scores"][pos:pos + m * k].reshape(m, k)
+                    pos += m * k
+                row += m
+        for j in range(width):
+            rec[f"score_{j}"] = scores[:, j]
+    unsafe = {"run": np.repeat(ep_run_a, un_lens), "episode": np.repeat(ep_ep_a, un_lens),
+              "step": d["u_step"].astype(np.int32), "state": d["u_state"].astype(np.int32),
+              "action": d["u_action"].astype(np.int8), "source": d["u_source"].astype(np.int8)}
+    sums, extras = decode_summaries(d["summaries"])
+    episodes = {"run": ep_run_a, "episode": ep_ep_a, "steps": _i(sums["steps"], np.int32),
+                "collisions": _i(sums["collisions"], np.int32), "return_": _i(sums["return_"], np.float64),
+                "reached_goal": _i(sums["reached_goal"], bool), "prevented": _i(sums["prevented"], np.int32),
+                "epsilon": _i(sums["epsilon"], np.float64), "n_recognitions": rec_lens.astype(np.int32),
+                "n_unsafe_added": un_lens.astype(np.int32)}
+    for k in sorted({k for e in extras for k in e}):
+        episodes[k] = np.array([e.get(k, np.nan) for e in extras], dtype=np.float64)
+    q_values = {}
+    if c["q_values"].any():
+        pos = 0
+        for i, (cnt, na) in enumerate(zip(c["q_values"], d["n_actions"])):
+            if cnt:
+                if not na or cnt % na:
+                    return None
+                q_values[(name, int(d["run"][i]), int(d["episode"][i]))] = \
+                    d["q_values"][pos:pos + cnt].astype(np.float32).reshape(-1, int(na))
+                pos += cnt
+    return {"steps": steps, "recognitions": rec, "unsafe": unsafe, "episodes": episodes, "q_values": q_values}
+
+
+def _decode_episodes_protobuf(messages: list[tuple[int, bytes]], name: str) -> dict[str, Any]:
     ep_run, ep_ep, lens, rec_lens, un_lens = [], [], [], [], []
     states, actions, rewards, flags = [], [], [], []
     r_step, r_state, r_action, r_pic, r_pred, r_true, r_scores, r_ncat = [], [], [], [], [], [], [], []

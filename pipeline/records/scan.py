@@ -14,16 +14,62 @@ from dataclasses import dataclass, field
 from io import BytesIO
 from pathlib import Path
 
+import zlib
+
 from mcap.data_stream import ReadDataStream
 from mcap.opcode import Opcode
 from mcap.records import Attachment, Channel, Chunk, DataEnd, Message, Metadata, Schema
-from mcap.stream_reader import breakup_chunk
 
 from .schema import split_log_time
 
 MAGIC = b"\x89MCAP0\r\n"
 _RECORD_HEADER = struct.Struct("<BQ")
 _CHUNK_TIMES = struct.Struct("<QQ")
+_MESSAGE_HEADER = struct.Struct("<BQHIQQ")  # opcode, length, channel, sequence, log time, publish time
+
+
+def _decompress(chunk: Chunk, validate_crc: bool) -> bytes:
+    if chunk.compression == "zstd":
+        import zstandard
+
+        data = zstandard.decompress(chunk.data, chunk.uncompressed_size)
+    elif chunk.compression == "lz4":
+        import lz4.frame
+
+        data = lz4.frame.decompress(chunk.data)
+    elif chunk.compression == "":
+        data = bytes(chunk.data)
+    else:
+        raise ValueError(f"unsupported chunk compression {chunk.compression!r}")
+    if len(data) != chunk.uncompressed_size:
+        raise ValueError(f"chunk decompressed to {len(data)} bytes, expected {chunk.uncompressed_size}")
+    if validate_crc and chunk.uncompressed_crc and zlib.crc32(data) != chunk.uncompressed_crc:
+        raise ValueError("chunk CRC mismatch")
+    return data
+
+
+def chunk_records(chunk: Chunk, validate_crc: bool = True) -> list:
+    """The schema, channel and message records of one chunk (messages parsed with one struct call
+    each: the mcap package's ``breakup_chunk`` reads them field by field, several times slower)."""
+    data = _decompress(chunk, validate_crc)
+    out: list = []
+    pos, n = 0, len(data)
+    unpack_message = _MESSAGE_HEADER.unpack_from
+    while pos < n:
+        opcode, length = _RECORD_HEADER.unpack_from(data, pos)
+        end = pos + 9 + length
+        if end > n:
+            raise ValueError(f"a record inside the chunk runs past its end (at chunk byte {pos})")
+        if opcode == Opcode.MESSAGE:
+            _, _, channel, sequence, log_time, publish_time = unpack_message(data, pos)
+            out.append(Message(channel_id=channel, sequence=sequence, log_time=log_time,
+                               publish_time=publish_time, data=data[pos + 31:end]))
+        elif opcode == Opcode.CHANNEL:
+            out.append(Channel.read(ReadDataStream(BytesIO(data[pos + 9:end]))))
+        elif opcode == Opcode.SCHEMA:
+            out.append(Schema.read(ReadDataStream(BytesIO(data[pos + 9:end]))))
+        pos = end
+    return out
 
 
 @dataclass
@@ -97,7 +143,7 @@ def scan(path: str | Path, *, time_range: tuple[int, int] | None = None, validat
                     pos = end
                     continue
             try:
-                records = breakup_chunk(chunk, validate_crc=validate_crcs)
+                records = chunk_records(chunk, validate_crc=validate_crcs)
             except Exception as e:  # CRC mismatch, broken compression
                 out.problems.append(
                     f"a corrupt chunk at byte {pos} with messages of "

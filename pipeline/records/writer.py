@@ -179,6 +179,7 @@ class RecordWriter:
         self._since_flush = 0
         self._closed = False
         self._seen: set[tuple[int, int]] = set()
+        self._pending: list[tuple[int, int, Any]] = []  # (channel, log time, bytes or staged episode)
 
         metadata = dict(metadata or {})
         records = self._metadata_records(metadata, maze, runs)  # validate before touching the disk
@@ -265,8 +266,10 @@ class RecordWriter:
         if (run, episode) in self._seen:
             raise ValueError(f"{where}: recorded twice in {self.path}")
         t = S.log_time_ns(run, episode, 0)
-        data = encode_episode(fields, where)
-        self._mcap.add_message(self._ch_episodes, log_time=t, publish_time=t, data=data)
+        staged = stage_episode(fields)
+        if staged is None:  # unusual content (extra summary keys, Q table) or bad input: checked path
+            staged = encode_episode_protobuf(fields, where)
+        self._pending.append((self._ch_episodes, t, staged))
         self._seen.add((run, episode))
         self.n_episodes += 1
         self._since_flush += 1
@@ -280,15 +283,31 @@ class RecordWriter:
         t = S.log_time_ns(int(run), int(episode), int(step))
         msg = S.Substitution(run=int(run), episode=int(episode), step=int(step), picture=int(picture),
                              category=int(category), position=int(position))
-        self._mcap.add_message(self._ch_subs, log_time=t, publish_time=t, data=msg.SerializeToString())
+        self._pending.append((self._ch_subs, t, msg.SerializeToString()))
         self.n_substitutions += 1
 
     # ------------------------------------------------------------------ life cycle
     def flush(self) -> None:
         """Close the current chunk and write it out: everything recorded so far survives a kill."""
         self._check_open()
+        self._write_pending()
         self._mcap.flush()
         self._since_flush = 0
+
+    def _write_pending(self) -> None:
+        """Encode the staged episodes in one vectorised batch and write every pending message in
+        the order it was handed over."""
+        if not self._pending:
+            return
+        staged = [i for i, (_, _, item) in enumerate(self._pending) if not isinstance(item, bytes)]
+        encoded = encode_staged([self._pending[i][2] for i in staged])
+        items = list(self._pending)
+        for i, data in zip(staged, encoded):
+            items[i] = (items[i][0], items[i][1], data)
+        add = self._mcap.add_message
+        for channel, t, data in items:
+            add(channel, log_time=t, publish_time=t, data=data)
+        self._pending.clear()
 
     def close(self, *, complete: bool = True) -> Path:
         """Finish the MCAP file (summary and index) and rename it to its final name; with
@@ -296,6 +315,7 @@ class RecordWriter:
         Returns the path of the file."""
         if self._closed:
             return self.path if complete else self.partial_path
+        self._write_pending()
         self._mcap.add_metadata("closed", {"complete": str(bool(complete)).lower(),
                                            "episodes": str(self.n_episodes),
                                            "substitutions": str(self.n_substitutions)})
@@ -371,36 +391,100 @@ def normalise_episode(fields: Mapping[str, Any], where: str = "episode record") 
     return out
 
 
+_N_INT_FIELDS = 13  # Steps 1, 2, 4; Recognitions 1-6; UnsafeAdditions 1-4 (in this order)
+
+
+_NO_EXTRA_SIZES = [0] * 10
+
+
+def stage_episode(fields: Mapping[str, Any]):
+    """Copy one episode's fields into a compact staged form for :func:`encode_staged`: all its
+    integer arrays concatenated (one copy), the float arrays as bytes, the summary as a tuple.
+    Returns None for anything unusual (extra summary keys, a Q table, inconsistent input): the
+    caller then takes the checked path, :func:`encode_episode_protobuf`."""
+    try:
+        rec, un, summary = fields["recognitions"], fields["unsafe_added"], fields["summary"]
+        states, actions, flags = fields["states"], fields["actions"], fields["flags"]
+        rewards = np.asarray(fields["rewards"], dtype="<f4")
+        n = len(states)
+        m = len(rec["step"]) if rec else 0
+        k = len(un["step"]) if un else 0
+        if (len(actions) != n or len(flags) != n or rewards.shape != (n,) or len(summary) != 6
+                or "q_values" in fields):
+            return None
+        ncat, scores = 0, b""
+        if m or k:  # rare: an episode with recognitions or unsafe-set additions
+            arrays = [states, actions, flags]
+            if m:
+                arrays += [rec[key] for key in RECOGNITION_KEYS]
+            if k:
+                arrays += [un[key] for key in UNSAFE_KEYS]
+            sizes = [n, n, n] + [m] * 6 + [k] * 4
+            if any(len(x) != size for x, size in zip(arrays, sizes)):
+                return None
+            ints = np.concatenate(arrays, dtype=np.int64, casting="same_kind")
+            sc = np.asarray(rec.get("scores", ()), dtype="<f4") if m else None
+            if sc is not None and sc.size:
+                if sc.ndim != 2 or sc.shape[0] != m:
+                    return None
+                ncat, scores = sc.shape[1], sc.tobytes()
+        else:
+            sizes = [n, n, n] + _NO_EXTRA_SIZES
+            ints = np.concatenate((states, actions, flags), dtype=np.int64, casting="same_kind")
+        if ints.ndim != 1:
+            return None
+        sm = (int(summary["steps"]), int(summary["collisions"]), float(summary["return_"]),
+              int(bool(summary["reached_goal"])), int(summary["prevented"]), float(summary["epsilon"]))
+        run, episode = int(fields["run"]), int(fields["episode"])
+        if sm[0] < 0 or sm[1] < 0 or sm[4] < 0:
+            return None
+    except (KeyError, TypeError, ValueError):
+        return None
+    return (run, episode, ints, sizes, rewards.tobytes(), scores, ncat, sm)
+
+
+def encode_staged(staged: list) -> list[bytes]:
+    """Serialize staged episodes as ``fsrl.records.Episode`` messages (:mod:`.wire`): the integers
+    of the whole batch are varint-encoded in one numpy pass, then cut into packed fields.
+    Byte-identical to :func:`encode_episode_protobuf` (tests check)."""
+    if not staged:
+        return []
+    ints = np.concatenate([s[2] for s in staged])
+    sizes = np.array([s[3] for s in staged], dtype=np.int64).ravel()
+    if ints.size and (ints & ~0x7F).any():
+        payload, cum = W.varints_with_ends(ints)
+        bounds = cum[np.concatenate(([0], np.cumsum(sizes)))]
+    else:  # every value < 128: one byte each
+        payload = ints.astype(np.uint8).tobytes()
+        bounds = np.concatenate(([0], np.cumsum(sizes)))
+    bounds = bounds.tolist()
+    lf, uf, df, vs = W.len_field, W.uint_field, W.double_field, W.varint_small
+    key_steps, key_summary = W.KEY_EPISODE_STEPS, W.KEY_EPISODE_SUMMARY
+    out = []
+    j = 0
+    for run, episode, _, sz, rewards, scores, ncat, sm in staged:
+        b0, b1, b2, b3 = bounds[j:j + 4]
+        steps = lf(1, payload[b0:b1]) + lf(2, payload[b1:b2]) + lf(3, rewards) + lf(4, payload[b2:b3])
+        parts = [uf(1, run), uf(2, episode), key_steps, vs(len(steps)), steps]
+        if sz[3]:
+            b = bounds[j + 3:j + 10]
+            parts.append(lf(4, b"".join([lf(i + 1, payload[b[i]:b[i + 1]]) for i in range(6)]
+                                        + [uf(7, ncat), lf(8, scores)])))
+        if sz[9]:
+            b = bounds[j + 9:j + 14]
+            parts.append(lf(5, b"".join([lf(i + 1, payload[b[i]:b[i + 1]]) for i in range(4)])))
+        j += _N_INT_FIELDS
+        body = uf(1, sm[0]) + uf(2, sm[1]) + df(3, sm[2]) + uf(4, sm[3]) + uf(5, sm[4]) + df(6, sm[5])
+        parts += [key_summary, vs(len(body)), body]
+        out.append(b"".join(parts))
+    return out
+
+
 def encode_episode_wire(fields: Mapping[str, Any], where: str = "episode record") -> bytes:
-    """Serialize one episode (sink fields) as an ``fsrl.records.Episode`` message, vectorised
-    (:mod:`.wire`); byte-identical to :func:`encode_episode_protobuf` except for the order of
-    extra summary entries (a map: any order is valid; ours is sorted by key)."""
-    e = normalise_episode(fields, where)
-    steps = (W.packed_int_field(1, e["states"]) + W.packed_int_field(2, e["actions"])
-             + W.packed_float_field(3, e["rewards"]) + W.packed_int_field(4, e["flags"]))
-    parts = [W.uint_field(1, e["run"]), W.uint_field(2, e["episode"]),
-             W.key(3, 2) + W.varint(len(steps)) + steps]
-    if "rec_step" in e:
-        sc = e["rec_scores"]
-        parts.append(W.len_field(4, b"".join((
-            W.packed_int_field(1, e["rec_step"]), W.packed_int_field(2, e["rec_state"]),
-            W.packed_int_field(3, e["rec_action"]), W.packed_int_field(4, e["rec_picture"]),
-            W.packed_int_field(5, e["rec_predicted"]), W.packed_int_field(6, e["rec_true"]),
-            W.uint_field(7, sc.shape[1] if sc.size else 0), W.packed_float_field(8, sc.ravel())))))
-    if "un_step" in e:
-        parts.append(W.len_field(5, b"".join(W.packed_int_field(i, e["un_" + k])
-                                             for i, k in enumerate(UNSAFE_KEYS, 1))))
-    sm = e["summary"]
-    summary = b"".join((W.uint_field(1, sm["steps"]), W.uint_field(2, sm["collisions"]),
-                        W.double_field(3, sm["return_"]), W.uint_field(4, int(sm["reached_goal"])),
-                        W.uint_field(5, sm["prevented"]), W.double_field(6, sm["epsilon"]),
-                        *(W.len_field(7, W.map_entry_string_double(k, v)) for k, v in e["extra"].items())))
-    parts.append(W.key(6, 2) + W.varint(len(summary)) + summary)
-    if "q_values" in e:
-        q = e["q_values"]
-        parts.append(W.uint_field(7, q.shape[1]))
-        parts.append(W.packed_float_field(8, q.ravel()))
-    return b"".join(parts)
+    """One episode through the vectorised path (:func:`stage_episode` + :func:`encode_staged`),
+    falling back to the checked Protobuf path for unusual content."""
+    staged = stage_episode(fields)
+    return encode_episode_protobuf(fields, where) if staged is None else encode_staged([staged])[0]
 
 
 def encode_episode_protobuf(fields: Mapping[str, Any], where: str = "episode record") -> bytes:
@@ -438,4 +522,4 @@ def encode_episode_protobuf(fields: Mapping[str, Any], where: str = "episode rec
     return msg.SerializeToString(deterministic=True)
 
 
-encode_episode = encode_episode_protobuf
+encode_episode = encode_episode_wire  # the default encoder for one episode
