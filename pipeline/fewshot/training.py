@@ -16,6 +16,7 @@ every validation picture once and runs only the relation module per episode.
 from __future__ import annotations
 
 import copy
+import logging
 import math
 import time
 from dataclasses import asdict, dataclass, field
@@ -31,6 +32,7 @@ from .episodes import Episode, mean_and_ci95, sample_episode, sample_episodes
 from .model import ModelConfig, RelationNetwork
 
 LR_SCHEDULES = ("constant", "cosine", "step")
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -47,7 +49,7 @@ class TrainConfig:
     """Support pictures per class (K); their feature maps are summed."""
     n_query: int = 5
     """Query pictures per class in a training episode."""
-    episodes: int = 2500
+    episodes: int = 1500
     """Training episodes (the loop also stops at ``max_minutes``)."""
     lr: float = 1e-3
     """Adam learning rate at the start."""
@@ -59,7 +61,7 @@ class TrainConfig:
     """Episodes between halvings of the ``step`` schedule."""
     flip: bool = True
     """Random horizontal flips of training pictures."""
-    val_every: int = 250
+    val_every: int = 150
     """Training episodes between model-selection evaluations on the validation classes."""
     val_episodes: int = 200
     """Validation episodes per model-selection evaluation (a fixed, seeded list)."""
@@ -71,7 +73,7 @@ class TrainConfig:
     """Seeds the weights, the episode stream and the flips."""
     channels_last: bool = True
     """Use the channels-last memory format (faster convolutions on the CPU)."""
-    max_minutes: float = 13.0
+    max_minutes: float = 12.5
     """Wall-clock budget of the training loop; training stops early when it is spent."""
     target_accuracy: float = 0.75
     """Validation accuracy goal; the time when a selection evaluation first reaches it is recorded."""
@@ -191,6 +193,7 @@ def meta_train(train: PictureSet, val: PictureSet, config: TrainConfig, progress
                 best = {"val_accuracy": acc, "episode": done, "state": copy.deepcopy(network.state_dict())}
             if time_to_goal is None and acc >= config.target_accuracy:
                 time_to_goal = elapsed
+            log.info("episode %d: loss %.4f, selection accuracy %.4f (best %.4f), %.0f s", done, history[-1]["loss"], acc, best["val_accuracy"], elapsed)
             bar.set_postfix(loss=f"{history[-1]['loss']:.4f}", val=f"{acc:.3f}", best=f"{best['val_accuracy']:.3f}")
         if out_of_time:
             break
