@@ -48,6 +48,7 @@ def save_checkpoint(
             torch.save(payload, f)
             f.flush()
             os.fsync(f.fileno())
+        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600 files
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
@@ -85,3 +86,9 @@ def load_checkpoint(path: str | Path, expected_model: ModelConfig | None = None)
         raise CheckpointError(f"checkpoint {path} does not match the Relation Network's weights: {exc}") from exc
     network.eval()
     return network, payload
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
