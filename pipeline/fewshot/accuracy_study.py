@@ -1,0 +1,128 @@
+"""The few-shot accuracy study of the paper's section 4.2.1 (Tables 1 and 2).
+
+- Baseline: the 40 query pictures classified against the original support set (paper: 17/40, 42.5%).
+- Table 1: for each category ``c``, ``repeats`` (100) times from the original support set, one
+  randomly chosen query picture of ``c`` replaces one randomly chosen support position of ``c``
+  and all 40 query pictures are classified; per tested category the correct counts add up to
+  x / (repeats * 8) (x/800). The "no same picture" variant does not count the substituted picture,
+  so the substituted category is out of repeats * 7 (x/700).
+- Table 2: the same with ``n`` = 0..K substitutions in one category (``n`` distinct query pictures
+  into ``n`` distinct positions), mean accuracy over all categories and repetitions, with and
+  without the substituted pictures counted. ``n = 1`` is Table 1's experiment (the same draws).
+
+Draws come from ``numpy.random.default_rng([seed, n])``, so each substitution number has its own
+stream.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .recogniser import RelationRecogniser
+
+# The paper's figures (Tables 1 and 2), for the report to put beside ours.
+PAPER_BASELINE = {"correct": [0, 3, 2, 8, 4], "total": [8, 8, 8, 8, 8], "mean": 0.425}
+PAPER_TABLE1 = {
+    "with_same": [[186, 495, 168, 748, 364], [0, 689, 132, 771, 292], [5, 581, 383, 742, 388], [4, 500, 136, 792, 314], [12, 500, 335, 692, 577]],
+    "no_same": [[95, 496, 155, 747, 373], [0, 596, 134, 756, 303], [11, 574, 331, 748, 389], [0, 500, 127, 697, 316], [13, 500, 334, 685, 487]],
+    "mean_with_same": 0.4903,
+    "mean_no_same": 0.4804,
+}
+PAPER_TABLE2 = {0: (0.425, 0.425), 1: (0.4903, 0.4804), 2: (0.5083, 0.4846), 3: (0.5247, 0.4841), 4: (0.5364, 0.4868), 5: (0.5491, 0.4860)}
+
+
+@dataclass(frozen=True)
+class StudyConfig:
+    """Accuracy-study settings (``conf/accuracy.yaml``'s ``study``)."""
+
+    repeats: int = 100
+    """Repetitions per substituted category (the paper: 100, giving x/800)."""
+    seed: int = 0
+    """Seeds the random choice of pictures and positions."""
+
+    def __post_init__(self) -> None:
+        if self.repeats < 1:
+            raise ValueError(f"study.repeats must be >= 1, got {self.repeats}")
+
+
+@dataclass
+class StudyResult:
+    """``baseline_correct`` (C,), ``per_category_total`` (C,), ``baseline_predictions`` (P,),
+    ``baseline_scores`` (P, C); Table 1 as (substituted category, tested category) counts
+    ``table1_correct``, ``table1_no_same_correct`` with totals ``table1_total``,
+    ``table1_no_same_total``; Table 2 as {n: (mean with, mean without the same pictures)}."""
+
+    categories: np.ndarray
+    baseline_predictions: np.ndarray
+    baseline_scores: np.ndarray
+    baseline_correct: np.ndarray
+    per_category_total: np.ndarray
+    table1_correct: np.ndarray
+    table1_total: np.ndarray
+    table1_no_same_correct: np.ndarray
+    table1_no_same_total: np.ndarray
+    table2: dict[int, tuple[float, float]]
+
+    @property
+    def baseline_accuracy(self) -> float:
+        return float(self.baseline_correct.sum() / self.per_category_total.sum())
+
+
+def run_study(recogniser: RelationRecogniser, config: StudyConfig, progress: bool = False) -> StudyResult:
+    """Run the baseline, Table 1 and Table 2 on ``recogniser``'s query and support pictures."""
+    from tqdm.auto import tqdm
+
+    cats = recogniser.query_categories
+    n_way, k_shot = recogniser.n_way, recogniser.k_shot
+    members = [np.flatnonzero(cats == c) for c in range(n_way)]
+    per_cat = np.array([len(m) for m in members])
+    run = 0
+    recogniser.start_run(run, config.seed)
+    base_pred = recogniser.predictions(run).copy()
+    base_scores = recogniser.scores(run, np.arange(recogniser.n_pictures)).copy()
+    base_correct = np.bincount(cats[base_pred == cats], minlength=n_way)
+
+    t1 = np.zeros((n_way, n_way), dtype=np.int64)
+    t1_ns = np.zeros((n_way, n_way), dtype=np.int64)
+    t1_ns_total = np.zeros((n_way, n_way), dtype=np.int64)
+    table2: dict[int, tuple[float, float]] = {0: (float(base_correct.sum() / per_cat.sum()),) * 2}
+    max_n = min(k_shot, int(per_cat.min()))
+    bar = tqdm(total=max_n * n_way * config.repeats, desc="accuracy study", disable=not progress, mininterval=1.0)
+    for n in range(1, max_n + 1):
+        rng = np.random.default_rng([config.seed, n])
+        with_same = [0, 0]
+        no_same = [0, 0]
+        for c in range(n_way):
+            for _ in range(config.repeats):
+                recogniser.start_run(run, config.seed)
+                pictures = rng.choice(members[c], size=n, replace=False)
+                positions = rng.choice(k_shot, size=n, replace=False)
+                for pic, pos in zip(pictures, positions):
+                    recogniser.replace(run, c, int(pos), int(pic))
+                correct = recogniser.predictions(run) == cats
+                counted = np.ones(len(cats), dtype=bool)
+                counted[pictures] = False
+                with_same[0] += int(correct.sum())
+                with_same[1] += len(cats)
+                no_same[0] += int(correct[counted].sum())
+                no_same[1] += int(counted.sum())
+                if n == 1:
+                    t1[c] += np.bincount(cats[correct], minlength=n_way)
+                    t1_ns[c] += np.bincount(cats[correct & counted], minlength=n_way)
+                    t1_ns_total[c] += np.bincount(cats[counted], minlength=n_way)
+                bar.update()
+        table2[n] = (with_same[0] / with_same[1], no_same[0] / no_same[1])
+    bar.close()
+    return StudyResult(
+        categories=cats,
+        baseline_predictions=base_pred,
+        baseline_scores=base_scores,
+        baseline_correct=base_correct,
+        per_category_total=per_cat,
+        table1_correct=t1,
+        table1_total=np.tile(per_cat * config.repeats, (n_way, 1)),
+        table1_no_same_correct=t1_ns,
+        table1_no_same_total=t1_ns_total,
+        table2=table2,
+    )

@@ -1,0 +1,126 @@
+"""Reading the rendered picture sets through their manifest (the render stage's output contract).
+
+``<images_dir>/manifest.csv`` has the columns ``split, category, class_name, instance, face,
+orientation_deg, picture_id, file``: ``file`` is relative to ``images_dir``; for the ``query`` and
+``support`` splits ``category`` is the obstacle category (0..4, the paper's chair, kettle, carton,
+basin, basket); for ``train`` and ``val`` it is a class index within the split; ``picture_id`` is
+the query-picture id (``category * 8 + instance * 4 + face``) on query rows and -1 elsewhere.
+
+Pictures are resized once, at load time, to the model's input size and kept as uint8 arrays.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from PIL import Image
+
+MANIFEST = "manifest.csv"
+COLUMNS = ("split", "category", "class_name", "instance", "face", "orientation_deg", "picture_id", "file")
+SPLITS = ("query", "support", "train", "val")
+
+
+class DataError(ValueError):
+    """The picture sets on disk do not match the manifest contract."""
+
+
+@dataclass(frozen=True)
+class PictureSet:
+    """Pictures of one split: ``images`` (N, H, W, 3) uint8, ``labels`` (N,) class indices,
+    ``picture_ids`` (N,) query ids or -1, ``class_names`` indexed by label, ``files``."""
+
+    images: np.ndarray
+    labels: np.ndarray
+    picture_ids: np.ndarray
+    class_names: tuple[str, ...]
+    files: tuple[str, ...]
+
+    @property
+    def n_classes(self) -> int:
+        return len(self.class_names)
+
+    def by_class(self) -> list[np.ndarray]:
+        """Indices of the pictures of each class, in manifest order."""
+        return [np.flatnonzero(self.labels == c) for c in range(self.n_classes)]
+
+
+def read_manifest(images_dir: str | Path) -> pd.DataFrame:
+    """The manifest as a DataFrame, with its columns checked."""
+    path = Path(images_dir) / MANIFEST
+    if not path.is_file():
+        raise DataError(
+            f"no picture manifest at {path}; render the pictures first (`python -m pipeline render`) "
+            f"or point images_dir at a rendered dataset"
+        )
+    frame = pd.read_csv(path)
+    missing = [c for c in COLUMNS if c not in frame.columns]
+    if missing:
+        raise DataError(f"{path}: missing column(s) {missing}; expected {list(COLUMNS)}")
+    unknown = sorted(set(frame["split"]) - set(SPLITS))
+    if unknown:
+        raise DataError(f"{path}: unknown split(s) {unknown}; expected {list(SPLITS)}")
+    return frame
+
+
+def load_image(path: Path, size: int) -> np.ndarray:
+    """One picture as (size, size, 3) uint8 RGB, resized with antialiased bilinear filtering."""
+    try:
+        with Image.open(path) as im:
+            im = im.convert("RGB")
+            if im.size != (size, size):
+                im = im.resize((size, size), Image.Resampling.BILINEAR)
+            return np.asarray(im, dtype=np.uint8)
+    except (OSError, ValueError) as exc:
+        raise DataError(f"cannot read picture {path}: {exc}") from exc
+
+
+def load_split(images_dir: str | Path, split: str, size: int, frame: pd.DataFrame | None = None) -> PictureSet:
+    """Load every picture of ``split`` resized to ``size`` px. Rows are sorted by
+    (category, instance, face, file) so the order does not depend on how the manifest was written."""
+    if split not in SPLITS:
+        raise DataError(f"unknown split {split!r}; expected one of {list(SPLITS)}")
+    images_dir = Path(images_dir)
+    frame = read_manifest(images_dir) if frame is None else frame
+    rows = frame[frame["split"] == split].sort_values(["category", "instance", "face", "file"], kind="stable")
+    if rows.empty:
+        raise DataError(f"{images_dir / MANIFEST}: no rows for split {split!r}")
+    categories = rows["category"].to_numpy(dtype=np.int64)
+    n_classes = int(categories.max()) + 1
+    present = np.unique(categories)
+    if categories.min() < 0 or len(present) != n_classes:
+        raise DataError(
+            f"{images_dir / MANIFEST}: split {split!r} has categories {present.tolist()}; expected 0..{n_classes - 1} all present"
+        )
+    names = []
+    for c in range(n_classes):
+        cls = rows.loc[rows["category"] == c, "class_name"].astype(str).unique()
+        if len(cls) != 1:
+            raise DataError(f"{images_dir / MANIFEST}: split {split!r} category {c} has class names {list(cls)}")
+        names.append(cls[0])
+    files = tuple(rows["file"].astype(str))
+    images = np.stack([load_image(images_dir / f, size) for f in files])
+    return PictureSet(
+        images=images,
+        labels=categories,
+        picture_ids=rows["picture_id"].to_numpy(dtype=np.int64),
+        class_names=tuple(names),
+        files=files,
+    )
+
+
+def channel_stats(images: np.ndarray) -> tuple[list[float], list[float]]:
+    """Per-channel mean and standard deviation of uint8 pictures, on the [0, 1] scale."""
+    x = images.reshape(-1, 3).astype(np.float64) / 255.0
+    return x.mean(axis=0).tolist(), np.maximum(x.std(axis=0), 1e-3).tolist()
+
+
+def to_tensor(images: np.ndarray, mean: list[float], std: list[float]):
+    """uint8 (N, H, W, 3) -> normalised float32 torch tensor (N, 3, H, W)."""
+    import torch
+
+    x = torch.from_numpy(np.ascontiguousarray(images)).permute(0, 3, 1, 2).float().div_(255.0)
+    m = torch.tensor(mean, dtype=torch.float32).view(1, 3, 1, 1)
+    s = torch.tensor(std, dtype=torch.float32).view(1, 3, 1, 1)
+    return (x - m) / s

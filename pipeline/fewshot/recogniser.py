@@ -1,0 +1,210 @@
+"""The few-shot reasoning module as the RL loop uses it (paper section 3.2.1, eq. 2, and the
+dynamic support set of section 3.3). It implements the trial runner's ``Recogniser`` protocol
+(``pipeline/rl/recogniser.py``) structurally, without importing ``pipeline.rl``.
+
+Cost model. Every picture (the 40 query pictures and the original support pictures) is embedded
+once by f_varphi. g_phi's first convolution is linear in the concatenated pair, so it splits into a
+class half and a query half (:meth:`RelationModule.first_conv_halves`); the class half of a summed
+class feature map is the sum of its members' halves plus the bias. Both halves are computed once per
+picture. A run keeps, per category, its class half and its column of the (pictures x categories)
+score table; a substitution in category ``c`` re-sums ``c``'s K halves and invalidates column ``c``
+only, which is recomputed (the rest of g_phi on 40 pairs) the next time a score is asked for.
+The columns are always computed for all pictures in one fixed-size batch, so a score does not depend
+on which picture was asked for first. Scores agree with the plain forward pass to float rounding.
+
+Each run owns its support set. ``start_run`` restores the original support set, or, with
+``carry_over=True`` (long-term autonomy, DESIGN.md), keeps the run's current one and only reseeds
+its substitution stream.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from .checkpoint import load_checkpoint
+from .data import DataError, PictureSet, load_split, read_manifest, to_tensor
+from .model import RelationNetwork
+from .support_set import SupportSet
+from .training import embed_all
+
+
+@dataclass
+class _Run:
+    support: SupportSet
+    class_half: torch.Tensor  # (C, 64, h, h): first-conv class half (with bias) of every category
+    table: np.ndarray  # (P, C) relation scores
+    valid: np.ndarray  # (C,) bool: column c of ``table`` is current
+
+
+class RelationRecogniser:
+    """Relation Network recogniser over a dynamic C-way K-shot support set.
+
+    ``query_images``: (P, 3, H, W) normalised, row ``p`` = query picture id ``p``;
+    ``query_categories``: (P,) true categories; ``support_images``: (C*K, 3, H, W), class ``c`` in
+    rows ``c*K .. c*K+K-1`` (position order). ``substitution_way``: 0 static, 1-4 as in section 3.3.
+    """
+
+    def __init__(
+        self,
+        network: RelationNetwork,
+        query_images: torch.Tensor,
+        query_categories: np.ndarray,
+        support_images: torch.Tensor,
+        *,
+        n_way: int = 5,
+        k_shot: int = 5,
+        substitution_way: int = 1,
+        carry_over: bool = False,
+    ) -> None:
+        if len(support_images) != n_way * k_shot:
+            raise ValueError(f"support set needs {n_way}x{k_shot} = {n_way * k_shot} pictures, got {len(support_images)}")
+        if len(query_images) != len(query_categories):
+            raise ValueError("query_images and query_categories differ in length")
+        cats = np.asarray(query_categories, dtype=np.int64)
+        if cats.min() < 0 or cats.max() >= n_way:
+            raise ValueError(f"query categories must lie in 0..{n_way - 1}")
+        SupportSet(n_way, k_shot, substitution_way, 0)  # validates the way
+        self.network = network.eval()
+        self.n_way, self.k_shot = n_way, k_shot
+        self.substitution_way, self.carry_over = substitution_way, carry_over
+        self.query_categories = cats
+        self.n_pictures = len(cats)
+        self.class_names: tuple[str, ...] = tuple(f"category_{c}" for c in range(n_way))
+        self.checkpoint: dict | None = None  # config and metrics of the checkpoint, when loaded from files
+        with torch.no_grad():
+            query_f = embed_all(network, query_images, channels_last=False)
+            support_f = embed_all(network, support_images, channels_last=False)
+            # class halves of every query picture and original support picture, and query halves
+            q_class, self._query_half = network.relation.first_conv_halves(query_f, query_f)
+            s_class, _ = network.relation.first_conv_halves(support_f, support_f[:1])
+            self._bias = network.relation.first_conv_bias().detach().clone()
+            self._class_part = {int(p): q_class[p] for p in range(self.n_pictures)}
+            for j in range(len(support_f)):
+                self._class_part[-(j + 1)] = s_class[j]
+        self._runs: dict[int, _Run] = {}
+        template = SupportSet(n_way, k_shot, 0, 0)
+        self._original_half = torch.stack([self._class_half(template.members[c]) for c in range(n_way)])
+        self._original_table = np.stack([self._column(self._original_half[c]) for c in range(n_way)], axis=1)
+
+    # -- construction from files -------------------------------------------------------------
+    @classmethod
+    def from_files(cls, checkpoint: str | Path, images_dir: str | Path, *, substitution_way: int = 1, carry_over: bool = False) -> "RelationRecogniser":
+        """Load a trained checkpoint and the query/support pictures of ``images_dir``'s manifest,
+        resized to the checkpoint's input size and normalised with its statistics."""
+        network, payload = load_checkpoint(checkpoint)
+        size = network.config.input_size
+        frame = read_manifest(images_dir)
+        query = load_split(images_dir, "query", size, frame)
+        support = load_split(images_dir, "support", size, frame)
+        q_images, q_cats, s_images, n_way, k_shot = cls._arrange(query, support, images_dir)
+        norm = payload["normalisation"]
+        recogniser = cls(
+            network,
+            to_tensor(q_images, norm["mean"], norm["std"]),
+            q_cats,
+            to_tensor(s_images, norm["mean"], norm["std"]),
+            n_way=n_way,
+            k_shot=k_shot,
+            substitution_way=substitution_way,
+            carry_over=carry_over,
+        )
+        recogniser.class_names = support.class_names
+        recogniser.checkpoint = {k: payload[k] for k in ("model", "config", "metrics", "normalisation")}
+        return recogniser
+
+    @staticmethod
+    def _arrange(query: PictureSet, support: PictureSet, images_dir) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, int]:
+        order = np.argsort(query.picture_ids, kind="stable")
+        ids = query.picture_ids[order]
+        if not np.array_equal(ids, np.arange(len(ids))):
+            raise DataError(f"{images_dir}: query picture ids must be 0..{len(ids) - 1}, each once; got {ids.tolist()}")
+        counts = np.bincount(support.labels)
+        if len(set(counts.tolist())) != 1 or support.n_classes != query.n_classes:
+            raise DataError(f"{images_dir}: the support split needs the same number of pictures in each of the {query.n_classes} categories; got {counts.tolist()}")
+        return query.images[order], query.labels[order], support.images, support.n_classes, int(counts[0])
+
+    # -- the Recogniser protocol -------------------------------------------------------------
+    def start_run(self, run: int, seed: int) -> None:
+        """Restore run ``run``'s original support set (or keep it with ``carry_over``) and seed its
+        substitution stream."""
+        if self.carry_over and run in self._runs:
+            self._runs[run].support.reset_stream(seed)
+            return
+        self._runs[run] = _Run(
+            support=SupportSet(self.n_way, self.k_shot, self.substitution_way, seed),
+            class_half=self._original_half.clone(),
+            table=self._original_table.copy(),
+            valid=np.ones(self.n_way, dtype=bool),
+        )
+
+    def predictions(self, run: int) -> np.ndarray:
+        """Predicted category of every query picture id under run ``run``'s support set."""
+        return self._table(run).argmax(axis=1)
+
+    def scores(self, run: int, picture_ids: np.ndarray) -> np.ndarray:
+        """Relation scores (len(picture_ids), C) under run ``run``'s support set."""
+        ids = np.asarray(picture_ids, dtype=np.int64)
+        if ids.size and (ids.min() < 0 or ids.max() >= self.n_pictures):
+            raise ValueError(f"picture ids must lie in 0..{self.n_pictures - 1}, got {ids.tolist()}")
+        return self._table(run)[ids]
+
+    def learn_from_collision(self, run: int, picture_id: int, true_category: int) -> int:
+        """Substitute query picture ``picture_id`` into ``true_category`` at the position the
+        substitution way chooses (section 3.3); return it, or -1 for a static support set."""
+        state = self._run(run)
+        self._check_picture(picture_id, true_category)
+        pos = state.support.substitute(true_category, int(picture_id))
+        if pos >= 0:
+            self._refresh(state, true_category)
+        return pos
+
+    # -- extras for the accuracy study and the records ---------------------------------------
+    def replace(self, run: int, category: int, position: int, picture_id: int) -> None:
+        """Put query picture ``picture_id`` at ``position`` of ``category`` (the accuracy study's
+        chosen substitutions, section 4.2.1), whatever the substitution way."""
+        state = self._run(run)
+        self._check_picture(picture_id, category)
+        if not 0 <= position < self.k_shot:
+            raise ValueError(f"support position {position} out of range 0..{self.k_shot - 1}")
+        state.support.members[category, position] = int(picture_id)
+        self._refresh(state, category)
+
+    def support_members(self, run: int) -> np.ndarray:
+        """(C, K) member codes of run ``run``'s support set: a query picture id (>= 0) or
+        ``-(j + 1)`` for original support picture ``j``."""
+        return self._run(run).support.members.copy()
+
+    # -- internals ---------------------------------------------------------------------------
+    def _run(self, run: int) -> _Run:
+        try:
+            return self._runs[run]
+        except KeyError:
+            raise KeyError(f"run {run} was not started; call start_run({run}, seed) first") from None
+
+    def _check_picture(self, picture_id: int, category: int) -> None:
+        if not 0 <= picture_id < self.n_pictures:
+            raise ValueError(f"picture id {picture_id} out of range 0..{self.n_pictures - 1}")
+        if self.query_categories[picture_id] != category:
+            raise ValueError(f"picture {picture_id} shows category {self.query_categories[picture_id]}, not {category}")
+
+    def _class_half(self, members: np.ndarray) -> torch.Tensor:
+        return self._bias + torch.stack([self._class_part[int(m)] for m in members]).sum(0)
+
+    @torch.no_grad()
+    def _column(self, class_half: torch.Tensor) -> np.ndarray:
+        h = class_half.unsqueeze(0) + self._query_half
+        return self.network.relation.after_first_conv(h).numpy()
+
+    def _refresh(self, state: _Run, category: int) -> None:
+        state.class_half[category] = self._class_half(state.support.members[category])
+        state.valid[category] = False
+
+    def _table(self, run: int) -> np.ndarray:
+        state = self._run(run)
+        for c in np.flatnonzero(~state.valid):
+            state.table[:, c] = self._column(state.class_half[c])
+            state.valid[c] = True
+        return state.table

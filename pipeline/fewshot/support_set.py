@@ -1,0 +1,85 @@
+"""The dynamic support set and its four substitution ways (paper section 3.3, Figure 5).
+
+After a collision the robot learns the obstacle's true category and the picture it took
+substitutes one of the K samples of that category. Which position is replaced:
+
+- way 1, *in order*: positions 0, 1, ..., K-1, 0, 1, ... (one in, one out);
+- way 2, *random*: a uniformly random position every time, even the one just replaced;
+- way 3, *random rounds*: a random position among those not yet replaced in the current round;
+  after all K were replaced a new round starts;
+- way 4, *random then in order*: like way 3 for the first round, then the first round's order
+  repeated, as way 1 does with 0..K-1.
+
+Way 0 means a static support set (no substitution). The position state is kept per category;
+one random stream per run (seeded in :meth:`SupportSet.reset_stream`) serves every category.
+
+Members are integers: an original support picture ``j`` (its index in the support split, class
+``c`` holding ``c*K .. c*K+K-1``) is ``-(j + 1)``; a query picture is its picture id (>= 0).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+WAYS = (0, 1, 2, 3, 4)
+WAY_NAMES = {0: "static", 1: "in order", 2: "random", 3: "random rounds", 4: "random round, then in order"}
+
+
+def original_member(j: int) -> int:
+    """Member code of original support picture ``j``."""
+    return -(j + 1)
+
+
+class PositionChooser:
+    """Which support position of one category the next substitution replaces (ways 1-4)."""
+
+    def __init__(self, way: int, k_shot: int) -> None:
+        if way not in (1, 2, 3, 4):
+            raise ValueError(f"substitution way must be 1, 2, 3 or 4, got {way}")
+        self.way, self.k = way, k_shot
+        self.count = 0  # substitutions made so far in this category
+        self.round_left: list[int] = list(range(k_shot))  # way 3/4: positions not yet replaced this round
+        self.first_round: list[int] = []  # way 4: the first round's order
+
+    def next_position(self, rng: np.random.Generator) -> int:
+        k = self.k
+        if self.way == 1:
+            pos = self.count % k
+        elif self.way == 2:
+            pos = int(rng.integers(k))
+        elif self.way == 3 or (self.way == 4 and self.count < k):
+            pos = self.round_left.pop(int(rng.integers(len(self.round_left))))
+            if self.way == 4:
+                self.first_round.append(pos)
+            if not self.round_left:
+                self.round_left = list(range(k))
+        else:  # way 4 after its first round
+            pos = self.first_round[self.count % k]
+        self.count += 1
+        return pos
+
+
+class SupportSet:
+    """The C-way K-shot support set of one run: ``members`` (C, K) and one
+    :class:`PositionChooser` per category."""
+
+    def __init__(self, n_way: int, k_shot: int, way: int, seed: int) -> None:
+        if way not in WAYS:
+            raise ValueError(f"substitution way must be one of {WAYS} (0 = static), got {way}")
+        self.n_way, self.k_shot, self.way = n_way, k_shot, way
+        self.members = np.array([[original_member(c * k_shot + k) for k in range(k_shot)] for c in range(n_way)], dtype=np.int64)
+        self.choosers = [PositionChooser(way, k_shot) for _ in range(n_way)] if way else []
+        self.reset_stream(seed)
+
+    def reset_stream(self, seed: int) -> None:
+        self.rng = np.random.default_rng(seed)
+
+    def substitute(self, category: int, member: int) -> int:
+        """Put ``member`` into ``category`` at the position the way chooses; return that position
+        (or -1 for a static set, which is left unchanged)."""
+        if not 0 <= category < self.n_way:
+            raise ValueError(f"category {category} out of range 0..{self.n_way - 1}")
+        if self.way == 0:
+            return -1
+        pos = self.choosers[category].next_position(self.rng)
+        self.members[category, pos] = member
+        return pos

@@ -1,0 +1,230 @@
+"""Episodic meta-training of the Relation Network (Sung et al. 2018, section 3; the paper's
+section 3.2.1): C-way K-shot episodes from the training classes, MSE between relation scores and
+one-hot targets, Adam.
+
+Model selection uses the *validation classes* only (a fixed, seeded list of validation episodes,
+evaluated every ``val_every`` training episodes); the obstacle query and support pictures are never
+seen. Evaluation runs in ``eval()`` mode, so batch norm uses its running statistics and one
+query cannot leak into another's score. The reference implementation of Sung et al. instead
+keeps batch norm in training mode at test time and picks its checkpoint on the test episodes; we do
+neither. The final figure is the mean accuracy over ``eval_episodes`` (600) fresh validation
+episodes, drawn from another seed than the selection episodes, with its 95% interval.
+
+In eval mode a picture's embedding does not depend on the other pictures, so evaluation embeds
+every validation picture once and runs only the relation module per episode.
+"""
+from __future__ import annotations
+
+import copy
+import logging
+import math
+import time
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import numpy as np
+import torch
+from torch import nn
+from tqdm.auto import tqdm
+
+from .data import PictureSet, channel_stats, to_tensor
+from .episodes import Episode, mean_and_ci95, sample_episode, sample_episodes
+from .model import ModelConfig, RelationNetwork
+
+LR_SCHEDULES = ("constant", "cosine", "step")
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """Meta-training hyperparameters (every field is a key of ``conf/meta_train.yaml``'s ``train``)."""
+
+    input_size: int = 48
+    """Square input side in pixels; pictures are resized to it (see :mod:`.model` for map sizes)."""
+    relation_padding: int = 0
+    """Padding of g_phi's convolutions (0 as in Sung et al.; 1 needed below 46 px)."""
+    n_way: int = 5
+    """Classes per episode (C)."""
+    k_shot: int = 5
+    """Support pictures per class (K); their feature maps are summed."""
+    n_query: int = 5
+    """Query pictures per class in a training episode."""
+    episodes: int = 1500
+    """Training episodes (the loop also stops at ``max_minutes``)."""
+    lr: float = 1e-3
+    """Adam learning rate at the start."""
+    lr_schedule: str = "cosine"
+    """``constant``, ``cosine`` (to ``lr * min_lr_fraction`` at ``episodes``) or ``step`` (halve every ``lr_step``)."""
+    min_lr_fraction: float = 0.05
+    """Final learning rate of the cosine schedule, as a fraction of ``lr``."""
+    lr_step: int = 1000
+    """Episodes between halvings of the ``step`` schedule."""
+    flip: bool = True
+    """Random horizontal flips of training pictures."""
+    val_every: int = 150
+    """Training episodes between model-selection evaluations on the validation classes."""
+    val_episodes: int = 200
+    """Validation episodes per model-selection evaluation (a fixed, seeded list)."""
+    eval_episodes: int = 600
+    """Fresh validation episodes for the reported accuracy and its 95% interval."""
+    eval_queries: int = 15
+    """Query pictures per class in validation episodes."""
+    seed: int = 0
+    """Seeds the weights, the episode stream and the flips."""
+    channels_last: bool = True
+    """Use the channels-last memory format (faster convolutions on the CPU)."""
+    max_minutes: float = 12.5
+    """Wall-clock budget of the training loop; training stops early when it is spent."""
+    target_accuracy: float = 0.75
+    """Validation accuracy goal; the time when a selection evaluation first reaches it is recorded."""
+
+    def __post_init__(self) -> None:
+        positive = ("input_size", "n_way", "k_shot", "n_query", "episodes", "val_every", "val_episodes", "eval_episodes", "eval_queries", "lr_step")
+        for key in positive:
+            if getattr(self, key) < 1:
+                raise ValueError(f"train.{key} must be >= 1, got {getattr(self, key)}")
+        if self.lr <= 0 or not 0 < self.min_lr_fraction <= 1:
+            raise ValueError(f"train.lr must be > 0 and train.min_lr_fraction in (0, 1], got {self.lr}, {self.min_lr_fraction}")
+        if self.lr_schedule not in LR_SCHEDULES:
+            raise ValueError(f"train.lr_schedule must be one of {LR_SCHEDULES}, got {self.lr_schedule!r}")
+        if self.max_minutes <= 0:
+            raise ValueError(f"train.max_minutes must be > 0, got {self.max_minutes}")
+        ModelConfig(self.input_size, self.relation_padding)
+
+    @property
+    def model(self) -> ModelConfig:
+        return ModelConfig(self.input_size, self.relation_padding)
+
+
+@dataclass
+class TrainResult:
+    """The selected network (in eval mode) and everything measured while training it."""
+
+    network: RelationNetwork
+    normalisation: dict[str, list[float]]
+    metrics: dict[str, Any]
+    history: list[dict[str, float]] = field(default_factory=list)
+
+
+def _lr_lambda(config: TrainConfig):
+    if config.lr_schedule == "constant":
+        return lambda step: 1.0
+    if config.lr_schedule == "step":
+        return lambda step: 0.5 ** (step // config.lr_step)
+    lo = config.min_lr_fraction
+    return lambda step: lo + (1 - lo) * 0.5 * (1 + math.cos(math.pi * min(step, config.episodes) / config.episodes))
+
+
+def _format(x: torch.Tensor, channels_last: bool) -> torch.Tensor:
+    return x.contiguous(memory_format=torch.channels_last) if channels_last else x
+
+
+@torch.no_grad()
+def embed_all(network: RelationNetwork, images: torch.Tensor, channels_last: bool = True, batch: int = 256) -> torch.Tensor:
+    """f_varphi of every picture, in eval mode, in fixed-size batches (N, 64, s, s)."""
+    network.eval()
+    out = [network.embedding(_format(images[i : i + batch], channels_last)) for i in range(0, len(images), batch)]
+    return torch.cat(out).contiguous()
+
+
+@torch.no_grad()
+def evaluate(network: RelationNetwork, features: torch.Tensor, episodes: list[Episode]) -> np.ndarray:
+    """Accuracy of every episode from precomputed eval-mode embeddings ``features``."""
+    network.eval()
+    acc = np.empty(len(episodes))
+    for i, ep in enumerate(episodes):
+        class_f = network.class_features(features[torch.from_numpy(ep.support)])
+        scores = network.relation_scores(class_f, features[torch.from_numpy(ep.query)])
+        acc[i] = float((scores.argmax(1).numpy() == ep.labels).mean())
+    return acc
+
+
+def meta_train(train: PictureSet, val: PictureSet, config: TrainConfig, progress: bool = True) -> TrainResult:
+    """Meta-train on ``train``'s classes and select the checkpoint on ``val``'s classes."""
+    torch.manual_seed(config.seed)
+    rng = np.random.default_rng(config.seed)
+    mean, std = channel_stats(train.images)
+    x_train = to_tensor(train.images, mean, std)
+    x_val = to_tensor(val.images, mean, std)
+    by_train, by_val = train.by_class(), val.by_class()
+    select_eps = sample_episodes(config.seed + 1, config.val_episodes, by_val, config.n_way, config.k_shot, config.eval_queries)
+
+    network = RelationNetwork(config.model)
+    if config.channels_last:
+        network = network.to(memory_format=torch.channels_last)
+    optimiser = torch.optim.Adam(network.parameters(), lr=config.lr)
+    scheduler = torch.optim.lr_scheduler.LambdaLR(optimiser, _lr_lambda(config))
+    loss_fn = nn.MSELoss()
+    one_hot = torch.eye(config.n_way)[torch.from_numpy(np.repeat(np.arange(config.n_way), config.n_query))]
+
+    best = {"val_accuracy": -1.0, "episode": 0, "state": None}
+    history: list[dict[str, float]] = []
+    time_to_goal = None
+    losses: list[float] = []
+    start = time.perf_counter()
+    budget = config.max_minutes * 60.0
+    done = 0
+    bar = tqdm(range(config.episodes), desc="meta-train", disable=not progress, mininterval=2.0)
+    for step in bar:
+        network.train()
+        ep = sample_episode(rng, by_train, config.n_way, config.k_shot, config.n_query)
+        idx = torch.from_numpy(np.concatenate([ep.support.reshape(-1), ep.query]))
+        images = x_train[idx]
+        if config.flip:
+            flip = torch.from_numpy(rng.random(len(idx)) < 0.5)
+            images = torch.where(flip.view(-1, 1, 1, 1), images.flip(3), images)
+        images = _format(images, config.channels_last)
+        n_support = config.n_way * config.k_shot
+        support = images[:n_support].unflatten(0, (config.n_way, config.k_shot))
+        scores = network(support, images[n_support:])
+        loss = loss_fn(scores, one_hot)
+        optimiser.zero_grad(set_to_none=True)
+        loss.backward()
+        optimiser.step()
+        scheduler.step()
+        losses.append(float(loss.detach()))
+        done = step + 1
+        out_of_time = time.perf_counter() - start > budget
+        if done % config.val_every == 0 or done == config.episodes or out_of_time:
+            acc = float(evaluate(network, embed_all(network, x_val, config.channels_last), select_eps).mean())
+            elapsed = time.perf_counter() - start
+            history.append({"episode": done, "loss": float(np.mean(losses[-config.val_every :])), "val_accuracy": acc, "elapsed_s": elapsed, "lr": scheduler.get_last_lr()[0]})
+            if acc > best["val_accuracy"]:
+                best = {"val_accuracy": acc, "episode": done, "state": copy.deepcopy(network.state_dict())}
+            if time_to_goal is None and acc >= config.target_accuracy:
+                time_to_goal = elapsed
+            log.info("episode %d: loss %.4f, selection accuracy %.4f (best %.4f), %.0f s", done, history[-1]["loss"], acc, best["val_accuracy"], elapsed)
+            bar.set_postfix(loss=f"{history[-1]['loss']:.4f}", val=f"{acc:.3f}", best=f"{best['val_accuracy']:.3f}")
+        if out_of_time:
+            break
+    bar.close()
+    train_seconds = time.perf_counter() - start
+
+    network.load_state_dict(best["state"])
+    network.eval()
+    t0 = time.perf_counter()
+    eval_eps = sample_episodes(config.seed + 2, config.eval_episodes, by_val, config.n_way, config.k_shot, config.eval_queries)
+    acc = evaluate(network, embed_all(network, x_val, config.channels_last), eval_eps)
+    mean_acc, ci95 = mean_and_ci95(acc)
+    metrics = {
+        "val_accuracy": mean_acc,
+        "val_ci95": ci95,
+        "val_episodes": config.eval_episodes,
+        "selection_val_accuracy": best["val_accuracy"],
+        "selected_episode": best["episode"],
+        "episodes_trained": done,
+        "stopped_by_time_budget": done < config.episodes,
+        "train_seconds": train_seconds,
+        "eval_seconds": time.perf_counter() - t0,
+        "time_to_target_s": time_to_goal,
+        "target_accuracy": config.target_accuracy,
+        "n_train_classes": train.n_classes,
+        "n_val_classes": val.n_classes,
+        "torch_threads": torch.get_num_threads(),
+    }
+    network = network.to(memory_format=torch.contiguous_format)
+    return TrainResult(network=network, normalisation={"mean": mean, "std": std}, metrics=metrics, history=history)
+
+
+def config_dict(config: TrainConfig) -> dict[str, Any]:
+    return asdict(config)

@@ -1,0 +1,65 @@
+"""The meta_train and accuracy stages end to end on a tiny synthetic dataset (Hydra-composed real
+configs, shrunk), and their config errors."""
+import json
+
+import pandas as pd
+import pytest
+from hydra import compose, initialize_config_dir
+
+from pipeline.fewshot.synthetic import write_synthetic_dataset
+from pipeline.stages import accuracy, meta_train
+from pipeline.stages._fewshot_common import CONF_DIR, ConfigError
+
+SHRINK = [
+    "train.input_size=24", "train.relation_padding=1", "train.n_query=3", "train.episodes=20", "train.val_every=10",
+    "train.val_episodes=10", "train.eval_episodes=20", "train.eval_queries=5", "progress=false",
+]
+
+
+def _compose(name, overrides):
+    with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
+        return compose(config_name=name, overrides=overrides)
+
+
+def test_defaults_point_at_the_shared_dataset():
+    cfg = _compose("meta_train", [])
+    assert cfg.images_dir == "datasets/images" and cfg.checkpoint == "datasets/models/relation_net.pt"
+    assert _compose("accuracy", []).study.repeats == 100
+
+
+def test_meta_train_then_accuracy(tmp_path):
+    images = tmp_path / "images"
+    write_synthetic_dataset(images, n_train=6, n_val=5, per_class=10, seed=2)
+    paths = [f"images_dir={images}", f"checkpoint={tmp_path}/m/rn.pt", f"metrics_file={tmp_path}/m/metrics.json", f"history_file={tmp_path}/m/h.csv"]
+    metrics = meta_train.run(_compose("meta_train", paths + SHRINK))
+    on_disk = json.loads((tmp_path / "m" / "metrics.json").read_text())
+    assert on_disk["val_accuracy"] == pytest.approx(metrics["val_accuracy"]) and on_disk["val_episodes"] == 20
+    assert len(pd.read_csv(tmp_path / "m" / "h.csv")) == 2
+
+    out = tmp_path / "acc"
+    data = accuracy.run(_compose("accuracy", [f"images_dir={images}", f"checkpoint={tmp_path}/m/rn.pt", f"out_dir={out}", "study.repeats=4", "progress=false"]))
+    t1 = pd.read_csv(out / "table1.csv")
+    assert len(t1) == 50
+    with_same = t1[t1.variant == "with_same"]
+    assert (with_same.total == 32).all()  # 4 repeats x 8 pictures ("x/800" at 100 repeats)
+    no_same = t1[t1.variant == "no_same"]
+    assert (no_same.total == [28 if s == t else 32 for s, t in zip(no_same.substituted_category, no_same.tested_category)]).all()
+    t2 = pd.read_csv(out / "table2.csv")
+    assert t2.substitution_number.tolist() == [0, 1, 2, 3, 4, 5]
+    # Table 2 at n = 1 is Table 1's experiment
+    assert t2.mean_accuracy[1] == pytest.approx(with_same.correct.sum() / with_same.total.sum())
+    assert t2.mean_accuracy_no_same[1] == pytest.approx(no_same.correct.sum() / no_same.total.sum())
+    base = pd.read_csv(out / "baseline.csv")
+    assert len(base) == 40 and data["baseline"]["accuracy"] == pytest.approx(base.correct.mean())
+    assert t2.mean_accuracy[0] == pytest.approx(base.correct.mean())
+
+
+def test_config_errors_name_the_key(tmp_path):
+    with pytest.raises(ConfigError, match=r"train\.bogus"):
+        meta_train.run(_compose("meta_train", ["+train.bogus=1"]))
+    with pytest.raises(ConfigError, match=r"train\.episodes must be int"):
+        meta_train.run(_compose("meta_train", ["train.episodes=many"]))
+    with pytest.raises(ConfigError, match=r"unknown config key\(s\) \['extra'\]"):
+        accuracy.run(_compose("accuracy", ["+extra=1"]))
+    with pytest.raises(ConfigError, match="study.repeats must be >= 1"):
+        accuracy.run(_compose("accuracy", ["study.repeats=0"]))
