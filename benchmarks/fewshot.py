@@ -24,7 +24,7 @@ from hydra import compose, initialize_config_dir
 from pipeline.fewshot.accuracy_study import StudyConfig, run_study
 from pipeline.fewshot.recogniser import RelationRecogniser
 from pipeline.stages import meta_train
-from pipeline.stages._fewshot_common import CONF_DIR
+from pipeline.stages._common import CONF_DIR
 
 
 def _compose(name: str, overrides: list[str]):

@@ -8,7 +8,7 @@ from hydra import compose, initialize_config_dir
 
 from pipeline.fewshot.synthetic import write_synthetic_dataset
 from pipeline.stages import accuracy, meta_train
-from pipeline.stages._fewshot_common import CONF_DIR, ConfigError
+from pipeline.stages._common import CONF_DIR, ConfigError
 
 SHRINK = [
     "train.input_size=24", "train.relation_padding=1", "train.n_query=3", "train.episodes=20", "train.val_every=10",

@@ -17,7 +17,7 @@ from omegaconf import DictConfig
 from pipeline.fewshot.accuracy_study import StudyConfig, run_study
 from pipeline.fewshot.recogniser import RelationRecogniser
 from pipeline.fewshot.study_tables import baseline_frame, summary, table1_frame, table2_frame
-from pipeline.stages._fewshot_common import CONF_DIR, build, check_keys, write_json
+from pipeline.stages._common import CONF_DIR, build, check_keys, write_json_atomic
 
 KEYS = {"images_dir": str, "checkpoint": str, "out_dir": str, "threads": int, "progress": bool, "study": dict}
 
@@ -40,7 +40,7 @@ def run(cfg: DictConfig) -> dict:
     data = summary(result, names)
     data["config"] = {"images_dir": plain["images_dir"], "checkpoint": plain["checkpoint"], **plain["study"]}
     data["checkpoint_metrics"] = recogniser.checkpoint["metrics"]
-    write_json(out / "summary.json", data)  # no wall-clock figures: the same inputs give the same bytes
+    write_json_atomic(out / "summary.json", data, sort_keys=True)  # no wall-clock figures: the same inputs give the same bytes
     print(
         f"query accuracy, original support set: {result.baseline_correct.sum()}/{result.per_category_total.sum()} "
         f"({100 * result.baseline_accuracy:.1f}%; paper 42.5%); per category "

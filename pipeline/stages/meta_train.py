@@ -16,7 +16,7 @@ from omegaconf import DictConfig
 from pipeline.fewshot.checkpoint import save_checkpoint
 from pipeline.fewshot.data import load_split, read_manifest
 from pipeline.fewshot.training import TrainConfig, config_dict, meta_train
-from pipeline.stages._fewshot_common import CONF_DIR, build, check_keys, write_json
+from pipeline.stages._common import CONF_DIR, build, check_keys, write_json_atomic
 
 KEYS = {"images_dir": str, "checkpoint": str, "metrics_file": str, "history_file": str, "threads": int, "progress": bool, "train": dict}
 
@@ -33,7 +33,7 @@ def run(cfg: DictConfig) -> dict:
     result = meta_train(train, val, config, progress=plain["progress"])
     metrics = {**result.metrics, "images_dir": plain["images_dir"]}
     save_checkpoint(plain["checkpoint"], result.network, normalisation=result.normalisation, config=config_dict(config), metrics=metrics)
-    write_json(plain["metrics_file"], metrics)
+    write_json_atomic(plain["metrics_file"], metrics, sort_keys=True)
     pd.DataFrame(result.history).to_csv(plain["history_file"], index=False)
     print(
         f"validation accuracy {100 * metrics['val_accuracy']:.2f}% +- {100 * metrics['val_ci95']:.2f}% "
