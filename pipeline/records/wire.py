@@ -1,26 +1,21 @@
-"""Protobuf wire-format pieces for the vectorised Episode encoder (``writer.encode_staged``).
+"""Protobuf wire-format pieces for the vectorised EpisodeBatch encoder (:mod:`.batch`).
 
-Why hand-written: the upb ``Message`` API costs 85-100 us per episode (a Python int per packed
-element), which at paper scale would make the recording a large part of the trial time. Packed
+Why hand-written: the upb ``Message`` API turns every packed element into a Python int (about
+1 us each), which at paper scale would make the recording a large part of the trial time. Packed
 repeated fields are just a length-prefixed run of varints (or raw little-endian floats), which
-numpy encodes for a whole batch of episodes in one pass. The output is byte-for-byte what
-``Episode.SerializeToString(deterministic=True)`` produces for the same values (tests check it on
-many episodes), so every Protobuf decoder (ours, Foxglove, Rerun) reads it with the schema in
-:mod:`.schema`.
+numpy encodes for a whole batch in one pass. The output is byte-for-byte what
+``EpisodeBatch.SerializeToString(deterministic=True)`` produces for the same values (tests check),
+so every Protobuf decoder (ours, Foxglove, Rerun) reads it with the schema in :mod:`.schema`.
 
 Encoding rules used (proto3): fields in field-number order; scalars equal to their default and
 empty repeated fields are omitted; ``int32`` negatives are 10-byte sign-extended varints.
 """
 from __future__ import annotations
 
-import struct
-
 import numpy as np
 
 _VARINT = 0
-_I64 = 1
 _LEN = 2
-_DOUBLE = struct.Struct("<d")
 
 
 def varint(n: int) -> bytes:
@@ -37,19 +32,11 @@ def varint(n: int) -> bytes:
     return bytes(out)
 
 
-def key(field: int, wire_type: int) -> bytes:
-    return varint((field << 3) | wire_type)
-
-
 _VARINTS = [varint(i) for i in range(1 << 14)]  # lengths and small scalars: a table lookup
 
 
 def varint_small(n: int) -> bytes:
     return _VARINTS[n] if n < 16384 else varint(n)
-
-
-KEY_EPISODE_STEPS = bytes(((3 << 3) | _LEN,))
-KEY_EPISODE_SUMMARY = bytes(((6 << 3) | _LEN,))
 
 
 _THRESHOLDS = np.array([1 << (7 * i) for i in range(1, 10)], dtype=np.uint64)
@@ -85,18 +72,3 @@ def len_field(field: int, payload: bytes) -> bytes:
 
 def uint_field(field: int, n: int) -> bytes:
     return _VARINT_KEYS[field] + (varint_small(n) if 0 <= n < 16384 else varint(n)) if n else b""
-
-
-_ZERO_DOUBLE = bytes(8)
-
-
-def double_field(field: int, x: float) -> bytes:
-    """A double; proto3 omits one equal to its default 0.0 (but keeps -0.0, whose bits differ)."""
-    packed = _DOUBLE.pack(x)
-    return key(field, _I64) + packed if packed != _ZERO_DOUBLE else b""
-
-
-def map_entry_string_double(k: str, v: float) -> bytes:
-    """A ``map<string, double>`` entry; like upb, both key and value are always written."""
-    kb = k.encode("utf-8")
-    return key(1, _LEN) + varint(len(kb)) + kb + key(2, _I64) + _DOUBLE.pack(v)
