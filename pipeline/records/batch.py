@@ -9,6 +9,7 @@ tests compare), so any Protobuf decoder (ours, Foxglove, Rerun) reads it with th
 """
 from __future__ import annotations
 
+import itertools
 from collections.abc import Mapping
 from typing import Any
 
@@ -143,16 +144,29 @@ def one_episode_batch(fields: Mapping[str, Any]) -> dict[str, Any]:
     return out
 
 
+SMALL = 400  # integer fields of a kind with at most this many values are encoded by table lookup
+
+
 def encode_batch(b: Mapping[str, Any]) -> bytes:
     """Serialize a checked batch (:func:`check_batch`) as ``fsrl.records.EpisodeBatch``."""
     ints, sizes = b["ints"], b["sizes"]
-    if ints.size and (ints & ~0x7F).any():
-        payload, cum = W.varints_with_ends(ints)
-        bounds = cum[np.concatenate(([0], np.cumsum(sizes)))].tolist()
-    else:  # every value < 128 (e.g. every state of a maze of up to 128 cells): one byte each
-        payload = ints.astype(np.uint8).tobytes()
-        bounds = [0, *np.cumsum(sizes).tolist()]
-    seg = [payload[bounds[i]:bounds[i + 1]] for i in range(len(sizes))]
+    seg: list[bytes] = []
+    start = 0
+    table = W.VARINT_TABLE
+    for first, last in ((0, 6), (6, 9), (9, 16), (16, 21)):  # per-episode, per-step, recognition, unsafe
+        group = sizes[first:last]
+        bounds = list(itertools.accumulate(group, initial=0))
+        values = ints[start:start + bounds[-1]]
+        start += bounds[-1]
+        if bounds[-1] <= SMALL:  # a few hundred values: a table lookup each beats a dozen numpy calls
+            vals = values.tolist()
+            if not vals or (min(vals) >= 0 and max(vals) < len(table)):
+                seg += [b"".join([table[v] for v in vals[bounds[i]:bounds[i + 1]]]) for i in range(len(group))]
+                continue
+        payload, cum = W.varints(values)  # one vector pass for the fields of a kind
+        if cum is not None:  # not every value < 128: byte offsets of the field boundaries
+            bounds = cum[bounds].tolist()
+        seg += [payload[bounds[i]:bounds[i + 1]] for i in range(len(group))]
     lf = W.len_field
     summary = (lf(1, seg[1]) + lf(2, seg[2]) + lf(3, b["return_"].tobytes()) + lf(4, seg[3])
                + lf(5, seg[4]) + lf(6, b["epsilon"].tobytes()) + lf(7, seg[5]))

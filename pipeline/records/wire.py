@@ -32,7 +32,8 @@ def varint(n: int) -> bytes:
     return bytes(out)
 
 
-_VARINTS = [varint(i) for i in range(1 << 14)]  # lengths and small scalars: a table lookup
+VARINT_TABLE = [varint(i) for i in range(1 << 14)]  # lengths, small scalars and short arrays: a lookup
+_VARINTS = VARINT_TABLE
 
 
 def varint_small(n: int) -> bytes:
@@ -42,9 +43,34 @@ def varint_small(n: int) -> bytes:
 _THRESHOLDS = np.array([1 << (7 * i) for i in range(1, 10)], dtype=np.uint64)
 
 
-def varints_with_ends(a: np.ndarray) -> tuple[bytes, np.ndarray]:
+def varints(a: np.ndarray) -> tuple[bytes, np.ndarray | None]:
     """Varint encoding of the int64 values ``a`` (negatives as 10-byte two's complement) and the
-    byte offsets ``[0, end of value 0, end of value 1, ...]``. One vector pass per byte level."""
+    byte offsets ``[0, end of value 0, end of value 1, ...]``, or None when every value takes one
+    byte (offsets = value indices). One vector pass per byte level; values in [0, 2^14), the usual
+    case (cells, steps, picture ids), take a two-level shortcut."""
+    if len(a) == 0:
+        return b"", None
+    lo, hi = int(a.min()), int(a.max())
+    if lo >= 0 and hi < 0x80:
+        return a.astype(np.uint8).tobytes(), None
+    if lo >= 0 and hi < 0x4000:  # one or two bytes: interleave (low | continuation, high), drop unused highs
+        two = a >= 0x80
+        pairs = np.empty((len(a), 2), np.uint8)
+        pairs[:, 0] = (a & 0x7F) | (two.view(np.uint8) << 7)
+        pairs[:, 1] = a >> 7
+        keep = np.empty((len(a), 2), bool)
+        keep[:, 0] = True
+        keep[:, 1] = two
+        cum = np.empty(len(a) + 1, np.int64)
+        cum[0] = 0
+        np.cumsum(keep[:, 1], out=cum[1:])
+        cum[1:] += np.arange(1, len(a) + 1)
+        return pairs.ravel()[keep.ravel()].tobytes(), cum
+    return varints_with_ends(a)
+
+
+def varints_with_ends(a: np.ndarray) -> tuple[bytes, np.ndarray]:
+    """:func:`varints` for any int64 values, always with the offsets."""
     if len(a) == 0:
         return b"", np.zeros(1, np.int64)
     u = a.astype(np.int64, copy=False).view(np.uint64)
