@@ -3,9 +3,10 @@
     python -m benchmarks.records [--runs 100] [--episodes 500] [--no-trial] [--json PATH]
 
 1. Synthetic workload: ``runs x episodes`` episodes of 20-200 steps (long at first, shorter as
-   "learning" proceeds), a few recognitions, unsafe-set additions and substitutions, written with
-   :class:`pipeline.records.RecordWriter`; prints episodes/s, messages/s, bytes per step, and the
-   read-back speed of :func:`pipeline.records.read_records`.
+   "learning" proceeds), a few recognitions, unsafe-set additions and substitutions, handed to
+   :class:`pipeline.records.RecordWriter` in sink batches of 25 episodes of one run (as the trial
+   runner does); prints episodes/s, bytes per step, and the read-back speed of
+   :func:`pipeline.records.read_records`.
 2. The real trial (when ``pipeline.rl.runner`` is present): the 11x11 few-shot experiment
    (``fewshot_dss``, 100 x 500) with a deterministic half-right recogniser, timed without a sink,
    with a sink that drops everything (the runner's own cost of emitting episodes), and with the
@@ -25,11 +26,14 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.records import RecordWriter, read_records
-from pipeline.records.synthetic import maze_layout, obstacle_assignment, tiny_png
+from pipeline.records.synthetic import make_batch, maze_layout, obstacle_assignment, tiny_png
+
+BATCH = 25  # episodes a sink batch (the trial runner's chunk_episodes)
 
 
 def synthetic_workload(runs: int, episodes: int, seed: int = 0, width: int = 11):
-    """Episode fields (plus substitutions) shaped like the trial runner's, generated vectorised."""
+    """Sink batches of ``BATCH`` episodes of one run, each with its substitutions, shaped like the
+    trial runner's."""
     rng = np.random.default_rng(seed)
     n_cells = width * width
     out = []
@@ -61,8 +65,10 @@ def synthetic_workload(runs: int, episodes: int, seed: int = 0, width: int = 11)
                          "flags": flags, "recognitions": rec, "unsafe_added": unsafe,
                          "summary": {"steps": n, "collisions": int((flags & 2).astype(bool).sum()),
                                      "return_": float(rewards.sum()), "reached_goal": n < 200,
-                                     "prevented": int((flags & 1).sum()), "epsilon": 0.1}}, subs))
-    return out
+                                     "prevented": int((flags & 1).sum()), "epsilon": 0.1,
+                                     "greedy_optimal": ep > episodes // 2}}, subs))
+    return [(make_batch([f for f, _ in out[i:i + BATCH]]), [s for _, subs in out[i:i + BATCH] for s in subs])
+            for i in range(0, len(out), BATCH)]
 
 
 def _best(fn, repeat: int):
@@ -78,7 +84,8 @@ def _best(fn, repeat: int):
 
 def bench_synthetic(runs: int, episodes: int, folder: Path, repeat: int = 3) -> dict:
     work = synthetic_workload(runs, episodes)
-    steps = sum(len(f["states"]) for f, _ in work)
+    steps = sum(len(b["states"]) for b, _ in work)
+    n_eps = sum(len(b["episode"]) for b, _ in work)
     n_subs = sum(len(s) for _, s in work)
     layout = maze_layout(11)
     path = folder / "synthetic.mcap"
@@ -88,20 +95,20 @@ def bench_synthetic(runs: int, episodes: int, folder: Path, repeat: int = 3) -> 
         with RecordWriter(path, metadata={"config": {"benchmark": "records"}, "seeds": list(range(runs))},
                           maze={"layout": layout}, runs=[obstacle_assignment(layout, r) for r in range(runs)],
                           pictures=pictures, flush_every=500) as w:
-            for fields, subs in work:
-                w.episode(**fields)
+            for batch, subs in work:
                 for s in subs:
                     w.substitution(**s)
+                w.episodes(**batch)
 
     cpu, wall, _ = _best(write, repeat)
     size = path.stat().st_size
     rcpu, rwall, recs = _best(lambda: read_records(path), repeat)
-    assert len(recs.steps) == steps and len(recs.episodes) == len(work)
+    assert len(recs.steps) == steps and len(recs.episodes) == n_eps
     pictures_bytes = sum(len(b) for b in recs.meta.pictures.values())
-    return {"episodes": len(work), "steps": steps, "substitutions": n_subs,
+    return {"episodes": n_eps, "batches": len(work), "steps": steps, "substitutions": n_subs,
             "write_cpu_s": round(cpu, 3), "write_wall_s": round(wall, 3),
-            "episodes_per_s": round(len(work) / cpu), "messages_per_s": round((len(work) + n_subs) / cpu),
-            "us_per_episode": round(cpu / len(work) * 1e6, 1),
+            "episodes_per_s": round(n_eps / cpu), "messages_per_s": round((len(work) + n_subs) / cpu),
+            "us_per_episode": round(cpu / n_eps * 1e6, 2), "us_per_batch": round(cpu / len(work) * 1e6, 1),
             "file_bytes": size, "bytes_per_step": round((size - pictures_bytes) / steps, 3),
             "bytes_per_step_incl_pictures": round(size / steps, 3),
             "read_cpu_s": round(rcpu, 3), "read_wall_s": round(rwall, 3),
@@ -132,7 +139,7 @@ def bench_trial(runs: int, episodes: int, folder: Path, repeat: int = 3) -> dict
             return np.full((len(pics), 5), 0.2, np.float32)
 
     class Drop:
-        def episode(self, **fields):
+        def episodes(self, **batch):
             pass
 
         def substitution(self, **fields):
@@ -151,10 +158,11 @@ def bench_trial(runs: int, episodes: int, folder: Path, repeat: int = 3) -> dict
     def recorded():
         with RecordWriter(path, maze={"layout": list(layout.rows)}, flush_every=500) as w:
             trial(w)
+        return w
 
     base_cpu, base_wall, res = _best(lambda: trial(None), repeat)
     drop_cpu, drop_wall, _ = _best(lambda: trial(Drop()), repeat)
-    rec_cpu, rec_wall, _ = _best(recorded, repeat)
+    rec_cpu, rec_wall, w = _best(recorded, repeat)
     steps = int(res.steps.sum())
     return {"method": "fewshot_dss", "maze": "11x11", "runs": runs, "episodes": episodes, "steps": steps,
             "trial_cpu_s": round(base_cpu, 3), "trial_emitting_cpu_s": round(drop_cpu, 3),
@@ -163,6 +171,7 @@ def bench_trial(runs: int, episodes: int, folder: Path, repeat: int = 3) -> dict
             "recording_overhead_vs_trial": round((rec_cpu - base_cpu) / base_cpu, 2),
             "writer_only_overhead_vs_trial": round((rec_cpu - drop_cpu) / base_cpu, 2),
             "wall_s": {"trial": round(base_wall, 3), "emitting": round(drop_wall, 3), "recording": round(rec_wall, 3)},
+            "episodes_recorded": w.n_episodes, "substitutions_recorded": w.n_substitutions,
             "file_bytes": path.stat().st_size, "bytes_per_step": round(path.stat().st_size / steps, 3)}
 
 
@@ -178,9 +187,9 @@ def main() -> None:
         folder = Path(tmp)
         syn = bench_synthetic(args.runs, args.episodes, folder, args.repeat)
         print(f"synthetic {args.runs} x {args.episodes}: {syn['episodes']} episodes, {syn['steps']} steps, "
-              f"{syn['substitutions']} substitutions")
+              f"{syn['substitutions']} substitutions, {syn['batches']} batches of {BATCH}")
         print(f"  write: {syn['write_cpu_s']} s CPU ({syn['write_wall_s']} s wall): {syn['episodes_per_s']} "
-              f"episodes/s, {syn['messages_per_s']} messages/s, {syn['us_per_episode']} us/episode")
+              f"episodes/s, {syn['messages_per_s']} messages/s, {syn['us_per_episode']} us/episode, {syn['us_per_batch']} us/batch")
         print(f"  size: {syn['file_bytes']} bytes, {syn['bytes_per_step']} bytes/step "
               f"({syn['bytes_per_step_incl_pictures']} with the 40 pictures)")
         print(f"  read: {syn['read_cpu_s']} s CPU ({syn['read_wall_s']} s wall), {syn['read_steps_per_s']} steps/s")

@@ -10,7 +10,8 @@ import pytest
 
 from pipeline.records import RecordWriter, RecordsWarning, read_records
 from pipeline.records import schema as S
-from pipeline.records.synthetic import LAYOUT_5X5, episodes, obstacle_assignment, tiny_png, write_synthetic
+from pipeline.records.synthetic import (LAYOUT_5X5, batches, episodes, make_batch, obstacle_assignment, tiny_png,
+                                        write_synthetic)
 
 
 def _episode(run=0, episode=0, n=3, **over):
@@ -18,7 +19,7 @@ def _episode(run=0, episode=0, n=3, **over):
          "actions": np.ones(n, np.int8), "rewards": np.zeros(n, np.float32), "flags": np.zeros(n, np.uint8),
          "recognitions": {}, "unsafe_added": {},
          "summary": {"steps": n, "collisions": 0, "return_": 0.0, "reached_goal": False, "prevented": 0,
-                     "epsilon": 0.1}}
+                     "epsilon": 0.1, "greedy_optimal": False}}
     f.update(over)
     return f
 
@@ -72,6 +73,9 @@ def test_write_then_read_back_equals_what_was_written(tmp_path):
         e = recs.episodes.set_index(["run", "episode"]).loc[key]
         for k, v in f["summary"].items():
             assert e[k] == v, k
+        assert e["n_recognitions"] == len(rec["step"]) and e["n_unsafe_added"] == len(un["step"])
+    assert recs.episodes.greedy_optimal.dtype == bool and recs.episodes.greedy_optimal.any()
+    assert recs.episodes.reached_goal.dtype == bool
     subs = [s for f in written for s in f["_substitutions"]]
     assert len(recs.substitutions) == len(subs)
     got = recs.substitutions[["run", "episode", "step", "picture", "category", "position"]].to_dict("records")
@@ -102,10 +106,10 @@ def test_pictures_are_stored_once_per_file(tmp_path):
         topics = [ch.topic for _, ch, _ in reader.iter_messages()]
     pictures = [t for t in topics if t.startswith("/pictures/")]
     assert len(pictures) == len(set(pictures)) == 40
-    assert topics.count("/episodes") == 40
+    assert topics.count("/episodes") == 10  # one message per sink batch (of 4 episodes here)
 
 
-def test_q_values_extra_summary_and_missing_scores_round_trip(tmp_path):
+def test_q_values_and_missing_scores_round_trip(tmp_path):
     q = np.arange(25 * 4, dtype=np.float32).reshape(25, 4) / 7
     rec = {"step": np.array([1, 2]), "state": np.array([3, 4]), "action": np.array([0, 1]),
            "picture": np.array([5, 6]), "predicted": np.array([1, 2]), "true": np.array([1, 3]),
@@ -113,12 +117,58 @@ def test_q_values_extra_summary_and_missing_scores_round_trip(tmp_path):
     with RecordWriter(tmp_path / "q.mcap") as w:
         w.episode(**_episode(0, 0, q_values=q, recognitions=rec,
                              summary={"steps": 3, "collisions": 1, "return_": -1.0, "reached_goal": False,
-                                      "prevented": 1, "epsilon": 0.07, "violations": 2}))
+                                      "prevented": 1, "epsilon": 0.07, "greedy_optimal": True}))
         w.episode(**_episode(0, 1))
     r = read_records(tmp_path / "q.mcap")
+    assert list(r.q_values) == [(str(tmp_path / "q.mcap"), 0, 0)]
     np.testing.assert_array_equal(r.q_values[(str(tmp_path / "q.mcap"), 0, 0)], q)
-    assert list(r.episodes.violations.fillna(-1)) == [2.0, -1.0]
+    assert list(r.episodes.greedy_optimal) == [True, False] and list(r.episodes.epsilon) == [0.07, 0.1]
     assert "score_0" not in r.recognitions and list(r.recognitions.correct) == [True, False]
+    assert list(r.recognitions.episode) == [0, 0] and list(r.episodes.n_recognitions) == [2, 0]
+
+
+def test_batches_of_the_runner_protocol_round_trip(tmp_path):
+    """``episodes(**batch)`` with runs interleaving, as the runner hands them over; equals the frames
+    of the same episodes written one at a time."""
+    from pipeline.rl.sink import split_batch
+
+    groups = list(batches(LAYOUT_5X5, batch_size=3, runs=2, episodes_per_run=7, seed=5))
+    order = [g for pair in zip(groups[:3], groups[3:6]) for g in pair] + groups[6:]  # run 0, run 1, ...
+    with RecordWriter(tmp_path / "b.mcap", flush_every=4) as w:
+        for batch, _ in order:
+            w.episodes(**batch)
+    with RecordWriter(tmp_path / "e.mcap") as w:
+        for batch, _ in groups:
+            for ep in split_batch(batch):  # the sink protocol's own per-episode view
+                ep["summary"]["steps"] = ep.pop("steps")
+                w.episode(**ep)
+    a, b = read_records(tmp_path / "b.mcap"), read_records(tmp_path / "e.mcap")
+    for key in ("steps", "episodes", "recognitions", "unsafe"):
+        assert getattr(a, key).drop(columns="file").equals(getattr(b, key).drop(columns="file")), key
+    assert len(a.episodes) == 14 and a.meta.closed["episodes"] == "14"
+    # one run, one episode: the batch stamped before it is read and filtered
+    one = read_records(tmp_path / "b.mcap", run=1, episode=5)
+    assert list(one.episodes.episode) == [5] and set(one.steps.episode) == {5}
+    assert one.steps.drop(columns="file").equals(
+        a.steps[(a.steps.run == 1) & (a.steps.episode == 5)].drop(columns="file").reset_index(drop=True))
+
+
+def test_the_batch_encoder_matches_protobuf_byte_for_byte():
+    from pipeline.records.batch import check_batch, encode_batch, encode_batch_protobuf
+    from pipeline.records.synthetic import maze_layout
+
+    layout = maze_layout(11, seed=2)
+    groups = [b for b, _ in batches(layout, batch_size=5, runs=2, episodes_per_run=30, seed=2, max_steps=300)]
+    groups[1]["states"] = groups[1]["states"] + 20000  # multi-byte varints
+    groups[2]["recognitions"]["predicted"][:] = -1  # negative int32: 10-byte varints
+    groups[3]["recognitions"]["scores"] = np.zeros((0, 0), np.float32)
+    groups[4]["summary"]["return_"] = -0.0 * groups[4]["summary"]["return_"]
+    groups[5]["q_values"] = np.arange(5 * 121 * 4, dtype=np.float32).reshape(5, 121, 4)
+    for k in ("step", "state", "action", "source", "episode"):
+        groups[6]["unsafe_added"][k] = groups[6]["unsafe_added"][k][:0]
+    for b in groups:
+        checked = check_batch(b)
+        assert encode_batch(checked) == encode_batch_protobuf(checked)
 
 
 def test_bad_input_is_refused_with_a_message_naming_it(tmp_path):
@@ -131,11 +181,18 @@ def test_bad_input_is_refused_with_a_message_naming_it(tmp_path):
     with RecordWriter(tmp_path / "x.mcap") as w:
         with pytest.raises(TypeError, match="missing fields \\['summary'\\]"):
             w.episode(**{k: v for k, v in _episode().items() if k != "summary"})
-        with pytest.raises(ValueError, match="actions: length 2 differs"):
+        with pytest.raises(ValueError, match="actions: length 2, expected 3"):
             w.episode(**_episode(actions=np.zeros(2)))
+        with pytest.raises(ValueError, match="must hold integers"):
+            w.episode(**_episode(actions=np.zeros(3)))
+        with pytest.raises(ValueError, match="unknown \\['violations'\\]"):
+            w.episode(**_episode(summary=dict(_episode()["summary"], violations=1)))
         w.episode(**_episode())
-        with pytest.raises(ValueError, match="recorded twice"):
+        with pytest.raises(ValueError, match="recorded once and in order"):
             w.episode(**_episode())
+        batch = make_batch([_episode(1, 0), _episode(1, 2)])
+        with pytest.raises(ValueError, match="consecutive"):
+            w.episodes(**batch)
 
 
 def test_an_exception_leaves_a_finished_partial_file(tmp_path):
@@ -169,8 +226,12 @@ def test_a_file_truncated_at_many_points_reads_up_to_its_last_complete_chunk(tmp
     full = read_records(tmp_path / "full.mcap")
     chunks = _chunks(tmp_path / "full.mcap")
     ends = [c[0] for c in chunks]
-    assert len(chunks) >= 1 + 24 // 3  # the pictures, one chunk per 3 episodes (+ late substitutions)
-    times = np.array([S.log_time_ns(f["run"], f["episode"]) for f in written])
+    assert len(chunks) >= 1 + 24 // 4  # the pictures, then a chunk once 3 episodes came in (4 a batch)
+    from pipeline.records.scan import scan
+
+    batch_sizes = {t: len(S.EpisodeBatch.FromString(d).episode)
+                   for t, d in scan(tmp_path / "full.mcap").messages["/episodes"]}
+    assert sum(batch_sizes.values()) == len(written)
     rng = np.random.default_rng(0)
     cuts = set(rng.integers(9, len(data) - 1, 60).tolist())
     cuts |= {e + d for e in ends for d in (-1, 0, 1)}
@@ -182,7 +243,7 @@ def test_a_file_truncated_at_many_points_reads_up_to_its_last_complete_chunk(tmp
         msg = " ".join(str(w.message) for w in caught)
         assert str(cut_path) in msg and "truncated" in msg, (cut, msg)
         # exactly the episodes of the complete chunks before the cut, equal to the full read
-        expected = sum(int(((times >= lo) & (times <= hi)).sum()) for end, lo, hi in chunks[1:] if end <= cut)
+        expected = sum(n for end, lo, hi in chunks[1:] if end <= cut for t, n in batch_sizes.items() if lo <= t <= hi)
         assert len(r.episodes) == expected, (cut, msg)
         assert ("no complete episode" in msg) == (expected == 0)
         assert r.episodes.drop(columns="file").equals(full.episodes.drop(columns="file").iloc[:expected])
@@ -200,19 +261,18 @@ def test_a_corrupt_chunk_is_skipped_with_a_warning(tmp_path):
     (tmp_path / "bad.mcap").write_bytes(bytes(data))
     with pytest.warns(RecordsWarning, match="bad.mcap"):
         r = read_records(tmp_path / "bad.mcap")
-    assert 9 <= len(r.episodes) <= 12
+    assert len(r.episodes) == 8  # the third chunk's batch (episodes 8-11) is lost
 
 
 def test_a_killed_writer_loses_at_most_the_episodes_since_its_last_flush(tmp_path):
     script = f"""
 import os, sys
 sys.path.insert(0, {str(Path(__file__).resolve().parents[1])!r})
-from pipeline.records.synthetic import LAYOUT_5X5, episodes
+from pipeline.records.synthetic import LAYOUT_5X5, batches
 from pipeline.records import RecordWriter
-w = RecordWriter({str(tmp_path / 'k.mcap')!r}, maze={{"layout": LAYOUT_5X5}}, flush_every=4)
-for f in episodes(LAYOUT_5X5, runs=1, episodes_per_run=11):
-    f.pop("_substitutions")
-    w.episode(**f)
+w = RecordWriter({str(tmp_path / 'k.mcap')!r}, maze={{"layout": LAYOUT_5X5}}, flush_every=5)
+for batch, _ in batches(LAYOUT_5X5, batch_size=3, runs=1, episodes_per_run=14):
+    w.episodes(**batch)
 os._exit(9)  # killed: no close(), no interpreter clean-up
 """
     res = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
@@ -220,7 +280,7 @@ os._exit(9)  # killed: no close(), no interpreter clean-up
     assert not (tmp_path / "k.mcap").exists()
     with pytest.warns(RecordsWarning, match="k.mcap.partial"):
         r = read_records(tmp_path)  # a folder: the .partial of the killed run is found
-    assert list(r.episodes.episode) == list(range(8))  # flushed after 4 and 8; 3 lost
+    assert list(r.episodes.episode) == list(range(12))  # batches of 3; flushed after 6 and 12; 2 lost
 
 
 def test_reading_a_folder_and_filtering_one_episode(tmp_path):
@@ -259,13 +319,13 @@ def test_rerun_mcap_convert_yields_the_pictures(tmp_path):
         path = str(ch.entity_path)
         if "EncodedImage:blob" in rb.schema.names:
             images[path] = rb.column("EncodedImage:blob").to_pylist()
-        if path == "/episodes" and "fsrl.records.Episode:message" in rb.schema.names:
+        if path == "/episodes" and "fsrl.records.EpisodeBatch:message" in rb.schema.names:
             episodes_seen += ch.num_rows
     assert len(images) == 40
     blob = images["/pictures/7"][0]
     flat = blob[0] if isinstance(blob, list) and blob and isinstance(blob[0], list) else blob
     assert bytes(flat) == tiny_png(7)
-    assert episodes_seen == 3
+    assert episodes_seen == 1  # the 3 episodes in one batch message
     # a killed run's file: Rerun needs --recover (without it, it writes an empty recording)
     data = (tmp_path / "a.mcap").read_bytes()
     (tmp_path / "cut.mcap").write_bytes(data[: len(data) - 3000])
@@ -276,57 +336,33 @@ def test_rerun_mcap_convert_yields_the_pictures(tmp_path):
     assert "/pictures/39" in paths
 
 
-def test_the_vectorised_encoder_matches_protobuf_byte_for_byte():
-    from pipeline.records.synthetic import maze_layout
-    from pipeline.records.writer import encode_episode_protobuf, encode_staged, stage_episode
-
-    layout = maze_layout(11, seed=2)
-    eps = [f for f in episodes(layout, runs=2, episodes_per_run=30, seed=2, max_steps=300)]
-    eps[3]["states"] = eps[3]["states"] + 20000  # multi-byte varints
-    eps[4]["recognitions"]["predicted"][:] = -1  # negative int32: 10-byte varints
-    eps[5] = dict(eps[5], states=eps[5]["states"][:0], actions=eps[5]["actions"][:0],
-                  rewards=eps[5]["rewards"][:0], flags=eps[5]["flags"][:0])
-    eps[6]["recognitions"]["scores"] = np.zeros((0, 0), np.float32)
-    eps[7]["summary"] = dict(eps[7]["summary"], steps=0, collisions=0, return_=-0.0, reached_goal=False)
-    staged = [stage_episode(f) for f in eps]
-    assert all(s is not None for s in staged)
-    fast = encode_staged(staged)
-    for f, data in zip(eps, fast):
-        assert data == encode_episode_protobuf(f)
-    # a batch of small values only (the one-byte path) agrees too
-    small = [f for f in episodes(LAYOUT_5X5, runs=1, episodes_per_run=10, max_steps=100)]
-    assert encode_staged([stage_episode(f) for f in small]) == [encode_episode_protobuf(f) for f in small]
-
-
 def test_vectorised_decoding_equals_the_protobuf_runtime(tmp_path):
     from pipeline.records import reader
+    from pipeline.records.decode import decode_batches, decode_batches_protobuf
     from pipeline.records.scan import scan
     from pipeline.records.synthetic import maze_layout
 
     layout = maze_layout(11, seed=4)
-    eps = [f for f in episodes(layout, runs=2, episodes_per_run=15, seed=4, max_steps=300)]
-    eps[1]["states"] = eps[1]["states"] + 70000
-    eps[2]["recognitions"]["predicted"][:] = -1
-    eps[3]["recognitions"]["scores"] = np.zeros((0, 0), np.float32)
-    eps[4]["summary"] = dict(eps[4]["summary"], violations=3)
-    eps[5]["q_values"] = np.arange(484, dtype=np.float32).reshape(121, 4)
+    groups = [b for b, _ in batches(layout, batch_size=4, runs=2, episodes_per_run=15, seed=4, max_steps=300)]
+    groups[0]["states"] = groups[0]["states"] + 70000
+    groups[1]["recognitions"]["predicted"][:] = -1
+    groups[2]["recognitions"]["scores"] = np.zeros((0, 0), np.float32)
+    groups[3]["q_values"] = np.arange(3 * 121 * 4, dtype=np.float32).reshape(3, 121, 4)
     with RecordWriter(tmp_path / "v.mcap") as w:
-        for f in eps:
-            f.pop("_substitutions")
-            w.episode(**f)
-    msgs = scan(tmp_path / "v.mcap").messages["/episodes"]
-    from pipeline.records.decode import decode_episodes
-    assert decode_episodes([d for _, d in msgs]) is not None  # the fast path handles all of these
-    assert reader._columns_from_fast(decode_episodes([d for _, d in msgs]), "v") is not None
-    fast = reader._decode_episodes(msgs, "v")
-    slow = reader._decode_episodes_protobuf(msgs, "v")
-    for key in ("steps", "recognitions", "unsafe", "episodes"):
-        assert fast[key].keys() == slow[key].keys(), key
-        for col in fast[key]:
-            np.testing.assert_array_equal(fast[key][col], slow[key][col], err_msg=f"{key}.{col}")
-            assert fast[key][col].dtype == slow[key][col].dtype, (key, col)
-    assert fast["q_values"].keys() == slow["q_values"].keys() == {("v", 0, 5)}
-    np.testing.assert_array_equal(fast["q_values"][("v", 0, 5)], eps[5]["q_values"])
+        for b in groups:
+            w.episodes(**b)
+    data = [d for _, d in scan(tmp_path / "v.mcap").messages["/episodes"]]
+    fast, slow = decode_batches(data), decode_batches_protobuf(data)
+    assert fast is not None and fast.keys() == slow.keys()  # the fast path handles all of these
+    for k in fast:
+        for a, b in ([(fast[k], slow[k])] if k != "counts" else [(fast[k][c], slow[k][c]) for c in fast[k]]):
+            np.testing.assert_array_equal(a, b, err_msg=k)
+            assert a.dtype == b.dtype, k
+    cols = reader._columns(fast, "v")
+    assert cols is not None
+    assert cols["q_values"].keys() == {("v", 0, e) for e in range(12, 15)}
+    np.testing.assert_array_equal(cols["q_values"][("v", 0, 13)], groups[3]["q_values"][1])
+    assert np.isnan(reader._columns(fast, "v")["recognitions"]["score_0"]).sum() > 0  # group 2: no scores
 
 
 def test_the_info_command_lists_runs_and_warns_about_truncation(tmp_path, capsys):
@@ -353,8 +389,9 @@ def test_the_file_is_self_describing_for_generic_protobuf_readers(tmp_path):
         for _, channel, _, msg in reader.iter_decoded_messages():
             decoded.setdefault(channel.topic, []).append(msg)
     eps = decoded["/episodes"]
-    assert [type(m).DESCRIPTOR.full_name for m in eps[:1]] == ["fsrl.records.Episode"]
-    assert [list(m.steps.states) for m in eps] == [f["states"].tolist() for f in written]
-    assert eps[0].summary.return_ == written[0]["summary"]["return_"]
+    assert [type(m).DESCRIPTOR.full_name for m in eps[:1]] == ["fsrl.records.EpisodeBatch"]
+    assert len(eps) == 1 and list(eps[0].episode) == [0, 1, 2]
+    assert list(eps[0].steps.states) == np.concatenate([f["states"] for f in written]).tolist()
+    assert list(eps[0].summary.return_) == [f["summary"]["return_"] for f in written]
     assert decoded["/pictures/5"][0].format == "png" and decoded["/pictures/5"][0].data == tiny_png(5)
     assert len(decoded["/substitutions"]) == sum(len(f["_substitutions"]) for f in written)

@@ -69,9 +69,9 @@ def test_replay_shows_recorded_q_values(tmp_path):
     with RecordWriter(tmp_path / "q.mcap", maze={"layout": ["S.", ".G"]}) as w:
         for e in range(2):
             w.episode(run=0, episode=e, states=np.array([0, 1, 3, 2])[:n], actions=np.array([1, 2, 3, 0]),
-                      rewards=np.zeros(n), flags=np.zeros(n), recognitions={}, unsafe_added={},
+                      rewards=np.zeros(n), flags=np.zeros(n, np.uint8), recognitions={}, unsafe_added={},
                       summary={"steps": n, "collisions": 0, "return_": 0.0, "reached_goal": False,
-                               "prevented": 0, "epsilon": 0.1}, q_values=np.full((4, 4), e + 0.5))
+                               "prevented": 0, "epsilon": 0.1, "greedy_optimal": False}, q_values=np.full((4, 4), e + 0.5))
     rows = _rows(build_replay(tmp_path / "q.mcap", 0, 1, out=tmp_path / "q.rrd"))
     assert rows["/q_values/max"] == 2 and "/derived/visits" not in rows
 

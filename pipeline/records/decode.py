@@ -1,12 +1,13 @@
-"""Vectorised decoding of many ``fsrl.records.Episode`` messages at once.
+"""Vectorised decoding of many ``fsrl.records.EpisodeBatch`` messages at once.
 
-The Protobuf runtime turns every packed element into a Python int (about 1 us each, so several
-seconds for a paper-scale file). Here a small wire-level walk over each message's fields notes
-where each packed array lies in one joined buffer (a few tag reads per message); then every
-array of every episode is decoded in a handful of numpy operations: gather the bytes, find the
-varint ends (bytes < 0x80), and sum the 7-bit groups. Any message with an unexpected shape (an
-unknown wire type, an unpacked repeated field) makes :func:`decode_episodes` return None, and the
-caller decodes with the Protobuf runtime instead, so this is an accelerator, never a second truth.
+The Protobuf runtime turns every packed element into a Python int (about 1 us each, so seconds
+for a paper-scale file). Here a small wire-level walk over each message's fields (a few dozen tag
+reads a batch) notes where each packed array lies in one joined buffer; then every column of every
+message is decoded in a handful of numpy operations: gather the bytes, find the varint ends (bytes
+< 0x80), and OR the 7-bit groups. :func:`decode_batches` returns None for a message of unexpected
+shape (unknown wire type, unpacked repeated field) and :func:`decode_batches_protobuf`, the
+Protobuf runtime, decodes instead: this is an accelerator, never a second truth. Both return the
+same flat columns (tests compare them); :func:`pipeline.records.reader` builds the frames.
 """
 from __future__ import annotations
 
@@ -16,12 +17,26 @@ import numpy as np
 
 from . import schema as S
 
-# (sub-message, field number) -> column name, for packed repeated varint fields
-_STEPS_INT = {1: "states", 2: "actions", 4: "flags"}
-_REC_INT = {1: "r_step", 2: "r_state", 3: "r_action", 4: "r_picture", 5: "r_predicted", 6: "r_true"}
-_UN_INT = {1: "u_step", 2: "u_state", 3: "u_action", 4: "u_source"}
-INT_COLUMNS = tuple(_STEPS_INT.values()) + tuple(_REC_INT.values()) + tuple(_UN_INT.values())
-FLOAT_COLUMNS = ("rewards", "scores", "q_values")
+# sub-message field number -> (column, kind); kind "v" varint, "f" float32, "d" float64
+_TOP = {2: ("episode", "v"), 8: ("q_values", "f")}
+_SUMMARY = {1: ("s_steps", "v"), 2: ("s_collisions", "v"), 3: ("s_return", "d"), 4: ("s_reached_goal", "v"),
+            5: ("s_prevented", "v"), 6: ("s_epsilon", "d"), 7: ("s_greedy_optimal", "v")}
+_STEPS = {1: ("states", "v"), 2: ("actions", "v"), 3: ("rewards", "f"), 4: ("flags", "v")}
+_REC = {1: ("r_episode", "v"), 2: ("r_step", "v"), 3: ("r_state", "v"), 4: ("r_action", "v"),
+        5: ("r_picture", "v"), 6: ("r_predicted", "v"), 7: ("r_true", "v"), 9: ("scores", "f")}
+_UNSAFE = {1: ("u_episode", "v"), 2: ("u_step", "v"), 3: ("u_state", "v"), 4: ("u_action", "v"),
+           5: ("u_source", "v")}
+_SUBS = {3: _SUMMARY, 4: _STEPS, 5: _REC, 6: _UNSAFE}
+COLUMNS = {name: kind for table in (_TOP, *_SUBS.values()) for name, kind in table.values()}
+
+# column -> (sub-message attribute or "", field attribute): the same columns through the runtime
+_RUNTIME: dict[str, tuple[str, str]] = {}
+for _sub, _cls, _table in (("", S.EpisodeBatch, _TOP), ("summary", S.EpisodeSummaries, _SUMMARY),
+                           ("steps", S.Steps, _STEPS), ("recognitions", S.Recognitions, _REC),
+                           ("unsafe_added", S.UnsafeAdditions, _UNSAFE)):
+    for _f, (_name, _) in _table.items():
+        _RUNTIME[_name] = (_sub, _cls.DESCRIPTOR.fields_by_number[_f].name)
+_DTYPE = {"v": np.int64, "f": np.float32, "d": np.float64}
 
 
 class _Unexpected(Exception):
@@ -44,27 +59,24 @@ def _varint(buf: bytes, pos: int) -> tuple[int, int]:
             raise _Unexpected("varint too long")
 
 
-def _walk(buf: bytes, start: int, end: int, packed: dict[int, str], floats: dict[int, str],
-          spans: dict[str, list], scalars: dict[int, str] | None, out_scalars: dict, owner: int) -> None:
-    """Note the spans (start, end) of the packed fields of one (sub)message."""
-    pos = start
+def _walk(buf: bytes, pos: int, end: int, table: dict, spans: dict, scalars: dict, i: int,
+          subs: dict | None = None) -> None:
+    """Note the (start, end, message) spans of the packed fields of one (sub)message in ``spans``
+    and its varint scalars (field number -> value) in ``scalars``."""
     while pos < end:
         tag, pos = _varint(buf, pos)
         field, wt = tag >> 3, tag & 7
         if wt == 2:
             ln, pos = _varint(buf, pos)
-            name = packed.get(field) or floats.get(field)
-            if name is not None:
-                spans[name].append((pos, pos + ln, owner))
-            elif scalars is not None and field in scalars:
-                raise _Unexpected("length-delimited scalar")
+            if field in table:
+                spans[table[field][0]].append((pos, pos + ln, i))
+            elif subs is not None and field in subs:
+                _walk(buf, pos, pos + ln, subs[field], spans, scalars.setdefault(field, {}), i)
             pos += ln
         elif wt == 0:
-            value, pos = _varint(buf, pos)
-            if field in packed or field in floats:
+            if field in table:
                 raise _Unexpected("unpacked repeated field")
-            if scalars is not None and field in scalars:
-                out_scalars[scalars[field]] = value
+            scalars[field], pos = _varint(buf, pos)
         elif wt == 1:
             pos += 8
         elif wt == 5:
@@ -107,7 +119,6 @@ def _decode_varints(raw: np.ndarray, spans: np.ndarray, n_msgs: int, owner: np.n
             raise _Unexpected("varint too long")
         groups = (data & 0x7F).astype(np.uint64) << shift
         values = np.bitwise_or.reduceat(groups, starts).view(np.int64)
-    # per message: count terminators inside its spans
     lengths = spans[:, 1] - spans[:, 0]
     cum = np.concatenate(([0], np.cumsum(term)))
     bounds = np.concatenate(([0], np.cumsum(lengths)))
@@ -116,98 +127,55 @@ def _decode_varints(raw: np.ndarray, spans: np.ndarray, n_msgs: int, owner: np.n
     return values, counts
 
 
-def _decode_floats(raw: np.ndarray, spans: np.ndarray, n_msgs: int, owner: np.ndarray):
+def _decode_fixed(raw: np.ndarray, spans: np.ndarray, n_msgs: int, owner: np.ndarray, dtype: str):
+    size = np.dtype(dtype).itemsize
     data = _gather(raw, spans)
-    if data.size % 4:
-        raise _Unexpected("packed float length")
-    lengths = (spans[:, 1] - spans[:, 0]) // 4 if len(spans) else np.zeros(0, np.int64)
+    if data.size % size or (len(spans) and ((spans[:, 1] - spans[:, 0]) % size).any()):
+        raise _Unexpected("packed fixed-size field length")
+    lengths = (spans[:, 1] - spans[:, 0]) // size if len(spans) else np.zeros(0, np.int64)
     counts = np.bincount(owner, weights=lengths, minlength=n_msgs).astype(np.int64)
-    return data.view("<f4"), counts
+    return data.view(dtype).astype(_DTYPE["f" if size == 4 else "d"]), counts
 
 
-def decode_episodes(messages: list[bytes]) -> dict | None:
-    """Decode Episode messages into flat columns, or None if any message has an unexpected shape.
+def decode_batches(messages: list[bytes]) -> dict | None:
+    """Flat columns of EpisodeBatch messages, or None if a message has an unexpected shape.
 
-    Returns a dict with ``run``, ``episode``, ``n_categories``, ``n_actions`` (per message),
-    the int and float columns of :data:`INT_COLUMNS` / :data:`FLOAT_COLUMNS` (all messages
-    concatenated) with their per-message ``counts``, and ``summaries`` (raw summary bytes)."""
+    Returns ``run``, ``n_actions``, ``n_categories`` (one per message), every column of
+    :data:`COLUMNS` (all messages concatenated) and ``counts`` (column -> per-message counts)."""
     n = len(messages)
     buf = b"".join(messages)
     offsets = np.zeros(n + 1, dtype=np.int64)
     np.cumsum([len(m) for m in messages], out=offsets[1:])
-    spans: dict[str, list] = {k: [] for k in INT_COLUMNS + FLOAT_COLUMNS}
-    run = np.zeros(n, np.int64)
-    episode = np.zeros(n, np.int64)
-    n_cat = np.zeros(n, np.int64)
-    n_act = np.zeros(n, np.int64)
-    summaries: list[bytes] = []
-    top_scalars = {1: "run", 2: "episode", 7: "n_actions"}
+    spans: dict[str, list] = {k: [] for k in COLUMNS}
+    run, n_act, n_cat = np.zeros(n, np.int64), np.zeros(n, np.int64), np.zeros(n, np.int64)
     try:
         for i in range(n):
-            pos, end = int(offsets[i]), int(offsets[i + 1])
-            scal: dict[str, int] = {}
-            summary = b""
-            while pos < end:
-                tag, pos = _varint(buf, pos)
-                field, wt = tag >> 3, tag & 7
-                if wt == 0:
-                    value, pos = _varint(buf, pos)
-                    if field in top_scalars:
-                        scal[top_scalars[field]] = value
-                    elif field == 8:
-                        raise _Unexpected("unpacked q_values")
-                elif wt == 2:
-                    ln, pos = _varint(buf, pos)
-                    sub_end = pos + ln
-                    if field == 3:
-                        _walk(buf, pos, sub_end, _STEPS_INT, {3: "rewards"}, spans, None, scal, i)
-                    elif field == 4:
-                        rs: dict[str, int] = {}
-                        _walk(buf, pos, sub_end, _REC_INT, {8: "scores"}, spans, {7: "n_categories"}, rs, i)
-                        n_cat[i] = rs.get("n_categories", 0)
-                    elif field == 5:
-                        _walk(buf, pos, sub_end, _UN_INT, {}, spans, None, scal, i)
-                    elif field == 6:
-                        summary = buf[pos:sub_end]
-                    elif field == 8:
-                        spans["q_values"].append((pos, sub_end, i))
-                    pos = sub_end
-                elif wt == 1:
-                    pos += 8
-                elif wt == 5:
-                    pos += 4
-                else:
-                    raise _Unexpected(f"wire type {wt}")
-            if pos != end:
-                raise _Unexpected("field runs past the message")
-            run[i] = scal.get("run", 0)
-            episode[i] = scal.get("episode", 0)
-            n_act[i] = scal.get("n_actions", 0)
-            summaries.append(summary)
+            scal: dict = {}
+            _walk(buf, int(offsets[i]), int(offsets[i + 1]), _TOP, spans, scal, i, _SUBS)
+            run[i], n_act[i] = scal.get(1, 0), scal.get(7, 0)
+            n_cat[i] = scal.get(5, {}).get(8, 0)
         raw = np.frombuffer(buf, dtype=np.uint8)
-        out: dict = {"run": run, "episode": episode, "n_categories": n_cat, "n_actions": n_act,
-                     "summaries": summaries, "counts": {}}
-        for k in INT_COLUMNS + FLOAT_COLUMNS:
+        out: dict = {"run": run, "n_actions": n_act, "n_categories": n_cat, "counts": {}}
+        for k, kind in COLUMNS.items():
             sp = np.array(spans[k], dtype=np.int64).reshape(-1, 3)
-            decode = _decode_varints if k in INT_COLUMNS else _decode_floats
-            out[k], out["counts"][k] = decode(raw, sp[:, :2], n, sp[:, 2])
+            if kind == "v":
+                out[k], out["counts"][k] = _decode_varints(raw, sp[:, :2], n, sp[:, 2])
+            else:
+                out[k], out["counts"][k] = _decode_fixed(raw, sp[:, :2], n, sp[:, 2], "<f4" if kind == "f" else "<f8")
     except (_Unexpected, IndexError, struct.error):
         return None
     return out
 
 
-def decode_summaries(summaries: list[bytes]) -> tuple[dict[str, np.ndarray], list[dict[str, float]]]:
-    """The per-episode summary columns (through the Protobuf runtime: six scalars a message)."""
-    cols = {k: [] for k in ("steps", "collisions", "return_", "reached_goal", "prevented", "epsilon")}
-    extras: list[dict[str, float]] = []
-    parse = S.EpisodeSummary.FromString
-    for data in summaries:
-        sm = parse(data)
-        cols["steps"].append(sm.steps)
-        cols["collisions"].append(sm.collisions)
-        cols["return_"].append(sm.return_)
-        cols["reached_goal"].append(sm.reached_goal)
-        cols["prevented"].append(sm.prevented)
-        cols["epsilon"].append(sm.epsilon)
-        extras.append(dict(sm.extra) if len(sm.extra) else {})
-    return cols, extras
+def decode_batches_protobuf(messages: list[bytes]) -> dict:
+    """The same flat columns as :func:`decode_batches`, through the Protobuf runtime (slow)."""
+    msgs = [S.EpisodeBatch.FromString(m) for m in messages]
+    out: dict = {"run": np.array([m.run for m in msgs], np.int64),
+                 "n_actions": np.array([m.n_actions for m in msgs], np.int64),
+                 "n_categories": np.array([m.recognitions.n_categories for m in msgs], np.int64), "counts": {}}
+    for k, kind in COLUMNS.items():
+        sub, attr = _RUNTIME[k]
+        lists = [list(getattr(getattr(m, sub) if sub else m, attr)) for m in msgs]
+        out["counts"][k] = np.array([len(x) for x in lists], np.int64)
+        out[k] = np.array([v for x in lists for v in x], dtype=_DTYPE[kind])
+    return out

@@ -7,8 +7,8 @@
 A truncated or corrupt file (a killed run's ``.mcap.partial``, a cut copy) is read up to its last
 complete chunk, with a :class:`RecordsWarning` that names the file and says what was lost; a file
 from which nothing at all can be read still warns, it never silently returns nothing.
-Decoding is vectorised: per message (one per episode) the packed arrays are appended to flat
-lists, then each column is built with one numpy call.
+Decoding is vectorised (:mod:`.decode`): a few tag reads per message (one per sink batch of
+episodes), then a handful of numpy operations per column over all messages at once.
 """
 from __future__ import annotations
 
@@ -23,7 +23,7 @@ import numpy as np
 import pandas as pd
 
 from . import schema as S
-from .decode import decode_episodes, decode_summaries
+from .decode import decode_batches, decode_batches_protobuf
 from .scan import Scan, scan
 
 STEP_COLUMNS = ("run", "episode", "step", "state", "action", "reward", "flags")
@@ -124,40 +124,59 @@ def _step_index(lengths: np.ndarray) -> np.ndarray:
     return (np.arange(total, dtype=np.int64) - np.repeat(starts, lengths)).astype(np.int32)
 
 
-def _decode_episodes(messages: list[tuple[int, bytes]], name: str) -> dict[str, Any]:
-    """Columns of the Episode messages: vectorised (:mod:`.decode`), or through the Protobuf
+def _decode_batches(messages: list[tuple[int, bytes]], name: str) -> dict[str, Any]:
+    """Columns of the EpisodeBatch messages: vectorised (:mod:`.decode`), or through the Protobuf
     runtime when a message has a shape the fast path does not handle."""
-    fast = decode_episodes([d for _, d in messages])
-    if fast is not None:
-        out = _columns_from_fast(fast, name)
-        if out is not None:
-            return out
-    return _decode_episodes_protobuf(messages, name)
+    data = [d for _, d in messages]
+    flat = decode_batches(data)
+    out = _columns(flat, name) if flat is not None else None
+    return out if out is not None else _columns(decode_batches_protobuf(data), name, strict=True)
 
 
-def _columns_from_fast(d: dict[str, Any], name: str) -> dict[str, Any] | None:
+class _Inconsistent(ValueError):
+    pass
+
+
+def _columns(d: dict[str, Any], name: str, strict: bool = False) -> dict[str, Any] | None:
+    """The frames' columns from the flat columns of :mod:`.decode` (None, or with ``strict`` an
+    error naming the problem, when the messages' arrays do not fit together)."""
     c = d["counts"]
-    lens = c["states"]
-    if not (np.array_equal(c["actions"], lens) and np.array_equal(c["flags"], lens)
-            and np.array_equal(c["rewards"], lens)):
+
+    def bad(why: str):
+        if strict:
+            raise _Inconsistent(f"{name}: episode batch messages are inconsistent: {why}")
         return None
-    rec_lens = c["r_step"]
-    if any(not np.array_equal(c[k], rec_lens) for k in ("r_state", "r_action", "r_picture", "r_predicted", "r_true")):
-        return None
-    un_lens = c["u_step"]
-    if any(not np.array_equal(c[k], un_lens) for k in ("u_state", "u_action", "u_source")):
-        return None
+
+    n_eps = c["episode"]
+    for k in ("s_steps", "s_collisions", "s_return", "s_reached_goal", "s_prevented", "s_epsilon",
+              "s_greedy_optimal"):
+        if not np.array_equal(c[k], n_eps):
+            return bad(f"summary column {k[2:]} does not have one entry per episode")
+    lens = d["s_steps"]
+    msg_steps = np.bincount(np.repeat(np.arange(len(n_eps)), n_eps), weights=lens,
+                            minlength=len(n_eps)).astype(np.int64)
+    for k in ("states", "actions", "rewards", "flags"):
+        if not np.array_equal(c[k], msg_steps):
+            return bad(f"step column {k} does not have the episodes' step count")
+    rec_m, un_k = c["r_episode"], c["u_episode"]
+    if any(not np.array_equal(c[k], rec_m) for k in ("r_step", "r_state", "r_action", "r_picture",
+                                                       "r_predicted", "r_true")):
+        return bad("recognition columns differ in length")
+    if any(not np.array_equal(c[k], un_k) for k in ("u_step", "u_state", "u_action", "u_source")):
+        return bad("unsafe-set columns differ in length")
     ncat = d["n_categories"]
-    if not np.array_equal(c["scores"], np.where(c["scores"] > 0, rec_lens * ncat, 0)):
-        return None
-    ep_run_a, ep_ep_a = d["run"].astype(np.int32), d["episode"].astype(np.int32)
+    if not np.array_equal(c["scores"], np.where(c["scores"] > 0, rec_m * ncat, 0)):
+        return bad("scores do not have n_categories columns")
+    ep_run = np.repeat(d["run"], n_eps).astype(np.int32)
+    ep_ep = d["episode"].astype(np.int32)
+    ep_key = ep_run.astype(np.int64) << 32 | ep_ep
     flags_a = d["flags"].astype(np.uint8)
-    steps = {"run": np.repeat(ep_run_a, lens), "episode": np.repeat(ep_ep_a, lens), "step": _step_index(lens),
+    steps = {"run": np.repeat(ep_run, lens), "episode": np.repeat(ep_ep, lens), "step": _step_index(lens),
              "state": d["states"].astype(np.int32), "action": d["actions"].astype(np.int8),
              "reward": d["rewards"].astype(np.float32), "flags": flags_a}
     for flag_name, bit in S.FLAG_NAMES.items():
         steps[flag_name] = (flags_a & bit) != 0
-    rec = {"run": np.repeat(ep_run_a, rec_lens), "episode": np.repeat(ep_ep_a, rec_lens),
+    rec = {"run": np.repeat(d["run"], rec_m).astype(np.int32), "episode": d["r_episode"].astype(np.int32),
            "step": d["r_step"].astype(np.int32), "state": d["r_state"].astype(np.int32),
            "action": d["r_action"].astype(np.int8), "picture": d["r_picture"].astype(np.int16),
            "predicted": d["r_predicted"].astype(np.int8), "true": d["r_true"].astype(np.int8)}
@@ -166,128 +185,47 @@ def _columns_from_fast(d: dict[str, Any], name: str) -> dict[str, Any] | None:
     has_scores = c["scores"] > 0
     width = int(ncat[has_scores].max()) if has_scores.any() else 0
     if width:
-        if has_scores[rec_lens > 0].all() and (ncat[has_scores] == width).all():
+        if has_scores[rec_m > 0].all() and (ncat[has_scores] == width).all():
             scores = d["scores"].astype(np.float32).reshape(n_rec, width)
-        else:
+        else:  # some batches without scores (or fewer columns): NaN there
             scores = np.full((n_rec, width), np.nan, dtype=np.float32)
             row, pos = 0, 0
-            for m, k, has in zip(rec_lens, ncat, has_scores):
+            for m, k, has in zip(rec_m, ncat, has_scores):
                 if has:
                     scores[row:row + m, :k] = d["scores"][pos:pos + m * k].reshape(m, k)
                     pos += m * k
                 row += m
         for j in range(width):
             rec[f"score_{j}"] = scores[:, j]
-    unsafe = {"run": np.repeat(ep_run_a, un_lens), "episode": np.repeat(ep_ep_a, un_lens),
+    unsafe = {"run": np.repeat(d["run"], un_k).astype(np.int32), "episode": d["u_episode"].astype(np.int32),
               "step": d["u_step"].astype(np.int32), "state": d["u_state"].astype(np.int32),
               "action": d["u_action"].astype(np.int8), "source": d["u_source"].astype(np.int8)}
-    sums, extras = decode_summaries(d["summaries"])
-    episodes = {"run": ep_run_a, "episode": ep_ep_a, "steps": _i(sums["steps"], np.int32),
-                "collisions": _i(sums["collisions"], np.int32), "return_": _i(sums["return_"], np.float64),
-                "reached_goal": _i(sums["reached_goal"], bool), "prevented": _i(sums["prevented"], np.int32),
-                "epsilon": _i(sums["epsilon"], np.float64), "n_recognitions": rec_lens.astype(np.int32),
-                "n_unsafe_added": un_lens.astype(np.int32)}
-    for k in sorted({k for e in extras for k in e}):
-        episodes[k] = np.array([e.get(k, np.nan) for e in extras], dtype=np.float64)
+    per_episode = {}
+    order = np.argsort(ep_key, kind="stable")
+    sorted_keys = ep_key[order]
+    for what, cols in (("recognitions", rec), ("unsafe", unsafe)):
+        key = cols["run"].astype(np.int64) << 32 | cols["episode"]
+        pos = np.searchsorted(sorted_keys, key)
+        if len(key) and (pos.max() >= len(sorted_keys) or not np.array_equal(sorted_keys[pos], key)):
+            return bad(f"{what} of episodes that are not in their batch")
+        per_episode[what] = np.bincount(order[pos], minlength=len(ep_key)).astype(np.int32)
+    episodes = {"run": ep_run, "episode": ep_ep, "steps": lens.astype(np.int32),
+                "collisions": d["s_collisions"].astype(np.int32), "return_": d["s_return"].astype(np.float64),
+                "reached_goal": d["s_reached_goal"] != 0, "prevented": d["s_prevented"].astype(np.int32),
+                "epsilon": d["s_epsilon"].astype(np.float64), "greedy_optimal": d["s_greedy_optimal"] != 0,
+                "n_recognitions": per_episode["recognitions"], "n_unsafe_added": per_episode["unsafe"]}
     q_values = {}
     if c["q_values"].any():
-        pos = 0
-        for i, (cnt, na) in enumerate(zip(c["q_values"], d["n_actions"])):
+        pos, row = 0, 0
+        for i, (cnt, na, e) in enumerate(zip(c["q_values"], d["n_actions"], n_eps)):
             if cnt:
-                if not na or cnt % na:
-                    return None
-                q_values[(name, int(d["run"][i]), int(d["episode"][i]))] = \
-                    d["q_values"][pos:pos + cnt].astype(np.float32).reshape(-1, int(na))
+                if not na or cnt % (na * e):
+                    return bad("q_values do not have n_actions columns for every episode")
+                tables = d["q_values"][pos:pos + cnt].astype(np.float32).reshape(e, -1, int(na))
+                for j in range(e):
+                    q_values[(name, int(ep_run[row + j]), int(ep_ep[row + j]))] = tables[j]
                 pos += cnt
-    return {"steps": steps, "recognitions": rec, "unsafe": unsafe, "episodes": episodes, "q_values": q_values}
-
-
-def _decode_episodes_protobuf(messages: list[tuple[int, bytes]], name: str) -> dict[str, Any]:
-    ep_run, ep_ep, lens, rec_lens, un_lens = [], [], [], [], []
-    states, actions, rewards, flags = [], [], [], []
-    r_step, r_state, r_action, r_pic, r_pred, r_true, r_scores, r_ncat = [], [], [], [], [], [], [], []
-    u_step, u_state, u_action, u_source = [], [], [], []
-    sums = {k: [] for k in ("steps", "collisions", "return_", "reached_goal", "prevented", "epsilon")}
-    extras: list[dict[str, float]] = []
-    q_values: dict[tuple[str, int, int], np.ndarray] = {}
-    from_string = S.Episode.FromString
-    for _, data in messages:
-        ep = from_string(data)
-        st = ep.steps
-        ep_run.append(ep.run)
-        ep_ep.append(ep.episode)
-        lens.append(len(st.states))
-        states.extend(st.states)
-        actions.extend(st.actions)
-        rewards.extend(st.rewards)
-        flags.extend(st.flags)
-        rc = ep.recognitions
-        m = len(rc.step)
-        rec_lens.append(m)
-        if m:
-            r_step.extend(rc.step)
-            r_state.extend(rc.state)
-            r_action.extend(rc.action)
-            r_pic.extend(rc.picture)
-            r_pred.extend(rc.predicted)
-            r_true.extend(rc.true_category)
-            r_ncat.append(rc.n_categories)
-            r_scores.append(np.array(rc.scores, dtype=np.float32))
-        un = ep.unsafe_added
-        k = len(un.step)
-        un_lens.append(k)
-        if k:
-            u_step.extend(un.step)
-            u_state.extend(un.state)
-            u_action.extend(un.action)
-            u_source.extend(un.source)
-        sm = ep.summary
-        for key, col in sums.items():
-            col.append(getattr(sm, key))
-        extras.append(dict(sm.extra) if len(sm.extra) else {})
-        if ep.n_actions:
-            q_values[(name, ep.run, ep.episode)] = np.array(ep.q_values, dtype=np.float32).reshape(-1, ep.n_actions)
-
-    ep_run_a, ep_ep_a = _i(ep_run, np.int32), _i(ep_ep, np.int32)
-    lens_a, rec_lens_a, un_lens_a = _i(lens, np.int64), _i(rec_lens, np.int64), _i(un_lens, np.int64)
-    flags_a = _i(flags, np.uint8)
-    steps = {"run": np.repeat(ep_run_a, lens_a), "episode": np.repeat(ep_ep_a, lens_a),
-             "step": _step_index(lens_a), "state": _i(states, np.int32), "action": _i(actions, np.int8),
-             "reward": _i(rewards, np.float32), "flags": flags_a}
-    for flag_name, bit in S.FLAG_NAMES.items():
-        steps[flag_name] = (flags_a & bit) != 0
-
-    rec = {"run": np.repeat(ep_run_a, rec_lens_a), "episode": np.repeat(ep_ep_a, rec_lens_a),
-           "step": _i(r_step, np.int32), "state": _i(r_state, np.int32), "action": _i(r_action, np.int8),
-           "picture": _i(r_pic, np.int16), "predicted": _i(r_pred, np.int8), "true": _i(r_true, np.int8)}
-    rec["correct"] = rec["predicted"] == rec["true"]
-    n_rec = len(rec["step"])
-    ncat = max(r_ncat, default=0)
-    if ncat:
-        if all(c == ncat for c in r_ncat):  # the usual case: one recogniser, scores everywhere
-            scores = np.concatenate(r_scores).reshape(n_rec, ncat)
-        else:  # some episodes without scores (or fewer columns): NaN there
-            scores = np.full((n_rec, ncat), np.nan, dtype=np.float32)
-            row = 0
-            for m, c, sc in zip(rec_lens_a[rec_lens_a > 0], r_ncat, r_scores):
-                if c:
-                    scores[row:row + m, :c] = sc.reshape(m, c)
-                row += m
-        for j in range(ncat):
-            rec[f"score_{j}"] = scores[:, j]
-
-    unsafe = {"run": np.repeat(ep_run_a, un_lens_a), "episode": np.repeat(ep_ep_a, un_lens_a),
-              "step": _i(u_step, np.int32), "state": _i(u_state, np.int32), "action": _i(u_action, np.int8),
-              "source": _i(u_source, np.int8)}
-
-    episodes = {"run": ep_run_a, "episode": ep_ep_a, "steps": _i(sums["steps"], np.int32),
-                "collisions": _i(sums["collisions"], np.int32), "return_": _i(sums["return_"], np.float64),
-                "reached_goal": _i(sums["reached_goal"], bool), "prevented": _i(sums["prevented"], np.int32),
-                "epsilon": _i(sums["epsilon"], np.float64), "n_recognitions": rec_lens_a.astype(np.int32),
-                "n_unsafe_added": un_lens_a.astype(np.int32)}
-    extra_keys = sorted({k for e in extras for k in e})
-    for k in extra_keys:
-        episodes[k] = np.array([e.get(k, np.nan) for e in extras], dtype=np.float64)
+            row += e
     return {"steps": steps, "recognitions": rec, "unsafe": unsafe, "episodes": episodes, "q_values": q_values}
 
 
@@ -331,22 +269,40 @@ def _file_meta(sc: Scan, pictures: bool) -> FileMeta:
     return meta
 
 
+def _check_format(sc: Scan) -> None:
+    """Refuse a file whose episodes channel holds another message type than ours (an older format)."""
+    for ch in sc.channels.values():
+        if ch.topic == S.TOPIC_EPISODES:
+            schema = sc.schemas.get(ch.schema_id)
+            got = schema.name if schema is not None else "?"
+            if got != S.EpisodeBatch.DESCRIPTOR.full_name:
+                raise ValueError(f"{sc.path}: its {S.TOPIC_EPISODES} channel holds {got} messages; this "
+                                 f"reader reads {S.EpisodeBatch.DESCRIPTOR.full_name} (record format "
+                                 f"{S.FORMAT_VERSION}): re-run the trials that wrote it")
+
+
 def _read_file(path: Path, time_range, pictures: bool) -> dict[str, Any]:
-    sc = scan(path, time_range=time_range)
+    # An EpisodeBatch is stamped at its first episode, so one stamped before the requested
+    # episodes of the run may hold them: scan from the run's start, then filter rows.
+    scan_range = None if time_range is None else (S.log_time_ns(S.split_log_time(time_range[0])[0], 0),
+                                                   time_range[1])
+    sc = scan(path, time_range=scan_range)
     name = str(path)
     ep_msgs = sc.messages.get(S.TOPIC_EPISODES, [])
+    _check_format(sc)
     try:
-        dec = _decode_episodes(ep_msgs, name)
+        dec = _decode_batches(ep_msgs, name)
     except Exception as e:  # a message that passed the chunk CRC but does not parse: keep the rest
         good = []
         for t, data in ep_msgs:
             try:
-                S.Episode.FromString(data)
+                _decode_batches([(t, data)], name)
                 good.append((t, data))
             except Exception:
                 pass
-        sc.problems.append(f"{len(ep_msgs) - len(good)} episode messages did not decode ({type(e).__name__})")
-        dec = _decode_episodes(good, name)
+        sc.problems.append(f"{len(ep_msgs) - len(good)} episode batch messages did not decode "
+                           f"({type(e).__name__}: {e})")
+        dec = _decode_batches(good, name)
     dec["substitutions"] = _decode_substitutions(sc.messages.get(S.TOPIC_SUBSTITUTIONS, []))
     meta = _file_meta(sc, pictures)
     n_ep = len(dec["episodes"]["run"])

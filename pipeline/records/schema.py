@@ -10,9 +10,12 @@ One file holds every episode of every run of one trial cell. Per file:
   so its absence marks an unfinished file).
 * The query pictures **once**, as ``foxglove.CompressedImage`` on ``/pictures/<id>`` (and the
   initial support-set thumbnails, when given, on ``/support/<category>/<position>``).
-* ``/episodes``: ONE :data:`EPISODE` message per episode of every run, its steps packed as arrays
-  (packed repeated fields, struct-of-arrays), with its recognitions, unsafe-set additions, summary
-  and, optionally, the Q table at the end of the episode.
+* ``/episodes``: ONE :data:`EpisodeBatch` message per batch the trial runner hands to its sink
+  (consecutive finished episodes of one run, ``pipeline/rl/sink.py``): the per-episode summaries,
+  the steps of all its episodes concatenated, its recognitions and unsafe-set additions (each row
+  naming its episode), all as packed arrays (struct-of-arrays), and optionally the Q tables at the
+  episodes' ends. Its log time is that of the batch's first episode at step 0, so a message
+  stamped before an episode may hold it (readers select by run, then filter rows).
 * ``/substitutions``: one :data:`SUBSTITUTION` message per support-set substitution (section 3.3).
 
 Timestamps come from (run, episode, step), never from the wall clock (:func:`log_time_ns`):
@@ -27,7 +30,7 @@ from __future__ import annotations
 from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
 from foxglove_schemas_protobuf.CompressedImage_pb2 import CompressedImage
 
-FORMAT_VERSION = "1"
+FORMAT_VERSION = "2"  # 2: one EpisodeBatch message per sink batch (1: one Episode per episode)
 PACKAGE = "fsrl.records"
 
 TOPIC_EPISODES = "/episodes"
@@ -78,50 +81,48 @@ _F = descriptor_pb2.FieldDescriptorProto
 _REP = _F.LABEL_REPEATED
 _OPT = _F.LABEL_OPTIONAL
 _MESSAGES: list[tuple[str, list[tuple[str, int, int, int, str]]]] = [
-    ("Steps", [  # one entry per executed step of the episode
+    ("EpisodeSummaries", [  # one entry per episode of the batch
+        ("steps", 1, _F.TYPE_UINT32, _REP, ""),
+        ("collisions", 2, _F.TYPE_UINT32, _REP, ""),
+        ("return_", 3, _F.TYPE_DOUBLE, _REP, ""),
+        ("reached_goal", 4, _F.TYPE_BOOL, _REP, ""),
+        ("prevented", 5, _F.TYPE_UINT32, _REP, ""),
+        ("epsilon", 6, _F.TYPE_DOUBLE, _REP, ""),          # at the end of the episode
+        ("greedy_optimal", 7, _F.TYPE_BOOL, _REP, ""),     # the greedy policy walks an optimal path
+    ]),
+    ("Steps", [  # one entry per executed step of the batch's episodes, concatenated
         ("states", 1, _F.TYPE_INT32, _REP, ""),     # cell index row * width + col before the step
         ("actions", 2, _F.TYPE_INT32, _REP, ""),    # executed action, 0 N, 1 E, 2 S, 3 W
         ("rewards", 3, _F.TYPE_FLOAT, _REP, ""),
         ("flags", 4, _F.TYPE_UINT32, _REP, ""),     # bits: FLAG_*
     ]),
     ("Recognitions", [  # one entry per picture seen (section 3.2.1)
-        ("step", 1, _F.TYPE_INT32, _REP, ""),
-        ("state", 2, _F.TYPE_INT32, _REP, ""),
-        ("action", 3, _F.TYPE_INT32, _REP, ""),
-        ("picture", 4, _F.TYPE_INT32, _REP, ""),
-        ("predicted", 5, _F.TYPE_INT32, _REP, ""),
-        ("true_category", 6, _F.TYPE_INT32, _REP, ""),
-        ("n_categories", 7, _F.TYPE_UINT32, _OPT, ""),  # columns of scores; 0 when no scores
-        ("scores", 8, _F.TYPE_FLOAT, _REP, ""),         # relation scores, row-major [n, n_categories]
+        ("episode", 1, _F.TYPE_UINT32, _REP, ""),
+        ("step", 2, _F.TYPE_INT32, _REP, ""),
+        ("state", 3, _F.TYPE_INT32, _REP, ""),
+        ("action", 4, _F.TYPE_INT32, _REP, ""),
+        ("picture", 5, _F.TYPE_INT32, _REP, ""),
+        ("predicted", 6, _F.TYPE_INT32, _REP, ""),
+        ("true_category", 7, _F.TYPE_INT32, _REP, ""),
+        ("n_categories", 8, _F.TYPE_UINT32, _OPT, ""),  # columns of scores; 0 when no scores
+        ("scores", 9, _F.TYPE_FLOAT, _REP, ""),         # relation scores (eq. 2), row-major [n, n_categories]
     ]),
     ("UnsafeAdditions", [  # one entry per (s, a) added to the unsafe set A_d (eqs. 7-8)
-        ("step", 1, _F.TYPE_INT32, _REP, ""),
-        ("state", 2, _F.TYPE_INT32, _REP, ""),
-        ("action", 3, _F.TYPE_INT32, _REP, ""),
-        ("source", 4, _F.TYPE_INT32, _REP, ""),  # 0 recognition, 1 collision, 2 ssrl rule
+        ("episode", 1, _F.TYPE_UINT32, _REP, ""),
+        ("step", 2, _F.TYPE_INT32, _REP, ""),
+        ("state", 3, _F.TYPE_INT32, _REP, ""),
+        ("action", 4, _F.TYPE_INT32, _REP, ""),
+        ("source", 5, _F.TYPE_INT32, _REP, ""),  # 0 recognition, 1 collision, 2 ssrl rule
     ]),
-    ("EpisodeSummary", [
-        ("steps", 1, _F.TYPE_UINT32, _OPT, ""),
-        ("collisions", 2, _F.TYPE_UINT32, _OPT, ""),
-        ("return_", 3, _F.TYPE_DOUBLE, _OPT, ""),
-        ("reached_goal", 4, _F.TYPE_BOOL, _OPT, ""),
-        ("prevented", 5, _F.TYPE_UINT32, _OPT, ""),
-        ("epsilon", 6, _F.TYPE_DOUBLE, _OPT, ""),
-        ("extra", 7, _F.TYPE_MESSAGE, _REP, ".fsrl.records.EpisodeSummary.ExtraEntry"),  # other numbers
-    ]),
-    ("EpisodeSummary.ExtraEntry", [
-        ("key", 1, _F.TYPE_STRING, _OPT, ""),
-        ("value", 2, _F.TYPE_DOUBLE, _OPT, ""),
-    ]),
-    ("Episode", [
+    ("EpisodeBatch", [  # consecutive finished episodes of one run (the sink's batch)
         ("run", 1, _F.TYPE_UINT32, _OPT, ""),
-        ("episode", 2, _F.TYPE_UINT32, _OPT, ""),
-        ("steps", 3, _F.TYPE_MESSAGE, _OPT, ".fsrl.records.Steps"),
-        ("recognitions", 4, _F.TYPE_MESSAGE, _OPT, ".fsrl.records.Recognitions"),
-        ("unsafe_added", 5, _F.TYPE_MESSAGE, _OPT, ".fsrl.records.UnsafeAdditions"),
-        ("summary", 6, _F.TYPE_MESSAGE, _OPT, ".fsrl.records.EpisodeSummary"),
+        ("episode", 2, _F.TYPE_UINT32, _REP, ""),  # the batch's episode indices, consecutive
+        ("summary", 3, _F.TYPE_MESSAGE, _OPT, ".fsrl.records.EpisodeSummaries"),
+        ("steps", 4, _F.TYPE_MESSAGE, _OPT, ".fsrl.records.Steps"),
+        ("recognitions", 5, _F.TYPE_MESSAGE, _OPT, ".fsrl.records.Recognitions"),
+        ("unsafe_added", 6, _F.TYPE_MESSAGE, _OPT, ".fsrl.records.UnsafeAdditions"),
         ("n_actions", 7, _F.TYPE_UINT32, _OPT, ""),  # columns of q_values; 0 when absent
-        ("q_values", 8, _F.TYPE_FLOAT, _REP, ""),    # optional Q table at episode end, [n_states, n_actions]
+        ("q_values", 8, _F.TYPE_FLOAT, _REP, ""),    # optional Q tables at episode ends, [E, n_states, n_actions]
     ]),
     ("Substitution", [  # the dynamic support set changed (section 3.3, Figure 5)
         ("run", 1, _F.TYPE_UINT32, _OPT, ""),
@@ -136,15 +137,8 @@ _MESSAGES: list[tuple[str, list[tuple[str, int, int, int, str]]]] = [
 
 def _file_descriptor() -> descriptor_pb2.FileDescriptorProto:
     fdp = descriptor_pb2.FileDescriptorProto(name="fsrl/records.proto", package=PACKAGE, syntax="proto3")
-    built: dict[str, descriptor_pb2.DescriptorProto] = {}
     for name, fields in _MESSAGES:
-        parent, _, child = name.rpartition(".")
-        if parent:
-            msg = built[parent].nested_type.add(name=child)
-            msg.options.map_entry = True
-        else:
-            msg = fdp.message_type.add(name=name)
-        built[name] = msg
+        msg = fdp.message_type.add(name=name)
         for fname, number, ftype, label, type_name in fields:
             f = msg.field.add(name=fname, number=number, type=ftype, label=label)
             if type_name:
@@ -161,12 +155,12 @@ def _cls(name: str):
     return message_factory.GetMessageClass(_pool.FindMessageTypeByName(f"{PACKAGE}.{name}"))
 
 
-Episode = _cls("Episode")
+EpisodeBatch = _cls("EpisodeBatch")
 Substitution = _cls("Substitution")
 Steps = _cls("Steps")
 Recognitions = _cls("Recognitions")
 UnsafeAdditions = _cls("UnsafeAdditions")
-EpisodeSummary = _cls("EpisodeSummary")
+EpisodeSummaries = _cls("EpisodeSummaries")
 
 
 def file_descriptor_set(message_class) -> bytes:
@@ -187,7 +181,7 @@ def file_descriptor_set(message_class) -> bytes:
 
 
 __all__ = [
-    "ACTION_DELTAS", "ACTION_NAMES", "CompressedImage", "Episode", "EpisodeSummary", "FLAG_NAMES",
+    "ACTION_DELTAS", "ACTION_NAMES", "CompressedImage", "EpisodeBatch", "EpisodeSummaries", "FLAG_NAMES",
     "FORMAT_VERSION", "Recognitions", "SOURCE_NAMES", "Steps", "Substitution", "TOPIC_EPISODES",
     "TOPIC_PICTURES", "TOPIC_SUBSTITUTIONS", "TOPIC_SUPPORT", "UnsafeAdditions", "file_descriptor_set",
     "log_time_ns", "split_log_time",

@@ -50,8 +50,9 @@ def tiny_png(seed: int, size: int = 8) -> bytes:
 def episodes(layout: list[str], *, runs: int, episodes_per_run: int, seed: int = 0,
              min_steps: int = 20, max_steps: int = 200, n_categories: int = 5,
              scores: bool = True) -> Iterator[dict[str, Any]]:
-    """Yield sink ``episode`` fields in run-major order, plus a ``_substitutions`` list of
-    substitution keyword dicts (pass those to ``sink.substitution``)."""
+    """Yield one episode's fields (``split_batch``'s form, as ``RecordWriter.episode`` takes them) in
+    run-major order, plus a ``_substitutions`` list of substitution keyword dicts (pass those to
+    ``sink.substitution``)."""
     height, width = len(layout), len(layout[0])
     obstacle = np.array([ch == "X" for row in layout for ch in row])
     deltas = np.array(S.ACTION_DELTAS)
@@ -110,13 +111,54 @@ def episodes(layout: list[str], *, runs: int, episodes_per_run: int, seed: int =
                    "summary": {"steps": n, "collisions": int(((flags & S.FLAG_COLLIDED) != 0).sum()),
                                "return_": float(rewards.sum()), "reached_goal": n < max_steps,
                                "prevented": int(((flags & S.FLAG_RESELECTED) != 0).sum()),
-                               "epsilon": 0.1},
+                               "epsilon": 0.1, "greedy_optimal": bool(n < max_steps and ep % 3 == 2)},
                    "_substitutions": subs}
 
 
+def make_batch(eps: list[dict[str, Any]]) -> dict[str, Any]:
+    """The sink batch (``pipeline/rl/sink.py``) of consecutive episodes ``eps`` of one run, given as
+    per-episode fields (the inverse of ``split_batch``)."""
+    def cat(key, sub=None):
+        parts = [(e[sub] if sub else e).get(key, ()) for e in eps]
+        return np.concatenate([np.asarray(p) for p in parts]) if parts else np.zeros(0)
+
+    def rows(sub, keys):
+        n = [len(e[sub].get("step", ())) for e in eps]
+        out = {k: cat(k, sub) for k in keys}
+        out["episode"] = np.repeat([e["episode"] for e in eps], n).astype(np.int32)
+        return out
+
+    batch = {"run": eps[0]["run"], "episode": np.array([e["episode"] for e in eps], np.int32),
+             "steps": np.array([len(e["states"]) for e in eps], np.int32),
+             "states": cat("states"), "actions": cat("actions"), "rewards": cat("rewards"), "flags": cat("flags"),
+             "recognitions": rows("recognitions", ("step", "state", "action", "picture", "predicted", "true")),
+             "unsafe_added": rows("unsafe_added", ("step", "state", "action", "source")),
+             "summary": {k: np.array([e["summary"][k] for e in eps])
+                         for k in ("collisions", "return_", "reached_goal", "prevented", "epsilon", "greedy_optimal")}}
+    scores = [e["recognitions"]["scores"] for e in eps if len(e["recognitions"].get("step", ()))]
+    batch["recognitions"]["scores"] = (np.concatenate(scores).astype(np.float32) if scores
+                                       else np.zeros((0, 0), np.float32))
+    return batch
+
+
+def batches(layout: list[str], *, batch_size: int = 4, **kw) -> Iterator[tuple[dict[str, Any], list[dict]]]:
+    """:func:`episodes` grouped as the trial runner hands them over: (batch of up to ``batch_size``
+    consecutive episodes of one run, the per-episode fields)."""
+    group: list[dict[str, Any]] = []
+    for f in episodes(layout, **kw):
+        if group and (f["run"] != group[0]["run"] or len(group) == batch_size):
+            yield make_batch(group), group
+            group = []
+        group.append(f)
+    if group:
+        yield make_batch(group), group
+
+
 def write_synthetic(path, *, runs: int = 3, episodes_per_run: int = 10, seed: int = 0, size: int = 5,
-                    flush_every: int = 5, pictures: bool = True, **kw) -> list[dict[str, Any]]:
-    """Write a small synthetic record file; return the episode fields written (with substitutions)."""
+                    flush_every: int = 5, pictures: bool = True, batch_size: int = 4,
+                    **kw) -> list[dict[str, Any]]:
+    """Write a small synthetic record file, ``batch_size`` episodes a sink batch; return the episode
+    fields written (each with its ``_substitutions``)."""
     from .writer import RecordWriter
 
     layout = LAYOUT_5X5 if size == 5 else maze_layout(size, seed=seed)
@@ -127,11 +169,10 @@ def write_synthetic(path, *, runs: int = 3, episodes_per_run: int = 10, seed: in
                       maze={"layout": layout, "categories": ["chair", "kettle", "carton", "basin", "basket"]},
                       runs=[obstacle_assignment(layout, r, seed) for r in range(runs)],
                       pictures=pics, flush_every=flush_every, **kw) as w:
-        for fields in episodes(layout, runs=runs, episodes_per_run=episodes_per_run, seed=seed):
-            subs = fields.pop("_substitutions")
-            w.episode(**fields)
-            for s in subs:
-                w.substitution(**s)
-            fields["_substitutions"] = subs
-            written.append(fields)
+        for batch, group in batches(layout, batch_size=batch_size, runs=runs, episodes_per_run=episodes_per_run,
+                                    seed=seed):
+            for s in (s for f in group for s in f["_substitutions"]):
+                w.substitution(**s)  # as the runner does: while the episodes run, before their batch
+            w.episodes(**batch)
+            written += group
     return written

@@ -1,26 +1,21 @@
-"""Protobuf wire-format pieces for the vectorised Episode encoder (``writer.encode_staged``).
+"""Protobuf wire-format pieces for the vectorised EpisodeBatch encoder (:mod:`.batch`).
 
-Why hand-written: the upb ``Message`` API costs 85-100 us per episode (a Python int per packed
-element), which at paper scale would make the recording a large part of the trial time. Packed
+Why hand-written: the upb ``Message`` API turns every packed element into a Python int (about
+1 us each), which at paper scale would make the recording a large part of the trial time. Packed
 repeated fields are just a length-prefixed run of varints (or raw little-endian floats), which
-numpy encodes for a whole batch of episodes in one pass. The output is byte-for-byte what
-``Episode.SerializeToString(deterministic=True)`` produces for the same values (tests check it on
-many episodes), so every Protobuf decoder (ours, Foxglove, Rerun) reads it with the schema in
-:mod:`.schema`.
+numpy encodes for a whole batch in one pass. The output is byte-for-byte what
+``EpisodeBatch.SerializeToString(deterministic=True)`` produces for the same values (tests check),
+so every Protobuf decoder (ours, Foxglove, Rerun) reads it with the schema in :mod:`.schema`.
 
 Encoding rules used (proto3): fields in field-number order; scalars equal to their default and
 empty repeated fields are omitted; ``int32`` negatives are 10-byte sign-extended varints.
 """
 from __future__ import annotations
 
-import struct
-
 import numpy as np
 
 _VARINT = 0
-_I64 = 1
 _LEN = 2
-_DOUBLE = struct.Struct("<d")
 
 
 def varint(n: int) -> bytes:
@@ -37,27 +32,45 @@ def varint(n: int) -> bytes:
     return bytes(out)
 
 
-def key(field: int, wire_type: int) -> bytes:
-    return varint((field << 3) | wire_type)
-
-
-_VARINTS = [varint(i) for i in range(1 << 14)]  # lengths and small scalars: a table lookup
+VARINT_TABLE = [varint(i) for i in range(1 << 14)]  # lengths, small scalars and short arrays: a lookup
+_VARINTS = VARINT_TABLE
 
 
 def varint_small(n: int) -> bytes:
     return _VARINTS[n] if n < 16384 else varint(n)
 
 
-KEY_EPISODE_STEPS = bytes(((3 << 3) | _LEN,))
-KEY_EPISODE_SUMMARY = bytes(((6 << 3) | _LEN,))
-
-
 _THRESHOLDS = np.array([1 << (7 * i) for i in range(1, 10)], dtype=np.uint64)
 
 
-def varints_with_ends(a: np.ndarray) -> tuple[bytes, np.ndarray]:
+def varints(a: np.ndarray) -> tuple[bytes, np.ndarray | None]:
     """Varint encoding of the int64 values ``a`` (negatives as 10-byte two's complement) and the
-    byte offsets ``[0, end of value 0, end of value 1, ...]``. One vector pass per byte level."""
+    byte offsets ``[0, end of value 0, end of value 1, ...]``, or None when every value takes one
+    byte (offsets = value indices). One vector pass per byte level; values in [0, 2^14), the usual
+    case (cells, steps, picture ids), take a two-level shortcut."""
+    if len(a) == 0:
+        return b"", None
+    lo, hi = int(a.min()), int(a.max())
+    if lo >= 0 and hi < 0x80:
+        return a.astype(np.uint8).tobytes(), None
+    if lo >= 0 and hi < 0x4000:  # one or two bytes: interleave (low | continuation, high), drop unused highs
+        two = a >= 0x80
+        pairs = np.empty((len(a), 2), np.uint8)
+        pairs[:, 0] = (a & 0x7F) | (two.view(np.uint8) << 7)
+        pairs[:, 1] = a >> 7
+        keep = np.empty((len(a), 2), bool)
+        keep[:, 0] = True
+        keep[:, 1] = two
+        cum = np.empty(len(a) + 1, np.int64)
+        cum[0] = 0
+        np.cumsum(keep[:, 1], out=cum[1:])
+        cum[1:] += np.arange(1, len(a) + 1)
+        return pairs.ravel()[keep.ravel()].tobytes(), cum
+    return varints_with_ends(a)
+
+
+def varints_with_ends(a: np.ndarray) -> tuple[bytes, np.ndarray]:
+    """:func:`varints` for any int64 values, always with the offsets."""
     if len(a) == 0:
         return b"", np.zeros(1, np.int64)
     u = a.astype(np.int64, copy=False).view(np.uint64)
@@ -85,18 +98,3 @@ def len_field(field: int, payload: bytes) -> bytes:
 
 def uint_field(field: int, n: int) -> bytes:
     return _VARINT_KEYS[field] + (varint_small(n) if 0 <= n < 16384 else varint(n)) if n else b""
-
-
-_ZERO_DOUBLE = bytes(8)
-
-
-def double_field(field: int, x: float) -> bytes:
-    """A double; proto3 omits one equal to its default 0.0 (but keeps -0.0, whose bits differ)."""
-    packed = _DOUBLE.pack(x)
-    return key(field, _I64) + packed if packed != _ZERO_DOUBLE else b""
-
-
-def map_entry_string_double(k: str, v: float) -> bytes:
-    """A ``map<string, double>`` entry; like upb, both key and value are always written."""
-    kb = k.encode("utf-8")
-    return key(1, _LEN) + varint(len(kb)) + kb + key(2, _I64) + _DOUBLE.pack(v)

@@ -4,10 +4,11 @@ every run (DESIGN.md "Records"; schema in :mod:`pipeline.records.schema`).
     with RecordWriter("datasets/runs/fig8/fewshot.mcap", metadata={"config": cfg, "seeds": seeds},
                       maze={"layout": rows, "categories": names}, runs=assignments,
                       pictures=query_pngs) as sink:
-        runner.run(sink=sink)          # calls sink.episode(**fields) and sink.substitution(...)
+        run_trials(..., sink=sink)     # calls sink.episodes(**batch) and sink.substitution(...)
 
 Finishing is atomic: the writer writes ``<name>.mcap.partial`` and renames it to ``<name>.mcap``
-only when :meth:`RecordWriter.close` succeeds. It closes a chunk every ``flush_every`` episodes,
+only when :meth:`RecordWriter.close` succeeds. Each sink batch becomes one ``EpisodeBatch`` message
+(encoded per batch, :mod:`.batch`). It closes a chunk once ``flush_every`` episodes have come in,
 so a killed run loses at most the episodes since its last flush, and its ``.partial`` file reads
 up to there (:func:`pipeline.records.read_records`). If the ``with`` block raises, the file is
 finished (a valid MCAP) but keeps its ``.partial`` name.
@@ -25,17 +26,11 @@ import numpy as np
 from mcap.writer import CompressionType, Writer
 
 from . import schema as S
-from . import wire as W
+from .batch import check_batch, encode_batch, one_episode_batch
 
 LIBRARY = "pipeline.records/" + S.FORMAT_VERSION
 LAYOUT_CHARS = frozenset("SGX.")
 OBSTACLE_KEYS = ("cell", "physical", "category", "instance", "orientation")
-SUMMARY_KEYS = ("steps", "collisions", "return_", "reached_goal", "prevented", "epsilon")
-EPISODE_KEYS = frozenset({"run", "episode", "states", "actions", "rewards", "flags", "recognitions",
-                          "unsafe_added", "summary"})
-OPTIONAL_EPISODE_KEYS = frozenset({"q_values"})
-RECOGNITION_KEYS = ("step", "state", "action", "picture", "predicted", "true")
-UNSAFE_KEYS = ("step", "state", "action", "source")
 VERSION_PACKAGES = ("fewshot-safe-rl-pipeline", "numpy", "numba", "pandas", "torch", "mujoco", "mcap",
                     "mcap-protobuf-support", "protobuf", "foxglove-schemas-protobuf", "rerun-sdk",
                     "hydra-core", "omegaconf", "gymnasium")
@@ -129,21 +124,10 @@ def _check_runs(runs: Sequence | Mapping | None) -> dict[str, list[dict[str, int
     return out
 
 
-def _arr(fields: Mapping[str, Any], key: str, where: str, dtype, n: int | None = None) -> np.ndarray:
-    try:
-        a = np.asarray(fields[key])
-    except KeyError:
-        raise ValueError(f"{where}: missing field {key!r}") from None
-    if a.ndim != 1:
-        raise ValueError(f"{where}.{key}: expected a 1-D array, got shape {a.shape}")
-    if n is not None and len(a) != n:
-        raise ValueError(f"{where}.{key}: length {len(a)} differs from the other arrays ({n})")
-    return a.astype(dtype, copy=False)
-
-
 class RecordWriter:
     """Writes one MCAP file of episode records; implements the episode-sink protocol of
-    ``pipeline/rl/sink.py`` (:meth:`episode`, :meth:`substitution`).
+    ``pipeline/rl/sink.py`` (:meth:`episodes`, :meth:`substitution`; :meth:`episode` records one
+    episode as a batch of one).
 
     Args:
         path: final file name (``.mcap``); written as ``<path>.partial`` until :meth:`close`.
@@ -178,8 +162,7 @@ class RecordWriter:
         self.n_substitutions = 0
         self._since_flush = 0
         self._closed = False
-        self._seen: set[tuple[int, int]] = set()
-        self._pending: list[tuple[int, int, Any]] = []  # (channel, log time, bytes or staged episode)
+        self._next_episode: dict[int, int] = {}  # run -> first episode not yet recorded
 
         metadata = dict(metadata or {})
         records = self._metadata_records(metadata, maze, runs)  # validate before touching the disk
@@ -190,11 +173,11 @@ class RecordWriter:
         self._mcap = Writer(self._file, chunk_size=chunk_size, compression=comp[compression])
         self._mcap.start(profile="", library=LIBRARY)
         ids = {}
-        for cls in (S.Episode, S.Substitution, S.CompressedImage):
+        for cls in (S.EpisodeBatch, S.Substitution, S.CompressedImage):
             ids[cls] = self._mcap.register_schema(name=cls.DESCRIPTOR.full_name, encoding="protobuf",
                                                   data=S.file_descriptor_set(cls))
         self._schema_ids = ids
-        self._ch_episodes = self._mcap.register_channel(S.TOPIC_EPISODES, "protobuf", ids[S.Episode])
+        self._ch_episodes = self._mcap.register_channel(S.TOPIC_EPISODES, "protobuf", ids[S.EpisodeBatch])
         self._ch_subs = self._mcap.register_channel(S.TOPIC_SUBSTITUTIONS, "protobuf", ids[S.Substitution])
         for name, data in records:
             self._mcap.add_metadata(name, data)
@@ -253,28 +236,30 @@ class RecordWriter:
         return out
 
     # ------------------------------------------------------------------ the sink protocol
-    def episode(self, **fields: Any) -> None:
-        """Record one finished episode (fields as documented in ``pipeline/rl/sink.py``)."""
+    def episodes(self, **batch: Any) -> None:
+        """Record a batch of consecutive finished episodes of one run (columnar fields as
+        documented in ``pipeline/rl/sink.py``) as ONE ``EpisodeBatch`` message."""
         self._check_open()
-        missing = EPISODE_KEYS - fields.keys()
-        unknown = fields.keys() - EPISODE_KEYS - OPTIONAL_EPISODE_KEYS
-        if missing or unknown:
-            raise TypeError(f"episode record: missing fields {sorted(missing)}, unknown fields "
-                            f"{sorted(unknown)} (see pipeline/rl/sink.py)")
-        run, episode = int(fields["run"]), int(fields["episode"])
-        where = f"episode record (run {run}, episode {episode})"
-        if (run, episode) in self._seen:
-            raise ValueError(f"{where}: recorded twice in {self.path}")
-        t = S.log_time_ns(run, episode, 0)
-        staged = stage_episode(fields)
-        if staged is None:  # unusual content (extra summary keys, Q table) or bad input: checked path
-            staged = encode_episode_protobuf(fields, where)
-        self._pending.append((self._ch_episodes, t, staged))
-        self._seen.add((run, episode))
-        self.n_episodes += 1
-        self._since_flush += 1
+        b = check_batch(batch)
+        if not b["n_episodes"]:
+            return
+        run, first, last = b["run"], int(b["episode"][0]), int(b["episode"][-1])
+        if first < self._next_episode.get(run, 0):
+            raise ValueError(f"episode batch of run {run}, episodes {first}..{last}: episodes of a run must "
+                             f"be recorded once and in order; {self.path} already has run {run} up to "
+                             f"episode {self._next_episode[run] - 1}")
+        t = S.log_time_ns(run, first, 0)
+        S.log_time_ns(run, last, 0)  # range check of the last episode too
+        self._mcap.add_message(self._ch_episodes, log_time=t, publish_time=t, data=encode_batch(b))
+        self._next_episode[run] = last + 1
+        self.n_episodes += b["n_episodes"]
+        self._since_flush += b["n_episodes"]
         if self._since_flush >= self.flush_every:
             self.flush()
+
+    def episode(self, **fields: Any) -> None:
+        """Record one episode (``split_batch``'s per-episode fields): a batch of one."""
+        self.episodes(**one_episode_batch(fields))
 
     def substitution(self, *, run: int, episode: int, step: int, picture: int, category: int,
                      position: int) -> None:
@@ -283,31 +268,15 @@ class RecordWriter:
         t = S.log_time_ns(int(run), int(episode), int(step))
         msg = S.Substitution(run=int(run), episode=int(episode), step=int(step), picture=int(picture),
                              category=int(category), position=int(position))
-        self._pending.append((self._ch_subs, t, msg.SerializeToString()))
+        self._mcap.add_message(self._ch_subs, log_time=t, publish_time=t, data=msg.SerializeToString())
         self.n_substitutions += 1
 
     # ------------------------------------------------------------------ life cycle
     def flush(self) -> None:
         """Close the current chunk and write it out: everything recorded so far survives a kill."""
         self._check_open()
-        self._write_pending()
         self._mcap.flush()
         self._since_flush = 0
-
-    def _write_pending(self) -> None:
-        """Encode the staged episodes in one vectorised batch and write every pending message in
-        the order it was handed over."""
-        if not self._pending:
-            return
-        staged = [i for i, (_, _, item) in enumerate(self._pending) if not isinstance(item, bytes)]
-        encoded = encode_staged([self._pending[i][2] for i in staged])
-        items = list(self._pending)
-        for i, data in zip(staged, encoded):
-            items[i] = (items[i][0], items[i][1], data)
-        add = self._mcap.add_message
-        for channel, t, data in items:
-            add(channel, log_time=t, publish_time=t, data=data)
-        self._pending.clear()
 
     def close(self, *, complete: bool = True) -> Path:
         """Finish the MCAP file (summary and index) and rename it to its final name; with
@@ -315,7 +284,6 @@ class RecordWriter:
         Returns the path of the file."""
         if self._closed:
             return self.path if complete else self.partial_path
-        self._write_pending()
         self._mcap.add_metadata("closed", {"complete": str(bool(complete)).lower(),
                                            "episodes": str(self.n_episodes),
                                            "substitutions": str(self.n_substitutions)})
@@ -338,188 +306,3 @@ class RecordWriter:
 
     def __exit__(self, exc_type, exc, tb) -> None:
         self.close(complete=exc_type is None)
-
-
-def normalise_episode(fields: Mapping[str, Any], where: str = "episode record") -> dict[str, Any]:
-    """Check one episode's sink fields and return them as typed numpy arrays (the boundary check)."""
-    states = _arr(fields, "states", where, np.int64)
-    n = len(states)
-    out: dict[str, Any] = {"run": int(fields["run"]), "episode": int(fields["episode"]), "states": states,
-                           "actions": _arr(fields, "actions", where, np.int64, n),
-                           "rewards": _arr(fields, "rewards", where, np.float32, n),
-                           "flags": _arr(fields, "flags", where, np.int64, n)}
-    rec = fields["recognitions"] or {}
-    m = len(rec["step"]) if rec else 0
-    if m:
-        w = where + ".recognitions"
-        for k in RECOGNITION_KEYS:
-            out["rec_" + k] = _arr(rec, k, w, np.int64, m)
-        scores = np.asarray(rec.get("scores", ()), dtype=np.float32)
-        if scores.size:
-            if scores.ndim != 2 or scores.shape[0] != m:
-                raise ValueError(f"{w}.scores: expected shape ({m}, n_categories), got {scores.shape}")
-        else:
-            scores = np.zeros((m, 0), np.float32)
-        out["rec_scores"] = scores
-    un = fields["unsafe_added"] or {}
-    k_un = len(un["step"]) if un else 0
-    if k_un:
-        w = where + ".unsafe_added"
-        for k in UNSAFE_KEYS:
-            out["un_" + k] = _arr(un, k, w, np.int64, k_un)
-    summary = fields["summary"]
-    missing = [k for k in SUMMARY_KEYS if k not in summary]
-    if missing:
-        raise ValueError(f"{where}.summary: missing {missing}; expected {list(SUMMARY_KEYS)}")
-    sm = {"steps": int(summary["steps"]), "collisions": int(summary["collisions"]),
-          "return_": float(summary["return_"]), "reached_goal": bool(summary["reached_goal"]),
-          "prevented": int(summary["prevented"]), "epsilon": float(summary["epsilon"])}
-    extra = {}
-    for k in sorted(summary.keys() - set(SUMMARY_KEYS)):
-        try:
-            extra[str(k)] = float(summary[k])
-        except (TypeError, ValueError):
-            raise ValueError(f"{where}.summary[{k!r}]: extra summary values must be numbers, "
-                             f"got {summary[k]!r}") from None
-    out["summary"], out["extra"] = sm, extra
-    q = fields.get("q_values")
-    if q is not None:
-        q = np.asarray(q, dtype=np.float32)
-        if q.ndim != 2:
-            raise ValueError(f"{where}.q_values: expected shape (n_states, n_actions), got {q.shape}")
-        out["q_values"] = q
-    return out
-
-
-_N_INT_FIELDS = 13  # Steps 1, 2, 4; Recognitions 1-6; UnsafeAdditions 1-4 (in this order)
-
-
-_NO_EXTRA_SIZES = [0] * 10
-
-
-def stage_episode(fields: Mapping[str, Any]):
-    """Copy one episode's fields into a compact staged form for :func:`encode_staged`: all its
-    integer arrays concatenated (one copy), the float arrays as bytes, the summary as a tuple.
-    Returns None for anything unusual (extra summary keys, a Q table, inconsistent input): the
-    caller then takes the checked path, :func:`encode_episode_protobuf`."""
-    try:
-        rec, un, summary = fields["recognitions"], fields["unsafe_added"], fields["summary"]
-        states, actions, flags = fields["states"], fields["actions"], fields["flags"]
-        rewards = np.asarray(fields["rewards"], dtype="<f4")
-        n = len(states)
-        m = len(rec["step"]) if rec else 0
-        k = len(un["step"]) if un else 0
-        if (len(actions) != n or len(flags) != n or rewards.shape != (n,) or len(summary) != 6
-                or "q_values" in fields):
-            return None
-        ncat, scores = 0, b""
-        if m or k:  # rare: an episode with recognitions or unsafe-set additions
-            arrays = [states, actions, flags]
-            if m:
-                arrays += [rec[key] for key in RECOGNITION_KEYS]
-            if k:
-                arrays += [un[key] for key in UNSAFE_KEYS]
-            sizes = [n, n, n] + [m] * 6 + [k] * 4
-            if any(len(x) != size for x, size in zip(arrays, sizes)):
-                return None
-            ints = np.concatenate(arrays, dtype=np.int64, casting="same_kind")
-            sc = np.asarray(rec.get("scores", ()), dtype="<f4") if m else None
-            if sc is not None and sc.size:
-                if sc.ndim != 2 or sc.shape[0] != m:
-                    return None
-                ncat, scores = sc.shape[1], sc.tobytes()
-        else:
-            sizes = [n, n, n] + _NO_EXTRA_SIZES
-            ints = np.concatenate((states, actions, flags), dtype=np.int64, casting="same_kind")
-        if ints.ndim != 1:
-            return None
-        sm = (int(summary["steps"]), int(summary["collisions"]), float(summary["return_"]),
-              int(bool(summary["reached_goal"])), int(summary["prevented"]), float(summary["epsilon"]))
-        run, episode = int(fields["run"]), int(fields["episode"])
-        if sm[0] < 0 or sm[1] < 0 or sm[4] < 0:
-            return None
-    except (KeyError, TypeError, ValueError):
-        return None
-    return (run, episode, ints, sizes, rewards.tobytes(), scores, ncat, sm)
-
-
-def encode_staged(staged: list) -> list[bytes]:
-    """Serialize staged episodes as ``fsrl.records.Episode`` messages (:mod:`.wire`): the integers
-    of the whole batch are varint-encoded in one numpy pass, then cut into packed fields.
-    Byte-identical to :func:`encode_episode_protobuf` (tests check)."""
-    if not staged:
-        return []
-    ints = np.concatenate([s[2] for s in staged])
-    sizes = np.array([s[3] for s in staged], dtype=np.int64).ravel()
-    if ints.size and (ints & ~0x7F).any():
-        payload, cum = W.varints_with_ends(ints)
-        bounds = cum[np.concatenate(([0], np.cumsum(sizes)))]
-    else:  # every value < 128: one byte each
-        payload = ints.astype(np.uint8).tobytes()
-        bounds = np.concatenate(([0], np.cumsum(sizes)))
-    bounds = bounds.tolist()
-    lf, uf, df, vs = W.len_field, W.uint_field, W.double_field, W.varint_small
-    key_steps, key_summary = W.KEY_EPISODE_STEPS, W.KEY_EPISODE_SUMMARY
-    out = []
-    j = 0
-    for run, episode, _, sz, rewards, scores, ncat, sm in staged:
-        b0, b1, b2, b3 = bounds[j:j + 4]
-        steps = lf(1, payload[b0:b1]) + lf(2, payload[b1:b2]) + lf(3, rewards) + lf(4, payload[b2:b3])
-        parts = [uf(1, run), uf(2, episode), key_steps, vs(len(steps)), steps]
-        if sz[3]:
-            b = bounds[j + 3:j + 10]
-            parts.append(lf(4, b"".join([lf(i + 1, payload[b[i]:b[i + 1]]) for i in range(6)]
-                                        + [uf(7, ncat), lf(8, scores)])))
-        if sz[9]:
-            b = bounds[j + 9:j + 14]
-            parts.append(lf(5, b"".join([lf(i + 1, payload[b[i]:b[i + 1]]) for i in range(4)])))
-        j += _N_INT_FIELDS
-        body = uf(1, sm[0]) + uf(2, sm[1]) + df(3, sm[2]) + uf(4, sm[3]) + uf(5, sm[4]) + df(6, sm[5])
-        parts += [key_summary, vs(len(body)), body]
-        out.append(b"".join(parts))
-    return out
-
-
-def encode_episode_wire(fields: Mapping[str, Any], where: str = "episode record") -> bytes:
-    """One episode through the vectorised path (:func:`stage_episode` + :func:`encode_staged`),
-    falling back to the checked Protobuf path for unusual content."""
-    staged = stage_episode(fields)
-    return encode_episode_protobuf(fields, where) if staged is None else encode_staged([staged])[0]
-
-
-def encode_episode_protobuf(fields: Mapping[str, Any], where: str = "episode record") -> bytes:
-    """Reference encoder through the Protobuf ``Message`` API (slow; the tests compare)."""
-    e = normalise_episode(fields, where)
-    msg = S.Episode(run=e["run"], episode=e["episode"])
-    msg.steps.SetInParent()
-    msg.steps.states.extend(e["states"].tolist())
-    msg.steps.actions.extend(e["actions"].tolist())
-    msg.steps.rewards.extend(e["rewards"].tolist())
-    msg.steps.flags.extend(e["flags"].tolist())
-    if "rec_step" in e:
-        r = msg.recognitions
-        r.step.extend(e["rec_step"].tolist())
-        r.state.extend(e["rec_state"].tolist())
-        r.action.extend(e["rec_action"].tolist())
-        r.picture.extend(e["rec_picture"].tolist())
-        r.predicted.extend(e["rec_predicted"].tolist())
-        r.true_category.extend(e["rec_true"].tolist())
-        if e["rec_scores"].size:
-            r.n_categories = e["rec_scores"].shape[1]
-            r.scores.extend(e["rec_scores"].ravel().tolist())
-    if "un_step" in e:
-        u = msg.unsafe_added
-        for k in UNSAFE_KEYS:
-            getattr(u, k).extend(e["un_" + k].tolist())
-    msg.summary.SetInParent()
-    for k, v in e["summary"].items():
-        setattr(msg.summary, k, v)
-    for k, v in e["extra"].items():
-        msg.summary.extra[k] = v
-    if "q_values" in e:
-        msg.n_actions = e["q_values"].shape[1]
-        msg.q_values.extend(e["q_values"].ravel().tolist())
-    return msg.SerializeToString(deterministic=True)
-
-
-encode_episode = encode_episode_wire  # the default encoder for one episode

@@ -21,7 +21,6 @@ from omegaconf import DictConfig, OmegaConf
 from pipeline.rl.methods import METHODS, MethodSpec
 from pipeline.rl.rng import run_seeds
 from pipeline.rl.runner import make_run_world, run_trials
-from pipeline.rl.sink import split_batch
 from pipeline.stages._common import CONF_DIR, ConfigError, require, write_json_atomic
 from pipeline.world.geometry import build_geometry
 from pipeline.world.maze import MazeError, load_layout
@@ -106,21 +105,6 @@ def query_pictures(images_dir: str) -> dict[int, bytes]:
     return {int(p): (Path(images_dir) / f).read_bytes() for p, f in zip(df["picture_id"], df["file"])}
 
 
-class _PerEpisode:
-    """Adapts the runner's columnar batches to a writer that takes one episode at a time."""
-
-    def __init__(self, writer):
-        self.writer = writer
-
-    def episodes(self, **batch):
-        for ep in split_batch(batch):
-            ep["summary"]["steps"] = ep.pop("steps")
-            self.writer.episode(**ep)
-
-    def substitution(self, **kw):
-        self.writer.substitution(**kw)
-
-
 def run_cell(cfg: DictConfig, name: str, cell: dict, folder: Path) -> dict:
     layout, method = cell["layout"], cell["method"]
     runs, episodes, seed = int(cfg.runs), int(cfg.episodes), int(cfg.seed)
@@ -141,8 +125,7 @@ def run_cell(cfg: DictConfig, name: str, cell: dict, folder: Path) -> dict:
             runs=placements, pictures=pictures, flush_every=int(cfg.flush_every))
     t0 = time.perf_counter()
     try:
-        sink = writer if writer is None or hasattr(writer, "episodes") else _PerEpisode(writer)
-        result = run_trials(layout, method, runs, episodes, seed, recogniser=recogniser, sink=sink,
+        result = run_trials(layout, method, runs, episodes, seed, recogniser=recogniser, sink=writer,
                             progress=bool(cfg.progress), shared_support=cell["support"] == "carry")
     except BaseException:
         if writer is not None:
