@@ -146,7 +146,7 @@ def _emit(sink, r, run_id, first_ep, last_ep, res, buf, scores, cursors):
 
 def run_trials(layout: Layout, method: MethodSpec, runs: int, episodes: int, seed: int = 0, *,
                recogniser: Recogniser | None = None, sink: EpisodeSink | None = None,
-               run_offset: int = 0, progress: bool = True, chunk_episodes: int = 25,
+               run_offset: int = 0, progress: bool = True, chunk_episodes: int = 100,
                trace_capacity: int = 16384, shared_support: bool = False) -> TrialResult:
     """Run ``runs`` independent runs (ids ``run_offset ..``) of ``episodes`` episodes each.
 
