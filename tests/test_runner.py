@@ -61,7 +61,14 @@ def test_dynamic_support_set_learns_from_every_misrecognition():
     sink = ListSink()
     result = run_trials(MAZE, get_method("fewshot_dss"), runs=2, episodes=30, seed=4,
                         recogniser=rec, sink=sink, progress=False)
-    assert len(rec.learnt) == result.collisions.sum() == len(sink.substitutions)
+    learnt = [s for s in sink.substitutions if s["picture"] >= 0]
+    assert len(rec.learnt) == result.collisions.sum() == len(learnt)
+    # one record of the initial support set per run, then its accuracy rises with every substitution
+    starts = [s for s in sink.substitutions if s["picture"] < 0]
+    assert [s["run"] for s in starts] == [0, 1] and all(s["support_accuracy"] == 0.0 for s in starts)
+    for run in range(2):
+        acc = [s["support_accuracy"] for s in sink.substitutions if s["run"] == run]
+        assert acc == sorted(acc) and acc[-1] == len(set(x["picture"] for x in learnt if x["run"] == run)) / 40
     # after learning a picture the robot recognises it: no picture collides twice in a run
     for run in range(2):
         pics = [e["recognitions"]["picture"][e["recognitions"]["predicted"] != e["recognitions"]["true"]]

@@ -230,13 +230,13 @@ def _columns(d: dict[str, Any], name: str, strict: bool = False) -> dict[str, An
 
 
 def _decode_substitutions(messages: list[tuple[int, bytes]]) -> dict[str, np.ndarray]:
-    cols = {k: [] for k in ("run", "episode", "step", "picture", "category", "position")}
+    cols = {k: [] for k in ("run", "episode", "step", "picture", "category", "position", "support_accuracy")}
     for _, data in messages:
         m = S.Substitution.FromString(data)
         for k, col in cols.items():
             col.append(getattr(m, k))
     types = {"run": np.int32, "episode": np.int32, "step": np.int32, "picture": np.int16,
-             "category": np.int8, "position": np.int8}
+             "category": np.int8, "position": np.int8, "support_accuracy": np.float64}
     return {k: _i(v, types[k]) for k, v in cols.items()}
 
 

@@ -128,7 +128,7 @@ def build_replay(path: str | Path, run: int, episode: int | None = None, *, out:
     steps = recs.steps[recs.steps.run == run]
     recog = recs.recognitions[recs.recognitions.run == run]
     unsafe = recs.unsafe[recs.unsafe.run == run]
-    subs = recs.substitutions[recs.substitutions.run == run]
+    subs = recs.substitutions[(recs.substitutions.run == run) & (recs.substitutions.picture >= 0)]
     score_cols = [c for c in recog.columns if c.startswith("score_")]
 
     # ---- state before the first replayed episode: A_d, support set, visits

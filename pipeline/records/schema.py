@@ -131,6 +131,7 @@ _MESSAGES: list[tuple[str, list[tuple[str, int, int, int, str]]]] = [
         ("picture", 4, _F.TYPE_INT32, _OPT, ""),   # query picture id that entered the support set
         ("category", 5, _F.TYPE_INT32, _OPT, ""),  # support-set class it entered
         ("position", 6, _F.TYPE_INT32, _OPT, ""),  # replaced shot 0..K-1
+        ("support_accuracy", 7, _F.TYPE_DOUBLE, _OPT, ""),  # query accuracy of the support set after it
     ]),
 ]
 

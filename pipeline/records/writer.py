@@ -262,12 +262,15 @@ class RecordWriter:
         self.episodes(**one_episode_batch(fields))
 
     def substitution(self, *, run: int, episode: int, step: int, picture: int, category: int,
-                     position: int) -> None:
-        """Record that ``picture`` replaced shot ``position`` of class ``category`` (section 3.3)."""
+                     position: int, support_accuracy: float = float("nan")) -> None:
+        """Record that ``picture`` replaced shot ``position`` of class ``category`` (section 3.3),
+        and the accuracy of the support set on the query pictures after it. ``picture = -1``
+        (position -1) records the support set a run starts with."""
         self._check_open()
         t = S.log_time_ns(int(run), int(episode), int(step))
         msg = S.Substitution(run=int(run), episode=int(episode), step=int(step), picture=int(picture),
-                             category=int(category), position=int(position))
+                             category=int(category), position=int(position),
+                             support_accuracy=float(support_accuracy))
         self._mcap.add_message(self._ch_subs, log_time=t, publish_time=t, data=msg.SerializeToString())
         self.n_substitutions += 1
 

@@ -88,16 +88,17 @@ def experiment_fig8(rep: Report, cells: dict[str, Cell]) -> None:
         rep.out / "tables" / "learning_curves.csv", index=False, lineterminator="\n", float_format="%.6g")
     F.learning_curves(curves, "Collisions per episode (mean over runs), 5x5", rep.out / "figures" / "fig8_learning_curves.png")
     rep.figure("figures/fig8_learning_curves.png", "Learning curves: collisions per episode, mean over runs, 10-episode moving average.")
-    acc = {}
-    for n in order:
-        rec = cells[n].recognitions
-        if len(rec):
-            per_ep = rec.groupby("episode")["correct"].mean()
-            acc[n] = per_ep.reindex(range(int(cells[n].episodes["episode"].max()) + 1)).ffill().fillna(0).to_numpy()
-    if acc:
-        F.learning_curves(acc, "Recognition accuracy of the pictures seen, by episode", rep.out / "figures" / "fig8_recognition_accuracy.png",
-                          ylabel="fraction recognised correctly")
-        rep.figure("figures/fig8_recognition_accuracy.png", "Recognition accuracy over the run (pictures seen in each episode, all runs).")
+    support_accuracy_figure(rep, {n: cells[n] for n in order}, "fig8_support_accuracy.png",
+                            "Query accuracy of the run's support set over the run, 5x5")
+
+
+def support_accuracy_figure(rep: Report, cells: dict[str, Cell], name: str, title: str) -> None:
+    """Mean over runs of the support set's accuracy on the 40 query pictures, by episode."""
+    curves = {n: a.mean(axis=0) for n, c in cells.items() if (a := c.support_accuracy()) is not None}
+    if not curves:
+        return
+    F.learning_curves(curves, title, rep.out / "figures" / name, ylabel="query accuracy of the support set", window=1)
+    rep.figure(f"figures/{name}", f"{title}: mean over runs (starts at the original support set's accuracy).")
 
 
 def experiment_fig7(rep: Report, runs_dir: Path, cells: dict[str, Cell]) -> None:
@@ -139,6 +140,12 @@ def experiment_fig10(rep: Report, cells: dict[str, Cell]) -> None:
     rep.table("fig10", pd.DataFrame(rows), "Collisions per experiment (consecutive runs).")
     F.long_term(restore, carry, rep.out / "figures" / "fig10_long_term.png")
     rep.figure("figures/fig10_long_term.png", "Figure 10 re-made: collisions of each consecutive experiment.")
+    acc = {k: cells[k].support_accuracy() for k in ("restore", "carry")}
+    if all(a is not None for a in acc.values()):
+        F.learning_curves({k: a[:, -1] for k, a in acc.items()}, "Query accuracy of the support set at the end of each experiment",
+                          rep.out / "figures" / "fig10_support_accuracy.png", ylabel="query accuracy", window=1,
+                          xlabel="experiment (consecutive runs)")
+        rep.figure("figures/fig10_support_accuracy.png", "Long-term autonomy: the carried-over support set keeps improving from one experiment to the next.")
 
 
 def experiment_table3(rep: Report, cells: dict[str, Cell]) -> None:
@@ -182,6 +189,10 @@ def experiment_table3(rep: Report, cells: dict[str, Cell]) -> None:
             if sub:
                 F.learning_curves(sub, f"Collisions per episode, {maze}", rep.out / "figures" / f"table3_learning_curves_{maze}.png")
                 rep.figure(f"figures/table3_learning_curves_{maze}.png", f"Learning curves on {maze}.")
+        for maze in MAZES:
+            group = {c.name: c for c in cells.values() if c.maze == maze and c.method in ("fewshot", "fewshot_dss")}
+            support_accuracy_figure(rep, group, f"table3_support_accuracy_{maze}.png",
+                                    f"Query accuracy of the support set over the run, {maze}")
 
 
 def accuracy_section(rep: Report, accuracy_dir: Path, model_metrics: Path) -> None:

@@ -20,6 +20,7 @@ class Cell:
     obstacles: dict         # run -> obstacle assignment
     episodes: pd.DataFrame  # run, episode, steps, collisions, ... (one row per episode)
     recognitions: pd.DataFrame
+    substitutions: pd.DataFrame  # incl. one row per run (picture -1) with the initial support set
 
     @property
     def method(self) -> str:
@@ -31,6 +32,21 @@ class Cell:
 
     def collisions_per_run(self) -> np.ndarray:
         return self.episodes.groupby("run")["collisions"].sum().to_numpy()
+
+    def support_accuracy(self) -> np.ndarray | None:
+        """(runs, episodes): query accuracy of each run's support set at the end of each episode
+        (the initial set's until the first substitution); None without a recogniser."""
+        subs = self.substitutions
+        if subs is None or not len(subs) or "support_accuracy" not in subs:
+            return None
+        runs = sorted(self.episodes["run"].unique())
+        n_ep = int(self.episodes["episode"].max()) + 1
+        out = np.full((len(runs), n_ep), np.nan)
+        for i, r in enumerate(runs):
+            g = subs[subs["run"] == r].sort_values(["episode", "step", "picture"])
+            for ep, acc in zip(g["episode"], g["support_accuracy"]):
+                out[i, int(ep):] = acc
+        return out
 
     def converged_episode(self) -> list[int | None]:
         """Per run, the first episode after which the greedy path stays optimal (None: never)."""
@@ -51,7 +67,7 @@ def load_experiment(folder: Path) -> dict[str, Cell]:
         meta = recs.meta
         info = meta.info.get("info", meta.info)
         cells[path.parent.name] = Cell(folder.name, path.parent.name, info, list(meta.maze["layout"]),
-                                       meta.obstacles, recs.episodes, recs.recognitions)
+                                       meta.obstacles, recs.episodes, recs.recognitions, recs.substitutions)
     return cells
 
 

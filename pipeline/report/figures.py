@@ -52,7 +52,7 @@ def bars(labels, samples, title, ylabel, path: Path, paper: dict | None = None):
 
 
 def learning_curves(curves: dict[str, np.ndarray], title: str, path: Path, ylabel="collisions per episode",
-                    window: int = 10):
+                    window: int = 10, xlabel: str = "episode"):
     """Mean over runs per episode, smoothed with a moving average of ``window`` episodes."""
     fig, ax = plt.subplots(figsize=(6.4, 3.6))
     for label, per_episode in curves.items():
@@ -60,7 +60,7 @@ def learning_curves(curves: dict[str, np.ndarray], title: str, path: Path, ylabe
         w = max(1, min(window, len(y)))
         smooth = np.convolve(y, np.ones(w) / w, mode="valid")
         ax.plot(np.arange(w - 1, len(y)), smooth, label=label, lw=1.3)
-    ax.set_xlabel("episode")
+    ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
     ax.set_title(title, fontsize=10)
     ax.legend(fontsize=8)

@@ -20,7 +20,10 @@ from pipeline.rl.rng import run_seeds
 from pipeline.rl.sink import EpisodeSink
 from pipeline.world.geometry import Geometry, build_geometry
 from pipeline.world.maze import Layout, shortest_path_length
-from pipeline.world.pictures import N_PICTURES
+from pipeline.world.pictures import N_PICTURES, picture_category
+
+#: True category of every query picture id.
+PICTURE_CATEGORY = np.array([picture_category(p) for p in range(N_PICTURES)], dtype=np.int8)
 from pipeline.world.placement import Placement, picture_table, random_placement
 
 
@@ -184,6 +187,9 @@ def run_trials(layout: Layout, method: MethodSpec, runs: int, episodes: int, see
         if uses_recogniser:
             recogniser.start_run(slot(r), run_seeds(seed, run_offset + r).recogniser)
             predicted[r] = recogniser.predictions(slot(r))
+            if sink is not None:
+                sink.substitution(run=run_offset + r, episode=0, step=0, picture=-1, category=-1,
+                                  position=-1, support_accuracy=float((predicted[r] == PICTURE_CATEGORY).mean()))
 
     q = np.zeros((runs, n_cells, 4))
     unsafe = np.zeros((runs, n_cells, 4), dtype=np.bool_)
@@ -241,10 +247,11 @@ def run_trials(layout: Layout, method: MethodSpec, runs: int, episodes: int, see
                 if status[r] == kernel.STATUS_SUBSTITUTE:
                     ep, step, pic, cat = (int(x) for x in buf["sub"][r])
                     position = recogniser.learn_from_collision(slot(r), pic, cat)
+                    predicted[r] = recogniser.predictions(slot(r))
                     if sink is not None:
                         sink.substitution(run=run_offset + r, episode=ep, step=step, picture=pic,
-                                          category=cat, position=int(position))
-                    predicted[r] = recogniser.predictions(slot(r))
+                                          category=cat, position=int(position),
+                                          support_accuracy=float((predicted[r] == PICTURE_CATEGORY).mean()))
                     again.append(r)
                 elif status[r] == kernel.STATUS_FLUSH:
                     _emit(sink, r, run_offset + r, emitted[r], int(cur[r, 0]),

@@ -50,7 +50,10 @@ class EpisodeSink(Protocol):
     def episodes(self, **batch: Any) -> None: ...
 
     def substitution(self, *, run: int, episode: int, step: int, picture: int, category: int,
-                     position: int) -> None: ...
+                     position: int, support_accuracy: float) -> None:
+        """The run's support set changed: ``picture`` entered ``category`` at ``position``; the
+        support set now recognises ``support_accuracy`` of the query pictures. At the start of a
+        run with a recogniser, one call with ``picture = position = -1`` gives the initial accuracy."""
 
 
 def split_batch(batch: dict) -> list[dict]:

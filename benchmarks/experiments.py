@@ -1,0 +1,50 @@
+"""Wall time of every experiment of the paper at the paper's scale (100 runs x 500 episodes per
+cell), with the Relation Network in the loop and every episode recorded to MCAP.
+
+    python -m benchmarks.experiments [--out /tmp/bench-experiments] [--no-record]
+
+Runs `python -m pipeline trials +experiment=<name>` for fig8, fig9, fig10 and table3 into a
+scratch folder (the committed datasets/runs are left alone) and prints each experiment's wall time
+(process start to end, numba compile and model loading included) and each cell's trial time.
+Writes reports/benchmarks/experiments.json.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+EXPERIMENTS = ("fig8", "fig9", "fig10", "table3")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--out", default="/tmp/bench-experiments")
+    ap.add_argument("--no-record", action="store_true", help="run without MCAP records (to see their cost)")
+    ap.add_argument("--json", default="reports/benchmarks/experiments.json")
+    args = ap.parse_args()
+    rows, total = [], 0.0
+    for exp in EXPERIMENTS:
+        t0 = time.perf_counter()
+        cmd = [sys.executable, "-m", "pipeline", "trials", f"+experiment={exp}", "progress=false",
+               f"out={args.out}/{exp}", f"record={'false' if args.no_record else 'true'}"]
+        out = subprocess.run(cmd, capture_output=True, text=True)
+        wall = time.perf_counter() - t0
+        if out.returncode != 0:
+            sys.exit(f"{exp} failed:\n{out.stderr[-2000:]}")
+        total += wall
+        cells = json.loads((Path(args.out) / exp / "summary.json").read_text())["cells"]
+        rows.append({"experiment": exp, "wall_seconds": round(wall, 2),
+                     "cells": {n: c["seconds"] for n, c in cells.items()}})
+        print(f"{exp:<8} {wall:7.1f} s wall   " + "  ".join(f"{n} {s:.1f}s" for n, s in rows[-1]["cells"].items()))
+    print(f"total    {total:7.1f} s (goal: at most 300 s){'' if not args.no_record else ' without records'}")
+    Path(args.json).parent.mkdir(parents=True, exist_ok=True)
+    Path(args.json).write_text(json.dumps({"record": not args.no_record, "total_seconds": round(total, 2),
+                                           "experiments": rows}, indent=2) + "\n")
+
+
+if __name__ == "__main__":
+    main()
