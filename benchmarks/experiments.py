@@ -30,15 +30,15 @@ def main() -> None:
     for exp in EXPERIMENTS:
         t0 = time.perf_counter()
         cmd = [sys.executable, "-m", "pipeline", "trials", f"+experiment={exp}", "progress=false",
-               f"out={args.out}/{exp}", f"record={'false' if args.no_record else 'true'}"]
+               f"out={args.out}/{exp}", f"record={'false' if args.no_record else 'true'}",
+               f"timing_file={args.out}/{exp}-timing.json"]
         out = subprocess.run(cmd, capture_output=True, text=True)
         wall = time.perf_counter() - t0
         if out.returncode != 0:
             sys.exit(f"{exp} failed:\n{out.stderr[-2000:]}")
         total += wall
-        cells = json.loads((Path(args.out) / exp / "summary.json").read_text())["cells"]
-        rows.append({"experiment": exp, "wall_seconds": round(wall, 2),
-                     "cells": {n: c["seconds"] for n, c in cells.items()}})
+        cells = json.loads((Path(args.out) / f"{exp}-timing.json").read_text())
+        rows.append({"experiment": exp, "wall_seconds": round(wall, 2), "cells": cells})
         print(f"{exp:<8} {wall:7.1f} s wall   " + "  ".join(f"{n} {s:.1f}s" for n, s in rows[-1]["cells"].items()))
     print(f"total    {total:7.1f} s (goal: at most 300 s){'' if not args.no_record else ' without records'}")
     Path(args.json).parent.mkdir(parents=True, exist_ok=True)
