@@ -1,4 +1,4 @@
-"""Recognisers the stages can build (the Relation Network one arrives with ``pipeline.fewshot``)."""
+"""Recognisers the stages can build besides the Relation Network (``pipeline.fewshot.recogniser``)."""
 from __future__ import annotations
 
 import numpy as np
@@ -22,7 +22,3 @@ class OracleRecogniser:
 
     def learn_from_collision(self, run: int, picture_id: int, true_category: int) -> int:
         return -1
-
-
-def relation_net_recogniser(cfg, method):
-    raise NotImplementedError("the Relation Network recogniser is not wired into trials yet")
