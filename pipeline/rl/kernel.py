@@ -62,19 +62,21 @@ def advance_run(r, ep_limit, params, iparams,
     pic_r = pictures[r]
     true_r = true_category[r]
     pred_r = predicted[r]
-    while cur[r, 0] < ep_limit:
-        ep = cur[r, 0]
-        t = cur[r, 1]
-        s = cur[r, 2]
+    # the run's scalars live in locals while it advances and go back to ``cur`` when it pauses
+    ep, t, s, pend = cur[r, 0], cur[r, 1], cur[r, 2], cur[r, 3]
+    pend_resel, col, prev = cur[r, 4] != 0, cur[r, 5], cur[r, 6]
+    e, ret = eps[r], ep_ret[r]
+    status = STATUS_LIMIT
+    while ep < ep_limit:
         if t == 0 and record and trace_len[r] + max_steps > capacity:
-            return STATUS_FLUSH
-        pend = cur[r, 3]
+            status = STATUS_FLUSH
+            break
         if learner == LEARNER_SARSA and pend >= 0 and not ur[s, pend]:
             a = pend
-            resel = cur[r, 4] != 0
+            resel = pend_resel
         else:
-            a, resel = select_action(qr[s], ur[s], eps[r], rng, r)
-        cur[r, 3] = -1
+            a, resel = select_action(qr[s], ur[s], e, rng, r)
+        pend = -1
         while True:
             out, s2, rew, term, flags, pic, n_added = apply_action(
                 s, a, next_cell, obstacle, ssrl_pairs, goal, pic_r, true_r, pred_r, ur,
@@ -99,25 +101,23 @@ def advance_run(r, ep_limit, params, iparams,
                 rec_len[r] = i + 1
             if out != PREVENTED:
                 break
-            cur[r, 6] += 1
+            prev += 1
             resel = True
-            a, _ = select_action(qr[s], ur[s], eps[r], rng, r)
+            a, _ = select_action(qr[s], ur[s], e, rng, r)
         if out == COLLIDED:
-            cur[r, 5] += 1
+            col += 1
             if constrained:
-                eps[r] = max(eps_min, eps[r] - eps_decay)
+                e = max(eps_min, e - eps_decay)
         if term:
             target = rew
         elif learner == LEARNER_Q:
             target = rew + gamma * max_allowed(qr[s2], ur[s2])
         else:
-            a2, resel2 = select_action(qr[s2], ur[s2], eps[r], rng, r)
-            cur[r, 3] = a2
-            cur[r, 4] = 1 if resel2 else 0
-            target = rew + gamma * qr[s2, a2]
+            pend, pend_resel = select_action(qr[s2], ur[s2], e, rng, r)
+            target = rew + gamma * qr[s2, pend]
         td_update(qr, s, a, target, alpha)
         t += 1
-        ep_ret[r] += rew
+        ret += rew
         end = term or t >= max_steps
         if resel:
             flags |= FLAG_RESELECTED
@@ -130,31 +130,36 @@ def advance_run(r, ep_limit, params, iparams,
             trace_r[r, i] = rew
             trace_f[r, i] = flags
             trace_len[r] = i + 1
-        if end:
-            res_steps[r, ep] = t
-            res_col[r, ep] = cur[r, 5]
-            res_ret[r, ep] = ep_ret[r]
-            res_goal[r, ep] = (flags & 8) != 0
-            res_prev[r, ep] = cur[r, 6]
-            res_eps[r, ep] = eps[r]
-            res_greedy[r, ep] = greedy_path_is_optimal(qr, ur, next_cell, obstacle, start, goal, optimal_length)
-            cur[r, 0] = ep + 1
-            cur[r, 1] = 0
-            cur[r, 2] = start
-            cur[r, 3] = -1
-            cur[r, 5] = 0
-            cur[r, 6] = 0
-            ep_ret[r] = 0.0
-        else:
-            cur[r, 1] = t
-            cur[r, 2] = s2
-        if out == COLLIDED and dynamic and pic >= 0:
+        substitute = out == COLLIDED and dynamic and pic >= 0
+        if substitute:
             sub[r, 0] = ep
             sub[r, 1] = t - 1
             sub[r, 2] = pic
             sub[r, 3] = true_r[obstacle[s, a]]
-            return STATUS_SUBSTITUTE
-    return STATUS_LIMIT
+        if end:
+            res_steps[r, ep] = t
+            res_col[r, ep] = col
+            res_ret[r, ep] = ret
+            res_goal[r, ep] = (flags & 8) != 0
+            res_prev[r, ep] = prev
+            res_eps[r, ep] = e
+            res_greedy[r, ep] = greedy_path_is_optimal(qr, ur, next_cell, obstacle, start, goal, optimal_length)
+            ep += 1
+            t = 0
+            s = start
+            pend = -1
+            col = 0
+            prev = 0
+            ret = 0.0
+        else:
+            s = s2
+        if substitute:
+            status = STATUS_SUBSTITUTE
+            break
+    cur[r, 0], cur[r, 1], cur[r, 2], cur[r, 3] = ep, t, s, pend
+    cur[r, 4], cur[r, 5], cur[r, 6] = (1 if pend_resel else 0), col, prev
+    eps[r], ep_ret[r] = e, ret
+    return status
 
 
 @nb.njit(cache=True, parallel=True)
