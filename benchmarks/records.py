@@ -4,8 +4,8 @@
 
 1. Synthetic workload: ``runs x episodes`` episodes of 20-200 steps (long at first, shorter as
    "learning" proceeds), a few recognitions, unsafe-set additions and substitutions, handed to
-   :class:`pipeline.records.RecordWriter` in sink batches of 25 episodes of one run (as the trial
-   runner does); prints episodes/s, bytes per step, and the read-back speed of
+   :class:`pipeline.records.RecordWriter` in sink batches of 25 episodes of one run (the trial
+   runner hands over 100 at a time); prints episodes/s, bytes per step, and the read-back speed of
    :func:`pipeline.records.read_records`.
 2. The real trial (when ``pipeline.rl.runner`` is present): the 11x11 few-shot experiment
    (``fewshot_dss``, 100 x 500) with a deterministic half-right recogniser, timed without a sink,
