@@ -1,7 +1,6 @@
 """Meta-training on tiny synthetic classes beats chance clearly and is deterministic; the manifest
 contract is checked."""
 import numpy as np
-import pandas as pd
 import pytest
 import torch
 

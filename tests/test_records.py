@@ -10,7 +10,7 @@ import pytest
 
 from pipeline.records import RecordWriter, RecordsWarning, read_records
 from pipeline.records import schema as S
-from pipeline.records.synthetic import (LAYOUT_5X5, batches, episodes, make_batch, obstacle_assignment, tiny_png,
+from pipeline.records.synthetic import (LAYOUT_5X5, batches, make_batch, obstacle_assignment, tiny_png,
                                         write_synthetic)
 
 

@@ -1,10 +1,8 @@
 """Scripted episodes with exact returns (in the style of ai-safety-gridworlds' tests)."""
-import numpy as np
 import pytest
 
 from fakes import always_right, always_wrong
 from pipeline.rl.gym_env import SafeNavigationEnv
-from pipeline.rl.methods import get_method
 from pipeline.rl.sink import FLAG_COLLIDED, FLAG_GOAL, FLAG_RECOVERED
 from pipeline.world.maze import parse_layout
 

@@ -8,7 +8,6 @@ gives the same bytes.
 """
 from __future__ import annotations
 
-import json
 import shutil
 from dataclasses import dataclass
 from pathlib import Path
@@ -61,7 +60,7 @@ class Report:
         return path
 
 
-def _collision_row(label: str, cell: Cell, paper_value=None) -> dict:
+def _collision_row(label: str, cell: Cell) -> dict:
     d = describe(cell.collisions_per_run())
     conv = cell.converged_episode()
     row = {"method": label, "runs": d["n"], "collisions (mean ± s.d. [95% CI])": fmt(d)}
@@ -69,8 +68,6 @@ def _collision_row(label: str, cell: Cell, paper_value=None) -> dict:
         ok = [c for c in conv if c is not None]
         row["converged runs"] = f"{len(ok)}/{len(conv)}"
         row["converged episode (mean)"] = f"{np.mean(ok):.0f}" if ok else "not converged"
-    if paper_value is not None or label in paper.TABLE3:
-        row["paper"] = paper_value
     return row
 
 
@@ -78,7 +75,7 @@ def experiment_fig8(rep: Report, cells: dict[str, Cell]) -> None:
     order = [n for n in ("qlearning", "shield", "ssrl", "fewshot", "fewshot_dss") if n in cells]
     rep.add("## Figure 8: collisions of the compared methods (5x5)\n\n"
             f"Paper: {paper.CLAIMS['fig8']}\n")
-    rep.table("fig8", pd.DataFrame([_collision_row(n, cells[n]) for n in order]).drop(columns=["paper"], errors="ignore"),
+    rep.table("fig8", pd.DataFrame([_collision_row(n, cells[n]) for n in order]),
               "Collisions per run within the episodes of each run.")
     F.bars(order, [cells[n].collisions_per_run() for n in order], "Figure 8 (ours): collisions per run, 5x5",
            "collisions", rep.out / "figures" / "fig8_collisions.png")
@@ -125,7 +122,7 @@ def experiment_fig7(rep: Report, runs_dir: Path, cells: dict[str, Cell]) -> None
 def experiment_fig9(rep: Report, cells: dict[str, Cell]) -> None:
     order = sorted(cells)
     rep.add(f"## Figure 9: the four substitution ways (5x5)\n\nPaper: {paper.CLAIMS['fig9']}\n")
-    rep.table("fig9", pd.DataFrame([_collision_row(n, cells[n]) for n in order]).drop(columns=["paper"], errors="ignore"),
+    rep.table("fig9", pd.DataFrame([_collision_row(n, cells[n]) for n in order]),
               "Collisions per run by substitution way.")
     F.bars(order, [cells[n].collisions_per_run() for n in order], "Figure 9 (ours): substitution ways, 5x5",
            "collisions", rep.out / "figures" / "fig9_substitution_ways.png")

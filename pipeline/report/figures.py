@@ -28,9 +28,8 @@ def save(fig, path: Path) -> Path:
     return path
 
 
-def bars(labels, samples, title, ylabel, path: Path, paper: dict | None = None):
-    """Mean with s.d. (thin) and 95% bootstrap interval (thick) per label, the runs as dots, and the
-    paper's value as a red marker where it is published."""
+def bars(labels, samples, title, ylabel, path: Path):
+    """Mean with s.d. (thin) and 95% bootstrap interval (thick) per label, the runs as dots."""
     fig, ax = plt.subplots(figsize=(1.3 * len(labels) + 2, 3.6))
     rng = np.random.default_rng(0)
     for i, (label, v) in enumerate(zip(labels, samples)):
@@ -40,14 +39,9 @@ def bars(labels, samples, title, ylabel, path: Path, paper: dict | None = None):
         ax.vlines(i, d["ci_low"], d["ci_high"], color="black", lw=3)
         ax.scatter(i + rng.uniform(-0.25, 0.25, len(v)), v, s=4, color="#3182bd", alpha=0.4, zorder=3)
         ax.text(i, d["mean"], f"{d['mean']:.1f}", ha="center", va="bottom", fontsize=8)
-        if paper and paper.get(label) is not None:
-            ax.scatter(i, paper[label], marker="_", s=600, color="red", zorder=4,
-                       label="paper" if i == 0 or "paper" not in ax.get_legend_handles_labels()[1] else None)
     ax.set_xticks(range(len(labels)), labels, rotation=20)
     ax.set_ylabel(ylabel)
     ax.set_title(title, fontsize=10)
-    if paper:
-        ax.legend(fontsize=8)
     return save(fig, path)
 
 

@@ -57,7 +57,6 @@ class TrialResult:
     greedy_optimal: np.ndarray
     epsilon: np.ndarray
     placements: list[Placement] = field(default_factory=list)
-    unsafe_size: np.ndarray | None = None  # (runs,) |A_d| at the end
 
     @property
     def runs(self) -> int:
@@ -277,10 +276,5 @@ def run_trials(layout: Layout, method: MethodSpec, runs: int, episodes: int, see
                     _emit(sink, r, run_offset + r, emitted[r], int(cur[r, 0]), res, buf, scores, cursors)
                     emitted[r] = int(cur[r, 0])
     bar.close()
-    if record:
-        for r in range(runs):
-            _emit(sink, r, run_offset + r, emitted[r], episodes,
-                  res, buf, scores, cursors)
     return TrialResult(layout, method, seed, res["steps"], res["col"], res["ret"], res["goal"],
-                       res["prev"], res["greedy"], res["eps"], [w.placement for w in worlds],
-                       unsafe.reshape(runs, -1).sum(axis=1))
+                       res["prev"], res["greedy"], res["eps"], [w.placement for w in worlds])
