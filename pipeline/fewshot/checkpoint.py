@@ -5,21 +5,22 @@ raises :class:`CheckpointError` naming the file and the problem.
 """
 from __future__ import annotations
 
-import os
-import tempfile
 from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
 import torch
 
+from pipeline.files import atomic_output
+
 from .model import ModelConfig, RelationNetwork
+from pipeline.errors import UserError
 
 FORMAT = "relation-network/1"
 REQUIRED = ("format", "model", "state_dict", "normalisation", "config", "metrics")
 
 
-class CheckpointError(RuntimeError):
+class CheckpointError(UserError):
     """A checkpoint file cannot be used; the message names the file and what is wrong."""
 
 
@@ -42,17 +43,8 @@ def save_checkpoint(
         "config": config,
         "metrics": metrics,
     }
-    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            torch.save(payload, f)
-            f.flush()
-            os.fsync(f.fileno())
-        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600 files
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    with atomic_output(path) as f:
+        torch.save(payload, f)
     return path
 
 
@@ -87,8 +79,3 @@ def load_checkpoint(path: str | Path, expected_model: ModelConfig | None = None)
     network.eval()
     return network, payload
 
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask

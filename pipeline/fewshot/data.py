@@ -16,13 +16,14 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 from PIL import Image
+from pipeline.errors import UserError
 
 MANIFEST = "manifest.csv"
 COLUMNS = ("split", "category", "class_name", "instance", "face", "orientation_deg", "picture_id", "file")
 SPLITS = ("query", "support", "train", "val")
 
 
-class DataError(ValueError):
+class DataError(UserError):
     """The picture sets on disk do not match the manifest contract."""
 
 

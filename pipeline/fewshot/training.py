@@ -27,6 +27,8 @@ import torch
 from torch import nn
 from tqdm.auto import tqdm
 
+from pipeline.schema import check, setting
+
 from .data import PictureSet, channel_stats, to_tensor
 from .episodes import Episode, mean_and_ci95, sample_episode, sample_episodes
 from .model import ModelConfig, RelationNetwork
@@ -35,60 +37,51 @@ LR_SCHEDULES = ("constant", "cosine", "step")
 log = logging.getLogger(__name__)
 
 
-@dataclass(frozen=True)
+@dataclass
 class TrainConfig:
     """Meta-training hyperparameters (every field is a key of ``conf/meta_train.yaml``'s ``train``)."""
 
-    input_size: int = 48
+    input_size: int = setting(48, ge=10)
     """Square input side in pixels; pictures are resized to it (see :mod:`.model` for map sizes)."""
-    relation_padding: int = 0
+    relation_padding: int = setting(0, choices=(0, 1))
     """Padding of g_phi's convolutions (0 as in Sung et al.; 1 needed below 46 px)."""
-    n_way: int = 5
+    n_way: int = setting(5, ge=2)
     """Classes per episode (C)."""
-    k_shot: int = 5
+    k_shot: int = setting(5, ge=1)
     """Support pictures per class (K); their feature maps are summed."""
-    n_query: int = 5
+    n_query: int = setting(5, ge=1)
     """Query pictures per class in a training episode."""
-    episodes: int = 1500
+    episodes: int = setting(1500, ge=1)
     """Training episodes (the loop also stops at ``max_minutes``)."""
-    lr: float = 1e-3
+    lr: float = setting(1e-3, gt=0.0)
     """Adam learning rate at the start."""
-    lr_schedule: str = "cosine"
+    lr_schedule: str = setting("cosine", choices=LR_SCHEDULES)
     """``constant``, ``cosine`` (to ``lr * min_lr_fraction`` at ``episodes``) or ``step`` (halve every ``lr_step``)."""
-    min_lr_fraction: float = 0.05
+    min_lr_fraction: float = setting(0.05, gt=0.0, le=1.0)
     """Final learning rate of the cosine schedule, as a fraction of ``lr``."""
-    lr_step: int = 1000
+    lr_step: int = setting(1000, ge=1)
     """Episodes between halvings of the ``step`` schedule."""
     flip: bool = True
     """Random horizontal flips of training pictures."""
-    val_every: int = 150
+    val_every: int = setting(150, ge=1)
     """Training episodes between model-selection evaluations on the validation classes."""
-    val_episodes: int = 200
+    val_episodes: int = setting(200, ge=1)
     """Validation episodes per model-selection evaluation (a fixed, seeded list)."""
-    eval_episodes: int = 600
+    eval_episodes: int = setting(600, ge=1)
     """Fresh validation episodes for the reported accuracy and its 95% interval."""
-    eval_queries: int = 15
+    eval_queries: int = setting(15, ge=1)
     """Query pictures per class in validation episodes."""
-    seed: int = 0
+    seed: int = setting(0, ge=0)
     """Seeds the weights, the episode stream and the flips."""
     channels_last: bool = True
     """Use the channels-last memory format (faster convolutions on the CPU)."""
-    max_minutes: float = 12.5
+    max_minutes: float = setting(12.5, gt=0.0)
     """Wall-clock budget of the training loop; training stops early when it is spent."""
-    target_accuracy: float = 0.75
+    target_accuracy: float = setting(0.75, ge=0.0, le=1.0)
     """Validation accuracy goal; the time when a selection evaluation first reaches it is recorded."""
 
     def __post_init__(self) -> None:
-        positive = ("input_size", "n_way", "k_shot", "n_query", "episodes", "val_every", "val_episodes", "eval_episodes", "eval_queries", "lr_step")
-        for key in positive:
-            if getattr(self, key) < 1:
-                raise ValueError(f"train.{key} must be >= 1, got {getattr(self, key)}")
-        if self.lr <= 0 or not 0 < self.min_lr_fraction <= 1:
-            raise ValueError(f"train.lr must be > 0 and train.min_lr_fraction in (0, 1], got {self.lr}, {self.min_lr_fraction}")
-        if self.lr_schedule not in LR_SCHEDULES:
-            raise ValueError(f"train.lr_schedule must be one of {LR_SCHEDULES}, got {self.lr_schedule!r}")
-        if self.max_minutes <= 0:
-            raise ValueError(f"train.max_minutes must be > 0, got {self.max_minutes}")
+        check(self, "train.")
         ModelConfig(self.input_size, self.relation_padding)
 
     @property

@@ -33,6 +33,7 @@ import numpy as np
 
 from . import schema as S
 from .reader import Records, read_records
+from pipeline.errors import UserError
 
 APP_ID = "fewshot_safe_rl_replay"
 CATEGORY_COLOURS = np.array([[230, 159, 0], [86, 180, 233], [0, 158, 115], [240, 228, 66], [204, 121, 167],
@@ -40,7 +41,7 @@ CATEGORY_COLOURS = np.array([[230, 159, 0], [86, 180, 233], [0, 158, 115], [240,
 FREE, START, GOAL = (235, 235, 235), (120, 200, 120), (255, 215, 0)
 
 
-class ReplayError(ValueError):
+class ReplayError(UserError):
     """The requested run/episode is not in the records, or the records cannot be drawn."""
 
 

@@ -51,7 +51,8 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from pipeline.rl.methods import SAFETY, MethodSpec, get_method
+from pipeline.rl.codes import Safety
+from pipeline.rl.methods import MethodSpec, get_method
 from pipeline.rl.recogniser import Recogniser
 from pipeline.rl.rng import run_seeds
 from pipeline.rl.rules import COLLIDED, PREVENTED, apply_action
@@ -79,7 +80,7 @@ class SafeNavigationEnv(gym.Env):
         self.geometry = build_geometry(self.layout)
         self.observation_space = spaces.Discrete(self.layout.n_cells)
         self.action_space = spaces.Discrete(4)
-        self._safety = SAFETY[self.method.safety]
+        self._safety = int(Safety[self.method.safety])
         self._added = np.empty((8, 3), dtype=np.int64)
         self._new_run(0)
 

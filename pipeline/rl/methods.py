@@ -21,72 +21,89 @@ to the previous safe state and the episode goes on; without it the collision end
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, fields, replace
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
+from typing import Any
 
-import yaml
+from omegaconf import OmegaConf
+from omegaconf.errors import OmegaConfBaseException
 
-LEARNERS = {"q": 0, "sarsa": 1}
-SAFETY = {"none": 0, "shield": 1, "ssrl": 2, "fewshot": 3}
+from pipeline.errors import ConfigError
+from pipeline.rl.codes import Learner, Safety
+from pipeline.schema import check, setting
+
+#: ``conf/method/<name>.yaml``: each file holds only what differs from :class:`MethodSpec`'s defaults.
+METHOD_DIR = Path(__file__).resolve().parents[2] / "conf" / "method"
 
 
-@dataclass(frozen=True)
+@dataclass
 class MethodSpec:
-    name: str
-    learner: str = "q"
-    safety: str = "none"
-    recovery: bool = False
-    constrained: bool = False
-    epsilon: float = 0.1
-    gamma: float = 0.9
-    alpha: float = 0.01
-    max_steps: int = 200
-    epsilon_decay: float = 0.03
-    epsilon_min: float = 0.01
-    dynamic_support: bool = False
+    """One method of the comparison; the defaults are the base method (tabular Q-learning with the
+    paper's hyperparameters, section 4.1), and ``conf/method/<name>.yaml`` states what differs.
+    This dataclass is also the Hydra schema of the ``method`` config group."""
 
-    def __post_init__(self) -> None:
-        if self.learner not in LEARNERS:
-            raise ValueError(f"method.learner={self.learner!r}: expected one of {sorted(LEARNERS)}")
-        if self.safety not in SAFETY:
-            raise ValueError(f"method.safety={self.safety!r}: expected one of {sorted(SAFETY)}")
-        for key in ("epsilon", "gamma", "alpha", "epsilon_decay", "epsilon_min"):
-            value = getattr(self, key)
-            if not 0.0 <= value <= 1.0:
-                raise ValueError(f"method.{key}={value}: must lie in [0, 1]")
-        if self.max_steps < 1:
-            raise ValueError(f"method.max_steps={self.max_steps}: must be >= 1")
+    name: str = setting("qlearning", nonempty=True)
+    """The method's name (its file in ``conf/method/``), carried into the records."""
+    learner: str = setting(Learner.q.name, choices=[m.name for m in Learner])
+    """``q`` (Q-learning, eq. 9) or ``sarsa``."""
+    safety: str = setting(Safety.none.name, choices=[m.name for m in Safety])
+    """How A_d grows (``pipeline.rl.codes.Safety``; the rule in ``pipeline.rl.rules``)."""
+    recovery: bool = False
+    """Self-recovery: a collision reverts the robot to the previous safe state and the episode goes on."""
+    constrained: bool = False
+    """Constrained RL (section 4.2.2): the episode ends at the first violation; epsilon decays per violation."""
+    epsilon: float = setting(0.1, ge=0.0, le=1.0)
+    """Exploration rate of the epsilon-greedy choice (eq. 7)."""
+    gamma: float = setting(0.9, ge=0.0, le=1.0)
+    """Discount factor."""
+    alpha: float = setting(0.01, ge=0.0, le=1.0)
+    """Learning rate of the TD update."""
+    max_steps: int = setting(200, ge=1)
+    """Steps after which an episode is cut."""
+    epsilon_decay: float = setting(0.03, ge=0.0, le=1.0)
+    """Constrained RL: epsilon drops by this much per violation ..."""
+    epsilon_min: float = setting(0.01, ge=0.0, le=1.0)
+    """... down to this floor."""
+    dynamic_support: bool = False
+    """Few-shot methods: each misrecognised picture substitutes into the support set (section 3.3)."""
 
     @property
     def uses_recogniser(self) -> bool:
-        return self.safety == "fewshot"
+        return self.safety == Safety.fewshot.name
 
     def with_overrides(self, **kw) -> "MethodSpec":
-        return replace(self, **kw)
+        return check_method(replace(self, **kw))
+
+    def as_dict(self) -> dict[str, Any]:
+        return asdict(self)
 
 
-def load_method(path: str | Path) -> MethodSpec:
-    """A method spec from a YAML file of MethodSpec fields (``conf/method/<name>.yaml``)."""
-    path = Path(path)
+def check_method(spec: MethodSpec, key: str = "method") -> MethodSpec:
+    check(spec, key + ".")
+    return spec
+
+
+def method_names() -> list[str]:
+    """The methods of ``conf/method/``, sorted."""
+    return sorted(p.stem for p in METHOD_DIR.glob("*.yaml"))
+
+
+def load_method(name: str, overrides: dict[str, Any] | None = None, key: str = "method") -> MethodSpec:
+    """``conf/method/<name>.yaml`` merged onto the base method, then ``overrides`` (field -> value),
+    type- and range-checked by the schema; errors name ``key``."""
+    path = METHOD_DIR / f"{name}.yaml"
+    if not path.is_file():
+        raise ConfigError(f"config key '{key}': unknown method {name!r}; expected one of {', '.join(method_names())}")
     try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except (OSError, yaml.YAMLError) as exc:
-        raise ValueError(f"{path}: cannot read method config ({exc})") from None
-    if not isinstance(data, dict):
-        raise ValueError(f"{path}: a method config is a mapping of MethodSpec fields")
-    unknown = set(data) - {f.name for f in fields(MethodSpec)}
-    if unknown:
-        raise ValueError(f"{path}: unknown method fields {sorted(unknown)}")
-    return MethodSpec(**data)
-
-
-#: The methods of the paper, one YAML file each in ``conf/method/`` (the single source: Hydra
-#: composes the same files, and DVC stages depend on exactly the files they use).
-METHOD_DIR = Path(__file__).resolve().parents[2] / "conf" / "method"
-METHODS: dict[str, MethodSpec] = {p.stem: load_method(p) for p in sorted(METHOD_DIR.glob("*.yaml"))}
+        node = OmegaConf.merge(OmegaConf.structured(MethodSpec), OmegaConf.load(path))
+        for field, value in (overrides or {}).items():
+            OmegaConf.update(node, field, value, merge=True)
+        spec = OmegaConf.to_object(node)
+    except OmegaConfBaseException as exc:
+        raise ConfigError(f"config key '{key}.{getattr(exc, 'full_key', '') or ''}': {str(exc).splitlines()[0]}") from None
+    return check_method(spec, key)
 
 
 def get_method(name: str, **overrides) -> MethodSpec:
-    if name not in METHODS:
-        raise ValueError(f"method={name!r}: unknown method; expected one of {', '.join(METHODS)}")
-    return METHODS[name].with_overrides(**overrides) if overrides else METHODS[name]
+    """A method by name, with field overrides (``get_method("ssrl", alpha=0.1)``)."""
+    return load_method(name, overrides)

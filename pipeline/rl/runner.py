@@ -14,7 +14,8 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from pipeline.rl import kernel
-from pipeline.rl.methods import LEARNERS, SAFETY, MethodSpec
+from pipeline.rl.codes import Learner, Safety
+from pipeline.rl.methods import MethodSpec
 from pipeline.rl.recogniser import Recogniser
 from pipeline.rl.rng import run_seeds
 from pipeline.rl.sink import EpisodeSink
@@ -216,7 +217,7 @@ def run_trials(layout: Layout, method: MethodSpec, runs: int, episodes: int, see
     cursors = {"rec": [0] * runs, "add": [0] * runs}
     emitted = [0] * runs
     params = np.array([method.gamma, method.alpha, method.epsilon_decay, method.epsilon_min])
-    iparams = np.array([LEARNERS[method.learner], SAFETY[method.safety], int(method.recovery),
+    iparams = np.array([Learner[method.learner], Safety[method.safety], int(method.recovery),
                         int(method.constrained), int(method.dynamic_support), method.max_steps,
                         layout.start, layout.goal, opt_len, int(record)], dtype=np.int64)
     status = np.zeros(runs, np.int64)

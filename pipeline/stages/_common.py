@@ -1,81 +1,111 @@
-"""Helpers shared by the stage entry points (config validation, atomic JSON output)."""
+"""The one entry path of every stage: compose the typed config, run, and turn a user error into one
+line and exit status 2.
+
+``python -m pipeline <stage> key=value ...`` composes ``conf/<stage>.yaml`` with Hydra's compose
+API, converts it to the stage's schema (``pipeline/stages/_schema.py``) and checks every range;
+any :class:`~pipeline.errors.UserError` (a bad config, layout, checkpoint, image folder or record
+file) prints ``error: <what>: <problem>`` on stderr and exits 2, before any work where it can be
+detected up front. With ``-m`` (multirun sweeps) or Hydra's own flags (``--help``, ``--cfg``...)
+the stage runs under ``hydra.main`` instead, so launchers (joblib, submitit) work; each job then
+goes through the same conversion and error handling.
+"""
 from __future__ import annotations
 
-import dataclasses
-import json
-import os
-import tempfile
+import sys
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 from omegaconf import DictConfig, OmegaConf
+from omegaconf.errors import OmegaConfBaseException
 
-#: Absolute path of the Hydra config folder: ``@hydra.main(config_path=CONF_DIR, ...)``.
-#: (A relative ``config_path`` breaks when the stage is imported as a package module.)
+from pipeline.errors import ConfigError, UserError
+from pipeline.files import write_json_atomic  # noqa: F401  (the stages' JSON writer)
+from pipeline.schema import check
+
+#: Absolute path of the Hydra config folder (a relative one breaks when imported as a package).
 CONF_DIR = str(Path(__file__).resolve().parents[2] / "conf")
 
-
-class ConfigError(ValueError):
-    """A configuration value that cannot work; the message names the key."""
-
-
-def check_keys(cfg: DictConfig, required: dict[str, type | tuple[type, ...]], stage: str) -> dict[str, Any]:
-    """The config as a plain dict after checking that exactly ``required``'s top-level keys are
-    present with the given types (``hydra`` excluded)."""
-    plain = OmegaConf.to_container(cfg, resolve=True)
-    plain.pop("hydra", None)
-    plain.pop("profile", None)
-    for key, kind in required.items():
-        if key not in plain:
-            raise ConfigError(f"{stage}: missing config key {key!r}")
-        if not isinstance(plain[key], kind) or (kind is int and isinstance(plain[key], bool)):
-            raise ConfigError(f"{stage}: config key {key!r} must be {kind}, got {plain[key]!r}")
-    unknown = sorted(set(plain) - set(required))
-    if unknown:
-        raise ConfigError(f"{stage}: unknown config key(s) {unknown}; known: {sorted(required)}")
-    return plain
+#: ``run(typed_config, overrides)``: the stage's work; ``overrides`` are the command line's.
+Runner = Callable[[Any, list[str]], Any]
 
 
-def build(cls, values: dict[str, Any], prefix: str):
-    """``cls(**values)`` (a dataclass) with errors naming ``prefix.key``."""
-    names = {f.name for f in dataclasses.fields(cls)}
-    unknown = sorted(set(values) - names)
-    if unknown:
-        raise ConfigError(f"unknown config key(s) {[f'{prefix}.{k}' for k in unknown]}; known: {sorted(names)}")
-    for f in dataclasses.fields(cls):
-        if f.name in values and f.default is not dataclasses.MISSING:
-            want = type(f.default)
-            got = values[f.name]
-            ok = isinstance(got, want) and not (want is int and isinstance(got, bool))
-            if want is float and isinstance(got, int) and not isinstance(got, bool):
-                ok, values[f.name] = True, float(got)
-            if not ok:
-                raise ConfigError(f"config key {prefix}.{f.name} must be {want.__name__}, got {got!r}")
+def one_line(exc: BaseException) -> str:
+    """Hydra's and OmegaConf's multi-line messages folded into one line naming the key."""
+    cause = exc
+    while cause.__cause__ is not None and not isinstance(cause, OmegaConfBaseException):
+        cause = cause.__cause__
+    message = str(cause).split("Config search path")[0]  # hydra's missing-option message lists its search path
+    text = " ".join(line.strip() for line in message.splitlines() if line.strip()
+                    and not line.strip().startswith(("full_key:", "object_type=", "reference_type=")))
+    key = getattr(cause, "full_key", None)
+    if isinstance(cause, OmegaConfBaseException) and key:
+        return f"config key '{key}': {text}"
+    if cause is not exc and str(exc).strip():
+        head = str(exc).strip().splitlines()[0]
+        if head not in text:
+            text = f"{head} ({text})"
+    return text
+
+
+def typed(cfg: DictConfig) -> Any:
+    """The composed config as its schema's dataclass objects, with every range checked."""
     try:
-        return cls(**values)
-    except ValueError as exc:
-        raise ConfigError(str(exc)) from exc
+        obj = OmegaConf.to_object(cfg)
+    except OmegaConfBaseException as exc:
+        raise ConfigError(one_line(exc)) from None
+    except ValueError as exc:  # a dataclass's __post_init__ (cross-field checks)
+        raise ConfigError(f"config: {exc}") from None
+    check(obj)
+    return obj
 
 
-def require(condition: bool, key: str, problem: str) -> None:
-    if not condition:
-        raise ConfigError(f"config key '{key}': {problem}")
+def compose(config_name: str, overrides: list[str]) -> DictConfig:
+    """``conf/<config_name>.yaml`` with ``overrides``; a bad override raises :class:`ConfigError`."""
+    from hydra import compose as hydra_compose
+    from hydra import initialize_config_dir
+    from hydra.errors import HydraException
 
+    import pipeline.stages._schema  # noqa: F401  (registers the schemas)
 
-def write_json_atomic(path: str | Path, data, *, sort_keys: bool = False) -> Path:
-    """Write JSON to a temporary file in the same folder, then rename: readers never see half a file."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".partial", dir=path.parent)
     try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            json.dump(data, f, indent=2, sort_keys=sort_keys)
-            f.write("\n")
-        mask = os.umask(0)
-        os.umask(mask)
-        os.chmod(tmp, 0o666 & ~mask)  # mkstemp makes 0600 files
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
+        with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
+            return hydra_compose(config_name=config_name, overrides=overrides)
+    except (HydraException, OmegaConfBaseException, ValueError) as exc:
+        raise ConfigError(one_line(exc)) from None
+
+
+def fail(exc: UserError) -> None:
+    print(f"error: {exc}", file=sys.stderr, flush=True)
+    raise SystemExit(2) from None
+
+
+def _hydra_mode(args: list[str]) -> bool:
+    return any(a.startswith("-") for a in args)
+
+
+def stage_main(config_name: str, run: Runner, args: list[str] | None = None) -> Any:
+    """Run a stage from the command line (``args``, default ``sys.argv[1:]``)."""
+    args = list(sys.argv[1:] if args is None else args)
+    if _hydra_mode(args):
+        return _hydra_main(config_name, run, args)
+    try:
+        return run(typed(compose(config_name, args)), args)
+    except UserError as exc:
+        fail(exc)
+
+
+def _hydra_main(config_name: str, run: Runner, args: list[str]) -> None:
+    import hydra
+    from hydra.core.hydra_config import HydraConfig
+
+    import pipeline.stages._schema  # noqa: F401
+
+    @hydra.main(config_path=CONF_DIR, config_name=config_name, version_base="1.3")
+    def task(cfg: DictConfig) -> Any:
+        try:
+            return run(typed(cfg), list(HydraConfig.get().overrides.task))
+        except UserError as exc:
+            fail(exc)
+
+    sys.argv = [sys.argv[0], *args]
+    task()

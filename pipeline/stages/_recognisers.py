@@ -1,24 +1,73 @@
-"""Recognisers the stages can build besides the Relation Network (``pipeline.fewshot.recogniser``)."""
+"""Build a recogniser from its config group (``conf/recogniser/<name>.yaml``) through ``_target_``.
+
+A recogniser is any callable returning an object of the ``pipeline.rl.recogniser.Recogniser``
+protocol whose keyword arguments include ``substitution_way`` and ``carry_over`` (the trial stage
+fills those from the cell). The callable's signature is its schema: the yaml's other keys must be
+its parameters, with values of their annotated types. Adding a recogniser: its module and its yaml.
+"""
 from __future__ import annotations
 
-import numpy as np
+import dataclasses
+import inspect
+import typing
+from pathlib import Path
+from typing import Any, Callable
 
-from pipeline.world.pictures import N_CATEGORIES, N_PICTURES, picture_category
+from hydra.utils import get_method
+from omegaconf import OmegaConf
+from omegaconf.errors import OmegaConfBaseException
+
+from pipeline.errors import ConfigError, UserError
+
+FILLED_BY_STAGE = ("substitution_way", "carry_over")
 
 
-class OracleRecogniser:
-    """Always names the true category: the upper bound of few-shot reasoning (no misrecognition)."""
+def _config_type(hint: Any) -> Any:
+    """The annotation as OmegaConf can check it: int, float, bool, str (paths too), else Any."""
+    if hint in (int, float, bool, str):
+        return hint
+    args = set(typing.get_args(hint))
+    if args and args <= {str, Path, type(None)}:
+        return str
+    return Any
 
-    def start_run(self, run: int, seed: int) -> None:
-        pass
 
-    def predictions(self, run: int) -> np.ndarray:
-        return np.array([picture_category(p) for p in range(N_PICTURES)], dtype=np.int8)
+def _target(node: dict, key: str) -> Callable:
+    target = node.get("_target_")
+    if not target:
+        raise ConfigError(f"config key '{key}._target_': missing; choose a recogniser: {key}=relation_net|oracle|fixed_accuracy")
+    try:
+        return get_method(str(target))
+    except Exception as exc:  # hydra raises ImportError/ValueError/InstantiationException variants
+        raise ConfigError(f"config key '{key}._target_': cannot import {target!r} ({str(exc).splitlines()[0]})") from None
 
-    def scores(self, run: int, picture_ids: np.ndarray) -> np.ndarray:
-        out = np.zeros((len(picture_ids), N_CATEGORIES), dtype=np.float32)
-        out[np.arange(len(picture_ids)), [picture_category(int(p)) for p in picture_ids]] = 1.0
-        return out
 
-    def learn_from_collision(self, run: int, picture_id: int, true_category: int) -> int:
-        return -1
+def recogniser_arguments(node: dict, key: str = "recogniser") -> tuple[Callable, dict[str, Any]]:
+    """The target and its checked arguments (without the ones the stage fills)."""
+    target = _target(node, key)
+    sig = inspect.signature(target)
+    hints = typing.get_type_hints(target.__init__ if inspect.isclass(target) else target)
+    params = {n: p for n, p in sig.parameters.items() if n not in FILLED_BY_STAGE and n != "self"
+              and p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)}
+    spec = [(n, _config_type(hints.get(n, Any)), dataclasses.field(default=p.default) if p.default is not p.empty
+             else dataclasses.field(default="???")) for n, p in params.items()]
+    schema = dataclasses.make_dataclass("RecogniserArgs", spec)
+    given = {k: v for k, v in node.items() if k != "_target_"}
+    try:
+        merged = OmegaConf.merge(OmegaConf.structured(schema), given)
+        args = OmegaConf.to_container(merged, resolve=True, throw_on_missing=True)
+    except OmegaConfBaseException as exc:
+        where = getattr(exc, "full_key", "") or ""
+        raise ConfigError(f"config key '{key}.{where}': {str(exc).splitlines()[0]} "
+                          f"(parameters of {node['_target_']}: {', '.join(params)})") from None
+    return target, args
+
+
+def build_recogniser(node: dict, *, substitution_way: int, carry_over: bool, key: str = "recogniser"):
+    target, args = recogniser_arguments(node, key)
+    try:
+        return target(**args, substitution_way=substitution_way, carry_over=carry_over)
+    except UserError:
+        raise
+    except (ValueError, FileNotFoundError) as exc:
+        raise ConfigError(f"config key '{key}': {exc}") from None

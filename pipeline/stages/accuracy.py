@@ -8,37 +8,33 @@ Writes ``out_dir``/baseline.csv, table1.csv, table2.csv and summary.json for the
 from __future__ import annotations
 
 import time
+from dataclasses import asdict
 from pathlib import Path
 
-import hydra
 import torch
-from omegaconf import DictConfig
 
-from pipeline.fewshot.accuracy_study import StudyConfig, run_study
+from pipeline.fewshot.accuracy_study import run_study
 from pipeline.fewshot.recogniser import RelationRecogniser
 from pipeline.fewshot.study_tables import baseline_frame, summary, table1_frame, table2_frame
-from pipeline.stages._common import CONF_DIR, build, check_keys, write_json_atomic
+from pipeline.files import write_json_atomic
+from pipeline.stages._common import stage_main
+from pipeline.stages._schema import AccuracyConfig
 
-KEYS = {"images_dir": str, "checkpoint": str, "out_dir": str, "threads": int, "progress": bool, "study": dict}
 
-
-def run(cfg: DictConfig) -> dict:
-    plain = check_keys(cfg, KEYS, "accuracy")
-    config = build(StudyConfig, plain["study"], "study")
-    if plain["threads"] < 1:
-        raise ValueError(f"accuracy: threads must be >= 1, got {plain['threads']}")
-    torch.set_num_threads(plain["threads"])
+def run(cfg: AccuracyConfig, overrides: list[str] = ()) -> dict:
+    config = cfg.study
+    torch.set_num_threads(cfg.threads)
     start = time.perf_counter()
-    recogniser = RelationRecogniser.from_files(plain["checkpoint"], plain["images_dir"], substitution_way=0)
+    recogniser = RelationRecogniser.from_files(cfg.checkpoint, cfg.images_dir, substitution_way=0)
     names = list(recogniser.class_names)
-    result = run_study(recogniser, config, progress=plain["progress"])
-    out = Path(plain["out_dir"])
+    result = run_study(recogniser, config, progress=cfg.progress)
+    out = Path(cfg.out_dir)
     out.mkdir(parents=True, exist_ok=True)
     baseline_frame(result, names).to_csv(out / "baseline.csv", index=False)
     table1_frame(result, config.repeats).to_csv(out / "table1.csv", index=False)
     table2_frame(result).to_csv(out / "table2.csv", index=False)
     data = summary(result, names)
-    data["config"] = {"images_dir": plain["images_dir"], "checkpoint": plain["checkpoint"], **plain["study"]}
+    data["config"] = {"images_dir": cfg.images_dir, "checkpoint": cfg.checkpoint, **asdict(config)}
     data["checkpoint_metrics"] = recogniser.checkpoint["metrics"]
     write_json_atomic(out / "summary.json", data, sort_keys=True)  # no wall-clock figures: the same inputs give the same bytes
     print(
@@ -52,6 +48,5 @@ def run(cfg: DictConfig) -> dict:
     return data
 
 
-@hydra.main(version_base="1.3", config_path=CONF_DIR, config_name="accuracy")
-def main(cfg: DictConfig) -> None:
-    run(cfg)
+def main() -> None:
+    stage_main("accuracy", run)

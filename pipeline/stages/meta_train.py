@@ -8,41 +8,35 @@ episodes with its 95% interval) and ``history_file`` (one row per selection eval
 """
 from __future__ import annotations
 
-import hydra
 import pandas as pd
 import torch
-from omegaconf import DictConfig
 
 from pipeline.fewshot.checkpoint import save_checkpoint
 from pipeline.fewshot.data import load_split, read_manifest
-from pipeline.fewshot.training import TrainConfig, config_dict, meta_train
-from pipeline.stages._common import CONF_DIR, build, check_keys, write_json_atomic
+from pipeline.fewshot.training import config_dict, meta_train
+from pipeline.files import write_json_atomic
+from pipeline.stages._common import stage_main
+from pipeline.stages._schema import MetaTrainConfig
 
-KEYS = {"images_dir": str, "checkpoint": str, "metrics_file": str, "history_file": str, "threads": int, "progress": bool, "train": dict}
 
-
-def run(cfg: DictConfig) -> dict:
-    plain = check_keys(cfg, KEYS, "meta_train")
-    config = build(TrainConfig, plain["train"], "train")
-    if plain["threads"] < 1:
-        raise ValueError(f"meta_train: threads must be >= 1, got {plain['threads']}")
-    torch.set_num_threads(plain["threads"])
-    frame = read_manifest(plain["images_dir"])
-    train = load_split(plain["images_dir"], "train", config.input_size, frame)
-    val = load_split(plain["images_dir"], "val", config.input_size, frame)
-    result = meta_train(train, val, config, progress=plain["progress"])
-    metrics = {**result.metrics, "images_dir": plain["images_dir"]}
-    save_checkpoint(plain["checkpoint"], result.network, normalisation=result.normalisation, config=config_dict(config), metrics=metrics)
-    write_json_atomic(plain["metrics_file"], metrics, sort_keys=True)
-    pd.DataFrame(result.history).to_csv(plain["history_file"], index=False)
+def run(cfg: MetaTrainConfig, overrides: list[str] = ()) -> dict:
+    config = cfg.train
+    torch.set_num_threads(cfg.threads)
+    frame = read_manifest(cfg.images_dir)
+    train = load_split(cfg.images_dir, "train", config.input_size, frame)
+    val = load_split(cfg.images_dir, "val", config.input_size, frame)
+    result = meta_train(train, val, config, progress=cfg.progress)
+    metrics = {**result.metrics, "images_dir": cfg.images_dir}
+    save_checkpoint(cfg.checkpoint, result.network, normalisation=result.normalisation, config=config_dict(config), metrics=metrics)
+    write_json_atomic(cfg.metrics_file, metrics, sort_keys=True)
+    pd.DataFrame(result.history).to_csv(cfg.history_file, index=False)
     print(
         f"validation accuracy {100 * metrics['val_accuracy']:.2f}% +- {100 * metrics['val_ci95']:.2f}% "
         f"({metrics['val_episodes']} episodes, {val.n_classes} held-out classes); "
-        f"{metrics['episodes_trained']} episodes in {metrics['train_seconds']:.0f} s -> {plain['checkpoint']}"
+        f"{metrics['episodes_trained']} episodes in {metrics['train_seconds']:.0f} s -> {cfg.checkpoint}"
     )
     return metrics
 
 
-@hydra.main(version_base="1.3", config_path=CONF_DIR, config_name="meta_train")
-def main(cfg: DictConfig) -> None:
-    run(cfg)
+def main() -> None:
+    stage_main("meta_train", run)

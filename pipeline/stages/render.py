@@ -13,71 +13,50 @@ import shutil
 import time
 from pathlib import Path
 
-import hydra
-from omegaconf import DictConfig, OmegaConf
+from dataclasses import asdict
+
 from tqdm import tqdm
 
-from pipeline.stages._common import CONF_DIR
+from pipeline.errors import ConfigError
+from pipeline.stages._common import stage_main
+from pipeline.stages._schema import RenderConfig
 from pipeline.world.contact_sheet import contact_sheet, save_png_atomic
 from pipeline.world.obstacle_models import category_index
 from pipeline.world.pictures import CATEGORIES
 from pipeline.world.render_plan import (MANIFEST_COLUMNS, SPLITS, CatalogueCamera, MazeCamera, PlanConfig,
                                         make_plan)
-from pipeline.world.render_runner import render_all, write_atomic
+from pipeline.files import write_atomic
+from pipeline.world.render_runner import render_all
 from pipeline.world.renderer_env import RendererUnavailable, backend_problem
 
 MANIFEST = "manifest.csv"
 
 
-def _positive_int(cfg: DictConfig, key: str, minimum: int = 1) -> int:
-    v = OmegaConf.select(cfg, key)
-    if isinstance(v, bool) or not isinstance(v, int) or v < minimum:
-        raise ValueError(f"config key '{key}' must be an integer >= {minimum}, got {v!r}")
-    return v
-
-
-def validate(cfg: DictConfig) -> PlanConfig:
-    """Check every key the stage reads; errors name the key."""
-    _positive_int(cfg, "size")
-    _positive_int(cfg, "workers")
-    for key in ("n_train_classes", "n_val_classes"):
-        _positive_int(cfg, key, 0)
-    for key in ("per_class", "views_per_instance", "support_per_category", "contact_tile"):
-        _positive_int(cfg, key)
-    if not isinstance(cfg.seed, int) or cfg.seed < 0:
-        raise ValueError(f"config key 'seed' must be a non-negative integer, got {cfg.seed!r}")
-    cats = list(cfg.categories)
-    for c in cats:
+def plan_config(cfg: RenderConfig) -> PlanConfig:
+    """The render plan's settings; refuses what the schema cannot see (unknown categories, missing
+    parent folders), naming the key."""
+    for c in cfg.categories:
         try:
             category_index(c)
         except ValueError as exc:
-            raise ValueError(f"config key 'categories': {exc}") from None
-    if len(set(cats)) != len(cats):
-        raise ValueError(f"config key 'categories' repeats a category: {cats}")
+            raise ConfigError(f"config key 'categories': {exc}") from None
+    if len(set(cfg.categories)) != len(cfg.categories):
+        raise ConfigError(f"config key 'categories': repeats a category: {cfg.categories}")
     out = Path(cfg.out_dir)
     if not out.resolve().parent.is_dir():
-        raise FileNotFoundError(f"config key 'out_dir': the parent folder of {str(out)!r} does not exist "
-                                f"({out.resolve().parent}); create it or choose another out_dir")
+        raise ConfigError(f"config key 'out_dir': the parent folder of {str(out)!r} does not exist "
+                          f"({out.resolve().parent}); create it or choose another out_dir")
     fig = Path(cfg.figures_dir)
     inside_out = fig.resolve().is_relative_to(out.resolve())
     if cfg.contact_sheets and not inside_out and not fig.resolve().parent.is_dir():
-        raise FileNotFoundError(f"config key 'figures_dir': the parent folder of {str(fig)!r} does not exist")
-    mz = MazeCamera(**{k: float(v) for k, v in cfg.maze.items()})
-    for k, v in vars(mz).items():
-        if v <= 0:
-            raise ValueError(f"config key 'maze.{k}' must be positive, got {v}")
-    cc = CatalogueCamera(float(cfg.catalogue.fovy), tuple(map(float, cfg.catalogue.elevation)),
-                         tuple(map(float, cfg.catalogue.turn)), float(cfg.catalogue.fill))
-    if not 0 < cc.fill <= 1:
-        raise ValueError(f"config key 'catalogue.fill' must be in (0, 1], got {cc.fill}")
-    _positive_int(cfg, "quality.shadow_size")
-    _positive_int(cfg, "quality.offsamples", 0)
-    _positive_int(cfg, "quality.supersample")
-    for key in ("quality.studio_shadows", "contact_sheets"):
-        if not isinstance(OmegaConf.select(cfg, key), bool):
-            raise ValueError(f"config key '{key}' must be true or false, got {OmegaConf.select(cfg, key)!r}")
-    return PlanConfig(int(cfg.seed), tuple(cats), int(cfg.n_train_classes), int(cfg.n_val_classes),
-                      int(cfg.per_class), int(cfg.views_per_instance), int(cfg.support_per_category), mz, cc)
+        raise ConfigError(f"config key 'figures_dir': the parent folder of {str(fig)!r} does not exist")
+    for key in ("elevation", "turn"):
+        if len(getattr(cfg.catalogue, key)) != 2:
+            raise ConfigError(f"config key 'catalogue.{key}': give [low, high]; got {getattr(cfg.catalogue, key)}")
+    mz = MazeCamera(**asdict(cfg.maze))
+    cc = CatalogueCamera(cfg.catalogue.fovy, tuple(cfg.catalogue.elevation), tuple(cfg.catalogue.turn), cfg.catalogue.fill)
+    return PlanConfig(cfg.seed, tuple(cfg.categories), cfg.n_train_classes, cfg.n_val_classes,
+                      cfg.per_class, cfg.views_per_instance, cfg.support_per_category, mz, cc)
 
 
 def manifest_bytes(rows: list[dict]) -> bytes:
@@ -118,9 +97,9 @@ def write_contact_sheets(rows: list[dict], out: Path, figures: Path, tile: int, 
     return written
 
 
-def run(cfg: DictConfig) -> dict:
+def run(cfg: RenderConfig, overrides: list[str] = ()) -> dict:
     """The whole stage; returns figures (pictures, seconds, pictures per second)."""
-    plan_cfg = validate(cfg)
+    plan_cfg = plan_config(cfg)
     problem = backend_problem()
     if problem is not None:
         raise RendererUnavailable(problem)
@@ -135,9 +114,9 @@ def run(cfg: DictConfig) -> dict:
     def bar(it, n):
         return tqdm(it, total=n, desc="render batches", unit="batch")
 
-    n = render_all(batches, str(out), int(cfg.size), int(cfg.workers), int(cfg.quality.offsamples),
-                   int(cfg.quality.shadow_size), float(cfg.maze.cell), int(cfg.quality.supersample),
-                   bool(cfg.quality.studio_shadows), progress=bar)
+    n = render_all(batches, str(out), cfg.size, cfg.workers, cfg.quality.offsamples,
+                   cfg.quality.shadow_size, cfg.maze.cell, cfg.quality.supersample,
+                   cfg.quality.studio_shadows, progress=bar)
     missing = [r["file"] for r in rows if not (out / r["file"]).is_file()]
     if missing:
         raise RuntimeError(f"{len(missing)} pictures missing after rendering, e.g. {missing[:3]}")
@@ -145,8 +124,8 @@ def run(cfg: DictConfig) -> dict:
     seconds = time.perf_counter() - t0
     sheets = []
     if cfg.contact_sheets:
-        sheets = write_contact_sheets(rows, out, Path(cfg.figures_dir), int(cfg.contact_tile),
-                                      int(cfg.contact_train_classes), int(cfg.contact_per_class))
+        sheets = write_contact_sheets(rows, out, Path(cfg.figures_dir), cfg.contact_tile,
+                                      cfg.contact_train_classes, cfg.contact_per_class)
     figures = {"pictures": n, "seconds": round(seconds, 2), "pictures_per_second": round(n / seconds, 1),
                "manifest": str(out / MANIFEST), "contact_sheets": [str(p) for p in sheets]}
     print(f"[render] {n} pictures in {seconds:.1f} s ({n / seconds:.1f}/s) -> {out / MANIFEST}")
@@ -155,9 +134,8 @@ def run(cfg: DictConfig) -> dict:
     return figures
 
 
-@hydra.main(version_base="1.3", config_path=CONF_DIR, config_name="render")
-def main(cfg: DictConfig) -> None:
-    run(cfg)
+def main() -> None:
+    stage_main("render", run)
 
 
 if __name__ == "__main__":

@@ -9,89 +9,110 @@ of an experiment, plus ``<out>/summary.json`` listing the cells.
 """
 from __future__ import annotations
 
-import sys
 import time
-from dataclasses import asdict
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
+from typing import Any
 
-import hydra
 import numba
-from omegaconf import DictConfig, OmegaConf
+from hydra.core.override_parser.overrides_parser import OverridesParser
+from omegaconf import OmegaConf
 
-from pipeline.rl.methods import METHODS, MethodSpec
+from pipeline.errors import ConfigError, UserError
+from pipeline.files import write_json_atomic
+from pipeline.rl.methods import MethodSpec, load_method
 from pipeline.rl.rng import run_seeds
 from pipeline.rl.runner import make_run_world, run_trials
-from pipeline.stages._common import CONF_DIR, ConfigError, require, write_json_atomic
+from pipeline.schema import check
+from pipeline.stages._common import one_line, stage_main
+from pipeline.stages._recognisers import build_recogniser, recogniser_arguments
+from pipeline.stages._schema import Experiment, TrialsConfig
 from pipeline.world.geometry import build_geometry
-from pipeline.world.maze import MazeError, load_layout
+from pipeline.world.maze import Layout, load_layout
 from pipeline.world.pictures import CATEGORIES
 
-CELL_KEYS = {"method", "maze", "substitution", "support"}
+#: Keys a cell may pin; the top level (experiment globals, command line) gives the others.
+CELL_KEYS = ("maze", "substitution", "support")
 
 
-def method_from_config(node, key: str = "method") -> MethodSpec:
+@dataclass
+class CellRun:
+    """One cell as it runs: its full single-cell config (what the records embed) and its layout."""
+
+    name: str
+    config: TrialsConfig
+    layout: Layout
+
+    @property
+    def method(self) -> MethodSpec:
+        return self.config.method
+
+
+def parse_overrides(overrides: list[str]) -> dict[str, Any]:
+    """``key -> value`` of the command line's overrides (group choices by group name)."""
     try:
-        return MethodSpec(**OmegaConf.to_container(node, resolve=True))
-    except (TypeError, ValueError) as exc:
-        raise ConfigError(f"config key '{key}': {exc}") from None
+        parsed = OverridesParser.create().parse_overrides(list(overrides))
+    except Exception as exc:  # hydra's OverrideParseException; compose has refused these already
+        raise ConfigError(one_line(exc)) from None
+    return {o.key_or_group: (None if o.is_delete() else o.value()) for o in parsed}
 
 
-def cells_from_config(cfg: DictConfig) -> dict[str, dict]:
-    """The cells to run: the experiment's, or the single cell given by method/maze/... keys."""
-    if "experiment" not in cfg or cfg.experiment is None:
-        return {"": {"method": method_from_config(cfg.method), "maze": str(cfg.maze),
-                     "substitution": int(cfg.substitution), "support": str(cfg.support)}}
+def experiment_cells(cfg: TrialsConfig, overrides: list[str]) -> dict[str, TrialsConfig]:
+    """Every cell of ``cfg.experiment`` as a single-cell config. The command line applies to every
+    cell that does not pin the key; an override that no cell can take is refused."""
+    exp: Experiment = cfg.experiment
+    if not exp.cells:
+        raise ConfigError(f"config key 'experiment.cells': experiment {exp.name!r} has no cells")
+    given = parse_overrides(overrides)
+    methods = sorted({c.method for c in exp.cells.values()})
+    if "method" in given:
+        raise ConfigError(f"config key 'method': experiment {exp.name} chooses the method of each cell "
+                          f"({', '.join(methods)}); override a method field instead (method.alpha=...), "
+                          f"or run method={given['method']} without +experiment")
+    method_over = {k.removeprefix("method."): v for k, v in given.items() if k.startswith("method.")}
+    for key in [*CELL_KEYS, *method_over]:
+        if key not in given and f"method.{key}" not in given:
+            continue
+        pinned = [n for n, c in exp.cells.items()
+                  if (getattr(c, key) is not None if key in CELL_KEYS else key in c.params)]
+        if len(pinned) == len(exp.cells):
+            full = key if key in CELL_KEYS else f"method.{key}"
+            raise ConfigError(f"config key '{full}': every cell of experiment {exp.name} pins it "
+                              f"(experiment.cells.*.{key if key in CELL_KEYS else 'params.' + key}); "
+                              "the override cannot apply")
     cells = {}
-    for name, cell in cfg.experiment.cells.items():
+    for name, cell in exp.cells.items():
         key = f"experiment.cells.{name}"
-        unknown = set(cell) - CELL_KEYS
-        require(not unknown, key, f"unknown keys {sorted(unknown)}; allowed {sorted(CELL_KEYS)}")
-        require("method" in cell, key, "needs a 'method'")
-        require(cell.method in METHODS, f"{key}.method", f"unknown method {cell.method!r}; expected one of {', '.join(METHODS)}")
-        cells[str(name)] = {"method": METHODS[cell.method], "maze": str(cell.get("maze", cfg.maze)),
-                            "substitution": int(cell.get("substitution", cfg.substitution)),
-                            "support": str(cell.get("support", cfg.support))}
-    require(bool(cells), "experiment.cells", "no cells")
+        method = load_method(cell.method, {**method_over, **cell.params}, key=f"{key}.method")
+        cells[name] = replace(cfg, method=method, **{k: getattr(cell, k) if getattr(cell, k) is not None
+                                                     else getattr(cfg, k) for k in CELL_KEYS})
+        check(cells[name])
     return cells
 
 
-def validate(cfg: DictConfig) -> dict[str, dict]:
-    require(int(cfg.runs) >= 1, "runs", f"must be >= 1, got {cfg.runs}")
-    require(int(cfg.episodes) >= 1, "episodes", f"must be >= 1, got {cfg.episodes}")
-    require(int(cfg.seed) >= 0, "seed", f"must be >= 0, got {cfg.seed}")
-    require(int(cfg.flush_every) >= 1, "flush_every", f"must be >= 1, got {cfg.flush_every}")
-    cells = cells_from_config(cfg)
-    for name, cell in cells.items():
+def resolve_cells(cfg: TrialsConfig, overrides: list[str]) -> list[CellRun]:
+    """The cells to run, each with its layout loaded and its recogniser's arguments checked."""
+    configs = {"": cfg} if cfg.experiment is None else experiment_cells(cfg, overrides)
+    out = []
+    for name, cell in configs.items():
         prefix = f"experiment.cells.{name}." if name else ""
         try:
-            cell["layout"] = load_layout(cell["maze"])
-        except MazeError as exc:
+            layout = load_layout(cell.maze)
+        except UserError as exc:
             raise ConfigError(f"config key '{prefix}maze': {exc}") from None
-        require(cell["substitution"] in (1, 2, 3, 4), f"{prefix}substitution",
-                f"substitution way must be 1, 2, 3 or 4, got {cell['substitution']}")
-        require(cell["support"] in ("restore", "carry"), f"{prefix}support",
-                f"must be 'restore' or 'carry', got {cell['support']!r}")
-        if cell["method"].uses_recogniser:
-            require(cfg.recogniser.kind in ("relation_net", "oracle"), "recogniser.kind",
-                    f"method {cell['method'].name!r} needs a recogniser: relation_net or oracle, got {cfg.recogniser.kind!r}")
-            if cfg.recogniser.kind == "relation_net":
-                for key in ("checkpoint", "images_dir"):
-                    require(Path(cfg.recogniser[key]).exists(), f"recogniser.{key}",
-                            f"{cfg.recogniser[key]} does not exist (run the render and meta_train stages first)")
-    return cells
+        if cell.method.uses_recogniser:
+            recogniser_arguments(cell.recogniser)
+        out.append(CellRun(name, cell, layout))
+    return out
 
 
-def build_recogniser(cfg: DictConfig, cell: dict):
-    method = cell["method"]
+def make_recogniser(cell: CellRun):
+    method = cell.method
     if not method.uses_recogniser:
         return None
-    way = cell["substitution"] if method.dynamic_support else 0
-    if cfg.recogniser.kind == "oracle":
-        from pipeline.stages._recognisers import OracleRecogniser
-        return OracleRecogniser()
-    from pipeline.fewshot.recogniser import RelationRecogniser
-    return RelationRecogniser.from_files(cfg.recogniser.checkpoint, cfg.recogniser.images_dir,
-                                         substitution_way=way, carry_over=cell["support"] == "carry")
+    way = cell.config.substitution if method.dynamic_support else 0
+    return build_recogniser(cell.config.recogniser, substitution_way=way,
+                            carry_over=cell.config.support == "carry")
 
 
 def query_pictures(images_dir: str) -> dict[int, bytes]:
@@ -105,28 +126,34 @@ def query_pictures(images_dir: str) -> dict[int, bytes]:
     return {int(p): (Path(images_dir) / f).read_bytes() for p, f in zip(df["picture_id"], df["file"])}
 
 
-def run_cell(cfg: DictConfig, name: str, cell: dict, folder: Path) -> dict:
-    layout, method = cell["layout"], cell["method"]
-    runs, episodes, seed = int(cfg.runs), int(cfg.episodes), int(cfg.seed)
-    recogniser = build_recogniser(cfg, cell)
+def recorded_config(cell: CellRun) -> dict:
+    """The config embedded in the records and summaries: the cell's own, as it ran."""
+    return OmegaConf.to_container(OmegaConf.structured(cell.config), resolve=True)
+
+
+def run_cell(cell: CellRun, folder: Path) -> tuple[dict, float]:
+    cfg, layout, method, name = cell.config, cell.layout, cell.method, cell.name
+    runs, episodes, seed = cfg.runs, cfg.episodes, cfg.seed
+    recogniser = make_recogniser(cell)
     writer = None
-    if bool(cfg.record):
+    if cfg.record:
         from pipeline.records.writer import RecordWriter
         geometry = build_geometry(layout)
         placements = [make_run_world(geometry, seed, r).placement.as_records(layout.obstacles) for r in range(runs)]
-        pictures = query_pictures(cfg.recogniser.images_dir) if method.uses_recogniser and cfg.recogniser.kind == "relation_net" else {}
+        images_dir = cfg.recogniser.get("images_dir")
+        pictures = query_pictures(images_dir) if method.uses_recogniser and images_dir else {}
         writer = RecordWriter(
             folder / "records.mcap",
-            metadata={"config": OmegaConf.to_container(cfg, resolve=True),
+            metadata={"config": recorded_config(cell),
                       "seeds": {"seed": seed, "runs": {r: asdict(run_seeds(seed, r)) for r in range(runs)}},
-                      "info": {"cell": name, "method": asdict(method), "maze": layout.name,
-                               "substitution": cell["substitution"], "support": cell["support"]}},
+                      "info": {"cell": name, "method": method.as_dict(), "maze": layout.name,
+                               "substitution": cfg.substitution, "support": cfg.support}},
             maze={"layout": list(layout.rows), "name": layout.name, "categories": list(CATEGORIES)},
-            runs=placements, pictures=pictures, flush_every=int(cfg.flush_every))
+            runs=placements, pictures=pictures, flush_every=cfg.flush_every)
     t0 = time.perf_counter()
     try:
         result = run_trials(layout, method, runs, episodes, seed, recogniser=recogniser, sink=writer,
-                            progress=bool(cfg.progress), shared_support=cell["support"] == "carry")
+                            progress=cfg.progress, shared_support=cfg.support == "carry")
     except BaseException:
         if writer is not None:
             writer.close(complete=False)
@@ -135,34 +162,37 @@ def run_cell(cfg: DictConfig, name: str, cell: dict, folder: Path) -> dict:
         writer.close()
     seconds = time.perf_counter() - t0
     summary = result.summary()
-    summary.update({"cell": name, "method_spec": asdict(method), "substitution": cell["substitution"],
-                    "support": cell["support"]})
+    summary.update({"cell": name, "method_spec": method.as_dict(), "substitution": cfg.substitution,
+                    "support": cfg.support})
     write_json_atomic(folder / "summary.json", summary)  # no wall-clock figures: same seed, same bytes
     return summary, seconds
 
 
-def run(cfg: DictConfig) -> dict:
-    cells = validate(cfg)
-    if int(cfg.threads) > 0:
-        numba.set_num_threads(int(cfg.threads))
+def run(cfg: TrialsConfig, overrides: list[str]) -> dict:
+    cells = resolve_cells(cfg, overrides)
+    if cfg.threads > numba.config.NUMBA_NUM_THREADS:
+        raise ConfigError(f"config key 'threads': at most {numba.config.NUMBA_NUM_THREADS} on this machine; got {cfg.threads}")
+    if cfg.threads > 0:
+        numba.set_num_threads(cfg.threads)
     out = Path(cfg.out)
     summaries, timing = {}, {}
-    for name, cell in cells.items():
-        summaries[name], timing[name] = run_cell(cfg, name, cell, out / name if name else out)
+    for cell in cells:
+        name = cell.name
+        summaries[name], timing[name] = run_cell(cell, out / name if name else out)
         c = summaries[name]["collisions"]
         label = f"{name}: " if name else ""
-        print(f"{label}{cell['method'].name} on {cell['layout'].name}: collisions {c['mean']:.2f} +- "
+        print(f"{label}{cell.method.name} on {cell.layout.name}: collisions {c['mean']:.2f} +- "
               f"{c['std']:.2f} over {cfg.runs} runs, converged runs {summaries[name]['converged_runs']} "
               f"({timing[name]:.1f} s)")
-    if cfg.get("timing_file"):
+    if cfg.timing_file:
         write_json_atomic(cfg.timing_file, {n: round(t, 3) for n, t in timing.items()})
     if "" in summaries:
         return summaries[""]
-    index = {"experiment": str(cfg.experiment.name), "cells": {
+    index = {"experiment": cfg.experiment.name, "cells": {
         n: {k: s[k] for k in ("method", "maze", "substitution", "support", "collisions", "converged_runs")}
         for n, s in summaries.items()}}
     write_json_atomic(out / "summary.json", index)
-    if cfg.get("metrics_file"):
+    if cfg.metrics_file:
         write_json_atomic(cfg.metrics_file, {n: {"collisions_mean": s["collisions"]["mean"],
                                                  "collisions_std": s["collisions"]["std"],
                                                  "converged_runs": s["converged_runs"]}
@@ -170,10 +200,5 @@ def run(cfg: DictConfig) -> dict:
     return index
 
 
-@hydra.main(config_path=CONF_DIR, config_name="trials", version_base="1.3")
-def main(cfg: DictConfig) -> None:
-    try:
-        run(cfg)
-    except ConfigError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        raise SystemExit(2) from None
+def main() -> None:
+    stage_main("trials", run)

@@ -5,6 +5,8 @@ from pathlib import Path
 
 from PIL import Image, ImageDraw
 
+from pipeline.files import atomic_output
+
 
 def contact_sheet(rows: list[tuple[str, list[Path]]], tile: int, label_width: int = 150, pad: int = 2) -> Image.Image:
     """One row per ``(label, picture paths)``; pictures are resized to ``tile`` pixels."""
@@ -25,10 +27,8 @@ def contact_sheet(rows: list[tuple[str, list[Path]]], tile: int, label_width: in
 
 
 def save_png_atomic(img: Image.Image, path: Path) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp")
-    img.save(tmp, format="PNG")
-    tmp.replace(path)
+    with atomic_output(path) as f:
+        img.save(f, format="PNG")
 
 
 __all__ = ["contact_sheet", "save_png_atomic"]

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from pipeline.errors import UserError
 
 #: Action -> (d_row, d_col). 0 N, 1 E, 2 S, 3 W (the order of ``pictures.FACE_NAMES``).
 MOVES: tuple[tuple[int, int], ...] = ((-1, 0), (0, 1), (1, 0), (0, -1))
@@ -19,7 +20,7 @@ N_ACTIONS = 4
 BUILTIN_DIR = Path(__file__).resolve().parents[2] / "conf" / "mazes"
 
 
-class MazeError(ValueError):
+class MazeError(UserError):
     """A layout file that cannot be a maze; the message names the file, line and problem."""
 
 

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
+from pipeline.files import write_atomic
 from pipeline.world.render_plan import Batch
 from pipeline.world.renderer import SceneRenderer
 from pipeline.world.scenes import build_scene
@@ -30,15 +31,6 @@ def png_bytes(img: np.ndarray) -> bytes:
     return buf.getvalue()
 
 
-def write_atomic(path: Path, data: bytes) -> None:
-    """Write ``data`` to ``path`` via a temporary file in the same folder and ``os.replace``."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    with open(tmp, "wb") as fh:
-        fh.write(data)
-    os.replace(tmp, path)
-
-
 def render_batch(batch: Batch, out_dir: str, size: int, offsamples: int = 0, shadow_size: int = 512,
                  cell: float = 1.0, supersample: int = 2, studio_shadows: bool = False) -> int:
     """Render every shot of ``batch`` into ``out_dir``; returns the number of pictures."""
@@ -48,7 +40,7 @@ def render_batch(batch: Batch, out_dir: str, size: int, offsamples: int = 0, sha
     root = Path(out_dir)
     with SceneRenderer(spec, layout, size, supersample) as r:
         for shot, rel in zip(batch.shots, batch.files):
-            write_atomic(root / rel, png_bytes(r.render(shot)))
+            write_atomic(root / rel, png_bytes(r.render(shot)), fsync=False)
     return len(batch.shots)
 
 

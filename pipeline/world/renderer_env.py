@@ -8,6 +8,7 @@ from __future__ import annotations
 import ctypes.util
 import os
 import sys
+from pipeline.errors import UserError
 
 # mujoco reads MUJOCO_GL once, at import: remember whether someone imported it before us unset
 _IMPORTED_TOO_EARLY = "mujoco" in sys.modules and "MUJOCO_GL" not in os.environ
@@ -27,7 +28,7 @@ _HINTS = {
 }
 
 
-class RendererUnavailable(RuntimeError):
+class RendererUnavailable(UserError):
     """The offscreen OpenGL renderer could not start; the message says what to install or set."""
 
 

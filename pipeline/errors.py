@@ -1,0 +1,15 @@
+"""The one error type for user errors: a bad config, layout, checkpoint, image folder or record file.
+
+Every stage catches :class:`UserError` once, at its entry (``pipeline.stages._common.stage_main``),
+and prints one line naming the thing and the problem, then exits with status 2. Anything else is a
+bug and keeps its traceback.
+"""
+from __future__ import annotations
+
+
+class UserError(ValueError):
+    """Input the user can fix; the message names the input (config key, file, line) and the problem."""
+
+
+class ConfigError(UserError):
+    """A configuration value that cannot work; the message names the key."""

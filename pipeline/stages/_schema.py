@@ -1,0 +1,229 @@
+"""The typed schema of every stage's config (Hydra structured configs, registered in the ConfigStore).
+
+``conf/<stage>.yaml`` names its schema first in its defaults list (``- trials_schema``) and gives the
+values; the dataclasses here give the types, ranges and documentation. Hydra refuses wrong types and
+unknown keys while composing; :func:`pipeline.schema.check` refuses values out of range. The groups
+are typed through their parent's field: ``method`` by :class:`~pipeline.rl.methods.MethodSpec`,
+``profile`` by :class:`Profile`, ``experiment`` by :class:`Experiment`; a recogniser is typed by the
+signature of its ``_target_`` (``pipeline.stages._recognisers``).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Dict, List, Optional
+
+from hydra.core.config_store import ConfigStore
+from omegaconf import II, MISSING
+
+from pipeline.fewshot.accuracy_study import StudyConfig
+from pipeline.fewshot.training import TrainConfig
+from pipeline.rl.methods import MethodSpec
+from pipeline.schema import setting
+
+SUPPORT_MODES = ("restore", "carry")
+SUBSTITUTION_WAYS = (1, 2, 3, 4)
+VIEWERS = ("none", "web", "native")
+
+
+# ---------------------------------------------------------------- profile (conf/profile/*.yaml)
+@dataclass
+class RenderProfile:
+    n_train_classes: int = setting(ge=0)
+    n_val_classes: int = setting(ge=0)
+    per_class: int = setting(ge=1)
+    workers: int = setting(ge=1)
+
+
+@dataclass
+class TrialsProfile:
+    runs: int = setting(ge=1)
+    episodes: int = setting(ge=1)
+
+
+@dataclass
+class MetaTrainProfile:
+    episodes: int = setting(ge=1)
+    val_every: int = setting(ge=1)
+    val_episodes: int = setting(ge=1)
+    eval_episodes: int = setting(ge=1)
+    eval_queries: int = setting(ge=1)
+
+
+@dataclass
+class AccuracyProfile:
+    repeats: int = setting(ge=1)
+
+
+@dataclass
+class Profile:
+    """The scale of every stage: ``paper`` (the default of ``dvc repro``) or ``smoke``."""
+
+    render: RenderProfile = field(default_factory=RenderProfile)
+    trials: TrialsProfile = field(default_factory=TrialsProfile)
+    meta_train: MetaTrainProfile = field(default_factory=MetaTrainProfile)
+    accuracy: AccuracyProfile = field(default_factory=AccuracyProfile)
+
+
+# ---------------------------------------------------------------- trials
+@dataclass
+class Cell:
+    """One cell of an experiment: a method on a maze. Keys left out come from the top level
+    (the experiment file's globals or the command line); keys given here are pinned."""
+
+    method: str = setting(nonempty=True)
+    """A method of ``conf/method/``."""
+    maze: Optional[str] = None
+    substitution: Optional[int] = setting(None, choices=SUBSTITUTION_WAYS)
+    support: Optional[str] = setting(None, choices=SUPPORT_MODES)
+    params: Dict[str, Any] = field(default_factory=dict)
+    """Method fields this cell pins (``{alpha: 0.05}``); the command line does not change them."""
+
+
+@dataclass
+class Experiment:
+    """``conf/experiment/<name>.yaml``: the cells, and how the report presents them."""
+
+    name: str = setting(nonempty=True)
+    cells: Dict[str, Cell] = field(default_factory=dict)
+    report: Optional[Dict[str, Any]] = None
+    """How the report presents the experiment (``pipeline.report``); none: the default section."""
+
+
+@dataclass
+class TrialsConfig:
+    """``python -m pipeline trials``: independent runs of a method on a maze (or every cell of an
+    experiment), every episode recorded to MCAP."""
+
+    profile: Profile = field(default_factory=Profile)
+    method: MethodSpec = field(default_factory=MethodSpec)
+    recogniser: Dict[str, Any] = field(default_factory=dict)
+    """The recogniser group (``conf/recogniser/``): ``_target_`` and its arguments."""
+    experiment: Optional[Experiment] = None
+    maze: str = setting(nonempty=True)
+    """A built-in layout (``conf/mazes/<name>.txt``) or a path to a layout file."""
+    substitution: int = setting(choices=SUBSTITUTION_WAYS)
+    """Dynamic support set: substitution way 1-4 (section 3.3); used by methods with dynamic_support."""
+    support: str = setting(choices=SUPPORT_MODES)
+    """``restore`` the support set before each run, or ``carry`` it over (long-term autonomy)."""
+    runs: int = setting(II("profile.trials.runs"), ge=1)
+    episodes: int = setting(II("profile.trials.episodes"), ge=1)
+    seed: int = setting(ge=0)
+    out: str = setting(nonempty=True)
+    metrics_file: Optional[str] = None
+    timing_file: Optional[str] = None
+    record: bool = MISSING
+    flush_every: int = setting(ge=1)
+    progress: bool = MISSING
+    threads: int = setting(ge=0)
+    """numba threads; 0 = all cores."""
+
+
+# ---------------------------------------------------------------- render
+@dataclass
+class MazeCameraConfig:
+    cell: float = setting(gt=0)
+    camera_distance: float = setting(gt=0)
+    camera_height: float = setting(gt=0)
+    target_height: float = setting(gt=0)
+    fovy: float = setting(gt=0, lt=180)
+
+
+@dataclass
+class CatalogueCameraConfig:
+    fovy: float = setting(gt=0, lt=180)
+    elevation: List[float] = MISSING
+    turn: List[float] = MISSING
+    fill: float = setting(gt=0, le=1)
+
+
+@dataclass
+class QualityConfig:
+    offsamples: int = setting(ge=0)
+    supersample: int = setting(ge=1)
+    shadow_size: int = setting(ge=1)
+    studio_shadows: bool = MISSING
+
+
+@dataclass
+class RenderConfig:
+    profile: Profile = field(default_factory=Profile)
+    out_dir: str = setting(nonempty=True)
+    figures_dir: str = setting(nonempty=True)
+    size: int = setting(ge=8)
+    seed: int = setting(ge=0)
+    workers: int = setting(II("profile.render.workers"), ge=1)
+    categories: List[str] = MISSING
+    n_train_classes: int = setting(II("profile.render.n_train_classes"), ge=0)
+    n_val_classes: int = setting(II("profile.render.n_val_classes"), ge=0)
+    per_class: int = setting(II("profile.render.per_class"), ge=1)
+    views_per_instance: int = setting(ge=1)
+    support_per_category: int = setting(ge=1)
+    maze: MazeCameraConfig = field(default_factory=MazeCameraConfig)
+    catalogue: CatalogueCameraConfig = field(default_factory=CatalogueCameraConfig)
+    quality: QualityConfig = field(default_factory=QualityConfig)
+    contact_sheets: bool = MISSING
+    contact_tile: int = setting(ge=8)
+    contact_train_classes: int = setting(ge=1)
+    contact_per_class: int = setting(ge=1)
+
+
+# ---------------------------------------------------------------- meta_train, accuracy
+@dataclass
+class MetaTrainConfig:
+    profile: Profile = field(default_factory=Profile)
+    images_dir: str = setting(nonempty=True)
+    checkpoint: str = setting(nonempty=True)
+    metrics_file: str = setting(nonempty=True)
+    history_file: str = setting(nonempty=True)
+    threads: int = setting(ge=1)
+    progress: bool = MISSING
+    train: TrainConfig = field(default_factory=TrainConfig)
+
+
+@dataclass
+class AccuracyConfig:
+    profile: Profile = field(default_factory=Profile)
+    images_dir: str = setting(nonempty=True)
+    checkpoint: str = setting(nonempty=True)
+    out_dir: str = setting(nonempty=True)
+    threads: int = setting(ge=1)
+    progress: bool = MISSING
+    study: StudyConfig = field(default_factory=StudyConfig)
+
+
+# ---------------------------------------------------------------- replay, report
+@dataclass
+class ReplayConfig:
+    file: str = setting(nonempty=True)
+    run: int = setting(ge=0)
+    episode: int = setting(ge=0)
+    whole_run: bool = MISSING
+    out: Optional[str] = None
+    viewer: str = setting(choices=VIEWERS)
+    bind: str = setting(nonempty=True)
+    web_port: int = setting(ge=0, le=65535)
+    grpc_port: int = setting(ge=0, le=65535)
+
+
+@dataclass
+class ReportConfig:
+    profile: Profile = field(default_factory=Profile)
+    runs_dir: str = setting(nonempty=True)
+    accuracy_dir: str = setting(nonempty=True)
+    model_metrics: str = setting(nonempty=True)
+    contact_dir: str = setting(nonempty=True)
+    out: str = setting(nonempty=True)
+
+
+#: Stage name -> its schema (``conf/<stage>.yaml`` lists ``<stage>_schema`` first in its defaults).
+SCHEMAS = {"trials": TrialsConfig, "render": RenderConfig, "meta_train": MetaTrainConfig,
+           "accuracy": AccuracyConfig, "replay": ReplayConfig, "report": ReportConfig}
+
+
+def register() -> None:
+    cs = ConfigStore.instance()
+    for stage, schema in SCHEMAS.items():
+        cs.store(name=f"{stage}_schema", node=schema)
+
+
+register()
