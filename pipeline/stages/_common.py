@@ -11,6 +11,7 @@ goes through the same conversion and error handling.
 """
 from __future__ import annotations
 
+import importlib
 import sys
 from pathlib import Path
 from typing import Any, Callable
@@ -19,7 +20,6 @@ from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
 from pipeline.errors import ConfigError, UserError
-from pipeline.files import write_json_atomic  # noqa: F401  (the stages' JSON writer)
 from pipeline.schema import check
 
 #: Absolute path of the Hydra config folder (a relative one breaks when imported as a package).
@@ -83,13 +83,25 @@ def _hydra_mode(args: list[str]) -> bool:
     return any(a.startswith("-") for a in args)
 
 
+def load_config(stage: str, overrides: list[str] = ()) -> Any:
+    """``conf/<stage>.yaml`` with ``overrides``, as the stage's typed config (checked)."""
+    return typed(compose(stage, list(overrides)))
+
+
+def run_stage(stage: str, overrides: list[str] = ()) -> Any:
+    """Run a stage in this process, as the command line would; a user error raises
+    :class:`~pipeline.errors.UserError` (tests, benchmarks and notebooks use this)."""
+    module = importlib.import_module(f"pipeline.stages.{stage}")
+    return module.run(load_config(stage, overrides), list(overrides))
+
+
 def stage_main(config_name: str, run: Runner, args: list[str] | None = None) -> Any:
     """Run a stage from the command line (``args``, default ``sys.argv[1:]``)."""
     args = list(sys.argv[1:] if args is None else args)
     if _hydra_mode(args):
         return _hydra_main(config_name, run, args)
     try:
-        return run(typed(compose(config_name, args)), args)
+        return run(load_config(config_name, args), args)
     except UserError as exc:
         fail(exc)
 

@@ -25,7 +25,7 @@ from pipeline.rl.rng import run_seeds
 from pipeline.rl.runner import make_run_world, run_trials
 from pipeline.schema import check
 from pipeline.stages._common import one_line, stage_main
-from pipeline.stages._recognisers import build_recogniser, recogniser_arguments
+from pipeline.stages._recognisers import build_recogniser
 from pipeline.stages._schema import Experiment, TrialsConfig
 from pipeline.world.geometry import build_geometry
 from pipeline.world.maze import Layout, load_layout
@@ -42,6 +42,8 @@ class CellRun:
     name: str
     config: TrialsConfig
     layout: Layout
+    recogniser: Any = None
+    """Built before any cell runs, so a broken checkpoint is refused up front."""
 
     @property
     def method(self) -> MethodSpec:
@@ -100,19 +102,17 @@ def resolve_cells(cfg: TrialsConfig, overrides: list[str]) -> list[CellRun]:
             layout = load_layout(cell.maze)
         except UserError as exc:
             raise ConfigError(f"config key '{prefix}maze': {exc}") from None
-        if cell.method.uses_recogniser:
-            recogniser_arguments(cell.recogniser)
-        out.append(CellRun(name, cell, layout))
+        out.append(CellRun(name, cell, layout, make_recogniser(cell)))
     return out
 
 
-def make_recogniser(cell: CellRun):
-    method = cell.method
+def make_recogniser(cfg: TrialsConfig):
+    """The cell's recogniser (``conf/recogniser/``), or None for methods that see no pictures."""
+    method = cfg.method
     if not method.uses_recogniser:
         return None
-    way = cell.config.substitution if method.dynamic_support else 0
-    return build_recogniser(cell.config.recogniser, substitution_way=way,
-                            carry_over=cell.config.support == "carry")
+    way = cfg.substitution if method.dynamic_support else 0
+    return build_recogniser(cfg.recogniser, substitution_way=way, carry_over=cfg.support == "carry")
 
 
 def query_pictures(images_dir: str) -> dict[int, bytes]:
@@ -134,7 +134,7 @@ def recorded_config(cell: CellRun) -> dict:
 def run_cell(cell: CellRun, folder: Path) -> tuple[dict, float]:
     cfg, layout, method, name = cell.config, cell.layout, cell.method, cell.name
     runs, episodes, seed = cfg.runs, cfg.episodes, cfg.seed
-    recogniser = make_recogniser(cell)
+    recogniser = cell.recogniser
     writer = None
     if cfg.record:
         from pipeline.records.writer import RecordWriter
