@@ -64,7 +64,7 @@ def bench_study(checkpoint: str, images_dir: str) -> dict:
     cfg = load_config("accuracy")
     start = time.perf_counter()
     rec = RelationRecogniser.from_files(checkpoint, images_dir, substitution_way=0)
-    result = run_study(rec, cfg.study)
+    result = run_study(rec, rec.query_categories, cfg.study)
     return {"study_s": time.perf_counter() - start, "repeats": cfg.study.repeats, "baseline_accuracy": result.baseline_accuracy, "table2": {str(k): v for k, v in result.table2.items()}}
 
 

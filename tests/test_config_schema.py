@@ -177,3 +177,18 @@ def test_recognisers_are_chosen_by_name(tmp_path):
         run_stage("trials", ["recogniser=fixed_accuracy", "recogniser.p=abc", "method=fewshot", *SMOKE])
     with pytest.raises(ConfigError, match=r"config key 'recogniser': p must lie in \[0, 1\], got 1.5"):
         run_stage("trials", ["recogniser=fixed_accuracy", "recogniser.p=1.5", "method=fewshot", *SMOKE])
+
+
+def test_accuracy_study_takes_any_recogniser(tmp_path):
+    """The study runs with a recogniser that has no support positions: a perfect one scores 100%
+    throughout, and one at p=0 gains exactly the substituted pictures it learns."""
+    perfect = run_stage("accuracy", ["recogniser=fixed_accuracy", "recogniser.p=1.0", "study.repeats=3",
+                                     f"out_dir={tmp_path / 'a'}", *SMOKE])
+    assert perfect["baseline"]["accuracy"] == 1.0
+    assert {v["mean_accuracy"] for v in perfect["table2"].values()} == {1.0}
+    blind = run_stage("accuracy", ["recogniser=fixed_accuracy", "recogniser.p=0.0", "study.repeats=3",
+                                   f"out_dir={tmp_path / 'b'}", *SMOKE])
+    table2 = blind["table2"]
+    assert blind["baseline"]["accuracy"] == 0.0
+    assert [round(table2[str(n)]["mean_accuracy"] * 40) for n in range(6)] == [0, 1, 2, 3, 4, 5]
+    assert {table2[str(n)]["mean_accuracy_no_same"] for n in range(6)} == {0.0}
