@@ -192,3 +192,12 @@ def test_accuracy_study_takes_any_recogniser(tmp_path):
     assert blind["baseline"]["accuracy"] == 0.0
     assert [round(table2[str(n)]["mean_accuracy"] * 40) for n in range(6)] == [0, 1, 2, 3, 4, 5]
     assert {table2[str(n)]["mean_accuracy_no_same"] for n in range(6)} == {0.0}
+
+
+def test_a_bad_sweep_value_is_refused_before_any_job(tmp_path):
+    out = subprocess.run([sys.executable, "-m", "pipeline", "trials", "-m", "runs=2,2.7", f"out={tmp_path}/o",
+                          f"hydra.sweep.dir={tmp_path}/sweep", "episodes=2", "record=false", "progress=false"],
+                         capture_output=True, text=True, cwd=ROOT)
+    assert out.returncode == 2 and out.stderr.strip() == \
+        "error: config key 'runs': Value '2.7' of type 'float' could not be converted to Integer"
+    assert not (tmp_path / "o").exists() and not (tmp_path / "sweep").exists()

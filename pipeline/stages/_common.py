@@ -106,11 +106,46 @@ def stage_main(config_name: str, run: Runner, args: list[str] | None = None) -> 
         fail(exc)
 
 
+def sweep_points(args: list[str]) -> list[list[str]]:
+    """Override lists that together try every value of every swept key (``a=1,2 b=x,y`` gives
+    ``[a=1 b=x], [a=2 b=x], [a=1 b=y]``): a linear number of checks, not the whole grid."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+    from hydra.core.override_parser.types import OverrideType
+
+    plain = [a for a in args if not a.startswith("-")]
+    try:
+        parsed = OverridesParser.create().parse_overrides(plain)
+    except Exception as exc:  # hydra's OverrideParseException
+        raise ConfigError(one_line(exc)) from None
+    prefix = {OverrideType.ADD: "+", OverrideType.FORCE_ADD: "++"}
+    fixed, swept = [], []
+    for o in parsed:
+        if o.key_or_group.startswith("hydra"):
+            continue
+        if o.is_sweep_override():
+            swept.append((f"{prefix.get(o.type, '')}{o.key_or_group}", list(o.sweep_string_iterator())))
+        else:
+            fixed.append(o.input_line)
+    first = [f"{k}={values[0]}" for k, values in swept]
+    points = [fixed + first]
+    for i, (key, values) in enumerate(swept):
+        for v in values[1:]:
+            points.append(fixed + first[:i] + [f"{key}={v}"] + first[i + 1:])
+    return points
+
+
 def _hydra_main(config_name: str, run: Runner, args: list[str]) -> None:
     import hydra
     from hydra.core.hydra_config import HydraConfig
 
     import pipeline.stages._schema  # noqa: F401
+
+    if any(a in ("-m", "--multirun") for a in args):  # refuse a bad sweep before launching any job
+        try:
+            for point in sweep_points(args):
+                load_config(config_name, point)
+        except UserError as exc:
+            fail(exc)
 
     @hydra.main(config_path=CONF_DIR, config_name=config_name, version_base="1.3")
     def task(cfg: DictConfig) -> Any:
