@@ -126,3 +126,14 @@ def test_the_lock_is_hashed_cpu_only_and_for_this_python():
     assert Version(pins["torch"]).local == "cpu"
     assert not [n for n in pins if n.startswith(("nvidia-", "cuda-", "triton"))]
     assert not [n for n, k in hashes.items() if k == 0], "every pin needs a hash for --require-hashes"
+
+
+def test_a_trial_embeds_exactly_these_versions(tmp_path):
+    """The versions in a real record file are the ones compared with the lock above."""
+    from pipeline.records import read_records
+    from pipeline.stages._common import run_stage
+
+    run_stage("trials", ["method=ssrl", "runs=1", "episodes=2", f"out={tmp_path}", "progress=false"])
+    recorded = read_records(tmp_path / "records.mcap", pictures=False).meta.versions
+    pins, _, python = _read_lock(LOCK.read_text())
+    assert recorded == package_versions() and not _mismatches(recorded, pins, python)
