@@ -201,3 +201,16 @@ def test_a_bad_sweep_value_is_refused_before_any_job(tmp_path):
     assert out.returncode == 2 and out.stderr.strip() == \
         "error: config key 'runs': Value '2.7' of type 'float' could not be converted to Integer"
     assert not (tmp_path / "o").exists() and not (tmp_path / "sweep").exists()
+
+
+@pytest.mark.parametrize("args,key", [
+    (["method=ssrl", "recogniser=fixed_accuracy"], "recogniser"),
+    (["method=ssrl", "recogniser.checkpoint=x.pt"], "recogniser.checkpoint"),
+    (["method=shield", "support=carry"], "support"),
+    (["method=fewshot", "substitution=2"], "substitution"),
+    (["+experiment=table3", "method.alpha=0.5", "recogniser=oracle", "substitution=3", "method=qlearning"], "method"),
+])
+def test_overrides_that_no_cell_reads_are_refused(args, key, tmp_path):
+    with pytest.raises(ConfigError, match=f"config key '{key}'.*cannot apply"):
+        run_stage("trials", [*args, f"out={tmp_path}", *SMOKE])
+    assert not list(tmp_path.iterdir())

@@ -69,7 +69,7 @@ def experiment_cells(cfg: TrialsConfig, overrides: list[str]) -> dict[str, Trial
     methods = sorted({c.method for c in exp.cells.values()})
     if "method" in given:
         raise ConfigError(f"config key 'method': experiment {exp.name} chooses the method of each cell "
-                          f"({', '.join(methods)}); override a method field instead (method.alpha=...), "
+                          f"({', '.join(methods)}), so the override cannot apply; override a method field instead (method.alpha=...), "
                           f"or run method={given['method']} without +experiment")
     method_over = {k.removeprefix("method."): v for k, v in given.items() if k.startswith("method.")}
     for key in [*CELL_KEYS, *method_over]:
@@ -92,9 +92,30 @@ def experiment_cells(cfg: TrialsConfig, overrides: list[str]) -> dict[str, Trial
     return cells
 
 
+#: Command-line keys that only some methods read: (what uses it, test on the cell's method).
+ONLY_FOR = {
+    "recogniser": ("methods that recognise pictures (safety: fewshot)", lambda m: m.uses_recogniser),
+    "support": ("methods that recognise pictures (safety: fewshot)", lambda m: m.uses_recogniser),
+    "substitution": ("methods with a dynamic support set (dynamic_support: true)", lambda m: m.dynamic_support),
+}
+
+
+def refuse_inapplicable(configs: dict[str, TrialsConfig], given: dict[str, Any]) -> None:
+    """An override that no cell reads would change nothing: refuse it, naming the key."""
+    for key in given:
+        head = key.split(".")[0]
+        if head in ONLY_FOR:
+            who, uses = ONLY_FOR[head]
+            if not any(uses(c.method) for c in configs.values()):
+                names = ", ".join(sorted({c.method.name for c in configs.values()}))
+                raise ConfigError(f"config key '{key}': read only by {who}; this run has {names}: "
+                                  "the override cannot apply")
+
+
 def resolve_cells(cfg: TrialsConfig, overrides: list[str]) -> list[CellRun]:
-    """The cells to run, each with its layout loaded and its recogniser's arguments checked."""
+    """The cells to run, each with its layout loaded and its recogniser built."""
     configs = {"": cfg} if cfg.experiment is None else experiment_cells(cfg, overrides)
+    refuse_inapplicable(configs, parse_overrides(overrides))
     out = []
     for name, cell in configs.items():
         prefix = f"experiment.cells.{name}." if name else ""
