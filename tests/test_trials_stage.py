@@ -37,13 +37,13 @@ def test_method_fields_can_be_overridden(tmp_path):
     ("runs=0", "config key 'runs'"),
     ("maze=does/not/exist.txt", "config key 'maze'"),
     ("method.alpha=2", "config key 'method.alpha'"),
-    ("method=fewshot", "config key 'recogniser'.*nonexistent.pt"),
-    ("+experiment=fig8", "config key 'recogniser'.*nonexistent.pt"),
+    ("method=fewshot recogniser.checkpoint=/nonexistent.pt", "config key 'recogniser'.*nonexistent.pt"),
+    ("+experiment=fig8 recogniser.checkpoint=/nonexistent.pt", "config key 'recogniser'.*nonexistent.pt"),
     ("substitution=7", "config key 'substitution'"),
 ])
 def test_broken_configs_fail_naming_the_key(tmp_path, override, message):
     with pytest.raises(ConfigError, match=message):
-        trials(override, f"out={tmp_path}", "progress=false", "recogniser.checkpoint=/nonexistent.pt")
+        trials(*override.split(), f"out={tmp_path}", "progress=false")
     assert not list(tmp_path.iterdir())  # refused before anything was written
 
 
