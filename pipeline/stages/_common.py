@@ -12,14 +12,16 @@ goes through the same conversion and error handling.
 from __future__ import annotations
 
 import importlib
+import signal
 import sys
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, Callable
 
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
-from pipeline.errors import ConfigError, UserError
+from pipeline.errors import ConfigError, Interrupted, UserError
 from pipeline.schema import check
 
 #: Absolute path of the Hydra config folder (a relative one breaks when imported as a package).
@@ -79,6 +81,29 @@ def fail(exc: UserError) -> None:
     raise SystemExit(2) from None
 
 
+def _terminated(signum, frame) -> None:
+    raise Interrupted(128 + signum)
+
+
+@contextmanager
+def user_facing():
+    """User errors as one line and exit 2; Ctrl-C and SIGTERM as one line (what was kept) and exit
+    130 or 143, without a traceback."""
+    previous = signal.signal(signal.SIGTERM, _terminated)
+    try:
+        yield
+    except UserError as exc:
+        fail(exc)
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr, flush=True)
+        raise SystemExit(130) from None
+    except Interrupted as exc:
+        print(exc.message, file=sys.stderr, flush=True)
+        raise SystemExit(exc.code) from None
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
 def _hydra_mode(args: list[str]) -> bool:
     return any(a.startswith("-") for a in args)
 
@@ -100,10 +125,8 @@ def stage_main(config_name: str, run: Runner, args: list[str] | None = None) -> 
     args = list(sys.argv[1:] if args is None else args)
     if _hydra_mode(args):
         return _hydra_main(config_name, run, args)
-    try:
+    with user_facing():
         return run(load_config(config_name, args), args)
-    except UserError as exc:
-        fail(exc)
 
 
 def sweep_points(args: list[str]) -> list[list[str]]:
@@ -141,18 +164,14 @@ def _hydra_main(config_name: str, run: Runner, args: list[str]) -> None:
     import pipeline.stages._schema  # noqa: F401
 
     if any(a in ("-m", "--multirun") for a in args):  # refuse a bad sweep before launching any job
-        try:
+        with user_facing():
             for point in sweep_points(args):
                 load_config(config_name, point)
-        except UserError as exc:
-            fail(exc)
 
     @hydra.main(config_path=CONF_DIR, config_name=config_name, version_base="1.3")
     def task(cfg: DictConfig) -> Any:
-        try:
+        with user_facing():
             return run(typed(cfg), list(HydraConfig.get().overrides.task))
-        except UserError as exc:
-            fail(exc)
 
     sys.argv = [sys.argv[0], *args]
     task()

@@ -9,6 +9,8 @@ of an experiment, plus ``<out>/summary.json`` listing the cells.
 """
 from __future__ import annotations
 
+import os
+import shutil
 import time
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
@@ -18,8 +20,8 @@ import numba
 from hydra.core.override_parser.overrides_parser import OverridesParser
 from omegaconf import OmegaConf
 
-from pipeline.errors import ConfigError, UserError
-from pipeline.files import write_json_atomic
+from pipeline.errors import ConfigError, Interrupted, UserError
+from pipeline.files import exclusive_folder, swap_in, write_json_atomic
 from pipeline.rl.methods import MethodSpec, load_method
 from pipeline.rl.rng import run_seeds
 from pipeline.rl.runner import make_run_world, run_trials
@@ -175,6 +177,12 @@ def run_cell(cell: CellRun, folder: Path) -> tuple[dict, float]:
     try:
         result = run_trials(layout, method, runs, episodes, seed, recogniser=recogniser, sink=writer,
                             progress=cfg.progress, shared_support=cfg.support == "carry")
+    except (KeyboardInterrupt, Interrupted) as exc:
+        code = exc.code if isinstance(exc, Interrupted) else 130
+        if writer is None:
+            raise Interrupted(code, f"interrupted; nothing recorded (record=false); {folder} left as it was") from None
+        path = writer.close(complete=False)
+        raise Interrupted(code, f"interrupted; partial records at {path}: {writer.n_episodes} episodes") from None
     except BaseException:
         if writer is not None:
             writer.close(complete=False)
@@ -189,13 +197,55 @@ def run_cell(cell: CellRun, folder: Path) -> tuple[dict, float]:
     return summary, seconds
 
 
-def run(cfg: TrialsConfig, overrides: list[str]) -> dict:
-    cells = resolve_cells(cfg, overrides)
+def memory_estimate(cfg: TrialsConfig, layout: Layout) -> int:
+    """Bytes the runner's arrays take for one cell (``pipeline.rl.runner.run_trials``): per-episode
+    results (22 bytes a run-episode), Q and A_d (36 bytes a run-cell-action), the step trace when
+    recording (10 bytes x 16384 steps a run) and the per-run summaries."""
+    per_run = cfg.episodes * 22 + layout.n_cells * 4 * 9 + (16384 * 10 if cfg.record else 0) + 2048
+    return cfg.runs * per_run
+
+
+def available_memory() -> int:
+    """``MemAvailable`` of /proc/meminfo (bytes); the physical memory where that is missing."""
+    try:
+        for line in Path("/proc/meminfo").read_text().splitlines():
+            if line.startswith("MemAvailable:"):
+                return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+
+
+def refuse_what_does_not_fit(cfg: TrialsConfig, cells: list[CellRun]) -> None:
     if cfg.threads > numba.config.NUMBA_NUM_THREADS:
         raise ConfigError(f"config key 'threads': at most {numba.config.NUMBA_NUM_THREADS} on this machine; got {cfg.threads}")
+    need = max(memory_estimate(c.config, c.layout) for c in cells)
+    have = available_memory()
+    if need > 0.8 * have:
+        raise ConfigError(f"config keys 'runs'/'episodes': {cfg.runs} runs x {cfg.episodes} episodes need about "
+                          f"{need / 2**30:,.1f} GiB; this machine has {have / 2**30:,.1f} GiB available")
+
+
+def run(cfg: TrialsConfig, overrides: list[str]) -> dict:
+    cells = resolve_cells(cfg, overrides)
+    refuse_what_does_not_fit(cfg, cells)
     if cfg.threads > 0:
         numba.set_num_threads(cfg.threads)
-    out = Path(cfg.out)
+    with exclusive_folder(cfg.out) as out:
+        staging = out / f".staging-{os.getpid()}"
+        shutil.rmtree(staging, ignore_errors=True)
+        index = run_cells(cfg, cells, staging)
+        swap_in(staging, out)
+        for stale in out.glob(".staging-*"):  # partial records of interrupted runs, now superseded
+            shutil.rmtree(stale, ignore_errors=True)
+            print(f"removed the partial records of an interrupted run: {stale}")
+    where = out / "records.mcap" if cfg.experiment is None and cfg.record else out
+    print(f"wrote {where}")
+    return index
+
+
+def run_cells(cfg: TrialsConfig, cells: list[CellRun], out: Path) -> dict:
+    """Every cell into ``out`` (the staging folder); the experiment's index and metrics last."""
     summaries, timing = {}, {}
     for cell in cells:
         name = cell.name
