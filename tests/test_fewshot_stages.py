@@ -8,7 +8,7 @@ from hydra import compose, initialize_config_dir
 
 from pipeline.fewshot.synthetic import write_synthetic_dataset
 from pipeline.stages import accuracy, meta_train
-from pipeline.stages._common import CONF_DIR, ConfigError
+from pipeline.stages._common import CONF_DIR, ConfigError, typed
 
 SHRINK = [
     "train.input_size=24", "train.relation_padding=1", "train.n_query=3", "train.episodes=20", "train.val_every=10",
@@ -31,13 +31,15 @@ def test_meta_train_then_accuracy(tmp_path):
     images = tmp_path / "images"
     write_synthetic_dataset(images, n_train=6, n_val=5, per_class=10, seed=2)
     paths = [f"images_dir={images}", f"checkpoint={tmp_path}/m/rn.pt", f"metrics_file={tmp_path}/m/metrics.json", f"history_file={tmp_path}/m/h.csv"]
-    metrics = meta_train.run(_compose("meta_train", paths + SHRINK))
+    metrics = meta_train.run(typed(_compose("meta_train", paths + SHRINK)))
     on_disk = json.loads((tmp_path / "m" / "metrics.json").read_text())
     assert on_disk["val_accuracy"] == pytest.approx(metrics["val_accuracy"]) and on_disk["val_episodes"] == 20
+    info = json.loads((tmp_path / "m" / "train_info.json").read_text())  # metrics.json: metrics only
+    assert set(on_disk) == set(meta_train.METRIC_KEYS) and {"train_seconds", "torch_threads", "images_dir"} <= set(info)
     assert len(pd.read_csv(tmp_path / "m" / "h.csv")) == 2
 
     out = tmp_path / "acc"
-    data = accuracy.run(_compose("accuracy", [f"images_dir={images}", f"checkpoint={tmp_path}/m/rn.pt", f"out_dir={out}", "study.repeats=4", "progress=false"]))
+    data = accuracy.run(typed(_compose("accuracy", [f"images_dir={images}", f"checkpoint={tmp_path}/m/rn.pt", f"out_dir={out}", "study.repeats=4", "progress=false"])))
     t1 = pd.read_csv(out / "table1.csv")
     assert len(t1) == 50
     with_same = t1[t1.variant == "with_same"]
