@@ -22,4 +22,8 @@ fi
 .venv/bin/python -m pip install -q "torch==2.13.0"
 .venv/bin/python -m pip install -q -e ".[test]"
 .venv/bin/rerun analytics disable >/dev/null 2>&1 || true
+# DVC's site cache inside the project, by absolute path: a relative core.site_cache_dir is taken from
+# the cwd and breaks `dvc exp run --temp`/queued runs ("unable to open database file").
+# .dvc/config.local and .dvc/site_cache are git-ignored (.dvc/.gitignore).
+.venv/bin/dvc config --local core.site_cache_dir "$(pwd)/.dvc/site_cache"
 echo "[setup] done: $(.venv/bin/python -c 'import torch,numpy;print("torch",torch.__version__,"numpy",numpy.__version__)')"

@@ -1,5 +1,7 @@
 """dvc.yaml against conf/: one trials stage per experiment file, config declared as params (keys
-that exist), code and data as deps."""
+that exist), code and data as deps, and a DVC site cache that does not depend on the cwd."""
+import configparser
+import os
 from pathlib import Path
 
 import pytest
@@ -81,3 +83,16 @@ def test_default_scale_is_the_paper_profile():
         profiles = {f for f, _ in params_entries(stage) if f.startswith("conf/profile/")}
         assert profiles <= {"conf/profile/paper.yaml"}, name
 
+
+def test_site_cache_dir_is_not_relative():
+    """A relative core.site_cache_dir is taken from the cwd: `dvc exp run --temp` (and queued runs)
+    fail with "unable to open database file" and a run from a subfolder makes a second cache there.
+    setup.sh puts an absolute one in .dvc/config.local (tests/test_dvc_experiments.py runs it)."""
+    for name in ("config", "config.local"):
+        path = ROOT / ".dvc" / name
+        if not path.exists():
+            continue
+        parser = configparser.ConfigParser()
+        parser.read_string(path.read_text())
+        value = parser.get("core", "site_cache_dir", fallback=None)
+        assert value is None or os.path.isabs(value), f".dvc/{name}: core.site_cache_dir = {value!r}"
