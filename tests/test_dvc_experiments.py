@@ -109,6 +109,11 @@ def test_exp_run_set_param_reruns_trials_and_shows_param_and_metrics(tmp_path):
     text = (repo / method).read_text()
     assert text.startswith("# Only what differs") and "alpha: 0.05" in text  # comments kept
 
+    # DVC resolves the file's interpolations to apply -S: the stage files (conf/<stage>.yaml, with
+    # ${profile...}) cannot take -S; edit them and `dvc exp run` (README "DVC experiments").
+    refused = run(repo, "dvc", "exp", "run", "-S", "conf/trials.yaml:seed=1", ok=False)
+    assert refused.returncode != 0 and "Interpolation key 'profile.trials.runs' not found" in refused.stderr
+
 
 def test_site_cache_from_any_cwd_and_in_a_temp_experiment(tmp_path):
     """The site cache form of setup.sh: `dvc exp run --temp` (a copy under .dvc/tmp) and dvc run from a
