@@ -33,4 +33,8 @@ fi
 # The project's build backend (setuptools) is pinned in the lock: build with it, not a fresh download.
 .venv/bin/python -m pip install -q --no-deps --no-build-isolation -e .
 .venv/bin/rerun analytics disable >/dev/null 2>&1 || true
+# DVC's site cache inside the project, by absolute path: a relative core.site_cache_dir is taken from
+# the cwd and breaks `dvc exp run --temp`/queued runs ("unable to open database file").
+# .dvc/config.local and .dvc/site_cache are git-ignored (.dvc/.gitignore).
+.venv/bin/dvc config --local core.site_cache_dir "$(pwd)/.dvc/site_cache"
 echo "[setup] done: $(.venv/bin/python -c 'import torch,numpy;print("torch",torch.__version__,"numpy",numpy.__version__)')"

@@ -6,6 +6,7 @@ import pandas as pd
 import pytest
 from pipeline.errors import ConfigError
 from pipeline.fewshot.synthetic import write_synthetic_dataset
+from pipeline.stages import meta_train
 from pipeline.stages._common import load_config, run_stage
 
 SHRINK = [
@@ -27,6 +28,8 @@ def test_meta_train_then_accuracy(tmp_path):
     metrics = run_stage("meta_train", paths + SHRINK)
     on_disk = json.loads((tmp_path / "m" / "metrics.json").read_text())
     assert on_disk["val_accuracy"] == pytest.approx(metrics["val_accuracy"]) and on_disk["val_episodes"] == 20
+    info = json.loads((tmp_path / "m" / "train_info.json").read_text())  # metrics.json: metrics only
+    assert set(on_disk) == set(meta_train.METRIC_KEYS) and {"train_seconds", "torch_threads", "images_dir"} <= set(info)
     assert len(pd.read_csv(tmp_path / "m" / "h.csv")) == 2
 
     out = tmp_path / "acc"
