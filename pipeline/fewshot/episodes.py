@@ -7,6 +7,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .data import DataError
+
 
 @dataclass(frozen=True)
 class Episode:
@@ -21,7 +23,7 @@ class Episode:
 def sample_episode(rng: np.random.Generator, by_class: list[np.ndarray], n_way: int, k_shot: int, n_query: int) -> Episode:
     """Draw ``n_way`` distinct classes, then ``k_shot + n_query`` distinct pictures of each."""
     if n_way > len(by_class):
-        raise ValueError(f"{n_way}-way episodes need at least {n_way} classes, the split has {len(by_class)}")
+        raise DataError(f"{n_way}-way episodes need at least {n_way} classes, the split has {len(by_class)}")
     need = k_shot + n_query
     classes = rng.choice(len(by_class), size=n_way, replace=False)
     support = np.empty((n_way, k_shot), dtype=np.int64)
@@ -29,7 +31,7 @@ def sample_episode(rng: np.random.Generator, by_class: list[np.ndarray], n_way: 
     for i, c in enumerate(classes):
         members = by_class[c]
         if len(members) < need:
-            raise ValueError(f"class {c} has {len(members)} pictures; an episode needs {need} (k_shot + n_query)")
+            raise DataError(f"class {c} has {len(members)} pictures; an episode needs {need} (k_shot + n_query)")
         pick = rng.choice(members, size=need, replace=False)
         support[i], query[i] = pick[:k_shot], pick[k_shot:]
     labels = np.repeat(np.arange(n_way), n_query)

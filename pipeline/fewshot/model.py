@@ -29,50 +29,12 @@ recompute only the class half when a support set changes (section 3.3).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import torch
 from torch import nn
 
-CHANNELS = 64
-HIDDEN = 8
+from .settings import CHANNELS, HIDDEN, ModelConfig, feature_shapes
 
-
-@dataclass(frozen=True)
-class ModelConfig:
-    """Shape of the network: the input side in pixels and the padding of g_phi's convolutions."""
-
-    input_size: int = 84
-    """Square input side in pixels (pictures are resized to it)."""
-    relation_padding: int = 0
-    """Padding of g_phi's 3x3 convolutions: 0 as in Sung et al.; 1 for inputs below 46 px."""
-
-    def __post_init__(self) -> None:
-        if self.relation_padding not in (0, 1):
-            raise ValueError(f"relation_padding must be 0 or 1, got {self.relation_padding}")
-        feature_shapes(self.input_size, self.relation_padding)  # raises on impossible sizes
-
-
-def _conv_out(size: int, padding: int) -> int:
-    return size + 2 * padding - 2
-
-
-def feature_shapes(input_size: int, relation_padding: int = 0) -> dict[str, int]:
-    """Spatial sizes implied by ``input_size``: ``embedding`` (side of f_varphi's 64-channel map),
-    ``relation`` (side after g_phi's second block) and ``fc_in`` (FC-8 input features)."""
-    if input_size < 10:
-        raise ValueError(f"input_size={input_size} is too small for Conv-4 (need >= 10 px)")
-    s = _conv_out(input_size, 0) // 2  # block 1: conv (no pad) + pool
-    s = _conv_out(s, 0) // 2  # block 2: conv (no pad) + pool
-    embedding = s  # blocks 3 and 4 keep the size (padding 1)
-    r = _conv_out(s, relation_padding) // 2
-    r = _conv_out(r, relation_padding) // 2
-    if r < 1:
-        raise ValueError(
-            f"input_size={input_size} with relation_padding={relation_padding} leaves an empty "
-            f"relation map (embedding {embedding}x{embedding}); use input_size >= 46 or relation_padding=1"
-        )
-    return {"embedding": embedding, "relation": r, "fc_in": CHANNELS * r * r}
+__all__ = ["CHANNELS", "HIDDEN", "ModelConfig", "feature_shapes"]
 
 
 def _block(in_ch: int, padding: int, pool: bool) -> nn.Sequential:

@@ -27,67 +27,12 @@ import torch
 from torch import nn
 from tqdm.auto import tqdm
 
-from pipeline.schema import check, setting
-
 from .data import PictureSet, channel_stats, to_tensor
 from .episodes import Episode, mean_and_ci95, sample_episode, sample_episodes
-from .model import ModelConfig, RelationNetwork
+from .model import RelationNetwork
+from .settings import LR_SCHEDULES, ModelConfig, TrainConfig  # noqa: F401  (re-exported)
 
-LR_SCHEDULES = ("constant", "cosine", "step")
 log = logging.getLogger(__name__)
-
-
-@dataclass
-class TrainConfig:
-    """Meta-training hyperparameters (every field is a key of ``conf/meta_train.yaml``'s ``train``)."""
-
-    input_size: int = setting(48, ge=10)
-    """Square input side in pixels; pictures are resized to it (see :mod:`.model` for map sizes)."""
-    relation_padding: int = setting(0, choices=(0, 1))
-    """Padding of g_phi's convolutions (0 as in Sung et al.; 1 needed below 46 px)."""
-    n_way: int = setting(5, ge=2)
-    """Classes per episode (C)."""
-    k_shot: int = setting(5, ge=1)
-    """Support pictures per class (K); their feature maps are summed."""
-    n_query: int = setting(5, ge=1)
-    """Query pictures per class in a training episode."""
-    episodes: int = setting(1500, ge=1)
-    """Training episodes (the loop also stops at ``max_minutes``)."""
-    lr: float = setting(1e-3, gt=0.0)
-    """Adam learning rate at the start."""
-    lr_schedule: str = setting("cosine", choices=LR_SCHEDULES)
-    """``constant``, ``cosine`` (to ``lr * min_lr_fraction`` at ``episodes``) or ``step`` (halve every ``lr_step``)."""
-    min_lr_fraction: float = setting(0.05, gt=0.0, le=1.0)
-    """Final learning rate of the cosine schedule, as a fraction of ``lr``."""
-    lr_step: int = setting(1000, ge=1)
-    """Episodes between halvings of the ``step`` schedule."""
-    flip: bool = True
-    """Random horizontal flips of training pictures."""
-    val_every: int = setting(150, ge=1)
-    """Training episodes between model-selection evaluations on the validation classes."""
-    val_episodes: int = setting(200, ge=1)
-    """Validation episodes per model-selection evaluation (a fixed, seeded list)."""
-    eval_episodes: int = setting(600, ge=1)
-    """Fresh validation episodes for the reported accuracy and its 95% interval."""
-    eval_queries: int = setting(15, ge=1)
-    """Query pictures per class in validation episodes."""
-    seed: int = setting(0, ge=0)
-    """Seeds the weights, the episode stream and the flips."""
-    channels_last: bool = True
-    """Use the channels-last memory format (faster convolutions on the CPU)."""
-    max_minutes: float = setting(12.5, gt=0.0)
-    """Wall-clock budget of the training loop; training stops early when it is spent."""
-    target_accuracy: float = setting(0.75, ge=0.0, le=1.0)
-    """Validation accuracy goal; the time when a selection evaluation first reaches it is recorded."""
-
-    def __post_init__(self) -> None:
-        check(self, "train.")
-        ModelConfig(self.input_size, self.relation_padding)
-
-    @property
-    def model(self) -> ModelConfig:
-        return ModelConfig(self.input_size, self.relation_padding)
-
 
 @dataclass
 class TrainResult:

@@ -16,7 +16,7 @@ from hydra.core.config_store import ConfigStore
 from omegaconf import II, MISSING
 
 from pipeline.fewshot.accuracy_study import StudyConfig
-from pipeline.fewshot.training import TrainConfig
+from pipeline.fewshot.settings import TrainConfig
 from pipeline.rl.methods import MethodSpec
 from pipeline.schema import setting
 
