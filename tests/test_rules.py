@@ -88,3 +88,22 @@ def test_env_rejects_bad_input():
     env.reset(seed=1)
     with pytest.raises(ValueError, match="outside Discrete"):
         env.step(7)
+
+
+def test_codes_accept_config_strings_and_members():
+    from pipeline.rl.codes import Learner, Safety, member
+
+    assert member(Safety, "ssrl") is Safety.ssrl and member(Safety, Safety.ssrl) is Safety.ssrl
+    assert member(Learner, "sarsa") is Learner.sarsa
+    with pytest.raises(ValueError, match="expected one of none, shield, ssrl, fewshot"):
+        member(Safety, "nope")
+
+
+def test_only_the_rules_tell_safety_methods_apart():
+    """Adding a safety method touches codes.Safety and rules.py, not the kernel, runner or env."""
+    from pathlib import Path
+
+    import pipeline.rl as rl
+    for name in ("kernel.py", "runner.py", "gym_env.py", "agents.py", "structs.py"):
+        src = (Path(rl.__file__).parent / name).read_text(encoding="utf-8")
+        assert "Safety." not in src and ".uses_recogniser" not in src, name
