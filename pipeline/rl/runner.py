@@ -234,7 +234,8 @@ def run_trials(layout: Layout, method: MethodSpec, runs: int, episodes: int, see
             for r in pending:
                 r = int(r)
                 score_pending(r)
-                if status[r] == Status.substitute:
+                why = int(status[r])  # numpy compares its ints with an IntEnum member slowly (~8 us)
+                if why == Status.substitute:
                     ep, step = int(substitution.episode[r]), int(substitution.step[r])
                     pic, cat = int(substitution.picture[r]), int(substitution.category[r])
                     position = recogniser.learn_from_collision(slot(r), pic, cat)
@@ -244,7 +245,7 @@ def run_trials(layout: Layout, method: MethodSpec, runs: int, episodes: int, see
                                           category=cat, position=int(position),
                                           support_accuracy=float((predicted[r] == PICTURE_CATEGORY).mean()))
                     again.append(r)
-                elif status[r] == Status.flush:
+                elif why == Status.flush:
                     emit(r)
                     again.append(r)
             pending = np.array(again, dtype=np.int64)
