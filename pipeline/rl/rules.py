@@ -47,10 +47,9 @@ def _add_unsafe(unsafe, s, a, source, added, n_added):
     if unsafe[s, a]:
         return n_added
     unsafe[s, a] = True
-    row = added[n_added]  # (cell, action, source)
-    row[0] = s
-    row[1] = a
-    row[2] = source
+    added[n_added, 0] = s  # a row of ``added`` is (cell, action, source)
+    added[n_added, 1] = a
+    added[n_added, 2] = source
     return n_added + 1
 
 
