@@ -4,7 +4,9 @@
 
 Prints a table and writes reports/benchmarks/rl_speed.json. The batched runner is timed on one
 numba thread and on all threads (after a warm-up that compiles the kernels); the Gymnasium loop
-steps the same rules one at a time through ``SafeNavigationEnv`` and ``TabularAgent``.
+steps the same rules one at a time through ``SafeNavigationEnv`` and ``TabularAgent``. The ratios
+batched / Gymnasium loop compare figures measured in the same run, one method right after the
+other (the host's speed varies between runs).
 """
 from __future__ import annotations
 
@@ -70,7 +72,8 @@ def main() -> None:
     run_trials(layout, get_method("sarsa"), 2, 2, progress=False)  # compile
     rows = []
     print(f"maze {args.maze}, {args.runs} runs x {args.episodes} episodes; numba threads: 1 and {all_threads}")
-    print(f"{'method':<13}{'steps':>11}{'1 thread M/s':>14}{f'{all_threads} threads M/s':>15}{'gym k/s':>10}{'x gym (1 thr)':>15}")
+    print(f"{'method':<13}{'steps':>11}{'1 thread M/s':>14}{f'{all_threads} threads M/s':>15}{'gym k/s':>10}"
+          f"{'x gym (1 thr)':>15}{f'x gym ({all_threads} thr)':>15}")
     for name in ("qlearning", "sarsa", "shield", "ssrl", "constrained", "fewshot", "fewshot_dss"):
         method = get_method(name)
         steps, t1 = time_batched(layout, method, args.runs, args.episodes, 1)
@@ -78,10 +81,12 @@ def main() -> None:
         gsteps, gt = time_gym(layout, method, args.episodes)
         row = {"method": name, "steps": steps, "batched_1thread_steps_per_s": steps / t1,
                f"batched_{all_threads}threads_steps_per_s": steps / tn, "gym_steps_per_s": gsteps / gt,
-               "speedup_1thread_vs_gym": (steps / t1) / (gsteps / gt)}
+               "speedup_1thread_vs_gym": (steps / t1) / (gsteps / gt),
+               f"speedup_{all_threads}threads_vs_gym": (steps / tn) / (gsteps / gt)}
         rows.append(row)
         print(f"{name:<13}{steps:>11}{steps / t1 / 1e6:>14.2f}{steps / tn / 1e6:>15.2f}"
-              f"{gsteps / gt / 1e3:>10.1f}{row['speedup_1thread_vs_gym']:>15.0f}")
+              f"{gsteps / gt / 1e3:>10.1f}{row['speedup_1thread_vs_gym']:>15.0f}"
+              f"{row[f'speedup_{all_threads}threads_vs_gym']:>15.0f}")
     numba.set_num_threads(all_threads)
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     Path(args.out).write_text(json.dumps({"maze": args.maze, "runs": args.runs, "episodes": args.episodes,

@@ -24,13 +24,11 @@ def _episode(run=0, episode=0, n=3, **over):
     return f
 
 
-def test_flags_and_sources_mirror_the_sink_protocol():
-    from pipeline.rl import sink
+def test_flags_and_sources_mirror_the_rl_codes():
+    from pipeline.rl.codes import Source, StepFlag
 
-    for name, bit in S.FLAG_NAMES.items():
-        assert getattr(sink, f"FLAG_{name.upper()}") == bit
-    for i, name in enumerate(S.SOURCE_NAMES):
-        assert getattr(sink, f"SOURCE_{name.upper()}") == i
+    assert {m.name: int(m) for m in StepFlag} == S.FLAG_NAMES
+    assert tuple(m.name for m in sorted(Source)) == S.SOURCE_NAMES
 
 
 def test_log_time_is_derived_from_run_episode_step():

@@ -3,7 +3,7 @@ import pytest
 
 from fakes import always_right, always_wrong
 from pipeline.rl.gym_env import SafeNavigationEnv
-from pipeline.rl.sink import FLAG_COLLIDED, FLAG_GOAL, FLAG_RECOVERED
+from pipeline.rl.codes import StepFlag
 from pipeline.world.maze import parse_layout
 
 # S . X       cells 0 1 2
@@ -27,7 +27,7 @@ def play(method, actions, recogniser=None):
 def test_goal_path_returns_plus_one():
     env, trace = play("qlearning", [S, E, E])
     assert [t[:3] for t in trace] == [(3, 0.0, False), (4, 0.0, False), (5, 1.0, True)]
-    assert trace[-1][3] == FLAG_GOAL
+    assert trace[-1][3] == StepFlag.goal
 
 
 def test_move_off_grid_stays_put_without_penalty():
@@ -38,7 +38,7 @@ def test_move_off_grid_stays_put_without_penalty():
 def test_collision_ends_the_episode_without_self_recovery():
     env, trace = play("qlearning", [E, E, S])
     assert [t[:3] for t in trace] == [(1, 0.0, False), (1, -1.0, True)]
-    assert trace[-1][3] == FLAG_COLLIDED
+    assert trace[-1][3] == StepFlag.collided
     assert not env.unsafe.any()  # plain Q-learning learns no unsafe set
 
 
@@ -47,7 +47,7 @@ def test_self_recovery_reverts_and_the_episode_goes_on(method):
     env, trace = play(method, [E, E, S, E])
     assert [t[:3] for t in trace] == [(1, 0.0, False), (1, -1.0, False), (4, 0.0, False), (5, 1.0, True)]
     assert sum(t[1] for t in trace) == 0.0
-    assert trace[1][3] == FLAG_COLLIDED | FLAG_RECOVERED
+    assert trace[1][3] == StepFlag.collided | StepFlag.recovered
     assert env.unsafe[1, E]
     # SSRL also marks the obstacle's other free neighbour (cell 5, moving north)
     assert env.unsafe[5, N] == (method == "ssrl")
@@ -67,7 +67,7 @@ def test_fewshot_recognition_prevents_the_action_without_a_step():
 
 def test_fewshot_misrecognition_collides_and_learns():
     env, trace = play("fewshot", [E, E, E], recogniser=always_wrong())
-    assert trace[1][:4] == (1, -1.0, False, FLAG_COLLIDED | FLAG_RECOVERED)
+    assert trace[1][:4] == (1, -1.0, False, StepFlag.collided | StepFlag.recovered)
     assert env.unsafe[1, E]
     assert env.action_mask(1).tolist() == [1, 0, 1, 1]
 
@@ -88,3 +88,22 @@ def test_env_rejects_bad_input():
     env.reset(seed=1)
     with pytest.raises(ValueError, match="outside Discrete"):
         env.step(7)
+
+
+def test_codes_accept_config_strings_and_members():
+    from pipeline.rl.codes import Learner, Safety, member
+
+    assert member(Safety, "ssrl") is Safety.ssrl and member(Safety, Safety.ssrl) is Safety.ssrl
+    assert member(Learner, "sarsa") is Learner.sarsa
+    with pytest.raises(ValueError, match="expected one of none, shield, ssrl, fewshot"):
+        member(Safety, "nope")
+
+
+def test_only_the_rules_tell_safety_methods_apart():
+    """Adding a safety method touches codes.Safety and rules.py, not the kernel, runner or env."""
+    from pathlib import Path
+
+    import pipeline.rl as rl
+    for name in ("kernel.py", "runner.py", "gym_env.py", "agents.py", "structs.py"):
+        src = (Path(rl.__file__).parent / name).read_text(encoding="utf-8")
+        assert "Safety." not in src and ".uses_recogniser" not in src, name

@@ -7,7 +7,7 @@ from pipeline.rl.gym_env import SafeNavigationEnv
 from pipeline.rl.methods import get_method, method_names
 from pipeline.rl.rng import run_seeds
 from pipeline.rl.runner import run_trials
-from pipeline.rl.sink import FLAG_COLLIDED
+from pipeline.rl.codes import StepFlag
 from pipeline.world.geometry import build_geometry
 from pipeline.world.maze import load_layout
 
@@ -17,7 +17,7 @@ MAZE = load_layout("5x5")
 def collisions_by(sink, run, key):
     seen = {}
     for ep in sink.by_run(run):
-        hit = (ep["flags"] & FLAG_COLLIDED) != 0
+        hit = (ep["flags"] & StepFlag.collided) != 0
         for s, a in zip(ep["states"][hit], ep["actions"][hit]):
             k = key(int(s), int(a))
             seen[k] = seen.get(k, 0) + 1

@@ -22,8 +22,8 @@ Timestamps come from (run, episode, step), never from the wall clock (:func:`log
 one step is 1 ms, one episode 1 s, one run 10^6 s, so the same data gives the same bytes and the
 Rerun / Foxglove time axis reads "run r, episode e, step t" as r*10^6 + e seconds + t ms.
 
-The flag bits and unsafe-set sources mirror ``pipeline/rl/sink.py`` (``records`` imports nothing
-from ``rl``; a test checks that the two agree).
+The flag bits and unsafe-set sources mirror ``pipeline/rl/codes.py`` (``StepFlag``, ``Source``;
+``records`` imports nothing from ``rl``; a test checks that the two agree).
 """
 from __future__ import annotations
 
@@ -38,7 +38,8 @@ TOPIC_SUBSTITUTIONS = "/substitutions"
 TOPIC_PICTURES = "/pictures"  # + "/<picture id>"
 TOPIC_SUPPORT = "/support"  # + "/<category>/<position>"
 
-# Flag bits of Steps.flags and sources of unsafe-set additions (same values as pipeline/rl/sink.py).
+# Flag bits of Steps.flags and sources of unsafe-set additions (same names and values as
+# pipeline/rl/codes.py StepFlag and Source).
 FLAG_RESELECTED = 1
 FLAG_COLLIDED = 2
 FLAG_RECOVERED = 4

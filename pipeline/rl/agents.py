@@ -8,9 +8,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from pipeline.rl.codes import Learner, StepFlag, member
 from pipeline.rl.methods import MethodSpec
 from pipeline.rl.policy import max_allowed, select_action, td_update
-from pipeline.rl.sink import FLAG_RESELECTED
 
 
 class TabularAgent:
@@ -41,7 +41,7 @@ class TabularAgent:
 
 def run_episode(env, agent: TabularAgent, seed: int | None = None) -> dict:
     """One episode through the Gymnasium API; returns the per-step arrays like the runner's sink."""
-    sarsa = agent.method.learner == "sarsa"
+    sarsa = member(Learner, agent.method.learner) == Learner.sarsa
     s, info = env.reset(seed=seed)
     mask = info["action_mask"]
     states, actions, rewards, flags = [], [], [], []
@@ -71,7 +71,7 @@ def run_episode(env, agent: TabularAgent, seed: int | None = None) -> dict:
         states.append(s)
         actions.append(a)
         rewards.append(r)
-        flags.append(info["flags"] | (FLAG_RESELECTED if resel else 0))
+        flags.append(info["flags"] | (StepFlag.reselected if resel else 0))
         s, mask = s2, next_mask
         if terminated or truncated:
             break

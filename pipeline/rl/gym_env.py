@@ -51,13 +51,13 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from pipeline.rl.codes import Safety
+from pipeline.rl.codes import Outcome, StepFlag
 from pipeline.rl.methods import MethodSpec, get_method
 from pipeline.rl.recogniser import Recogniser
 from pipeline.rl.rng import run_seeds
-from pipeline.rl.rules import COLLIDED, PREVENTED, apply_action
+from pipeline.rl.rules import apply_action, empty_added, reasons_with_pictures
 from pipeline.rl.runner import make_run_world
-from pipeline.rl.sink import FLAG_TRUNCATED
+from pipeline.rl.structs import MethodParams
 from pipeline.world.geometry import build_geometry
 from pipeline.world.maze import ACTION_NAMES, Layout, load_layout
 from pipeline.world.pictures import N_PICTURES
@@ -70,7 +70,9 @@ class SafeNavigationEnv(gym.Env):
                  recogniser: Recogniser | None = None, run: int = 0, render_mode: str | None = None):
         self.layout = maze if isinstance(maze, Layout) else load_layout(maze)
         self.method = method if isinstance(method, MethodSpec) else get_method(method)
-        if self.method.uses_recogniser and recogniser is None:
+        self._params = MethodParams.of(self.method)
+        self._sees_pictures = reasons_with_pictures(self._params.safety)
+        if self._sees_pictures and recogniser is None:
             raise ValueError(f"method {self.method.name!r} reasons with pictures: pass a recogniser")
         if render_mode not in (None, "ansi"):
             raise ValueError(f"render_mode={render_mode!r}: only 'ansi' is supported")
@@ -80,8 +82,7 @@ class SafeNavigationEnv(gym.Env):
         self.geometry = build_geometry(self.layout)
         self.observation_space = spaces.Discrete(self.layout.n_cells)
         self.action_space = spaces.Discrete(4)
-        self._safety = int(Safety[self.method.safety])
-        self._added = np.empty((8, 3), dtype=np.int64)
+        self._added = empty_added()
         self._new_run(0)
 
     def _new_run(self, seed: int) -> None:
@@ -89,7 +90,7 @@ class SafeNavigationEnv(gym.Env):
         self.world = make_run_world(self.geometry, seed, self.run_id)
         self.unsafe = np.zeros((self.layout.n_cells, 4), dtype=np.bool_)
         self.predicted = np.zeros(N_PICTURES, dtype=np.int8)
-        if self.method.uses_recogniser:
+        if self._sees_pictures:
             self.recogniser.start_run(self.run_id, run_seeds(seed, self.run_id).recogniser)
             self.predicted[:] = self.recogniser.predictions(self.run_id)
         self.state = self.layout.start
@@ -114,29 +115,30 @@ class SafeNavigationEnv(gym.Env):
         if not self.action_space.contains(a):
             raise ValueError(f"action {action!r} outside Discrete(4)")
         s = self.state
+        p, g = self._params, self.geometry
         out, s2, reward, terminated, flags, picture, n_added = apply_action(
-            s, a, self.geometry.next_cell, self.geometry.obstacle, self.geometry.ssrl_pairs,
-            self.layout.goal, self.world.pictures, self.world.true_category, self.predicted, self.unsafe,
-            self._safety, self.method.recovery, self.method.constrained, self._added)
-        added = [tuple(int(x) for x in row) for row in self._added[:n_added]]
+            s, a, p.safety, p.recovery, p.constrained, g.next_cell, g.obstacle, g.ssrl_pairs, self.layout.goal,
+            self.world.pictures, self.world.true_category, self.predicted, self.unsafe, self._added)
+        added = [tuple(int(x) for x in self._added[k]) for k in range(n_added)]
         recognition = None
         if picture >= 0:
             o = self.geometry.obstacle[s, a]
             recognition = {"picture": int(picture), "predicted": int(self.predicted[picture]),
                            "true": int(self.world.true_category[o])}
-        if out == PREVENTED:
+        if out == Outcome.prevented:
             return s, 0.0, False, False, self._info(prevented=True, collided=False, picture=int(picture),
                                                     recognition=recognition, flags=0, added=added)
-        if out == COLLIDED and self.method.dynamic_support and picture >= 0:
+        collided = out == Outcome.collided
+        if collided and self._params.dynamic and picture >= 0:
             self.recogniser.learn_from_collision(self.run_id, int(picture), recognition["true"])
             self.predicted[:] = self.recogniser.predictions(self.run_id)
         self.t += 1
         self.state = int(s2)
         truncated = (not terminated) and self.t >= self.method.max_steps
         if truncated:
-            flags |= FLAG_TRUNCATED
+            flags |= StepFlag.truncated
         return self.state, float(reward), bool(terminated), bool(truncated), self._info(
-            prevented=False, collided=out == COLLIDED, picture=int(picture), recognition=recognition,
+            prevented=False, collided=collided, picture=int(picture), recognition=recognition,
             flags=int(flags), added=added)
 
     def render(self):

@@ -30,6 +30,7 @@ from omegaconf.errors import OmegaConfBaseException
 
 from pipeline.errors import ConfigError
 from pipeline.rl.codes import Learner, Safety
+from pipeline.rl.rules import reasons_with_pictures
 from pipeline.schema import check, setting
 
 #: ``conf/method/<name>.yaml``: each file holds only what differs from :class:`MethodSpec`'s defaults.
@@ -69,7 +70,8 @@ class MethodSpec:
 
     @property
     def uses_recogniser(self) -> bool:
-        return self.safety == Safety.fewshot.name
+        """Whether its safety rule looks at pictures (``pipeline.rl.rules.reasons_with_pictures``)."""
+        return bool(reasons_with_pictures(Safety[self.safety]))
 
     def with_overrides(self, **kw) -> "MethodSpec":
         return check_method(replace(self, **kw))

@@ -1,14 +1,16 @@
 """The world's response to one chosen action, with the method's safety layer and self-recovery
 (paper section 3.2.2, 3.3 and Algorithm 1 lines 4-25; DESIGN.md decisions).
 
-``apply_action`` is the single implementation of these rules; the batched runner and the
-Gymnasium environment both call it.
+``apply_action`` is the single implementation of these rules; the batched kernel and the
+Gymnasium environment both call it. It is also the only code that tells safety methods apart
+(``codes.Safety``): adding one means a member there, a branch here (and in
+``reasons_with_pictures`` if it looks at pictures), its yaml, a test and a docs line.
 
 Given the robot in free cell ``s`` choosing ``a``:
 
 * ``a`` runs into obstacle ``o`` and the method reasons with pictures (few-shot) -> the robot sees
   the picture of the face of ``o`` toward it. Recognised as its true category: (s, a) joins A_d,
-  the action is not executed (``PREVENTED``) and the agent reselects in the same step.
+  the action is not executed (``Outcome.prevented``) and the agent reselects in the same step.
   Misrecognised: the robot collides.
 * collision: reward -1, and by method: shield and few-shot add (s, a) to A_d; SSRL adds every
   (free neighbour of o, action toward o). With self-recovery the robot reverts to ``s`` and the
@@ -19,18 +21,25 @@ Given the robot in free cell ``s`` choosing ``a``:
 from __future__ import annotations
 
 import numba as nb
+import numpy as np
 
-from pipeline.rl.sink import (FLAG_COLLIDED, FLAG_GOAL, FLAG_RECOVERED, SOURCE_COLLISION,
-                              SOURCE_RECOGNITION, SOURCE_SSRL_RULE)
+from pipeline.rl.codes import Outcome, Safety, Source, StepFlag
 
-MOVED = 0
-COLLIDED = 1
-PREVENTED = 2
+#: The most pairs one step can add to A_d (SSRL: the pair itself and up to four neighbours').
+MAX_ADDED = 8
 
-SAFETY_NONE = 0
-SAFETY_SHIELD = 1
-SAFETY_SSRL = 2
-SAFETY_FEWSHOT = 3
+
+@nb.njit(cache=True)
+def empty_added():
+    """A scratch array for ``apply_action``'s additions to A_d: rows ``(cell, action, source)``."""
+    return np.empty((MAX_ADDED, 3), dtype=np.int64)
+
+
+@nb.njit(cache=True)
+def reasons_with_pictures(safety):
+    """Whether the safety rule looks at the picture of the obstacle ahead (and so needs a
+    recogniser): few-shot, Algorithm 1 lines 4-10."""
+    return safety == Safety.fewshot
 
 
 @nb.njit(cache=True, inline="always")
@@ -38,44 +47,51 @@ def _add_unsafe(unsafe, s, a, source, added, n_added):
     if unsafe[s, a]:
         return n_added
     unsafe[s, a] = True
-    added[n_added, 0] = s
+    added[n_added, 0] = s  # a row of ``added`` is (cell, action, source)
     added[n_added, 1] = a
     added[n_added, 2] = source
     return n_added + 1
 
 
+# Plain arguments, not the ``structs`` records: numba reference-counts every array of a tuple
+# argument on each call (a tenth of the kernel's speed when paid every step), and types a tuple
+# argument from Python more slowly than scalars (the Gymnasium env calls this every step).
 @nb.njit(cache=True)
-def apply_action(s, a, next_cell, obstacle, ssrl_pairs, goal, pictures, true_category, predicted,
-                 unsafe, safety, recovery, constrained, added):
-    """Apply action ``a`` in cell ``s``.
+def apply_action(s, a, safety, recovery, constrained, next_cell, obstacle, ssrl_pairs, goal, pictures,
+                 true_category, predicted, unsafe, added):
+    """Apply action ``a`` in cell ``s`` for a method with safety rule ``safety`` (a ``Safety``),
+    ``recovery`` and ``constrained`` (``structs.MethodParams``).
 
-    ``pictures[s, a]`` is this run's picture id table, ``true_category[o]`` the category of
+    ``next_cell``, ``obstacle``, ``ssrl_pairs`` and ``goal`` are the maze's (``structs.MazeArrays``);
+    ``pictures[s, a]`` is the run's picture id table, ``true_category[o]`` the category of
     obstacle ``o``, ``predicted[picture]`` the recogniser's current answer. ``unsafe`` (A_d) is
-    updated in place; each addition is written to ``added`` (rows of cell, action, source).
+    updated in place; each addition is written to a row ``(cell, action, source)`` of ``added``
+    (``empty_added``; ``source`` a ``Source``).
 
-    Returns ``(outcome, next_state, reward, terminal, flags, picture, n_added)`` where ``picture``
-    is the picture seen (or -1).
+    Returns ``(outcome, next_state, reward, terminal, flags, picture, n_added)``: an ``Outcome``
+    value (an int: numba hands enum members to Python slowly), ``StepFlag`` bits, the picture seen
+    (or -1) and the number of rows written to ``added``.
     """
     n_added = 0
     o = obstacle[s, a]
     if o < 0:
         s2 = next_cell[s, a]
         if s2 == goal:
-            return MOVED, s2, 1.0, True, FLAG_GOAL, -1, 0
-        return MOVED, s2, 0.0, False, 0, -1, 0
+            return Outcome.moved.value, s2, 1.0, True, StepFlag.goal, -1, 0
+        return Outcome.moved.value, s2, 0.0, False, 0, -1, 0
     picture = -1
-    if safety == SAFETY_FEWSHOT:
+    if reasons_with_pictures(safety):
         picture = pictures[s, a]
         if predicted[picture] == true_category[o]:
-            n_added = _add_unsafe(unsafe, s, a, SOURCE_RECOGNITION, added, n_added)
-            return PREVENTED, s, 0.0, False, 0, picture, n_added
-    if safety != SAFETY_NONE:
-        n_added = _add_unsafe(unsafe, s, a, SOURCE_COLLISION, added, n_added)
-    if safety == SAFETY_SSRL:
+            n_added = _add_unsafe(unsafe, s, a, Source.recognition, added, n_added)
+            return Outcome.prevented.value, s, 0.0, False, 0, picture, n_added
+    if safety != Safety.none:
+        n_added = _add_unsafe(unsafe, s, a, Source.collision, added, n_added)
+    if safety == Safety.ssrl:
         for k in range(4):
             c = ssrl_pairs[o, k, 0]
             if c >= 0:
-                n_added = _add_unsafe(unsafe, c, ssrl_pairs[o, k, 1], SOURCE_SSRL_RULE, added, n_added)
+                n_added = _add_unsafe(unsafe, c, ssrl_pairs[o, k, 1], Source.ssrl_rule, added, n_added)
     if recovery and not constrained:
-        return COLLIDED, s, -1.0, False, FLAG_COLLIDED | FLAG_RECOVERED, picture, n_added
-    return COLLIDED, s, -1.0, True, FLAG_COLLIDED, picture, n_added
+        return Outcome.collided.value, s, -1.0, False, StepFlag.collided | StepFlag.recovered, picture, n_added
+    return Outcome.collided.value, s, -1.0, True, StepFlag.collided, picture, n_added

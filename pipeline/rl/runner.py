@@ -13,14 +13,16 @@ from dataclasses import dataclass, field
 import numpy as np
 from tqdm.auto import tqdm
 
-from pipeline.rl import kernel
-from pipeline.rl.codes import Learner, Safety
+from pipeline.rl import kernel, rules
+from pipeline.rl.codes import Status
 from pipeline.rl.methods import MethodSpec
 from pipeline.rl.recogniser import Recogniser
 from pipeline.rl.rng import run_seeds
 from pipeline.rl.sink import EpisodeSink
+from pipeline.rl.structs import (Additions, MazeArrays, MethodParams, Recognitions, Results, RunState, Sights,
+                                 Substitution, Trace)
 from pipeline.world.geometry import Geometry, build_geometry
-from pipeline.world.maze import Layout, shortest_path_length
+from pipeline.world.maze import Layout
 from pipeline.world.pictures import N_PICTURES, picture_category
 
 #: True category of every query picture id.
@@ -110,41 +112,44 @@ class TrialResult:
         }
 
 
-def _emit(sink, r, run_id, first_ep, last_ep, res, buf, scores, cursors):
+def _emit(sink, r, run_id, first_ep, last_ep, results, trace, recognitions, additions, scores, cursors):
     """Hand episodes ``first_ep..last_ep-1`` of run ``r`` to the sink as one columnar batch."""
     if last_ep > first_ep:
         eps = slice(first_ep, last_ep)
-        steps = res["steps"][r, eps]
+        steps = results.steps[r, eps]
         n = int(steps.sum())
-        lo, hi = cursors["rec"][r], int(buf["rec_len"][r])
-        rec = buf["rec"][r, lo:hi]
+        lo, hi = cursors["rec"][r], int(recognitions.length[r])
+        rec = slice(lo, hi)
         part = scores[r][lo:hi]
         sc = np.stack(part).astype(np.float32) if len(part) == hi - lo and hi > lo else np.zeros((hi - lo, 0), np.float32)
-        alo, ahi = cursors["add"][r], int(buf["add_len"][r])
-        add = buf["add"][r, alo:ahi]
+        alo, ahi = cursors["add"][r], int(additions.length[r])
+        add = slice(alo, ahi)
         cursors["rec"][r], cursors["add"][r] = hi, ahi
         sink.episodes(
             run=run_id, episode=np.arange(first_ep, last_ep, dtype=np.int32), steps=steps.astype(np.int32),
-            states=buf["trace_s"][r, :n].copy(), actions=buf["trace_a"][r, :n].copy(),
-            rewards=buf["trace_r"][r, :n].copy(), flags=buf["trace_f"][r, :n].copy(),
+            states=trace.states[r, :n].copy(), actions=trace.actions[r, :n].copy(),
+            rewards=trace.rewards[r, :n].copy(), flags=trace.flags[r, :n].copy(),
             recognitions={
-                "episode": rec[:, 0].astype(np.int32), "step": rec[:, 1].astype(np.int32),
-                "state": rec[:, 2].astype(np.int32), "action": rec[:, 3].astype(np.int8),
-                "picture": rec[:, 4].astype(np.int16), "predicted": rec[:, 5].astype(np.int8),
-                "true": rec[:, 6].astype(np.int8), "scores": sc,
+                "episode": recognitions.episode[r, rec].astype(np.int32),
+                "step": recognitions.step[r, rec].astype(np.int32),
+                "state": recognitions.state[r, rec].astype(np.int32),
+                "action": recognitions.action[r, rec].astype(np.int8),
+                "picture": recognitions.picture[r, rec].astype(np.int16),
+                "predicted": recognitions.predicted[r, rec].astype(np.int8),
+                "true": recognitions.true[r, rec].astype(np.int8), "scores": sc,
             },
             unsafe_added={
-                "episode": add[:, 0].astype(np.int32), "step": add[:, 1].astype(np.int32),
-                "state": add[:, 2].astype(np.int32), "action": add[:, 3].astype(np.int8),
-                "source": add[:, 4].astype(np.int8),
+                "episode": additions.episode[r, add].astype(np.int32), "step": additions.step[r, add].astype(np.int32),
+                "state": additions.state[r, add].astype(np.int32), "action": additions.action[r, add].astype(np.int8),
+                "source": additions.source[r, add].astype(np.int8),
             },
             summary={
-                "collisions": res["col"][r, eps].copy(), "return_": res["ret"][r, eps].copy(),
-                "reached_goal": res["goal"][r, eps].copy(), "prevented": res["prev"][r, eps].copy(),
-                "epsilon": res["eps"][r, eps].copy(), "greedy_optimal": res["greedy"][r, eps].copy(),
+                "collisions": results.collisions[r, eps].copy(), "return_": results.returns[r, eps].copy(),
+                "reached_goal": results.reached_goal[r, eps].copy(), "prevented": results.prevented[r, eps].copy(),
+                "epsilon": results.epsilon[r, eps].copy(), "greedy_optimal": results.greedy_optimal[r, eps].copy(),
             },
         )
-    buf["trace_len"][r] = 0
+    trace.length[r] = 0
 
 
 def run_trials(layout: Layout, method: MethodSpec, runs: int, episodes: int, seed: int = 0, *,
@@ -165,20 +170,25 @@ def run_trials(layout: Layout, method: MethodSpec, runs: int, episodes: int, see
         raise ValueError(f"runs={runs}: must be >= 1")
     if episodes < 1:
         raise ValueError(f"episodes={episodes}: must be >= 1")
-    if method.uses_recogniser and recogniser is None:
+    params = MethodParams.of(method)
+    reasons_with_pictures = rules.reasons_with_pictures(params.safety)
+    if reasons_with_pictures and recogniser is None:
         raise ValueError(f"method {method.name!r} reasons with pictures: pass a recogniser")
     geometry = build_geometry(layout)
-    opt_len = shortest_path_length(layout)
-    n_cells, n_obs = layout.n_cells, len(layout.obstacles)
+    maze = MazeArrays.of(layout, geometry)
+    n_obs = len(layout.obstacles)
+    # each dangerous pair (eq. 4) is seen and joins A_d at most once a run
     n_dangerous = max(1, int((geometry.obstacle >= 0).sum()))
     record = sink is not None
 
     worlds = [make_run_world(geometry, seed, run_offset + r) for r in range(runs)]
-    pictures = np.stack([w.pictures for w in worlds]).astype(np.int16)
-    true_category = np.stack([w.true_category for w in worlds]).astype(np.int8) if n_obs else np.zeros((runs, 1), np.int8)
-    predicted = np.zeros((runs, N_PICTURES), dtype=np.int8)
+    sights = Sights(
+        pictures=np.stack([w.pictures for w in worlds]).astype(np.int16),
+        true_category=np.stack([w.true_category for w in worlds]).astype(np.int8) if n_obs else np.zeros((runs, 1), np.int8),
+        predicted=np.zeros((runs, N_PICTURES), dtype=np.int8))
+    predicted = sights.predicted
     rng = np.array([run_seeds(seed, run_offset + r).agent for r in range(runs)], dtype=np.uint64)
-    uses_recogniser = recogniser is not None and method.uses_recogniser
+    uses_recogniser = recogniser is not None and reasons_with_pictures
 
     def slot(r: int) -> int:
         return run_offset if shared_support else run_offset + r
@@ -191,61 +201,43 @@ def run_trials(layout: Layout, method: MethodSpec, runs: int, episodes: int, see
                 sink.substitution(run=run_offset + r, episode=0, step=0, picture=-1, category=-1,
                                   position=-1, support_accuracy=float((predicted[r] == PICTURE_CATEGORY).mean()))
 
-    q = np.zeros((runs, n_cells, 4))
-    unsafe = np.zeros((runs, n_cells, 4), dtype=np.bool_)
-    cur = np.zeros((runs, 7), dtype=np.int64)
-    cur[:, 2] = layout.start
-    cur[:, 3] = -1
-    eps = np.full(runs, method.epsilon)
-    ep_ret = np.zeros(runs)
-    res = {
-        "steps": np.zeros((runs, episodes), np.int32), "col": np.zeros((runs, episodes), np.int32),
-        "ret": np.zeros((runs, episodes), np.float32), "goal": np.zeros((runs, episodes), np.bool_),
-        "prev": np.zeros((runs, episodes), np.int32), "greedy": np.zeros((runs, episodes), np.bool_),
-        "eps": np.zeros((runs, episodes), np.float32),
-    }
-    cap = max(trace_capacity, method.max_steps) if record else 1
-    buf = {
-        "trace_s": np.zeros((runs, cap), np.int32), "trace_a": np.zeros((runs, cap), np.int8),
-        "trace_r": np.zeros((runs, cap), np.float32), "trace_f": np.zeros((runs, cap), np.uint8),
-        "trace_len": np.zeros(runs, np.int64),
-        "rec": np.zeros((runs, n_dangerous, 7), np.int64), "rec_len": np.zeros(runs, np.int64),
-        "add": np.zeros((runs, n_dangerous, 5), np.int64), "add_len": np.zeros(runs, np.int64),
-        "sub": np.zeros((runs, 4), np.int64),
-    }
+    state = RunState.fresh(runs, layout.n_cells, layout.start, method.epsilon, rng)
+    results = Results.zeros(runs, episodes)
+    trace = Trace.empty(runs, max(trace_capacity, method.max_steps) if record else 1, record)
+    recognitions = Recognitions.empty(runs, n_dangerous)
+    additions = Additions.empty(runs, n_dangerous)
+    substitution = Substitution.empty(runs)
     scores: list[list] = [[] for _ in range(runs)]
     cursors = {"rec": [0] * runs, "add": [0] * runs}
     emitted = [0] * runs
-    params = np.array([method.gamma, method.alpha, method.epsilon_decay, method.epsilon_min])
-    iparams = np.array([Learner[method.learner], Safety[method.safety], int(method.recovery),
-                        int(method.constrained), int(method.dynamic_support), method.max_steps,
-                        layout.start, layout.goal, opt_len, int(record)], dtype=np.int64)
     status = np.zeros(runs, np.int64)
     want_scores = record and uses_recogniser
 
     def score_pending(r: int) -> None:
         if not want_scores:
             return
-        lo, hi = len(scores[r]), int(buf["rec_len"][r])
+        lo, hi = len(scores[r]), int(recognitions.length[r])
         if hi > lo:
-            pics = buf["rec"][r, lo:hi, 4].astype(np.int64)
+            pics = recognitions.picture[r, lo:hi].astype(np.int64)
             scores[r].extend(np.asarray(recogniser.scores(slot(r), pics), dtype=np.float32))
+
+    def emit(r: int) -> None:
+        done = int(state.episode[r])
+        _emit(sink, r, run_offset + r, emitted[r], done, results, trace, recognitions, additions, scores, cursors)
+        emitted[r] = done
 
     def advance(pending: np.ndarray, limit: int) -> None:
         while pending.size:
-            kernel.advance_batch(pending, status, limit, params, iparams,
-                                 geometry.next_cell, geometry.obstacle, geometry.ssrl_pairs,
-                                 pictures, true_category, predicted, q, unsafe, rng, cur, eps, ep_ret,
-                                 res["steps"], res["col"], res["ret"], res["goal"], res["prev"],
-                                 res["greedy"], res["eps"], buf["trace_s"], buf["trace_a"],
-                                 buf["trace_r"], buf["trace_f"], buf["trace_len"], buf["rec"],
-                                 buf["rec_len"], buf["add"], buf["add_len"], buf["sub"])
+            kernel.advance_batch(pending, limit, status, params, maze, sights, state, results, trace,
+                                 recognitions, additions, substitution)
             again = []
             for r in pending:
                 r = int(r)
                 score_pending(r)
-                if status[r] == kernel.STATUS_SUBSTITUTE:
-                    ep, step, pic, cat = (int(x) for x in buf["sub"][r])
+                why = int(status[r])  # numpy compares its ints with an IntEnum member slowly (~8 us)
+                if why == Status.substitute:
+                    ep, step = int(substitution.episode[r]), int(substitution.step[r])
+                    pic, cat = int(substitution.picture[r]), int(substitution.category[r])
                     position = recogniser.learn_from_collision(slot(r), pic, cat)
                     predicted[r] = recogniser.predictions(slot(r))
                     if sink is not None:
@@ -253,10 +245,8 @@ def run_trials(layout: Layout, method: MethodSpec, runs: int, episodes: int, see
                                           category=cat, position=int(position),
                                           support_accuracy=float((predicted[r] == PICTURE_CATEGORY).mean()))
                     again.append(r)
-                elif status[r] == kernel.STATUS_FLUSH:
-                    _emit(sink, r, run_offset + r, emitted[r], int(cur[r, 0]),
-                          res, buf, scores, cursors)
-                    emitted[r] = int(cur[r, 0])
+                elif why == Status.flush:
+                    emit(r)
                     again.append(r)
             pending = np.array(again, dtype=np.int64)
 
@@ -268,14 +258,13 @@ def run_trials(layout: Layout, method: MethodSpec, runs: int, episodes: int, see
         for r in group:
             start(int(r))
         for limit in ([episodes] if shared_support else limits):
-            before = int(cur[group, 0].sum())
+            before = int(state.episode[group].sum())
             advance(group, limit)
-            bar.update(int(cur[group, 0].sum()) - before)
+            bar.update(int(state.episode[group].sum()) - before)
             if record:  # hand finished episodes over as we go: a killed run loses little
                 for r in group:
-                    r = int(r)
-                    _emit(sink, r, run_offset + r, emitted[r], int(cur[r, 0]), res, buf, scores, cursors)
-                    emitted[r] = int(cur[r, 0])
+                    emit(int(r))
     bar.close()
-    return TrialResult(layout, method, seed, res["steps"], res["col"], res["ret"], res["goal"],
-                       res["prev"], res["greedy"], res["eps"], [w.placement for w in worlds])
+    return TrialResult(layout, method, seed, results.steps, results.collisions, results.returns,
+                       results.reached_goal, results.prevented, results.greedy_optimal, results.epsilon,
+                       [w.placement for w in worlds])

@@ -14,16 +14,16 @@ Batch fields (numpy arrays):
     states                       int32[T]   cell index ``row * width + col`` before the step
     actions                      int8[T]    0 N, 1 E, 2 S, 3 W (the executed action)
     rewards                      float32[T]
-    flags                        uint8[T]   bit 0 RESELECTED (the first choice was unsafe/prevented
-                                            and the agent reselected), bit 1 COLLIDED, bit 2 RECOVERED
-                                            (self-recovery reverted the robot), bit 3 GOAL,
-                                            bit 4 TRUNCATED (200-step limit)
+    flags                        uint8[T]   ``codes.StepFlag`` bits: reselected (the first choice
+                                            was unsafe/prevented and the agent reselected), collided,
+                                            recovered (self-recovery reverted the robot), goal,
+                                            truncated (200-step limit)
     recognitions                 dict of arrays, one entry per picture seen:
         episode int32, step int32, state int32, action int8, picture int16, predicted int8,
         true int8, scores float32[n, C] (C = 0 when the recogniser gives none)
     unsafe_added                 dict of arrays, one entry per (s, a) added to A_d:
-        episode int32, step int32, state int32, action int8, source int8 (0 recognition,
-        1 collision, 2 ssrl rule)
+        episode int32, step int32, state int32, action int8, source int8 (a ``codes.Source``:
+        recognition, collision, ssrl_rule)
     summary                      dict of arrays [E]: collisions int32, return_ float32,
                                  reached_goal bool, prevented int32, epsilon float32 (at the
                                  end of the episode), greedy_optimal bool (the greedy policy
@@ -34,16 +34,6 @@ from __future__ import annotations
 from typing import Any, Protocol
 
 import numpy as np
-
-FLAG_RESELECTED = 1
-FLAG_COLLIDED = 2
-FLAG_RECOVERED = 4
-FLAG_GOAL = 8
-FLAG_TRUNCATED = 16
-
-SOURCE_RECOGNITION = 0
-SOURCE_COLLISION = 1
-SOURCE_SSRL_RULE = 2
 
 
 class EpisodeSink(Protocol):
