@@ -4,7 +4,7 @@ import pytest
 from fakes import ListSink, TableRecogniser, always_right, always_wrong
 from pipeline.rl.agents import TabularAgent, run_episode
 from pipeline.rl.gym_env import SafeNavigationEnv
-from pipeline.rl.methods import METHODS, get_method
+from pipeline.rl.methods import get_method, method_names
 from pipeline.rl.rng import run_seeds
 from pipeline.rl.runner import run_trials
 from pipeline.rl.sink import FLAG_COLLIDED
@@ -94,7 +94,7 @@ def test_summary_fields():
     assert s["collisions"]["mean"] == pytest.approx(np.mean([r["collisions"] for r in s["runs"]]))
 
 
-@pytest.mark.parametrize("name", sorted(METHODS))
+@pytest.mark.parametrize("name", method_names())
 def test_gym_and_batched_runner_give_identical_trajectories(name):
     method = get_method(name)
     seed, episodes = 11, 25
