@@ -1,15 +1,19 @@
 # Two commands do all set-up on a fresh machine:
 #   make repro   -> creates .venv, installs everything, runs `dvc repro` (paper profile)
 #   make test    -> creates .venv, installs everything, runs the test suite (smoke profile)
+# Both install exactly the versions of requirements.lock; `make lock` re-makes it from pyproject.toml.
 PY ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
+LOCK := requirements.lock
+PIP_VERSION := 26.3
+PIP_TOOLS_VERSION := 7.6.2
 
-.PHONY: setup test test-slow repro bench clean-venv
+.PHONY: setup test test-slow repro bench clean-venv lock
 
-$(STAMP): pyproject.toml scripts/setup.sh
-	bash scripts/setup.sh
+$(STAMP): $(LOCK) pyproject.toml scripts/setup.sh
+	PIP_VERSION=$(PIP_VERSION) PY=$(PY) bash scripts/setup.sh
 	touch $(STAMP)
 
 setup: $(STAMP)
@@ -25,6 +29,18 @@ repro: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/python -m benchmarks
+
+# Re-resolves $(LOCK) from pyproject.toml (dependencies + the test extra) with hashes, keeping the
+# pins that still fit; `make lock LOCK_ARGS=--upgrade` (or `--upgrade-package NAME`) moves them.
+# pip-tools goes into .venv only here. torch must resolve to the CPU wheel pip finds on local disk.
+lock:
+	test -x $(BIN)/python || $(PY) -m venv $(VENV)
+	$(BIN)/python -m pip install -q "pip==$(PIP_VERSION)" "pip-tools==$(PIP_TOOLS_VERSION)"
+	CUSTOM_COMPILE_COMMAND="make lock" $(BIN)/pip-compile -q --generate-hashes --allow-unsafe \
+	  --strip-extras --extra test --no-emit-index-url --no-emit-find-links $(LOCK_ARGS) \
+	  -o $(LOCK) pyproject.toml
+	@grep -qE '^torch==[^ ]+\+cpu ' $(LOCK) || { echo "[lock] ERROR: torch is not the CPU build" >&2; exit 1; }
+	@! grep -qiE '^(nvidia-|triton|cuda-)' $(LOCK) || { echo "[lock] ERROR: CUDA packages in $(LOCK)" >&2; exit 1; }
 
 clean-venv:
 	rm -rf $(VENV)

@@ -19,24 +19,17 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from hydra import compose, initialize_config_dir
 
-from pipeline.fewshot.accuracy_study import StudyConfig, run_study
+from pipeline.fewshot.accuracy_study import run_study
 from pipeline.fewshot.recogniser import RelationRecogniser
-from pipeline.stages import meta_train
-from pipeline.stages._common import CONF_DIR
-
-
-def _compose(name: str, overrides: list[str]):
-    with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
-        return compose(config_name=name, overrides=overrides)
+from pipeline.stages._common import load_config, run_stage
 
 
 def bench_training(images_dir: str, out: Path) -> dict:
     ckpt = out / "relation_net.pt"
-    cfg = _compose("meta_train", [f"images_dir={images_dir}", f"checkpoint={ckpt}", f"metrics_file={out}/metrics.json", f"history_file={out}/train_history.csv"])
+    overrides = [f"images_dir={images_dir}", f"checkpoint={ckpt}", f"metrics_file={out}/metrics.json", f"history_file={out}/train_history.csv"]
     start = time.perf_counter()
-    metrics = meta_train.run(cfg)
+    metrics = run_stage("meta_train", overrides)
     wall = time.perf_counter() - start
     return {"checkpoint": str(ckpt), "wall_s": wall, **{k: metrics[k] for k in ("val_accuracy", "val_ci95", "time_to_target_s", "train_seconds", "eval_seconds", "episodes_trained", "selected_episode")}}
 
@@ -68,10 +61,10 @@ def bench_recogniser(checkpoint: str, images_dir: str, n: int = 2000) -> dict:
 
 
 def bench_study(checkpoint: str, images_dir: str) -> dict:
-    cfg = _compose("accuracy", [])
+    cfg = load_config("accuracy")
     start = time.perf_counter()
     rec = RelationRecogniser.from_files(checkpoint, images_dir, substitution_way=0)
-    result = run_study(rec, StudyConfig(**cfg.study))
+    result = run_study(rec, rec.query_categories, cfg.study)
     return {"study_s": time.perf_counter() - start, "repeats": cfg.study.repeats, "baseline_accuracy": result.baseline_accuracy, "table2": {str(k): v for k, v in result.table2.items()}}
 
 

@@ -121,7 +121,7 @@ def bench_trial(runs: int, episodes: int, folder: Path, repeat: int = 3) -> dict
 
         from pipeline.rl.methods import get_method
         from pipeline.rl.runner import run_trials
-        from pipeline.stages._recognisers import OracleRecogniser
+        from pipeline.rl.oracle import OracleRecogniser
         from pipeline.world.maze import load_layout
     except ImportError as exc:
         print(f"(trial benchmark skipped: {exc})")

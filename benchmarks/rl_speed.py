@@ -21,7 +21,7 @@ from pipeline.rl.gym_env import SafeNavigationEnv
 from pipeline.rl.methods import get_method
 from pipeline.rl.rng import run_seeds
 from pipeline.rl.runner import run_trials
-from pipeline.stages._recognisers import OracleRecogniser
+from pipeline.rl.oracle import OracleRecogniser
 from pipeline.world.maze import load_layout
 
 

@@ -13,3 +13,12 @@ class UserError(ValueError):
 
 class ConfigError(UserError):
     """A configuration value that cannot work; the message names the key."""
+
+
+class Interrupted(BaseException):
+    """Ctrl-C or SIGTERM: the stage stops, says what it kept in one line, and exits 130 or 143."""
+
+    def __init__(self, code: int, message: str = "interrupted"):
+        super().__init__(message)
+        self.code = code
+        self.message = message

@@ -6,8 +6,10 @@ failed write leaves the previous version untouched.
 """
 from __future__ import annotations
 
+import fcntl
 import json
 import os
+import shutil
 import tempfile
 from contextlib import contextmanager
 from pathlib import Path
@@ -51,3 +53,45 @@ def write_atomic(path: str | Path, data: bytes | str, *, fsync: bool = True) -> 
 def write_json_atomic(path: str | Path, data: Any, *, sort_keys: bool = False) -> Path:
     """JSON (indent 2, final newline) written atomically."""
     return write_atomic(path, json.dumps(data, indent=2, sort_keys=sort_keys) + "\n")
+
+
+@contextmanager
+def exclusive_folder(folder: str | Path, what: str = "out") -> Iterator[Path]:
+    """Hold ``folder`` for one writer: create it if needed, refuse at once (``UserError`` naming
+    ``what``) when it is a file, not writable, or held by another process."""
+    from pipeline.errors import UserError
+
+    folder = Path(folder)
+    if folder.exists() and not folder.is_dir():
+        raise UserError(f"config key '{what}': {folder} is a file, not a folder")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        handle = open(folder / ".lock", "a+")
+    except OSError as exc:
+        raise UserError(f"config key '{what}': cannot write into {folder} ({exc.strerror})") from None
+    try:
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise UserError(f"config key '{what}': {folder} is being written by another process; "
+                            "wait for it, or choose another folder") from None
+        yield folder
+    finally:
+        (folder / ".lock").unlink(missing_ok=True)
+        handle.close()
+
+
+def swap_in(staging: Path, target: Path) -> None:
+    """Move every entry of ``staging`` into ``target``, replacing entries of the same name, then
+    remove ``staging``. A folder being replaced is moved aside first and deleted last."""
+    aside = []
+    for entry in sorted(staging.iterdir()):
+        if entry.name.startswith(".old-"):
+            continue
+        dest = target / entry.name
+        if dest.is_dir() and not dest.is_symlink():
+            old = staging / f".old-{entry.name}"
+            os.replace(dest, old)
+            aside.append(old)
+        os.replace(entry, dest)
+    shutil.rmtree(staging)

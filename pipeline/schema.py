@@ -48,6 +48,10 @@ def check(obj: Any, prefix: str = "") -> None:
     """Raise :class:`ConfigError` naming the first value of ``obj`` (recursively) that breaks its
     field's constraints."""
     if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        known = {f.name for f in dataclasses.fields(obj)}
+        extra = sorted(k for k in vars(obj) if k not in known)  # added with '+key=' past Hydra's struct mode
+        if extra:
+            raise ConfigError(f"config key '{prefix}{extra[0]}': unknown key; known: {', '.join(sorted(known))}")
         for f in dataclasses.fields(obj):
             value = getattr(obj, f.name)
             key = f"{prefix}{f.name}"

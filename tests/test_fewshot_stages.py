@@ -4,11 +4,10 @@ import json
 
 import pandas as pd
 import pytest
-from hydra import compose, initialize_config_dir
-
+from pipeline.errors import ConfigError
 from pipeline.fewshot.synthetic import write_synthetic_dataset
-from pipeline.stages import accuracy, meta_train
-from pipeline.stages._common import CONF_DIR, ConfigError
+from pipeline.stages import meta_train
+from pipeline.stages._common import load_config, run_stage
 
 SHRINK = [
     "train.input_size=24", "train.relation_padding=1", "train.n_query=3", "train.episodes=20", "train.val_every=10",
@@ -16,28 +15,25 @@ SHRINK = [
 ]
 
 
-def _compose(name, overrides):
-    with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
-        return compose(config_name=name, overrides=overrides)
-
-
 def test_defaults_point_at_the_shared_dataset():
-    cfg = _compose("meta_train", [])
+    cfg = load_config("meta_train")
     assert cfg.images_dir == "datasets/images" and cfg.checkpoint == "datasets/models/relation_net.pt"
-    assert _compose("accuracy", []).study.repeats == 100
+    assert load_config("accuracy").study.repeats == 100
 
 
 def test_meta_train_then_accuracy(tmp_path):
     images = tmp_path / "images"
     write_synthetic_dataset(images, n_train=6, n_val=5, per_class=10, seed=2)
     paths = [f"images_dir={images}", f"checkpoint={tmp_path}/m/rn.pt", f"metrics_file={tmp_path}/m/metrics.json", f"history_file={tmp_path}/m/h.csv"]
-    metrics = meta_train.run(_compose("meta_train", paths + SHRINK))
+    metrics = run_stage("meta_train", paths + SHRINK)
     on_disk = json.loads((tmp_path / "m" / "metrics.json").read_text())
     assert on_disk["val_accuracy"] == pytest.approx(metrics["val_accuracy"]) and on_disk["val_episodes"] == 20
+    info = json.loads((tmp_path / "m" / "train_info.json").read_text())  # metrics.json: metrics only
+    assert set(on_disk) == set(meta_train.METRIC_KEYS) and {"train_seconds", "torch_threads", "images_dir"} <= set(info)
     assert len(pd.read_csv(tmp_path / "m" / "h.csv")) == 2
 
     out = tmp_path / "acc"
-    data = accuracy.run(_compose("accuracy", [f"images_dir={images}", f"checkpoint={tmp_path}/m/rn.pt", f"out_dir={out}", "study.repeats=4", "progress=false"]))
+    data = run_stage("accuracy", [f"recogniser.images_dir={images}", f"recogniser.checkpoint={tmp_path}/m/rn.pt", f"out_dir={out}", "study.repeats=4", "progress=false"])
     t1 = pd.read_csv(out / "table1.csv")
     assert len(t1) == 50
     with_same = t1[t1.variant == "with_same"]
@@ -56,10 +52,12 @@ def test_meta_train_then_accuracy(tmp_path):
 
 def test_config_errors_name_the_key(tmp_path):
     with pytest.raises(ConfigError, match=r"train\.bogus"):
-        meta_train.run(_compose("meta_train", ["+train.bogus=1"]))
-    with pytest.raises(ConfigError, match=r"train\.episodes must be int"):
-        meta_train.run(_compose("meta_train", ["train.episodes=many"]))
-    with pytest.raises(ConfigError, match=r"unknown config key\(s\) \['extra'\]"):
-        accuracy.run(_compose("accuracy", ["+extra=1"]))
-    with pytest.raises(ConfigError, match="study.repeats must be >= 1"):
-        accuracy.run(_compose("accuracy", ["study.repeats=0"]))
+        run_stage("meta_train", ["+train.bogus=1"])
+    with pytest.raises(ConfigError, match=r"config key 'train\.episodes'.*could not be converted to Integer"):
+        run_stage("meta_train", ["train.episodes=many"])
+    with pytest.raises(ConfigError, match=r"extra"):
+        run_stage("accuracy", ["+extra=1"])
+    with pytest.raises(ConfigError, match=r"config key 'study.repeats': must be >= 1; got 0"):
+        run_stage("accuracy", ["study.repeats=0"])
+    with pytest.raises(ConfigError, match=r"config key 'train.lr_schedule': must be one of constant, cosine, step"):
+        run_stage("meta_train", ["train.lr_schedule=linear"])

@@ -68,5 +68,5 @@ def test_manifest_contract(images, tmp_path):
     bad.to_csv(tmp_path / "b" / "manifest.csv", index=False)
     with pytest.raises(DataError, match="cannot read picture"):
         load_split(tmp_path / "b", "val", 24)
-    with pytest.raises(ValueError, match="train.episodes must be >= 1"):
+    with pytest.raises(ValueError, match="config key 'train.episodes': must be >= 1; got 0"):
         TrainConfig(episodes=0)

@@ -34,7 +34,7 @@ def smoke(tmp_path_factory):
     stage("render", f"out_dir={images}", f"figures_dir={images}/contact_sheets")
     stage("meta_train", f"images_dir={images}", f"checkpoint={models}/rn.pt", f"metrics_file={models}/metrics.json",
           f"history_file={models}/history.csv")
-    stage("accuracy", f"images_dir={images}", f"checkpoint={models}/rn.pt", f"out_dir={acc}")
+    stage("accuracy", f"recogniser.images_dir={images}", f"recogniser.checkpoint={models}/rn.pt", f"out_dir={acc}")
     for exp in ("fig8", "fig9", "fig10", "table3"):
         stage("trials", f"+experiment={exp}", f"out={runs}/{exp}", f"recogniser.checkpoint={models}/rn.pt",
               f"recogniser.images_dir={images}", "progress=false", f"metrics_file={d}/metrics/{exp}.json")

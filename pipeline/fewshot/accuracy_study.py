@@ -21,8 +21,6 @@ import numpy as np
 
 from pipeline.schema import setting
 
-from .recogniser import RelationRecogniser
-
 # The paper's figures (Tables 1 and 2), for the report to put beside ours.
 PAPER_BASELINE = {"correct": [0, 3, 2, 8, 4], "total": [8, 8, 8, 8, 8], "mean": 0.425}
 PAPER_TABLE1 = {
@@ -68,18 +66,25 @@ class StudyResult:
         return float(self.baseline_correct.sum() / self.per_category_total.sum())
 
 
-def run_study(recogniser: RelationRecogniser, config: StudyConfig, progress: bool = False) -> StudyResult:
-    """Run the baseline, Table 1 and Table 2 on ``recogniser``'s query and support pictures."""
+def run_study(recogniser, categories: np.ndarray, config: StudyConfig, k_shot: int = 5,
+              progress: bool = False) -> StudyResult:
+    """Run the baseline, Table 1 and Table 2 with any recogniser of the trials' protocol
+    (``start_run``, ``predictions``, ``scores``, ``learn_from_collision``); ``categories`` are the
+    query pictures' true categories. A recogniser with a support set of positions (``replace(run,
+    category, position, picture)``, the Relation Network) gets the paper's random positions; any
+    other learns each substituted picture through ``learn_from_collision``."""
     from tqdm.auto import tqdm
 
-    cats = recogniser.query_categories
-    n_way, k_shot = recogniser.n_way, recogniser.k_shot
+    cats = np.asarray(categories, dtype=np.int64)
+    n_way = int(cats.max()) + 1
+    k_shot = int(getattr(recogniser, "k_shot", k_shot))
+    substitute = getattr(recogniser, "replace", None)
     members = [np.flatnonzero(cats == c) for c in range(n_way)]
     per_cat = np.array([len(m) for m in members])
     run = 0
     recogniser.start_run(run, config.seed)
     base_pred = recogniser.predictions(run).copy()
-    base_scores = recogniser.scores(run, np.arange(recogniser.n_pictures)).copy()
+    base_scores = recogniser.scores(run, np.arange(len(cats))).copy()
     base_correct = np.bincount(cats[base_pred == cats], minlength=n_way)
 
     t1 = np.zeros((n_way, n_way), dtype=np.int64)
@@ -98,7 +103,10 @@ def run_study(recogniser: RelationRecogniser, config: StudyConfig, progress: boo
                 pictures = rng.choice(members[c], size=n, replace=False)
                 positions = rng.choice(k_shot, size=n, replace=False)
                 for pic, pos in zip(pictures, positions):
-                    recogniser.replace(run, c, int(pos), int(pic))
+                    if substitute is not None:
+                        substitute(run, c, int(pos), int(pic))
+                    else:
+                        recogniser.learn_from_collision(run, int(pic), c)
                 correct = recogniser.predictions(run) == cats
                 counted = np.ones(len(cats), dtype=bool)
                 counted[pictures] = False

@@ -11,15 +11,17 @@ goes through the same conversion and error handling.
 """
 from __future__ import annotations
 
+import importlib
+import signal
 import sys
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, Callable
 
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
-from pipeline.errors import ConfigError, UserError
-from pipeline.files import write_json_atomic  # noqa: F401  (the stages' JSON writer)
+from pipeline.errors import ConfigError, Interrupted, UserError
 from pipeline.schema import check
 
 #: Absolute path of the Hydra config folder (a relative one breaks when imported as a package).
@@ -79,8 +81,43 @@ def fail(exc: UserError) -> None:
     raise SystemExit(2) from None
 
 
+def _terminated(signum, frame) -> None:
+    raise Interrupted(128 + signum)
+
+
+@contextmanager
+def user_facing():
+    """User errors as one line and exit 2; Ctrl-C and SIGTERM as one line (what was kept) and exit
+    130 or 143, without a traceback."""
+    previous = signal.signal(signal.SIGTERM, _terminated)
+    try:
+        yield
+    except UserError as exc:
+        fail(exc)
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr, flush=True)
+        raise SystemExit(130) from None
+    except Interrupted as exc:
+        print(exc.message, file=sys.stderr, flush=True)
+        raise SystemExit(exc.code) from None
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
 def _hydra_mode(args: list[str]) -> bool:
     return any(a.startswith("-") for a in args)
+
+
+def load_config(stage: str, overrides: list[str] = ()) -> Any:
+    """``conf/<stage>.yaml`` with ``overrides``, as the stage's typed config (checked)."""
+    return typed(compose(stage, list(overrides)))
+
+
+def run_stage(stage: str, overrides: list[str] = ()) -> Any:
+    """Run a stage in this process, as the command line would; a user error raises
+    :class:`~pipeline.errors.UserError` (tests, benchmarks and notebooks use this)."""
+    module = importlib.import_module(f"pipeline.stages.{stage}")
+    return module.run(load_config(stage, overrides), list(overrides))
 
 
 def stage_main(config_name: str, run: Runner, args: list[str] | None = None) -> Any:
@@ -88,10 +125,36 @@ def stage_main(config_name: str, run: Runner, args: list[str] | None = None) -> 
     args = list(sys.argv[1:] if args is None else args)
     if _hydra_mode(args):
         return _hydra_main(config_name, run, args)
+    with user_facing():
+        return run(load_config(config_name, args), args)
+
+
+def sweep_points(args: list[str]) -> list[list[str]]:
+    """Override lists that together try every value of every swept key (``a=1,2 b=x,y`` gives
+    ``[a=1 b=x], [a=2 b=x], [a=1 b=y]``): a linear number of checks, not the whole grid."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+    from hydra.core.override_parser.types import OverrideType
+
+    plain = [a for a in args if not a.startswith("-")]
     try:
-        return run(typed(compose(config_name, args)), args)
-    except UserError as exc:
-        fail(exc)
+        parsed = OverridesParser.create().parse_overrides(plain)
+    except Exception as exc:  # hydra's OverrideParseException
+        raise ConfigError(one_line(exc)) from None
+    prefix = {OverrideType.ADD: "+", OverrideType.FORCE_ADD: "++"}
+    fixed, swept = [], []
+    for o in parsed:
+        if o.key_or_group.startswith("hydra"):
+            continue
+        if o.is_sweep_override():
+            swept.append((f"{prefix.get(o.type, '')}{o.key_or_group}", list(o.sweep_string_iterator())))
+        else:
+            fixed.append(o.input_line)
+    first = [f"{k}={values[0]}" for k, values in swept]
+    points = [fixed + first]
+    for i, (key, values) in enumerate(swept):
+        for v in values[1:]:
+            points.append(fixed + first[:i] + [f"{key}={v}"] + first[i + 1:])
+    return points
 
 
 def _hydra_main(config_name: str, run: Runner, args: list[str]) -> None:
@@ -100,12 +163,15 @@ def _hydra_main(config_name: str, run: Runner, args: list[str]) -> None:
 
     import pipeline.stages._schema  # noqa: F401
 
+    if any(a in ("-m", "--multirun") for a in args):  # refuse a bad sweep before launching any job
+        with user_facing():
+            for point in sweep_points(args):
+                load_config(config_name, point)
+
     @hydra.main(config_path=CONF_DIR, config_name=config_name, version_base="1.3")
     def task(cfg: DictConfig) -> Any:
-        try:
+        with user_facing():
             return run(typed(cfg), list(HydraConfig.get().overrides.task))
-        except UserError as exc:
-            fail(exc)
 
     sys.argv = [sys.argv[0], *args]
     task()

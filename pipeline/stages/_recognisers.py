@@ -67,7 +67,5 @@ def build_recogniser(node: dict, *, substitution_way: int, carry_over: bool, key
     target, args = recogniser_arguments(node, key)
     try:
         return target(**args, substitution_way=substitution_way, carry_over=carry_over)
-    except UserError:
-        raise
-    except (ValueError, FileNotFoundError) as exc:
+    except (UserError, ValueError, FileNotFoundError) as exc:
         raise ConfigError(f"config key '{key}': {exc}") from None

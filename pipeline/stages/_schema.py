@@ -183,8 +183,8 @@ class MetaTrainConfig:
 @dataclass
 class AccuracyConfig:
     profile: Profile = field(default_factory=Profile)
-    images_dir: str = setting(nonempty=True)
-    checkpoint: str = setting(nonempty=True)
+    recogniser: Dict[str, Any] = field(default_factory=dict)
+    """The recogniser group (``conf/recogniser/``), as in the trials."""
     out_dir: str = setting(nonempty=True)
     threads: int = setting(ge=1)
     progress: bool = MISSING

@@ -1,7 +1,7 @@
 """Stage ``accuracy``: the few-shot accuracy study of the paper's section 4.2.1 (Tables 1 and 2)
 on the rendered query and support pictures with the meta-trained checkpoint (docs/fewshot.md).
 
-    python -m pipeline accuracy [images_dir=...] [checkpoint=...] [study.repeats=...]
+    python -m pipeline accuracy [recogniser=relation_net|oracle|fixed_accuracy] [recogniser.checkpoint=...] [study.repeats=...]
 
 Writes ``out_dir``/baseline.csv, table1.csv, table2.csv and summary.json for the report stage.
 """
@@ -11,31 +11,35 @@ import time
 from dataclasses import asdict
 from pathlib import Path
 
+import numpy as np
 import torch
 
 from pipeline.fewshot.accuracy_study import run_study
-from pipeline.fewshot.recogniser import RelationRecogniser
 from pipeline.fewshot.study_tables import baseline_frame, summary, table1_frame, table2_frame
 from pipeline.files import write_json_atomic
 from pipeline.stages._common import stage_main
+from pipeline.stages._recognisers import build_recogniser
 from pipeline.stages._schema import AccuracyConfig
+from pipeline.world.pictures import CATEGORIES, N_PICTURES, picture_category
 
 
 def run(cfg: AccuracyConfig, overrides: list[str] = ()) -> dict:
     config = cfg.study
     torch.set_num_threads(cfg.threads)
     start = time.perf_counter()
-    recogniser = RelationRecogniser.from_files(cfg.checkpoint, cfg.images_dir, substitution_way=0)
-    names = list(recogniser.class_names)
-    result = run_study(recogniser, config, progress=cfg.progress)
+    recogniser = build_recogniser(cfg.recogniser, substitution_way=0, carry_over=False)
+    names = list(CATEGORIES)
+    categories = np.array([picture_category(p) for p in range(N_PICTURES)])
+    result = run_study(recogniser, categories, config, progress=cfg.progress)
     out = Path(cfg.out_dir)
     out.mkdir(parents=True, exist_ok=True)
     baseline_frame(result, names).to_csv(out / "baseline.csv", index=False)
     table1_frame(result, config.repeats).to_csv(out / "table1.csv", index=False)
     table2_frame(result).to_csv(out / "table2.csv", index=False)
     data = summary(result, names)
-    data["config"] = {"images_dir": cfg.images_dir, "checkpoint": cfg.checkpoint, **asdict(config)}
-    data["checkpoint_metrics"] = recogniser.checkpoint["metrics"]
+    data["config"] = {"recogniser": dict(cfg.recogniser), **asdict(config)}
+    if hasattr(recogniser, "checkpoint"):
+        data["checkpoint_metrics"] = recogniser.checkpoint["metrics"]
     write_json_atomic(out / "summary.json", data, sort_keys=True)  # no wall-clock figures: the same inputs give the same bytes
     print(
         f"query accuracy, original support set: {result.baseline_correct.sum()}/{result.per_category_total.sum()} "

@@ -4,9 +4,12 @@ classes, checkpoint selection on the validation classes (paper section 3.2.1; do
     python -m pipeline meta_train [images_dir=...] [train.episodes=...]
 
 Writes ``checkpoint`` (weights + config + metrics), ``metrics_file`` (validation accuracy over 600
-episodes with its 95% interval) and ``history_file`` (one row per selection evaluation).
+episodes with its 95% interval: a DVC metric), ``train_info.json`` beside it (timings, threads, flags,
+paths: not a metric) and ``history_file`` (one row per selection evaluation).
 """
 from __future__ import annotations
+
+from pathlib import Path
 
 import pandas as pd
 import torch
@@ -18,6 +21,9 @@ from pipeline.files import write_json_atomic
 from pipeline.stages._common import stage_main
 from pipeline.stages._schema import MetaTrainConfig
 
+#: The keys of the training result that ``metrics_file`` holds; the others go to ``train_info.json``.
+METRIC_KEYS = ("val_accuracy", "val_ci95", "val_episodes", "selection_val_accuracy", "selected_episode")
+
 
 def run(cfg: MetaTrainConfig, overrides: list[str] = ()) -> dict:
     config = cfg.train
@@ -28,7 +34,9 @@ def run(cfg: MetaTrainConfig, overrides: list[str] = ()) -> dict:
     result = meta_train(train, val, config, progress=cfg.progress)
     metrics = {**result.metrics, "images_dir": cfg.images_dir}
     save_checkpoint(cfg.checkpoint, result.network, normalisation=result.normalisation, config=config_dict(config), metrics=metrics)
-    write_json_atomic(cfg.metrics_file, metrics, sort_keys=True)
+    write_json_atomic(cfg.metrics_file, {k: metrics[k] for k in METRIC_KEYS}, sort_keys=True)
+    write_json_atomic(Path(cfg.metrics_file).with_name("train_info.json"),
+                      {k: v for k, v in metrics.items() if k not in METRIC_KEYS}, sort_keys=True)
     pd.DataFrame(result.history).to_csv(cfg.history_file, index=False)
     print(
         f"validation accuracy {100 * metrics['val_accuracy']:.2f}% +- {100 * metrics['val_ci95']:.2f}% "

@@ -9,6 +9,8 @@ of an experiment, plus ``<out>/summary.json`` listing the cells.
 """
 from __future__ import annotations
 
+import os
+import shutil
 import time
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
@@ -18,14 +20,14 @@ import numba
 from hydra.core.override_parser.overrides_parser import OverridesParser
 from omegaconf import OmegaConf
 
-from pipeline.errors import ConfigError, UserError
-from pipeline.files import write_json_atomic
+from pipeline.errors import ConfigError, Interrupted, UserError
+from pipeline.files import exclusive_folder, swap_in, write_json_atomic
 from pipeline.rl.methods import MethodSpec, load_method
 from pipeline.rl.rng import run_seeds
 from pipeline.rl.runner import make_run_world, run_trials
 from pipeline.schema import check
 from pipeline.stages._common import one_line, stage_main
-from pipeline.stages._recognisers import build_recogniser, recogniser_arguments
+from pipeline.stages._recognisers import build_recogniser
 from pipeline.stages._schema import Experiment, TrialsConfig
 from pipeline.world.geometry import build_geometry
 from pipeline.world.maze import Layout, load_layout
@@ -42,6 +44,8 @@ class CellRun:
     name: str
     config: TrialsConfig
     layout: Layout
+    recogniser: Any = None
+    """Built before any cell runs, so a broken checkpoint is refused up front."""
 
     @property
     def method(self) -> MethodSpec:
@@ -67,7 +71,7 @@ def experiment_cells(cfg: TrialsConfig, overrides: list[str]) -> dict[str, Trial
     methods = sorted({c.method for c in exp.cells.values()})
     if "method" in given:
         raise ConfigError(f"config key 'method': experiment {exp.name} chooses the method of each cell "
-                          f"({', '.join(methods)}); override a method field instead (method.alpha=...), "
+                          f"({', '.join(methods)}), so the override cannot apply; override a method field instead (method.alpha=...), "
                           f"or run method={given['method']} without +experiment")
     method_over = {k.removeprefix("method."): v for k, v in given.items() if k.startswith("method.")}
     for key in [*CELL_KEYS, *method_over]:
@@ -90,9 +94,30 @@ def experiment_cells(cfg: TrialsConfig, overrides: list[str]) -> dict[str, Trial
     return cells
 
 
+#: Command-line keys that only some methods read: (what uses it, test on the cell's method).
+ONLY_FOR = {
+    "recogniser": ("methods that recognise pictures (safety: fewshot)", lambda m: m.uses_recogniser),
+    "support": ("methods that recognise pictures (safety: fewshot)", lambda m: m.uses_recogniser),
+    "substitution": ("methods with a dynamic support set (dynamic_support: true)", lambda m: m.dynamic_support),
+}
+
+
+def refuse_inapplicable(configs: dict[str, TrialsConfig], given: dict[str, Any]) -> None:
+    """An override that no cell reads would change nothing: refuse it, naming the key."""
+    for key in given:
+        head = key.split(".")[0]
+        if head in ONLY_FOR:
+            who, uses = ONLY_FOR[head]
+            if not any(uses(c.method) for c in configs.values()):
+                names = ", ".join(sorted({c.method.name for c in configs.values()}))
+                raise ConfigError(f"config key '{key}': read only by {who}; this run has {names}: "
+                                  "the override cannot apply")
+
+
 def resolve_cells(cfg: TrialsConfig, overrides: list[str]) -> list[CellRun]:
-    """The cells to run, each with its layout loaded and its recogniser's arguments checked."""
+    """The cells to run, each with its layout loaded and its recogniser built."""
     configs = {"": cfg} if cfg.experiment is None else experiment_cells(cfg, overrides)
+    refuse_inapplicable(configs, parse_overrides(overrides))
     out = []
     for name, cell in configs.items():
         prefix = f"experiment.cells.{name}." if name else ""
@@ -100,19 +125,17 @@ def resolve_cells(cfg: TrialsConfig, overrides: list[str]) -> list[CellRun]:
             layout = load_layout(cell.maze)
         except UserError as exc:
             raise ConfigError(f"config key '{prefix}maze': {exc}") from None
-        if cell.method.uses_recogniser:
-            recogniser_arguments(cell.recogniser)
-        out.append(CellRun(name, cell, layout))
+        out.append(CellRun(name, cell, layout, make_recogniser(cell)))
     return out
 
 
-def make_recogniser(cell: CellRun):
-    method = cell.method
+def make_recogniser(cfg: TrialsConfig):
+    """The cell's recogniser (``conf/recogniser/``), or None for methods that see no pictures."""
+    method = cfg.method
     if not method.uses_recogniser:
         return None
-    way = cell.config.substitution if method.dynamic_support else 0
-    return build_recogniser(cell.config.recogniser, substitution_way=way,
-                            carry_over=cell.config.support == "carry")
+    way = cfg.substitution if method.dynamic_support else 0
+    return build_recogniser(cfg.recogniser, substitution_way=way, carry_over=cfg.support == "carry")
 
 
 def query_pictures(images_dir: str) -> dict[int, bytes]:
@@ -134,7 +157,7 @@ def recorded_config(cell: CellRun) -> dict:
 def run_cell(cell: CellRun, folder: Path) -> tuple[dict, float]:
     cfg, layout, method, name = cell.config, cell.layout, cell.method, cell.name
     runs, episodes, seed = cfg.runs, cfg.episodes, cfg.seed
-    recogniser = make_recogniser(cell)
+    recogniser = cell.recogniser
     writer = None
     if cfg.record:
         from pipeline.records.writer import RecordWriter
@@ -154,6 +177,12 @@ def run_cell(cell: CellRun, folder: Path) -> tuple[dict, float]:
     try:
         result = run_trials(layout, method, runs, episodes, seed, recogniser=recogniser, sink=writer,
                             progress=cfg.progress, shared_support=cfg.support == "carry")
+    except (KeyboardInterrupt, Interrupted) as exc:
+        code = exc.code if isinstance(exc, Interrupted) else 130
+        if writer is None:
+            raise Interrupted(code, f"interrupted; nothing recorded (record=false); {folder} left as it was") from None
+        path = writer.close(complete=False)
+        raise Interrupted(code, f"interrupted; partial records at {path}: {writer.n_episodes} episodes") from None
     except BaseException:
         if writer is not None:
             writer.close(complete=False)
@@ -168,13 +197,55 @@ def run_cell(cell: CellRun, folder: Path) -> tuple[dict, float]:
     return summary, seconds
 
 
-def run(cfg: TrialsConfig, overrides: list[str]) -> dict:
-    cells = resolve_cells(cfg, overrides)
+def memory_estimate(cfg: TrialsConfig, layout: Layout) -> int:
+    """Bytes the runner's arrays take for one cell (``pipeline.rl.runner.run_trials``): per-episode
+    results (22 bytes a run-episode), Q and A_d (36 bytes a run-cell-action), the step trace when
+    recording (10 bytes x 16384 steps a run) and the per-run summaries."""
+    per_run = cfg.episodes * 22 + layout.n_cells * 4 * 9 + (16384 * 10 if cfg.record else 0) + 2048
+    return cfg.runs * per_run
+
+
+def available_memory() -> int:
+    """``MemAvailable`` of /proc/meminfo (bytes); the physical memory where that is missing."""
+    try:
+        for line in Path("/proc/meminfo").read_text().splitlines():
+            if line.startswith("MemAvailable:"):
+                return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+
+
+def refuse_what_does_not_fit(cfg: TrialsConfig, cells: list[CellRun]) -> None:
     if cfg.threads > numba.config.NUMBA_NUM_THREADS:
         raise ConfigError(f"config key 'threads': at most {numba.config.NUMBA_NUM_THREADS} on this machine; got {cfg.threads}")
+    need = max(memory_estimate(c.config, c.layout) for c in cells)
+    have = available_memory()
+    if need > 0.8 * have:
+        raise ConfigError(f"config keys 'runs'/'episodes': {cfg.runs} runs x {cfg.episodes} episodes need about "
+                          f"{need / 2**30:,.1f} GiB; this machine has {have / 2**30:,.1f} GiB available")
+
+
+def run(cfg: TrialsConfig, overrides: list[str]) -> dict:
+    cells = resolve_cells(cfg, overrides)
+    refuse_what_does_not_fit(cfg, cells)
     if cfg.threads > 0:
         numba.set_num_threads(cfg.threads)
-    out = Path(cfg.out)
+    with exclusive_folder(cfg.out) as out:
+        staging = out / f".staging-{os.getpid()}"
+        shutil.rmtree(staging, ignore_errors=True)
+        index = run_cells(cfg, cells, staging)
+        swap_in(staging, out)
+        for stale in out.glob(".staging-*"):  # partial records of interrupted runs, now superseded
+            shutil.rmtree(stale, ignore_errors=True)
+            print(f"removed the partial records of an interrupted run: {stale}")
+    where = out / "records.mcap" if cfg.experiment is None and cfg.record else out
+    print(f"wrote {where}")
+    return index
+
+
+def run_cells(cfg: TrialsConfig, cells: list[CellRun], out: Path) -> dict:
+    """Every cell into ``out`` (the staging folder); the experiment's index and metrics last."""
     summaries, timing = {}, {}
     for cell in cells:
         name = cell.name
