@@ -67,6 +67,10 @@ def experiment_cells(cfg: TrialsConfig, overrides: list[str]) -> dict[str, Trial
     exp: Experiment = cfg.experiment
     if not exp.cells:
         raise ConfigError(f"config key 'experiment.cells': experiment {exp.name!r} has no cells")
+    problems = exp.report.problems(exp.cells) if exp.report is not None else []
+    if problems:
+        key, problem = problems[0]
+        raise ConfigError(f"config key 'experiment.report.{key}': {problem}")
     given = parse_overrides(overrides)
     methods = sorted({c.method for c in exp.cells.values()})
     if "method" in given:
