@@ -33,7 +33,7 @@ def test_meta_train_then_accuracy(tmp_path):
     assert len(pd.read_csv(tmp_path / "m" / "h.csv")) == 2
 
     out = tmp_path / "acc"
-    data = run_stage("accuracy", [f"recogniser.images_dir={images}", f"recogniser.checkpoint={tmp_path}/m/rn.pt", f"out_dir={out}", "study.repeats=4", "progress=false"])
+    data = run_stage("accuracy", [f"recogniser.images_dir={images}", f"recogniser.checkpoint={tmp_path}/m/rn.pt", "recogniser.input_size=24", "recogniser.relation_padding=1", f"out_dir={out}", "study.repeats=4", "progress=false"])
     t1 = pd.read_csv(out / "table1.csv")
     assert len(t1) == 50
     with_same = t1[t1.variant == "with_same"]

@@ -5,6 +5,7 @@ raises :class:`CheckpointError` naming the file and the problem.
 """
 from __future__ import annotations
 
+import hashlib
 from dataclasses import asdict
 from pathlib import Path
 from typing import Any
@@ -48,6 +49,15 @@ def save_checkpoint(
     return path
 
 
+def file_sha256(path: str | Path) -> str:
+    """SHA-256 of a file's bytes (the records name the exact checkpoint a trial used)."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
 def load_checkpoint(path: str | Path, expected_model: ModelConfig | None = None) -> tuple[RelationNetwork, dict[str, Any]]:
     """Load a checkpoint into a fresh network in ``eval()`` mode. Returns ``(network, payload)``
     where the payload holds ``model``, ``normalisation``, ``config`` and ``metrics``.
@@ -59,7 +69,8 @@ def load_checkpoint(path: str | Path, expected_model: ModelConfig | None = None)
     try:
         payload = torch.load(path, map_location="cpu", weights_only=True)
     except Exception as exc:  # torch raises several types for truncated/garbage files
-        raise CheckpointError(f"checkpoint {path} is corrupt or not a torch checkpoint ({type(exc).__name__}: {exc}); {hint}") from exc
+        first = (str(exc).strip().splitlines() or [""])[0][:200]
+        raise CheckpointError(f"checkpoint {path} is corrupt or not a torch checkpoint ({type(exc).__name__}: {first}); {hint}") from None
     if not isinstance(payload, dict) or any(k not in payload for k in REQUIRED):
         have = sorted(payload) if isinstance(payload, dict) else type(payload).__name__
         raise CheckpointError(f"checkpoint {path} lacks required entries {list(REQUIRED)} (has {have}); {hint}")

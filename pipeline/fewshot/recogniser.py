@@ -24,9 +24,9 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from .checkpoint import load_checkpoint
+from .checkpoint import file_sha256, load_checkpoint
 from .data import DataError, PictureSet, load_split, read_manifest, to_tensor
-from .model import RelationNetwork
+from .model import ModelConfig, RelationNetwork
 from .support_set import SupportSet
 from .training import embed_all
 
@@ -91,10 +91,18 @@ class RelationRecogniser:
 
     # -- construction from files -------------------------------------------------------------
     @classmethod
-    def from_files(cls, checkpoint: str | Path, images_dir: str | Path, *, substitution_way: int = 1, carry_over: bool = False) -> "RelationRecogniser":
+    def from_files(cls, checkpoint: str | Path, images_dir: str | Path, input_size: int | None = None,
+                   relation_padding: int | None = None, *, substitution_way: int = 1,
+                   carry_over: bool = False) -> "RelationRecogniser":
         """Load a trained checkpoint and the query/support pictures of ``images_dir``'s manifest,
-        resized to the checkpoint's input size and normalised with its statistics."""
-        network, payload = load_checkpoint(checkpoint)
+        resized to the checkpoint's input size and normalised with its statistics. ``input_size``
+        and ``relation_padding``, when given, are the model shape the config expects: a checkpoint
+        of another shape is refused (:class:`CheckpointError`)."""
+        expected = None
+        if input_size is not None or relation_padding is not None:
+            expected = ModelConfig(input_size if input_size is not None else 84,
+                                   relation_padding if relation_padding is not None else 0)
+        network, payload = load_checkpoint(checkpoint, expected)
         size = network.config.input_size
         frame = read_manifest(images_dir)
         query = load_split(images_dir, "query", size, frame)
@@ -113,7 +121,14 @@ class RelationRecogniser:
         )
         recogniser.class_names = support.class_names
         recogniser.checkpoint = {k: payload[k] for k in ("model", "config", "metrics", "normalisation")}
+        recogniser.checkpoint_file = {"path": str(checkpoint), "sha256": file_sha256(checkpoint),
+                                      "model": dict(payload["model"])}
         return recogniser
+
+    def describe(self) -> dict:
+        """What the records keep about this recogniser: the checkpoint's path, sha256 and shape."""
+        return {"kind": "relation_net", "checkpoint": getattr(self, "checkpoint_file", None),
+                "substitution_way": self.substitution_way, "carry_over": self.carry_over}
 
     @staticmethod
     def _arrange(query: PictureSet, support: PictureSet, images_dir) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, int]:

@@ -174,7 +174,8 @@ def run_cell(cell: CellRun, folder: Path) -> tuple[dict, float]:
             metadata={"config": recorded_config(cell),
                       "seeds": {"seed": seed, "runs": {r: asdict(run_seeds(seed, r)) for r in range(runs)}},
                       "info": {"cell": name, "method": method.as_dict(), "maze": layout.name,
-                               "substitution": cfg.substitution, "support": cfg.support}},
+                               "substitution": cfg.substitution, "support": cfg.support,
+                               "recogniser": recogniser.describe() if hasattr(recogniser, "describe") else None}},
             maze={"layout": list(layout.rows), "name": layout.name, "categories": list(CATEGORIES)},
             runs=placements, pictures=pictures, flush_every=cfg.flush_every)
     t0 = time.perf_counter()

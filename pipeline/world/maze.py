@@ -8,8 +8,10 @@ from __future__ import annotations
 
 from collections import deque
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
+import numba as nb
 import numpy as np
 from pipeline.errors import UserError
 
@@ -18,6 +20,11 @@ MOVES: tuple[tuple[int, int], ...] = ((-1, 0), (0, 1), (1, 0), (0, -1))
 ACTION_NAMES: tuple[str, ...] = ("N", "E", "S", "W")
 N_ACTIONS = 4
 BUILTIN_DIR = Path(__file__).resolve().parents[2] / "conf" / "mazes"
+
+
+LAYOUT_CHARS = frozenset("SGX.")
+#: Larger files are refused up front (a 1000x1000 layout is parsed and checked in about a second).
+MAX_LAYOUT_BYTES = 4_100_000
 
 
 class MazeError(UserError):
@@ -43,18 +50,22 @@ class Layout:
     def n_cells(self) -> int:
         return self.height * self.width
 
-    def _find(self, ch: str) -> list[int]:
-        return [r * self.width + c for r, row in enumerate(self.rows) for c, x in enumerate(row) if x == ch]
+    @cached_property
+    def _chars(self) -> np.ndarray:
+        return np.frombuffer("".join(self.rows).encode("ascii", "replace"), dtype=np.uint8)
 
-    @property
+    def _find(self, ch: str) -> list[int]:
+        return np.flatnonzero(self._chars == ord(ch)).tolist()
+
+    @cached_property
     def start(self) -> int:
         return self._find("S")[0]
 
-    @property
+    @cached_property
     def goal(self) -> int:
         return self._find("G")[0]
 
-    @property
+    @cached_property
     def obstacles(self) -> tuple[int, ...]:
         return tuple(self._find("X"))
 
@@ -64,9 +75,7 @@ class Layout:
 
     def is_obstacle(self) -> np.ndarray:
         """Boolean mask over cells."""
-        mask = np.zeros(self.n_cells, dtype=bool)
-        mask[list(self.obstacles)] = True
-        return mask
+        return self._chars == ord("X")
 
     def cell(self, index: int) -> tuple[int, int]:
         return divmod(index, self.width)
@@ -84,26 +93,45 @@ def _neighbour(layout_h: int, layout_w: int, cell: int, action: int) -> int | No
     return None
 
 
+@nb.njit(cache=True)
+def _bfs_length(blocked: np.ndarray, h: int, w: int, start: int, goal: int) -> int:
+    """Moves on a shortest start->goal path around obstacles, or -1 (breadth-first, O(cells))."""
+    dist = np.full(h * w, -1, dtype=np.int64)
+    queue = np.empty(h * w, dtype=np.int64)
+    dist[start] = 0
+    queue[0] = start
+    head, tail = 0, 1
+    while head < tail:
+        s = queue[head]
+        head += 1
+        if s == goal:
+            return dist[s]
+        r, c = s // w, s % w
+        for a in range(4):
+            if a == 0:
+                n = s - w if r > 0 else -1
+            elif a == 1:
+                n = s + 1 if c < w - 1 else -1
+            elif a == 2:
+                n = s + w if r < h - 1 else -1
+            else:
+                n = s - 1 if c > 0 else -1
+            if n >= 0 and not blocked[n] and dist[n] < 0:
+                dist[n] = dist[s] + 1
+                queue[tail] = n
+                tail += 1
+    return -1
+
+
 def shortest_path_length(layout: Layout) -> int | None:
     """Breadth-first search from start to goal around obstacles; None if the goal is unreachable."""
-    blocked = layout.is_obstacle()
-    dist = {layout.start: 0}
-    queue = deque([layout.start])
-    while queue:
-        s = queue.popleft()
-        if s == layout.goal:
-            return dist[s]
-        for a in range(N_ACTIONS):
-            n = _neighbour(layout.height, layout.width, s, a)
-            if n is not None and not blocked[n] and n not in dist:
-                dist[n] = dist[s] + 1
-                queue.append(n)
-    return None
+    n = int(_bfs_length(layout.is_obstacle(), layout.height, layout.width, layout.start, layout.goal))
+    return None if n < 0 else n
 
 
 def count_shortest_paths(layout: Layout) -> int:
     """Number of distinct shortest start->goal paths (0 if unreachable)."""
-    blocked = layout.is_obstacle()
+    blocked = layout.is_obstacle().tolist()
     dist = {layout.start: 0}
     ways = {layout.start: 1}
     queue = deque([layout.start])
@@ -150,11 +178,12 @@ def parse_layout(text: str, source: str = "<string>") -> Layout:
         if len(row) != width:
             raise MazeError(
                 f"{source}:{number}: ragged row: {len(row)} cells where line {line_numbers[0]} has {width}")
-        for col, ch in enumerate(row, start=1):
-            if ch not in "SGX.":
-                raise MazeError(f"{source}:{number}:{col}: unknown character {ch!r} (allowed: S G X .)")
-            if ch in counts:
-                counts[ch].append(f"line {number} column {col}")
+        if not set(row) <= LAYOUT_CHARS:
+            col, ch = next((col, ch) for col, ch in enumerate(row, start=1) if ch not in LAYOUT_CHARS)
+            raise MazeError(f"{source}:{number}:{col}: unknown character {ch!r} (allowed: S G X .)")
+        for ch in counts:
+            if ch in row:
+                counts[ch] += [f"line {number} column {col}" for col, x in enumerate(row, start=1) if x == ch]
     for ch, what in (("S", "start"), ("G", "goal")):
         if not counts[ch]:
             raise MazeError(f"{source}: no {what} cell {ch!r}")
@@ -178,8 +207,15 @@ def load_layout(spec: str | Path) -> Layout:
         path = builtin
     if not path.exists():
         raise MazeError(f"{path}: maze file not found")
+    if not path.is_file():
+        raise MazeError(f"{path}: a folder, not a layout file")
+    if path.stat().st_size > MAX_LAYOUT_BYTES:
+        raise MazeError(f"{path}: {path.stat().st_size:,} bytes; layouts up to {MAX_LAYOUT_BYTES:,} bytes "
+                        "(about 2000 x 2000 cells) are accepted")
     try:
         text = path.read_text(encoding="utf-8")
     except UnicodeDecodeError as exc:
         raise MazeError(f"{path}: not a text file ({exc.reason})") from None
+    except OSError as exc:
+        raise MazeError(f"{path}: cannot read ({exc.strerror})") from None
     return parse_layout(text, source=str(path))

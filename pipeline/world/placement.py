@@ -41,7 +41,7 @@ class Placement:
 
 def random_placement(n_obstacles: int, rng: np.random.Generator) -> Placement:
     rounds = -(-n_obstacles // N_PHYSICAL_OBSTACLES)
-    physical = np.concatenate([rng.permutation(N_PHYSICAL_OBSTACLES) for _ in range(rounds)])[:n_obstacles]
+    physical = np.concatenate([np.empty(0, np.int64)] + [rng.permutation(N_PHYSICAL_OBSTACLES) for _ in range(rounds)])[:n_obstacles]
     orientation = rng.integers(0, N_FACES, size=n_obstacles)
     return Placement(physical.astype(np.int16), orientation.astype(np.int8))
 
