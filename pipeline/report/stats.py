@@ -1,4 +1,5 @@
-"""Summary statistics for the report: mean, standard deviation and a seeded 95% bootstrap interval."""
+"""Summary statistics for the report: mean, standard deviation and a seeded 95% bootstrap interval
+of the mean (tables); per-episode means with a 95% t interval (the bands of learning curves)."""
 from __future__ import annotations
 
 import warnings
