@@ -67,10 +67,6 @@ def experiment_cells(cfg: TrialsConfig, overrides: list[str]) -> dict[str, Trial
     exp: Experiment = cfg.experiment
     if not exp.cells:
         raise ConfigError(f"config key 'experiment.cells': experiment {exp.name!r} has no cells")
-    problems = exp.report.problems(exp.cells) if exp.report is not None else []
-    if problems:
-        key, problem = problems[0]
-        raise ConfigError(f"config key 'experiment.report.{key}': {problem}")
     given = parse_overrides(overrides)
     methods = sorted({c.method for c in exp.cells.values()})
     if "method" in given:
@@ -95,6 +91,10 @@ def experiment_cells(cfg: TrialsConfig, overrides: list[str]) -> dict[str, Trial
         cells[name] = replace(cfg, method=method, **{k: getattr(cell, k) if getattr(cell, k) is not None
                                                      else getattr(cfg, k) for k in CELL_KEYS})
         check(cells[name])
+    problems = exp.report.problems(exp.cells) if exp.report is not None else []
+    if problems:
+        key, problem = problems[0]
+        raise ConfigError(f"config key 'experiment.report.{key}': {problem}")
     return cells
 
 
