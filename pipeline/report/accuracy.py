@@ -11,6 +11,11 @@ import pandas as pd
 
 from pipeline.report import figures as F
 
+#: Table 2's columns (the accuracy study's ``table2.csv``) as the report prints them.
+TABLE2_HEADERS = {"substitution_number": "substitutions", "mean_accuracy": "ours",
+                  "mean_accuracy_no_same": "ours, no same picture", "paper_mean_accuracy": "paper",
+                  "paper_mean_accuracy_no_same": "paper, no same picture"}
+
 
 def accuracy_tables(rep, accuracy_dir: Path, model_metrics: Path) -> None:
     if model_metrics.exists():
@@ -57,6 +62,7 @@ def accuracy_tables(rep, accuracy_dir: Path, model_metrics: Path) -> None:
     show = t2.copy()
     for col in [c for c in show.columns if "accuracy" in c]:
         show[col] = show[col].map(lambda v: "" if pd.isna(v) else f"{100 * v:.2f}%")
+    show = show.rename(columns=TABLE2_HEADERS)
     rep.table("table2", show, "Mean accuracy over the 40 query pictures (ours and the paper's).")
     fig, ax = plt.subplots(figsize=(5.5, 3.4))
     n = t2["substitution_number"]

@@ -1,14 +1,19 @@
-"""Read the recorded experiments (``datasets/runs/<experiment>/<cell>/records.mcap``) into per-cell
-tables for the report. Only the MCAP records are read."""
+"""Read the recorded experiments (``<runs_dir>/<folder>/<cell>/records.mcap``) into per-cell tables
+for the report. Only the MCAP records are read: each file embeds the config its cell ran with,
+including ``experiment.name``, ``experiment.cells`` and ``experiment.report`` (how to present it,
+:class:`~pipeline.report.spec.ReportSpec`). Every folder of ``runs_dir`` with cell folders is an
+experiment; a folder of runs made without an experiment (a sweep) gets the default section."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+import json
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from pipeline.records import read_records
+from pipeline.report.spec import ReportSpec, Row
 
 
 @dataclass
@@ -21,6 +26,8 @@ class Cell:
     episodes: pd.DataFrame  # run, episode, steps, collisions, ... (one row per episode)
     recognitions: pd.DataFrame
     substitutions: pd.DataFrame  # incl. one row per run (picture -1) with the initial support set
+    path: Path | None = None     # the records file
+    config: dict | None = None   # the config the cell ran with (as recorded)
 
     @property
     def method(self) -> str:
@@ -32,6 +39,12 @@ class Cell:
 
     def collisions_per_run(self) -> np.ndarray:
         return self.episodes.groupby("run")["collisions"].sum().to_numpy()
+
+    def collisions_by_episode(self) -> np.ndarray:
+        """(runs, episodes): collisions of each run in each episode (NaN: episode not recorded)."""
+        wide = self.episodes.pivot_table(index="run", columns="episode", values="collisions", aggfunc="sum")
+        wide = wide.reindex(columns=range(int(self.episodes["episode"].max()) + 1))
+        return wide.to_numpy(dtype=float)
 
     def support_accuracy(self) -> np.ndarray | None:
         """(runs, episodes): query accuracy of each run's support set at the end of each episode
@@ -48,6 +61,13 @@ class Cell:
                 out[i, int(ep):] = acc
         return out
 
+    def start_accuracy(self) -> float | None:
+        """Mean over runs of the initial support set's query accuracy (None without a recogniser)."""
+        subs = self.substitutions
+        if subs is None or not len(subs) or "support_accuracy" not in subs:
+            return None
+        return float(subs.loc[subs["picture"] < 0, "support_accuracy"].mean())
+
     def converged_episode(self) -> list[int | None]:
         """Per run, the first episode after which the greedy path stays optimal (None: never)."""
         if "greedy_optimal" not in self.episodes:
@@ -60,16 +80,75 @@ class Cell:
         return out
 
 
-def load_experiment(folder: Path) -> dict[str, Cell]:
-    cells = {}
+@dataclass
+class Experiment:
+    """One folder of ``runs_dir``: its recorded cells and how the report presents them."""
+
+    folder: str                  # the folder's name (names the tables and figures: unique)
+    name: str                    # ``experiment.name`` as recorded (the folder's name without one)
+    spec: ReportSpec
+    cells: dict[str, Cell]       # recorded cells, by name
+    declared: list[str]          # the cells the recorded experiment has (sorted)
+    notes: list[str] = field(default_factory=list)  # what the report should say about the block
+
+    @property
+    def missing(self) -> list[str]:
+        """Cells of the experiment without records."""
+        return [c for c in self.declared if c not in self.cells]
+
+    def rows(self) -> list[tuple[Row, list[Cell]]]:
+        """The section's rows with their recorded cells; rows without any are left out."""
+        out = []
+        for row in self.spec.rows(self.declared or self.cells):
+            cells = [self.cells[c] for c in row.cells if c in self.cells]
+            if cells:
+                out.append((row, cells))
+        return out
+
+
+def load_experiment(folder: Path) -> Experiment | None:
+    """The experiment recorded under ``folder`` (one sub-folder per cell); None without records."""
+    cells, blocks = {}, {}
+    name, declared = folder.name, set()
     for path in sorted(folder.glob("*/records.mcap")):
+        if path.parent.name.startswith("."):  # a staging folder of a run in progress
+            continue
         recs = read_records(path, pictures=False)
         meta = recs.meta
         info = meta.info.get("info", meta.info)
+        experiment = (meta.config or {}).get("experiment") or {}
+        if experiment:
+            name = experiment.get("name", name)
+            declared |= set(experiment.get("cells") or {})
+            blocks[path.parent.name] = experiment.get("report")
         cells[path.parent.name] = Cell(folder.name, path.parent.name, info, list(meta.maze["layout"]),
-                                       meta.obstacles, recs.episodes, recs.recognitions, recs.substitutions)
-    return cells
+                                       meta.obstacles, recs.episodes, recs.recognitions, recs.substitutions,
+                                       path, meta.config)
+    if not cells:
+        return None
+    spec, notes = ReportSpec(), []
+    if blocks:
+        first = next(iter(blocks))
+        text = {c: json.dumps(b, sort_keys=True) for c, b in blocks.items()}
+        others = [c for c in blocks if text[c] != text[first]]
+        if others:
+            notes.append(f"The cells' records hold different report blocks (cells {', '.join(others)} differ "
+                         f"from {first}); this section follows the one of {first}.")
+        try:
+            spec = ReportSpec.from_dict(blocks[first])
+        except ValueError as exc:
+            notes.append(f"The recorded report block cannot be read ({exc}); this is the default section.")
+        problems = spec.problems(sorted(declared))
+        if problems:
+            notes.append("The recorded report block names unknown cells: "
+                         + "; ".join(f"report.{k}: {p}" for k, p in problems) + ".")
+    return Experiment(folder.name, name, spec, cells, sorted(declared), notes)
 
 
-def load_all(runs_dir: Path, experiments=("fig8", "fig9", "fig10", "table3")) -> dict[str, dict[str, Cell]]:
-    return {e: load_experiment(runs_dir / e) for e in experiments if (runs_dir / e).is_dir()}
+def load_all(runs_dir: Path) -> list[Experiment]:
+    """Every experiment under ``runs_dir``, in the report's order (``report.order``, then name)."""
+    if not runs_dir.is_dir():
+        return []
+    found = [e for f in sorted(runs_dir.iterdir()) if f.is_dir() and not f.name.startswith(".")
+             if (e := load_experiment(f)) is not None]
+    return sorted(found, key=lambda e: (e.spec.order, e.name, e.folder))

@@ -1,4 +1,4 @@
-"""Figures of the report (paper Figures 7-10 re-made, learning curves, recognition accuracy).
+"""Figures of the report (bars, learning curves with bands, consecutive experiments, the learned path).
 
 Every figure is drawn from recorded data by a pure function and saved without timestamps, so the
 same records give the same PNG bytes.
@@ -12,9 +12,10 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+from matplotlib.ticker import FuncFormatter  # noqa: E402
 import numpy as np  # noqa: E402
 
-from pipeline.report.stats import describe  # noqa: E402
+from pipeline.report.stats import describe, mean_band  # noqa: E402
 
 CATEGORY_COLOURS = ("#8c564b", "#1f77b4", "#ff7f0e", "#2ca02c", "#9467bd")
 CATEGORY_NAMES = ("chair", "kettle", "carton", "basin", "basket")
@@ -45,38 +46,62 @@ def bars(labels, samples, title, ylabel, path: Path):
     return save(fig, path)
 
 
-def learning_curves(curves: dict[str, np.ndarray], title: str, path: Path, ylabel="collisions per episode",
-                    window: int = 10, xlabel: str = "episode"):
-    """Mean over runs per episode, smoothed with a moving average of ``window`` episodes."""
+def curves(series: dict[str, np.ndarray], title: str, path: Path, ylabel="collisions per episode",
+           xlabel: str = "episode"):
+    """One line per label from x = 0: the mean over runs (rows of a runs x episodes array; a 1-D
+    array is one run) with its 95% interval shaded (:func:`~pipeline.report.stats.mean_band`),
+    drawn within the range of the values (collisions do not go below 0). Long runs get a
+    logarithmic episode axis beyond episode 10, collisions a logarithmic axis above 1 where early
+    episodes collide many times; returns a note saying so for the caption ("" if linear)."""
     fig, ax = plt.subplots(figsize=(6.4, 3.6))
-    for label, per_episode in curves.items():
-        y = np.asarray(per_episode, dtype=float)
-        w = max(1, min(window, len(y)))
-        smooth = np.convolve(y, np.ones(w) / w, mode="valid")
-        ax.plot(np.arange(w - 1, len(y)), smooth, label=label, lw=1.3)
+    for label, values in series.items():
+        mean, lo, hi = mean_band(values)
+        x = np.arange(mean.size)
+        (line,) = ax.plot(x, mean, label=label, lw=1.2)
+        v = np.atleast_2d(np.asarray(values, dtype=float))
+        if v.shape[0] > 1 and np.isfinite(v).any():
+            lo, hi = np.clip(lo, np.nanmin(v), None), np.clip(hi, None, np.nanmax(v))
+            ax.fill_between(x, lo, hi, color=line.get_color(), alpha=0.2, lw=0)
+    ax.set_xlim(left=0)
+    values = [np.asarray(v, dtype=float) for v in series.values()]
+    notes = []
+    plain = FuncFormatter(lambda v, _: f"{v:g}")
+    if values and all(np.nanmin(v, initial=0) >= 0 for v in values) and max(np.nanmax(v, initial=0) for v in values) > 4:
+        # early episodes collide many times, later ones rarely: linear below 1, logarithmic above
+        ax.set_yscale("symlog", linthresh=1.0, linscale=1.5)
+        ax.set_ylim(bottom=0)
+        ax.yaxis.set_major_formatter(plain)
+        notes.append(f"{ylabel} linear up to 1, logarithmic above")
+    if max((np.atleast_2d(v).shape[1] for v in values), default=0) > 100:
+        # the first episodes, where the methods differ most, get room: linear to 10, logarithmic on
+        ax.set_xscale("symlog", linthresh=10.0, linscale=1.0)
+        ax.set_xlim(left=0)
+        ax.xaxis.set_major_formatter(plain)
+        notes.append(f"{xlabel} linear up to 10, logarithmic above")
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
     ax.set_title(title, fontsize=10)
     ax.legend(fontsize=8)
-    return save(fig, path)
+    save(fig, path)
+    return "; ".join(notes)
 
 
-def long_term(restore: np.ndarray, carry: np.ndarray, path: Path):
-    """Figure 10: collisions of each consecutive experiment, support set restored vs carried over."""
+def long_term(series: dict[str, np.ndarray], ticks: list[str], title: str, path: Path):
+    """Collisions of each consecutive experiment (the runs in order) per label, and their means
+    with 95% bootstrap intervals (ticks: short names of the labels)."""
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(9, 3.6), gridspec_kw={"width_ratios": [3, 1]})
-    x = np.arange(1, len(restore) + 1)
-    ax1.plot(x, restore, label="restore the support set", lw=1.2)
-    ax1.plot(x, carry, label="carry it over (long-term autonomy)", lw=1.2)
-    ax1.set_xlabel("experiment (consecutive runs)")
-    ax1.set_ylabel("collisions in 500 episodes" if len(restore) else "collisions")
-    ax1.legend(fontsize=8)
-    for i, v in enumerate((restore, carry)):
-        d = describe(v)
-        ax2.bar(i, d["mean"], color=("#9ecae1", "#fdae6b")[i])
+    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    for i, (label, values) in enumerate(series.items()):
+        ax1.plot(np.arange(1, len(values) + 1), values, label=label, lw=1.2, color=colours[i % len(colours)])
+        d = describe(values)
+        ax2.bar(i, d["mean"], color=colours[i % len(colours)], alpha=0.5)
         ax2.vlines(i, d["ci_low"], d["ci_high"], color="black", lw=3)
-    ax2.set_xticks([0, 1], ["restore", "carry"])
+    ax1.set_xlabel("experiment (consecutive runs)")
+    ax1.set_ylabel("collisions per experiment")
+    ax1.legend(fontsize=8)
+    ax2.set_xticks(range(len(ticks)), ticks, rotation=20)
     ax2.set_title("mean, 95% CI", fontsize=9)
-    fig.suptitle("Figure 10: long-term autonomy", fontsize=10)
+    fig.suptitle(title, fontsize=10)
     return save(fig, path)
 
 

@@ -1,5 +1,8 @@
-"""Summary statistics for the report: mean, standard deviation and a seeded 95% bootstrap interval."""
+"""Summary statistics for the report: mean, standard deviation and a seeded 95% bootstrap interval
+of the mean (tables); per-episode means with a 95% t interval (the bands of learning curves)."""
 from __future__ import annotations
+
+import warnings
 
 import numpy as np
 
@@ -27,3 +30,36 @@ def describe(values) -> dict:
 def fmt(d: dict, digits: int = 2) -> str:
     """``mean ± std [lo, hi]`` for tables."""
     return f"{d['mean']:.{digits}f} ± {d['std']:.{digits}f} [{d['ci_low']:.{digits}f}, {d['ci_high']:.{digits}f}]"
+
+
+#: Student's t 0.975 quantiles for 1-10 degrees of freedom; beyond, the Cornish-Fisher expansion
+#: (:func:`t_quantile_975`) is within 0.01% of the exact value.
+_T975 = (12.7062, 4.3027, 3.1824, 2.7764, 2.5706, 2.4469, 2.3646, 2.3060, 2.2622, 2.2281)
+
+
+def t_quantile_975(df: int) -> float:
+    """The 0.975 quantile of Student's t with ``df`` degrees of freedom (no scipy needed)."""
+    if df < 1:
+        return float("nan")
+    if df <= len(_T975):
+        return _T975[df - 1]
+    z = 1.959963984540054
+    g1 = (z ** 3 + z) / 4
+    g2 = (5 * z ** 5 + 16 * z ** 3 + 3 * z) / 96
+    g3 = (3 * z ** 7 + 19 * z ** 5 + 17 * z ** 3 - 15 * z) / 384
+    g4 = (79 * z ** 9 + 776 * z ** 7 + 1482 * z ** 5 - 1920 * z ** 3 - 945 * z) / 92160
+    return z + g1 / df + g2 / df ** 2 + g3 / df ** 3 + g4 / df ** 4
+
+
+def mean_band(values) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per column of ``values`` (runs x episodes; NaN = no such episode): the mean over runs and
+    its 95% Student-t interval (mean ± t * s.d. / sqrt(n)); the interval is the mean where n < 2.
+    A t interval rather than the bootstrap of :func:`describe`: one per episode of every curve."""
+    v = np.atleast_2d(np.asarray(values, dtype=float))
+    n = np.sum(~np.isnan(v), axis=0)
+    with warnings.catch_warnings(), np.errstate(invalid="ignore", divide="ignore"):
+        warnings.simplefilter("ignore", RuntimeWarning)  # an episode no run reached: NaN
+        mean = np.nanmean(v, axis=0) if v.size else np.zeros(v.shape[1])
+        sd = np.nanstd(v, axis=0, ddof=1) if v.shape[0] > 1 else np.zeros(v.shape[1])
+        half = np.array([t_quantile_975(int(k) - 1) if k > 1 else 0.0 for k in n]) * np.nan_to_num(sd) / np.sqrt(np.maximum(n, 1))
+    return mean, mean - half, mean + half

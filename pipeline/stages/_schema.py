@@ -17,6 +17,7 @@ from omegaconf import II, MISSING
 
 from pipeline.fewshot.accuracy_study import StudyConfig
 from pipeline.fewshot.settings import TrainConfig
+from pipeline.report.spec import ReportSpec
 from pipeline.rl.methods import MethodSpec
 from pipeline.schema import setting
 
@@ -85,8 +86,8 @@ class Experiment:
 
     name: str = setting(nonempty=True)
     cells: Dict[str, Cell] = field(default_factory=dict)
-    report: Optional[Dict[str, Any]] = None
-    """How the report presents the experiment (``pipeline.report``); none: the default section."""
+    report: Optional[ReportSpec] = None
+    """How the report presents the experiment (``pipeline/report/spec.py``); none: the default section."""
 
 
 @dataclass

@@ -8,14 +8,15 @@ from pathlib import Path
 
 from pipeline.errors import ConfigError
 from pipeline.report.build import Inputs, build_report
-from pipeline.stages._common import stage_main
+from pipeline.stages._common import CONF_DIR, stage_main
 from pipeline.stages._schema import ReportConfig
 
 
 def run(cfg: ReportConfig, overrides: list[str] = ()) -> Path:
     if Path(cfg.out).resolve() == Path.cwd().resolve():
         raise ConfigError("config key 'out': must not be the working folder (it is rebuilt)")
-    inputs = Inputs(Path(cfg.runs_dir), Path(cfg.accuracy_dir), Path(cfg.model_metrics), Path(cfg.contact_dir), Path(cfg.out))
+    inputs = Inputs(Path(cfg.runs_dir), Path(cfg.accuracy_dir), Path(cfg.model_metrics), Path(cfg.contact_dir),
+                    Path(cfg.out), experiments_dir=Path(CONF_DIR) / "experiment")
     try:
         index = build_report(inputs)
     except FileNotFoundError as exc:

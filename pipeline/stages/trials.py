@@ -91,6 +91,10 @@ def experiment_cells(cfg: TrialsConfig, overrides: list[str]) -> dict[str, Trial
         cells[name] = replace(cfg, method=method, **{k: getattr(cell, k) if getattr(cell, k) is not None
                                                      else getattr(cfg, k) for k in CELL_KEYS})
         check(cells[name])
+    problems = exp.report.problems(exp.cells) if exp.report is not None else []
+    if problems:
+        key, problem = problems[0]
+        raise ConfigError(f"config key 'experiment.report.{key}': {problem}")
     return cells
 
 

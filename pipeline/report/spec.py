@@ -1,0 +1,165 @@
+"""How the report presents one experiment: the ``report:`` block of ``conf/experiment/<name>.yaml``.
+
+The block is optional. Without it an experiment gets the default section: a table of collisions
+per run (mean ± s.d. [95% bootstrap CI]) with one row per cell, learning curves with a 95% band and,
+for cells with a recogniser, the query accuracy of the support set over the run. With it the file
+says which kind of section, the order and labels of the rows, which cells pool into one row, the
+paper's numbers and the paper's claim. The trials stage embeds the block in every record file
+(``experiment.report`` of the recorded config), and the report reads it from there, so a report is
+built from the records alone.
+
+The schema of the trials stage types ``experiment.report`` by :class:`ReportSpec`, so Hydra refuses
+unknown keys and :func:`pipeline.schema.check` refuses a ``kind`` outside :data:`KINDS` (the
+``choices`` in the field's metadata); :meth:`ReportSpec.problems` refuses cell names the experiment
+does not have. Plain dataclasses, no third-party imports.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields
+from typing import Any, Dict, Iterable, List, Optional
+
+#: Section kinds. ``default``: table of collisions + learning curves (+ support-set accuracy).
+#: ``bars``: the same with a bar chart of collisions per run. ``long_term``: the runs are
+#: consecutive experiments of one robot (collisions of each, the support set's accuracy at the end
+#: of each). ``by_maze``: one row per group, one column per maze (ours and the paper's).
+KINDS = ("default", "bars", "long_term", "by_maze")
+
+
+@dataclass
+class Group:
+    """One row of a section that pools the runs of several cells (Table 3's DSS row pools the
+    four substitution ways). In a ``by_maze`` section the row has one entry per maze, each pooling
+    the group's cells on that maze."""
+
+    key: str = field(default="", metadata={"nonempty": True})
+    """Names the row in CSV files (a column of the learning curves' table)."""
+    cells: List[str] = field(default_factory=list)
+    """The cells whose runs count together."""
+    label: Optional[str] = None
+    """The row's readable label (tables, legends); default: the group's key."""
+    paper: Dict[str, str] = field(default_factory=dict)
+    """The paper's figure for this row, by maze (``{5x5: 192.3, 7x7: not converged}``), as printed."""
+
+
+@dataclass
+class PathSpec:
+    """A figure of the learned path (the paper's Figure 7): the most common path of the runs' last
+    episodes, drawn on the maze of the first recorded cell of ``cells``."""
+
+    cells: List[str] = field(default_factory=list)
+    """Candidate cells in order of preference; the first one with records is drawn."""
+    title: str = "The learned path"
+    """The heading of the path's own section."""
+    claim: Optional[str] = None
+    """What the paper says about it (quoted as ``Paper: ...``)."""
+
+
+@dataclass
+class ReportSpec:
+    """``experiment.report``: how the report presents the experiment (every field optional)."""
+
+    order: int = 100
+    """Sections are sorted by ``order``, then by experiment name (the paper's use 1-4)."""
+    title: Optional[str] = None
+    """The section's heading; default ``Experiment <name>``."""
+    kind: str = field(default="default", metadata={"choices": KINDS})
+    """One of :data:`KINDS`."""
+    claim: Optional[str] = None
+    """The paper's claim for this experiment, quoted as ``Paper: ...`` under the heading."""
+    row_header: str = "cell"
+    """Header of the tables' first column (``method``, ``support set``...)."""
+    cells: List[str] = field(default_factory=list)
+    """Which cells, in which order, one row (and one curve) each; default: every cell, sorted by
+    name (the records keep the config with sorted keys, so the file's order of cells is not
+    kept). Give ``cells`` or ``groups``, not both."""
+    labels: Dict[str, str] = field(default_factory=dict)
+    """Readable labels of cells for tables and legends (default: the cell's name)."""
+    groups: List[Group] = field(default_factory=list)
+    """Rows that pool cells, in order (a list: order is kept in the records)."""
+    curves: bool = True
+    """Learning curves: collisions per episode, mean over runs with a 95% band, from episode 0."""
+    support_accuracy: bool = True
+    """The query accuracy of the support set over the run (rows whose cells have a recogniser)."""
+    path: Optional[PathSpec] = None
+    """A learned-path figure in its own section before this one (the paper's Figure 7)."""
+
+    # ------------------------------------------------------------------ reading and checking
+    @classmethod
+    def from_dict(cls, data: dict[str, Any] | None) -> "ReportSpec":
+        """The spec from a plain dict (the recorded config's ``experiment.report``); ``None``
+        gives the default. Unknown keys and an unknown kind raise ``ValueError``."""
+        if data is None:
+            return cls()
+        values = _known(cls, data, "report")
+        if "groups" in values:
+            values["groups"] = [Group(**_known(Group, g, f"report.groups.{i}")) for i, g in enumerate(values["groups"])]
+        if values.get("path") is not None:
+            values["path"] = PathSpec(**_known(PathSpec, values["path"], "report.path"))
+        spec = cls(**values)
+        if spec.kind not in KINDS:
+            raise ValueError(f"report.kind: must be one of {', '.join(KINDS)}; got {spec.kind!r}")
+        return spec
+
+    def problems(self, cells: Iterable[str]) -> list[tuple[str, str]]:
+        """``(key, problem)`` for every cell name the block uses that is not a cell of the
+        experiment (``cells``), and for ``cells`` given together with ``groups``."""
+        known = list(cells)
+        out = []
+        if self.cells and self.groups:
+            out.append(("groups", "give cells or groups, not both"))
+
+        def need(key: str, name: str) -> None:
+            if name not in known:
+                out.append((key, f"no cell {name!r} in the experiment (cells: {', '.join(known)})"))
+
+        for name in self.cells:
+            need("cells", name)
+        for name in self.labels:
+            need("labels", name)
+        seen = set()
+        for i, group in enumerate(self.groups):
+            if not group.key.strip():
+                out.append((f"groups.{i}.key", "must not be empty"))
+            elif group.key in seen:
+                out.append((f"groups.{i}.key", f"{group.key!r} names two groups"))
+            seen.add(group.key)
+            if not group.cells:
+                out.append((f"groups.{i}.cells", "must name at least one cell"))
+            for name in group.cells:
+                need(f"groups.{i}.cells", name)
+        if self.path is not None:
+            if not self.path.cells:
+                out.append(("path.cells", "must name at least one cell"))
+            for name in self.path.cells:
+                need("path.cells", name)
+        return out
+
+    def rows(self, cells: Iterable[str]) -> list["Row"]:
+        """The section's rows: its groups, or one row per cell (``cells`` of the block, else every
+        cell of ``cells``, sorted by name)."""
+        if self.groups:
+            return [Row(g.key, g.label or g.key, list(g.cells), dict(g.paper)) for g in self.groups]
+        return [Row(name, self.labels.get(name, name), [name], {}) for name in (self.cells or sorted(cells))]
+
+    def label(self, cell: str) -> str:
+        return self.labels.get(cell, cell)
+
+
+@dataclass
+class Row:
+    """One row of a section (one curve in its figures): a key, a label and the cells it pools."""
+
+    key: str
+    label: str
+    cells: List[str]
+    paper: Dict[str, str]
+
+
+def _known(cls, data: Any, where: str) -> dict[str, Any]:
+    if not isinstance(data, dict):
+        raise ValueError(f"{where}: expected a mapping; got {data!r}")
+    names = {f.name for f in fields(cls)}
+    unknown = sorted(set(data) - names)
+    if unknown:
+        raise ValueError(f"{where}: unknown key(s) {', '.join(unknown)} (known: {', '.join(sorted(names))})")
+    return dict(data)

@@ -1,0 +1,140 @@
+"""The report is driven by the experiment files: a cells-only experiment gets the default section
+(collisions with 95% intervals, learning curves with bands) with no code change; the paper's
+experiments keep their sections through the ``report:`` blocks of their yamls, read back from the
+records; the block is typed. Smoke scale with the oracle recogniser (no model needed)."""
+import dataclasses
+import shutil
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from pipeline.errors import ConfigError
+from pipeline.report.spec import ReportSpec
+from pipeline.report.stats import mean_band, t_quantile_975
+from pipeline.stages._common import load_config, run_stage
+
+#: A new experiment file that holds only cells (no report block).
+CELLS_ONLY = """\
+# @package _global_
+maze: 5x5
+experiment:
+  name: mine
+  cells:
+    a: {method: shield}
+    b: {method: ssrl}
+"""
+
+
+def trials(exp, out, *extra):
+    run_stage("trials", [f"+experiment={exp}", "profile=smoke", "progress=false", f"out={out}", *extra])
+
+
+@pytest.fixture(scope="module")
+def built(tmp_path_factory):
+    d = tmp_path_factory.mktemp("report_experiments")
+    conf = d / "conf"
+    (conf / "experiment").mkdir(parents=True)
+    (conf / "experiment" / "mine.yaml").write_text(CELLS_ONLY)
+    runs = d / "runs"
+    # a config folder of one's own on Hydra's search path: +experiment=mine finds conf/experiment/mine.yaml
+    trials("mine", runs / "mine", f"hydra.searchpath=[file://{conf}]")
+    trials("fig8", runs / "fig8", "recogniser=oracle")
+    trials("table3", runs / "table3", "recogniser=oracle")
+    run_stage("report", [f"runs_dir={runs}", f"accuracy_dir={d}/no_accuracy", f"out={d}/reports"])
+    return d, (d / "reports" / "index.md").read_text()
+
+
+def test_a_cells_only_experiment_gets_the_default_section(built):
+    d, index = built
+    assert "## Experiment mine" in index
+    table = pd.read_csv(d / "reports" / "tables" / "mine.csv")
+    assert table["cell"].tolist() == ["a", "b"] and table["method"].tolist() == ["shield", "ssrl"]
+    assert table["runs"].tolist() == [3, 3]
+    ci = table["collisions (mean ± s.d. [95% CI])"]
+    assert ci.str.fullmatch(r"[\d.]+ ± [\d.]+ \[[\d.]+, [\d.]+\]").all()
+    assert (d / "reports" / "figures" / "mine_learning_curves.png").stat().st_size > 1000
+    curves = pd.read_csv(d / "reports" / "tables" / "mine_learning_curves.csv")
+    assert curves["episode"].tolist() == list(range(20))  # from episode 0, every episode
+    assert {"a", "a_ci_low", "a_ci_high", "b", "b_ci_low", "b_ci_high"} <= set(curves.columns)
+    assert (curves["a_ci_low"] <= curves["a"]).all() and (curves["a"] <= curves["a_ci_high"]).all()
+    # shield: every run collides in the first episode; the mean of the table is the curves' sum
+    assert curves["a"].sum() == pytest.approx(float(table["collisions (mean ± s.d. [95% CI])"][0].split()[0]), abs=0.01)
+
+
+def test_paper_sections_come_from_their_report_blocks(built):
+    d, index = built
+    for heading in ("## Figure 7: the learned optimal path", "## Figure 8: collisions", "## Table 3: mean collisions"):
+        assert heading in index
+    # order: the blocks' order (fig8 1, table3 4), then experiments without a block (100)
+    assert index.index("## Figure 7") < index.index("## Figure 8") < index.index("## Table 3") < index.index("## Experiment mine")
+    assert "Paper: Methods with a safety guarantee collide far less than Q-learning" in index
+    fig8 = pd.read_csv(d / "reports" / "tables" / "fig8.csv")
+    assert fig8["method"].tolist() == ["Q-learning", "online shield", "SSRL", "few-shot, no DSS", "few-shot with DSS"]
+    for name in ("fig8_collisions.png", "fig8_learning_curves.png", "fig8_path.png", "fig8_support_accuracy.png",
+                 "table3_learning_curves_11x11.png", "table3_support_accuracy_7x7.png"):
+        assert (d / "reports" / "figures" / name).stat().st_size > 1000, name
+    curves = pd.read_csv(d / "reports" / "tables" / "fig8_learning_curves.csv")  # dvc.yaml's plots read these columns
+    assert {"episode", "qlearning", "shield", "ssrl", "fewshot", "fewshot_dss"} <= set(curves.columns)
+    table3 = pd.read_csv(d / "reports" / "tables" / "table3.csv")
+    assert table3["method"].tolist() == ["Sarsa", "constrained RL", "few-shot, no DSS", "few-shot with DSS"]
+    assert table3.columns.tolist()[1:] == ["5x5 ours", "5x5 paper", "7x7 ours", "7x7 paper", "11x11 ours", "11x11 paper"]
+    assert table3.set_index("method").loc["few-shot with DSS", "5x5 paper"] == 7.145
+    assert table3.set_index("method").loc["Sarsa", "7x7 paper"] == "not converged"
+    data = pd.read_csv(d / "reports" / "tables" / "table3_data.csv")
+    dss = data[(data["row"] == "fewshot_dss") & (data["maze"] == "5x5")]
+    assert dss["n"].tolist() == [12]  # the DSS row pools the four ways: 4 cells x 3 runs
+
+
+def test_experiments_and_cells_without_records_are_named(built, tmp_path):
+    d, index = built
+    line = next(x for x in index.splitlines() if x.startswith("Not in this report"))
+    assert "fig9" in line and "fig10" in line and "fig8" not in line and "table3" not in line
+    runs = tmp_path / "runs"
+    shutil.copytree(d / "runs" / "mine", runs / "mine")
+    shutil.rmtree(runs / "mine" / "b")
+    run_stage("report", [f"runs_dir={runs}", f"accuracy_dir={tmp_path}/none", f"out={tmp_path}/reports"])
+    index = (tmp_path / "reports" / "index.md").read_text()
+    assert "mine/b" in next(x for x in index.splitlines() if x.startswith("Not in this report"))
+    assert pd.read_csv(tmp_path / "reports" / "tables" / "mine.csv")["cell"].tolist() == ["a"]
+
+
+@pytest.mark.parametrize("override,message", [
+    ("+experiment.report.colour=red", "config key 'experiment.report.colour'"),
+    ("experiment.report.kind=pie", "config key 'experiment.report.kind': must be one of"),
+    ("experiment.report.cells=[qlearning,nope]", "config key 'experiment.report.cells': no cell 'nope'"),
+    ("+experiment.report.path.colour=red", "config key 'experiment.report.path.colour'"),
+])
+def test_the_report_block_is_typed(override, message, tmp_path):
+    with pytest.raises(ConfigError, match=message):
+        run_stage("trials", ["+experiment=fig8", "recogniser=oracle", override, f"out={tmp_path}"])
+
+
+def test_wrong_group_keys_are_refused(tmp_path):
+    with pytest.raises(ConfigError, match=r"experiment.report.groups.0.cells': no cell 'sarsa_9x9'"):
+        run_stage("trials", ["+experiment=table3", "recogniser=oracle", f"out={tmp_path}",
+                             "experiment.report.groups.0.cells=[sarsa_9x9]"])
+    with pytest.raises(ConfigError, match=r"experiment.report.groups.0.paperz"):
+        load_config("trials", ["+experiment=table3", "+experiment.report.groups.0.paperz=1"])
+
+
+def test_spec_round_trips_through_the_recorded_dict():
+    spec = load_config("trials", ["+experiment=table3", "recogniser=oracle"]).experiment.report
+    assert ReportSpec.from_dict(dataclasses.asdict(spec)) == spec
+    assert ReportSpec.from_dict(None) == ReportSpec()
+    with pytest.raises(ValueError, match="unknown key"):
+        ReportSpec.from_dict({"colour": "red"})
+    with pytest.raises(ValueError, match="report.kind"):
+        ReportSpec.from_dict({"kind": "pie"})
+
+
+def test_band_is_a_t_interval():
+    assert t_quantile_975(2) == pytest.approx(4.3027, abs=1e-4)
+    assert t_quantile_975(30) == pytest.approx(2.0423, abs=1e-4)
+    assert t_quantile_975(99) == pytest.approx(1.9842, abs=1e-4)
+    values = np.array([[0.0, 1.0, 2.0], [2.0, 1.0, np.nan]])
+    mean, lo, hi = mean_band(values)
+    np.testing.assert_allclose(mean, [1.0, 1.0, 2.0])
+    half = 12.7062 * np.sqrt(2) / np.sqrt(2)  # t(1) * s.d. / sqrt(n)
+    np.testing.assert_allclose(lo, [1.0 - half, 1.0, 2.0])
+    np.testing.assert_allclose(hi, [1.0 + half, 1.0, 2.0])
