@@ -12,13 +12,15 @@ again gives the same bytes.
 """
 from __future__ import annotations
 
+import os
 import shutil
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import pandas as pd
 
-from pipeline.report.experiments import load_all
+from pipeline.files import swap_in
+from pipeline.report.experiments import ReportInputError, load_all
 from pipeline.report.sections import section
 
 
@@ -30,6 +32,7 @@ class Inputs:
     contact_dir: Path
     out: Path
     experiments_dir: Path | None = None  # the experiment files (conf/experiment/): which are missing
+    allow_missing: bool = False          # build without missing experiments/cells, saying so at the top
 
 
 class Report:
@@ -76,10 +79,22 @@ def contact_sheets(rep: Report, contact_dir: Path) -> None:
 
 
 def build_report(inputs: Inputs) -> Path:
-    for old in ("tables", "figures"):
-        if (inputs.out / old).exists():
-            shutil.rmtree(inputs.out / old)
-    (inputs.out / "index.md").unlink(missing_ok=True)
+    """Build the report into a temporary folder beside ``out`` and swap ``index.md``, ``tables/``
+    and ``figures/`` in only when it is complete: a failed build leaves the previous report whole."""
+    out = inputs.out
+    out.mkdir(parents=True, exist_ok=True)
+    staging = out / f".building-{os.getpid()}"
+    shutil.rmtree(staging, ignore_errors=True)
+    try:
+        _build(replace(inputs, out=staging))
+    except BaseException:
+        shutil.rmtree(staging, ignore_errors=True)
+        raise
+    swap_in(staging, out)
+    return out / "index.md"
+
+
+def _build(inputs: Inputs) -> Path:
     rep = Report(inputs.out)
     rep.add("# Few-shot reasoning-based safe RL: our results beside the paper's\n\n"
             "Built by `python -m pipeline report` from the recorded data only (MCAP records of every "
@@ -89,15 +104,22 @@ def build_report(inputs: Inputs) -> Path:
             "per episode with its 95% t interval shaded.\n")
     experiments = load_all(inputs.runs_dir)
     if not experiments and not inputs.accuracy_dir.exists():
-        raise FileNotFoundError(f"nothing to report: no experiments under {inputs.runs_dir} and no {inputs.accuracy_dir}")
-    accuracy_section(rep, inputs.accuracy_dir, inputs.model_metrics)
-    missing = []
-    for exp in experiments:
-        missing += section(rep, exp)
-    contact_sheets(rep, inputs.contact_dir)
+        raise ReportInputError(f"nothing to report: no experiments under {inputs.runs_dir} and no {inputs.accuracy_dir}")
     recorded = {e.name for e in experiments} | {e.folder for e in experiments}
     files = sorted(inputs.experiments_dir.glob("*.yaml")) if inputs.experiments_dir and inputs.experiments_dir.is_dir() else []
-    missing = [p.stem for p in files if p.stem not in recorded] + missing
+    missing = [f"experiment {p.stem}" for p in files if p.stem not in recorded]
+    missing += [f"cell {e.folder}/{c}" for e in experiments for c in e.missing]
+    if missing and not inputs.allow_missing:
+        raise ReportInputError(f"no complete records for {', '.join(missing)} under {inputs.runs_dir}; run their "
+                               "trials, or build without them with allow_missing=true")
     if missing:
-        rep.add(f"Not in this report (no records found): {', '.join(missing)}.\n")
+        rep.add(f"**Missing from this report** (no complete records; built with `allow_missing=true`): "
+                f"{', '.join(missing)}.\n")
+    accuracy_section(rep, inputs.accuracy_dir, inputs.model_metrics)
+    not_shown = []
+    for exp in experiments:
+        not_shown += section(rep, exp)
+    contact_sheets(rep, inputs.contact_dir)
+    if not_shown:
+        rep.add(f"Not in this report (no records found): {', '.join(not_shown)}.\n")
     return rep.write()

@@ -6,13 +6,16 @@ experiment; a folder of runs made without an experiment (a sweep) gets the defau
 from __future__ import annotations
 
 import json
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
+from pipeline.errors import UserError
 from pipeline.records import read_records
+from pipeline.records.reader import RecordsWarning
 from pipeline.report.spec import ReportSpec, Row
 
 
@@ -106,6 +109,45 @@ class Experiment:
         return out
 
 
+class ReportInputError(UserError):
+    """Records the report cannot stand on: damaged, incomplete, or cells of different setups."""
+
+
+def _read_whole(path: Path):
+    """The records of a complete, undamaged file; anything less is refused, naming the file."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", RecordsWarning)
+        try:
+            recs = read_records(path, pictures=False)
+        except UserError:
+            raise
+        except Exception as exc:  # the reader's errors for files it cannot read at all
+            raise ReportInputError(f"{path}: cannot read the records ({type(exc).__name__}: "
+                                   f"{(str(exc).splitlines() or [''])[0]})") from None
+    problems = [str(w.message) for w in caught if issubclass(w.category, RecordsWarning)]
+    if problems:
+        raise ReportInputError(f"{problems[0]}; re-run its trials (the report uses complete records only)")
+    return recs
+
+
+#: Recorded keys that must agree across the cells of one table.
+SAME_SETUP = ("seed", "runs", "episodes", "profile")
+
+
+def check_same_setup(experiment: "Experiment") -> None:
+    """Cells recorded with another seed, run count, episode count or profile than the first cell
+    are never put in one table: name the cell that differs."""
+    cells = list(experiment.cells.values())
+    first = cells[0]
+    for cell in cells[1:]:
+        for key in SAME_SETUP:
+            a, b = (first.config or {}).get(key), (cell.config or {}).get(key)
+            if a != b:
+                raise ReportInputError(
+                    f"{experiment.folder}/{cell.name}: recorded with {key}={b!r}, but {first.name} with "
+                    f"{key}={a!r}; re-run the experiment so that its cells share one setup")
+
+
 def load_experiment(folder: Path) -> Experiment | None:
     """The experiment recorded under ``folder`` (one sub-folder per cell); None without records."""
     cells, blocks = {}, {}
@@ -113,7 +155,7 @@ def load_experiment(folder: Path) -> Experiment | None:
     for path in sorted(folder.glob("*/records.mcap")):
         if path.parent.name.startswith("."):  # a staging folder of a run in progress
             continue
-        recs = read_records(path, pictures=False)
+        recs = _read_whole(path)
         meta = recs.meta
         info = meta.info.get("info", meta.info)
         experiment = (meta.config or {}).get("experiment") or {}
@@ -142,7 +184,9 @@ def load_experiment(folder: Path) -> Experiment | None:
         if problems:
             notes.append("The recorded report block names unknown cells: "
                          + "; ".join(f"report.{k}: {p}" for k, p in problems) + ".")
-    return Experiment(folder.name, name, spec, cells, sorted(declared), notes)
+    experiment = Experiment(folder.name, name, spec, cells, sorted(declared), notes)
+    check_same_setup(experiment)
+    return experiment
 
 
 def load_all(runs_dir: Path) -> list[Experiment]:

@@ -214,6 +214,8 @@ class ReportConfig:
     model_metrics: str = setting(nonempty=True)
     contact_dir: str = setting(nonempty=True)
     out: str = setting(nonempty=True)
+    allow_missing: bool = MISSING
+    """Build without experiments or cells that have no complete records (listed at the top)."""
 
 
 #: Stage name -> its schema (``conf/<stage>.yaml`` lists ``<stage>_schema`` first in its defaults).

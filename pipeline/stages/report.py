@@ -16,11 +16,13 @@ def run(cfg: ReportConfig, overrides: list[str] = ()) -> Path:
     if Path(cfg.out).resolve() == Path.cwd().resolve():
         raise ConfigError("config key 'out': must not be the working folder (it is rebuilt)")
     inputs = Inputs(Path(cfg.runs_dir), Path(cfg.accuracy_dir), Path(cfg.model_metrics), Path(cfg.contact_dir),
-                    Path(cfg.out), experiments_dir=Path(CONF_DIR) / "experiment")
+                    Path(cfg.out), experiments_dir=Path(CONF_DIR) / "experiment", allow_missing=cfg.allow_missing)
     try:
         index = build_report(inputs)
     except FileNotFoundError as exc:
         raise ConfigError(f"config key 'runs_dir': {exc}") from None
+    except OSError as exc:
+        raise ConfigError(f"config key 'out': cannot write the report into {cfg.out} ({exc.strerror})") from None
     print(f"wrote {index}")
     return index
 
