@@ -29,8 +29,8 @@ from omegaconf import OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
 from pipeline.errors import ConfigError
-from pipeline.rl.codes import Learner, Safety
-from pipeline.rl.rules import reasons_with_pictures
+from pipeline.rl.codes import Learner
+from pipeline.rl.rules import Safety, reasons_with_pictures
 from pipeline.schema import check, setting
 
 #: ``conf/method/<name>.yaml``: each file holds only what differs from :class:`MethodSpec`'s defaults.
@@ -48,7 +48,7 @@ class MethodSpec:
     learner: str = setting(Learner.q.name, choices=[m.name for m in Learner])
     """``q`` (Q-learning, eq. 9) or ``sarsa``."""
     safety: str = setting(Safety.none.name, choices=[m.name for m in Safety])
-    """How A_d grows (``pipeline.rl.codes.Safety``; the rule in ``pipeline.rl.rules``)."""
+    """How A_d grows (``pipeline.rl.rules.Safety`` and its rule there)."""
     recovery: bool = False
     """Self-recovery: a collision reverts the robot to the previous safe state and the episode goes on."""
     constrained: bool = False

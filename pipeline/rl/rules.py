@@ -3,8 +3,8 @@
 
 ``apply_action`` is the single implementation of these rules; the batched kernel and the
 Gymnasium environment both call it. It is also the only code that tells safety methods apart
-(``codes.Safety``): adding one means a member there, a branch here (and in
-``reasons_with_pictures`` if it looks at pictures), its yaml, a test and a docs line.
+(:class:`Safety`, defined here): adding one means a member and a branch in this file (and a line in
+``reasons_with_pictures`` if it looks at pictures), its yaml, a test and a docs line (docs/extending.md).
 
 Given the robot in free cell ``s`` choosing ``a``:
 
@@ -20,10 +20,24 @@ Given the robot in free cell ``s`` choosing ``a``:
 """
 from __future__ import annotations
 
+from enum import IntEnum
+
 import numba as nb
 import numpy as np
 
-from pipeline.rl.codes import Outcome, Safety, Source, StepFlag
+from pipeline.rl.codes import Outcome, Source, StepFlag
+
+class Safety(IntEnum):
+    """How a method's unsafe set A_d grows (paper section 3.2.2 and the baselines of 4.2.2).
+
+    Each member's rule is a branch of ``rules.apply_action``; nothing else branches on these.
+    """
+
+    none = 0     #: no safety layer (Q-learning, Sarsa, constrained RL)
+    shield = 1   #: online shield: a collision from (s, a) adds (s, a)
+    ssrl = 2     #: SSRL: a collision with o adds every (free neighbour of o, action toward o)
+    fewshot = 3  #: Algorithm 1: a recognised obstacle adds (s, a); a misrecognition collides and adds it
+
 
 #: The most pairs one step can add to A_d (SSRL: the pair itself and up to four neighbours').
 MAX_ADDED = 8

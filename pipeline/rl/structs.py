@@ -15,7 +15,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from pipeline.rl.codes import Learner, Safety, member
+from pipeline.rl.codes import Learner, member
+from pipeline.rl.rules import Safety
 from pipeline.world.geometry import Geometry
 from pipeline.world.maze import Layout, shortest_path_length
 
