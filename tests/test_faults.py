@@ -253,8 +253,9 @@ def test_a_killed_experiment_rerun_keeps_the_previous_experiment(tmp_path):
     proc = _start("+experiment=fig9", "recogniser=oracle", "runs=100", "episodes=100000", "seed=3",
                   "progress=false", f"out={tmp_path}")
     t0 = time.time()
-    while not list(tmp_path.glob(".staging-*/way2/records.mcap.partial")) and time.time() - t0 < 120:
+    while not list(tmp_path.glob(".staging-*/way1/records.mcap.partial")) and time.time() - t0 < 120:
         time.sleep(0.2)
+    time.sleep(1.0)
     proc.send_signal(signal.SIGTERM)
     proc.communicate(timeout=60)
     assert proc.returncode == 143
