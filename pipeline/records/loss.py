@@ -107,10 +107,11 @@ def _grid(runs: int, per_run: int, window) -> tuple[np.ndarray, np.ndarray]:
 
 
 def account(sc: Scan, read_runs: np.ndarray, read_eps: np.ndarray, *, runs: int | None,
-            per_run: int | None, unfinished: bool, window=None, batch_size: int | None = None, counts: dict[str, tuple[int, int]] | None = None
-            ) -> Loss:
+            per_run: int | None, unfinished: bool, window=None, batch_size: int | None = None,
+            counts: dict[str, tuple[int, int]] | None = None) -> Loss:
     """Compare what was read with what the file should hold and put every missing range down to the
-    damaged part that held it. ``counts``: kind -> (read, expected) messages (pictures,
+    damaged part that held it. ``batch_size``: the episodes of every sink batch, when uniform (a
+    lost batch then holds that many); ``counts``: kind -> (read, expected) messages (pictures,
     substitutions) when the file's statistics or closing record say how many there were."""
     read_key = np.unique(read_runs.astype(np.int64) << 32 | read_eps.astype(np.int64))
     if runs is not None and per_run is not None:
@@ -162,6 +163,10 @@ def account(sc: Scan, read_runs: np.ndarray, read_eps: np.ndarray, *, runs: int 
                 hi = min(hi, lo + batch_size - 1)  # a lost batch holds batch_size episodes
             if owner is None:
                 owner = next((d for d in spanned if d.span[0] <= t <= d.span[1]), None)
+                if owner is not None and batch_size:
+                    r_end, e_end, _ = S.split_log_time(owner.span[1])
+                    if r_end == r:  # its last batch of this run starts by e_end
+                        hi = min(hi, max(lo, e_end) + batch_size - 1)
             if owner is not None:
                 owner.lost.append((r, lo, hi))
             elif unfinished and lo > last_read.get(r, -1):
