@@ -117,6 +117,20 @@ def same_as_full(r, full, keep: set[tuple[int, int]]) -> None:
     assert r.recognitions.drop(columns="file").reset_index(drop=True).equals(rows(full.recognitions))
 
 
+def said_lost(message: str, word: str = "lost") -> set[tuple[int, int]]:
+    """The (run, episode) pairs a warning says were lost (or missing): ``run 1 episodes 4-7``,
+    ``runs 0-2 episodes 0-3 each``, ``run 2 episode 5``, ``runs 1-2 (all 12 episodes each)``."""
+    import re
+
+    out = set()
+    for part in re.findall(rf"{word} ([^;:]*)", message):
+        for m in re.finditer(r"runs? (\d+)(?:-(\d+))? (?:episodes? (\d+)(?:-(\d+))?|\(all (\d+) episodes)", part):
+            r0, r1 = int(m[1]), int(m[2] or m[1])
+            e0, e1 = (int(m[3]), int(m[4] or m[3])) if m[3] else (0, int(m[5]) - 1)
+            out |= {(r, e) for r in range(r0, r1 + 1) for e in range(e0, e1 + 1)}
+    return out
+
+
 def cli(args: list[str], capsys) -> tuple[int, str, str]:
     from pipeline.records.__main__ import main
 
@@ -151,11 +165,8 @@ def test_a_flipped_byte_loses_only_its_chunk(files, tmp_path, capsys, which, kin
     every = set(zip(full.episodes.run, full.episodes.episode))
     same_as_full(r, full, every - lost_eps)
     assert not r.meta.complete and r.meta.damaged and r.meta.status == "DAMAGED"
-    if lost_eps:  # says which runs and episodes: contiguous ranges of the lost ones
-        runs = sorted({run for run, _ in lost_eps})
-        for run in runs:
-            eps = sorted(e for rr, e in lost_eps if rr == run)
-            assert f"run {run} episodes {eps[0]}-{eps[-1]}" in msgs[0], msgs[0]
+    if lost_eps:  # says exactly which runs and episodes were lost
+        assert said_lost(msgs[0]) == lost_eps, msgs[0]
         assert f"kept {len(every) - len(lost_eps)} of {len(every)} episodes" in msgs[0]
     else:
         assert "no episode lost" in msgs[0]
@@ -186,6 +197,7 @@ def test_a_damaged_first_chunk_of_a_killed_run_keeps_the_episodes_of_the_other_c
     assert "chunk 1 damaged" in msgs[0] and "the file is truncated" in msgs[0]
     every = set(zip(full.episodes.run, full.episodes.episode))
     same_as_full(r, full, every - lost_eps - cks[-1][2])
+    assert said_lost(msgs[0]) == lost_eps and said_lost(msgs[0], "missing") == cks[-1][2], msgs[0]
     assert r.meta.status == "PARTIAL, DAMAGED"
 
 
@@ -200,6 +212,7 @@ def test_a_bad_chunk_length_is_resynchronised(files, tmp_path):
         assert len(msgs) == 1 and "chunk 3" in msgs[0] and "damaged" in msgs[0], msgs
         keep = every - lost_eps - (cks[-1][2] if cut < len(data) else set())
         same_as_full(r, full, keep)
+        assert said_lost(msgs[0]) == lost_eps, msgs[0]
 
 
 # ---------------------------------------------------------------------------------- truncated
@@ -216,7 +229,8 @@ def test_a_truncated_file_keeps_its_complete_chunks(files, tmp_path, capsys, whe
     same_as_full(r, full, keep)
     every = set(zip(full.episodes.run, full.episodes.episode))
     if keep != every:
-        assert "missing run" in msgs[0] and f"kept {len(keep)} of {len(every)} episodes" in msgs[0] \
+        assert said_lost(msgs[0], "missing") == every - keep, msgs[0]
+        assert f"kept {len(keep)} of {len(every)} episodes" in msgs[0] \
             or "no complete episode could be read (36 expected)" in msgs[0]
     else:
         assert "all recorded data is intact" in msgs[0]
@@ -339,13 +353,14 @@ def test_the_writer_layout_the_reader_falls_back_on(files):
         assert (ch.topic, ch.schema_id, summary.schemas[sid].name) == (topic, sid, cls.DESCRIPTOR.full_name)
 
 
-def test_np_ranges_and_descriptions():
+def test_ranges_and_their_descriptions():
     from pipeline.records.loss import describe, ranges
 
     rg = ranges(np.array([1, 1, 1, 2, 2, 3, 3]), np.array([40, 41, 42, 0, 1, 0, 1]))
     assert rg == [(1, 40, 42), (2, 0, 1), (3, 0, 1)]
     assert describe(rg, 2) == "run 1 episodes 40-42, runs 2-3 (all 2 episodes each) (7 episodes)"
     assert describe([(0, 5, 5)], None) == "run 0 episode 5"
+    assert describe([(r, 60, 99) for r in range(100)], 100) == "runs 0-99 episodes 60-99 each (4000 episodes)"
 
 
 def test_a_flipped_byte_outside_the_chunks_is_detected(files, tmp_path):

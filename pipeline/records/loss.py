@@ -61,27 +61,28 @@ def ranges(runs: np.ndarray, eps: np.ndarray) -> list[tuple[int, int, int]]:
 
 
 def describe(rgs: list[tuple[int, int, int]], per_run: int | None) -> str:
-    """``run 1 episodes 40-59, runs 2-3 (all 50 episodes each)``; long lists are shortened."""
+    """``run 1 episodes 40-59, runs 2-3 (all 50 episodes each)``: consecutive runs missing the same
+    episodes are one part; long lists are shortened."""
     parts: list[str] = []
     i = 0
     while i < len(rgs):
         r, a, b = rgs[i]
+        j = i
+        while j + 1 < len(rgs) and rgs[j + 1] == (rgs[j][0] + 1, a, b):
+            j += 1
+        runs = f"runs {r}-{rgs[j][0]}" if j > i else f"run {r}"
+        each = " each" if j > i else ""
         if per_run is not None and a == 0 and b == per_run - 1:
-            j = i
-            while j + 1 < len(rgs) and rgs[j + 1] == (rgs[j][0] + 1, 0, per_run - 1):
-                j += 1
-            if j > i:
-                parts.append(f"runs {r}-{rgs[j][0]} (all {per_run} episodes each)")
-            else:
-                parts.append(f"run {r} (all {per_run} episodes)")
-            i = j + 1
-            continue
-        parts.append(f"run {r} episode {a}" if a == b else f"run {r} episodes {a}-{b}")
-        i += 1
+            parts.append(f"{runs} (all {per_run} episodes{each})")
+        elif a == b:
+            parts.append(f"{runs} episode {a}{each}")
+        else:
+            parts.append(f"{runs} episodes {a}-{b}{each}")
+        i = j + 1
     total = sum(b - a + 1 for _, a, b in rgs)
     if len(parts) > _MAX_RANGES:
         parts = parts[:_MAX_RANGES - 1] + [f"and {len(parts) - _MAX_RANGES + 1} more ranges"]
-    return ", ".join(parts) + (f" ({total} episodes)" if len(parts) > 1 else "")
+    return ", ".join(parts) + (f" ({total} episodes)" if len(rgs) > 1 else "")
 
 
 @dataclass
