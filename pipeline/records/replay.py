@@ -27,12 +27,14 @@ from __future__ import annotations
 
 import subprocess
 import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
 
 from . import schema as S
-from .reader import Records, read_records
+from .reader import Records, RecordsWarning, read_records
+from .scan import RecordsError
 from pipeline.errors import UserError
 
 APP_ID = "fewshot_safe_rl_replay"
@@ -42,7 +44,12 @@ FREE, START, GOAL = (235, 235, 235), (120, 200, 120), (255, 215, 0)
 
 
 class ReplayError(UserError):
-    """The requested run/episode is not in the records, or the records cannot be drawn."""
+    """The requested run/episode is not in the records, or the records cannot be drawn; ``key`` is
+    the config key to blame (``"file"`` for a record file that cannot be read or drawn)."""
+
+    def __init__(self, message: str, key: str = "run/episode"):
+        super().__init__(message)
+        self.key = key
 
 
 def _centres(cells: np.ndarray, width: int) -> np.ndarray:
@@ -82,17 +89,30 @@ def build_replay(path: str | Path, run: int, episode: int | None = None, *, out:
     path, out = Path(path), Path(out)
     if not whole_run and episode is None:
         raise ReplayError("pass an episode, or whole_run=True to replay every episode of the run")
-    recs = records if records is not None else read_records(path, run=run)
+    if records is None:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", RecordsWarning)
+            try:
+                records = read_records(path, run=run)
+            except (RecordsError, FileNotFoundError) as exc:  # empty, not MCAP, another program's, missing
+                raise ReplayError(str(exc), key="file") from None
+        for meta in records.files.values():
+            if meta.unusable:  # our magic bytes and nothing readable after them
+                raise ReplayError(meta.unusable, key="file")
+        for w in caught:  # a damaged or truncated file that can be replayed: say what it lost
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    recs = records
+    meta = recs.files[str(path)] if str(path) in recs.files else recs.meta
+    why = f"; the file is damaged or cut: {meta.lost}" if meta.lost else ""
     eps_of_run = recs.episodes[recs.episodes.run == run]
     if eps_of_run.empty:
-        raise ReplayError(f"{path}: no recorded episode of run {run}")
+        raise ReplayError(f"{path}: no recorded episode of run {run}{why}")
     if not whole_run and episode not in set(eps_of_run.episode):
         have = eps_of_run.episode
         raise ReplayError(f"{path}: run {run} has no recorded episode {episode} "
-                          f"(episodes {int(have.min())}..{int(have.max())}, {len(have)} recorded)")
-    meta = recs.files[str(path)] if str(path) in recs.files else recs.meta
+                          f"(episodes {int(have.min())}..{int(have.max())}, {len(have)} recorded){why}")
     if not meta.maze:
-        raise ReplayError(f"{path}: the file holds no maze metadata, so the maze cannot be drawn")
+        raise ReplayError(f"{path}: the file holds no maze metadata, so the maze cannot be drawn", key="file")
     layout, width, height = meta.maze["layout"], meta.maze["width"], meta.maze["height"]
     names = meta.maze.get("categories") or []
     cat_name = (lambda c: names[c] if 0 <= c < len(names) else f"category {c}")

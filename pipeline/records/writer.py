@@ -170,7 +170,10 @@ class RecordWriter:
 
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._file = open(self.partial_path, "wb")
-        self._mcap = Writer(self._file, chunk_size=chunk_size, compression=comp[compression])
+        # enable_data_crcs: the data-end record carries a CRC of the whole data section, so a flipped
+        # byte outside the chunks (the header, a metadata record, a message index) of a finished file
+        # is detected too; the chunks and the summary have their own CRCs (docs/reliability.md)
+        self._mcap = Writer(self._file, chunk_size=chunk_size, compression=comp[compression], enable_data_crcs=True)
         self._mcap.start(profile="", library=LIBRARY)
         ids = {}
         for cls in (S.EpisodeBatch, S.Substitution, S.CompressedImage):

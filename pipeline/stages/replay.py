@@ -8,6 +8,7 @@ Logic in :mod:`pipeline.records.replay`; this is the thin entry point (conf/repl
 from __future__ import annotations
 
 import sys
+import warnings
 from pathlib import Path
 
 from pipeline.errors import ConfigError
@@ -16,6 +17,7 @@ from pipeline.stages._schema import ReplayConfig
 
 
 def run(cfg: ReplayConfig, overrides: list[str] = ()) -> Path:
+    from pipeline.records import RecordsWarning
     from pipeline.records.replay import ReplayError, build_replay, open_viewer
 
     path = Path(cfg.file).resolve()
@@ -27,9 +29,16 @@ def run(cfg: ReplayConfig, overrides: list[str] = ()) -> Path:
     if out.suffix != ".rrd":
         raise ConfigError(f"config key 'out': must end in .rrd, got {out}")
     try:
-        rrd = build_replay(path, cfg.run, None if cfg.whole_run else cfg.episode, out=out, whole_run=cfg.whole_run)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", RecordsWarning)
+            rrd = build_replay(path, cfg.run, None if cfg.whole_run else cfg.episode, out=out,
+                               whole_run=cfg.whole_run)
     except ReplayError as exc:
-        raise ConfigError(f"config keys 'run'/'episode': {exc}") from None
+        keys = "key 'file'" if exc.key == "file" else "keys 'run'/'episode'"
+        raise ConfigError(f"config {keys}: {exc}") from None
+    for w in caught:  # a damaged or truncated record file: one line saying what it lost
+        if issubclass(w.category, RecordsWarning):
+            print(f"warning: {w.message}", file=sys.stderr, flush=True)
     print(f"wrote {rrd}  (open it with: rerun {rrd})", flush=True)
     open_viewer(rrd, cfg.viewer, bind=cfg.bind, web_port=cfg.web_port, grpc_port=cfg.grpc_port)
     return rrd
