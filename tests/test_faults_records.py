@@ -205,9 +205,15 @@ def test_a_bad_chunk_length_is_resynchronised(files, tmp_path):
     path, data, full, cks = files["pictures"]
     off, length, lost_eps, _ = cks[2]
     every = set(zip(full.episodes.run, full.episodes.episode))
-    for name, cut in (("with-summary.mcap", len(data)), ("killed.mcap.partial", cks[-1][0] + 5)):
+    bad = tmp_path / "with-summary.mcap"  # the chunk index says where chunk 3 and its data are: nothing lost
+    bad.write_bytes(flip(data, off + 2))  # the record length of chunk 3
+    r, msgs = read_warned(bad)
+    assert len(msgs) == 1 and "the data section's CRC does not match" in msgs[0], msgs
+    same_as_full(r, full, every)
+    assert r.meta.status == "DAMAGED"
+    for name, cut in (("killed.mcap.partial", cks[-1][0] + 5),):
         bad = tmp_path / name
-        bad.write_bytes(flip(data[:cut], off + 2))  # the record length of chunk 3
+        bad.write_bytes(flip(data[:cut], off + 2))
         r, msgs = read_warned(bad)
         assert len(msgs) == 1 and "chunk 3" in msgs[0] and "damaged" in msgs[0], msgs
         keep = every - lost_eps - (cks[-1][2] if cut < len(data) else set())

@@ -304,7 +304,7 @@ def _decode_substitutions(messages: list[tuple[int, bytes]], damage: list[Damage
         for k, col in cols.items():
             col.append(getattr(m, k))
     if bad:
-        damage.append(Damage("decode", f"{bad} substitution messages did not decode", -1))
+        damage.append(Damage("decode", f"{bad} substitution messages did not decode"))
     types = {"run": np.int32, "episode": np.int32, "step": np.int32, "picture": np.int16,
              "category": np.int8, "position": np.int8, "support_accuracy": np.float64}
     return {k: _i(v, types[k]) for k, v in cols.items()}
@@ -321,7 +321,7 @@ def _file_meta(sc: Scan, pictures: bool) -> FileMeta:
         try:
             fn(md[name])
         except Exception as e:
-            sc.damage.append(Damage("metadata", f"metadata record '{name}' does not parse ({type(e).__name__}: {e})", -1))
+            sc.damage.append(Damage("metadata", f"metadata record '{name}' does not parse ({type(e).__name__}: {e})"))
 
     def config(rec):
         meta.config_yaml = rec.get("yaml")
@@ -360,7 +360,7 @@ def _file_meta(sc: Scan, pictures: bool) -> FileMeta:
                     meta.support_pictures[(int(cat), int(pos))] = S.CompressedImage.FromString(msgs[-1][1]).data
             except Exception as e:
                 sc.damage.append(Damage("decode", f"the picture message on {topic} does not decode "
-                                                  f"({type(e).__name__})", -1))
+                                                  f"({type(e).__name__})"))
     return meta
 
 
@@ -436,7 +436,7 @@ def _read_file(path: Path, time_range, pictures: bool) -> dict[str, Any]:
             except Exception as e:
                 sc.damage.append(Damage("decode", f"the episode batch message stamped "
                                                   f"{_describe_time(t)} did not decode ({type(e).__name__}: {e})",
-                                        -1, (t, t)))
+                                        (t, t)))
         dec = _decode_batches(good, name)
     dec["substitutions"] = _decode_substitutions(sc.messages.get(S.TOPIC_SUBSTITUTIONS, []), sc.damage)
     meta = _file_meta(sc, pictures)
