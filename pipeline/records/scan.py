@@ -189,144 +189,124 @@ def _read_indexed(data: bytes, out: Scan, summary: Summary, time_range) -> None:
         for _, ch, m in reader.iter_messages(log_time_order=False, **query):
             out.messages.setdefault(ch.topic, []).append((m.log_time, m.data))
     end = summary.data_end - 13  # the data-end record
-    if _HEAD.unpack_from(data, end) != (Opcode.DATA_END, 4):
+    rec = next(StreamReader(io.BytesIO(data[end:summary.data_end]), skip_magic=True).records)
+    if not isinstance(rec, DataEnd):
         raise ValueError("no data-end record before the summary")
-    crc = struct.unpack_from("<I", data, end + 9)[0]
-    if time_range is None and crc and zlib.crc32(data[:end]) != crc:
-        out.damage.append(Damage("data", "the data section's CRC does not match: a byte outside the chunks' data "
-                                         "is damaged (a record header, a metadata record or a message index); every "
-                                         "chunk read passed its own CRC"))
-
-
-class _Bad(ValueError):
-    pass
+    _data_end(data, out, rec, end, time_range)
 
 
 def _walk(data: bytes, out: Scan, time_range) -> None:
-    """Front to back with mcap's stream reader, starting a new one after each damaged record."""
+    """Front to back with mcap's stream reader, a new one after each damaged record."""
     n, summary = len(data), out.summary
     limit = summary.data_end if summary is not None else n
     indexed = {c.chunk_start_offset: (k, c) for k, c in enumerate(summary.chunk_indexes, 1)} if summary else {}
-    anchors = sorted({*indexed, *(m.offset for m in summary.metadata_indexes), limit - 13}) if summary else []
     of = f" of {len(indexed)}" if summary is not None else ""
-    state = {"chunks": 0, "lost": None, "visited": set()}
-    f, pos, done = io.BytesIO(data), 8, False
-    while pos is not None and pos < limit and not done:
-        f.seek(pos)
-        start = pos
+    chunks, lost, visited = 0, None, set()
+    f, pos = io.BytesIO(data), 8
+
+    def damaged_chunk(start: int, why: str, span) -> Damage:
+        k = indexed[start][0] if start in indexed else chunks
+        out.damage.append(Damage("chunk", f"chunk {k}{of} damaged ({why}) at byte {start}", span))
+        visited.add(start)
+        return out.damage[-1]
+
+    while pos is not None and pos < limit:
+        f.seek(start := pos)
+        pos = None
         try:
             for rec in StreamReader(f, skip_magic=True, emit_chunks=True, record_size_limit=n).records:
                 end = f.tell()
-                nxt = next((a for a in anchors if a > start), limit)
-                if data[start] != _OPCODE.get(type(rec)) or end > nxt or (start in indexed and
-                                                                        end - start != indexed[start][1].chunk_length):
-                    raise _Bad("its record header disagrees with " + ("the chunk index" if start in indexed else
-                                                                      "the records around it"))
-                done = _take_record(data, out, rec, start, end, state, indexed, of, time_range)
-                start = end
-                if done:
+                if data[start] != _OPCODE.get(type(rec)) or (start in indexed and end - start != indexed[start][1]
+                                                              .chunk_length):
+                    raise ValueError("its record header disagrees with " + ("the chunk index" if start in indexed
+                                                                            else "its contents"))
+                if isinstance(rec, MessageIndex):
+                    if lost is not None:  # what the damaged chunk before it held
+                        lost.index.setdefault(rec.channel_id, []).extend(t for t, _ in rec.records)
+                    start = end
+                    continue
+                lost = None
+                if isinstance(rec, Chunk):
+                    if end - start != _chunk_size(rec):
+                        raise ValueError("bad chunk header: its data length disagrees with its record length")
+                    chunks += 1
+                    visited.add(start)
+                    why = _take_chunk(out, rec, time_range)
+                    if why:
+                        lost = damaged_chunk(start, why, (rec.message_start_time, rec.message_end_time))
+                elif isinstance(rec, DataEnd):
+                    _data_end(data, out, rec, start, time_range)
                     break
-            else:
-                done = True
+                elif isinstance(rec, Metadata):
+                    out.metadata[rec.name] = dict(rec.metadata)
+                elif isinstance(rec, Header):
+                    out.library = rec.library
+                else:
+                    _take(out, rec, time_range)
+                start = end
         except Exception as e:
-            pos = _skip_damaged(data, out, start, limit, e, state, indexed, of, anchors)
+            why = str(e) if isinstance(e, ValueError) and str(e) else f"{type(e).__name__}: {e}".rstrip(": ")
+            if start >= n:
+                out.damage.append(Damage("truncated", f"the file is truncated: it ends after {n} bytes at a record "
+                                                      "boundary, before its data-end record; anything written after "
+                                                      "that and the summary section are lost"))
+            elif start in indexed:  # the chunk index says where the next record starts
+                lost = damaged_chunk(start, why, (indexed[start][1].message_start_time,
+                                                  indexed[start][1].message_end_time))
+                pos = start + indexed[start][1].chunk_length
+            else:
+                opcode, length = _HEAD.unpack_from(data, start) if start + 9 <= n else (data[start], n)
+                span = struct.unpack_from("<QQ", data, start + 9) if opcode == Opcode.CHUNK and start + 25 <= n else None
+                span = span if span and span[0] <= span[1] else None
+                pos = _find_next(data, start + 1, limit)
+                if pos is None and start + 9 + length > n:
+                    name = f"chunk {chunks + 1}, of {length} bytes at byte {start}" + (
+                        f", holding messages stamped {_describe_span(*span)}" if span else "") \
+                        if opcode == Opcode.CHUNK else _record_name(opcode)
+                    out.damage.append(Damage("truncated", f"the file is truncated: it ends {n - start - 9} bytes into "
+                                                          f"{name}; that record, anything after it and the summary "
+                                                          "section are lost", span))
+                elif opcode == Opcode.CHUNK:
+                    chunks += 1
+                    lost = damaged_chunk(start, why, span)
+                    lost.what += f"; reading went on at byte {pos}" if pos else ""
+                else:
+                    out.damage.append(Damage("bytes", f"a damaged record ({why}) at byte {start} was skipped"
+                                                      + (f"; reading went on at byte {pos}" if pos else "")))
     for k, c in indexed.values():
-        if c.chunk_start_offset not in state["visited"]:
+        if c.chunk_start_offset not in visited:
             out.damage.append(Damage("chunk", f"chunk {k}{of} at byte {c.chunk_start_offset} was not reached (the "
                                               "records before it are damaged)",
                                      (c.message_start_time, c.message_end_time)))
 
 
-def _take_record(data, out: Scan, rec, start: int, end: int, state: dict, indexed, of: str, time_range) -> bool:
-    """File one record read by the stream reader; True at the data-end record."""
-    if isinstance(rec, MessageIndex):
-        if state["lost"] is not None:  # what the damaged chunk before it held
-            state["lost"].index.setdefault(rec.channel_id, []).extend(t for t, _ in rec.records)
-        return False
-    state["lost"] = None
-    if isinstance(rec, Chunk):
-        if end - start != _chunk_size(rec):
-            raise _Bad("bad chunk header: its data length disagrees with its record length")
-        state["chunks"] += 1
-        state["visited"].add(start)
-        k = indexed[start][0] if start in indexed else state["chunks"]
-        if time_range is not None and out.channels and rec.message_start_time != 0 and (
-                rec.message_end_time < time_range[0] or rec.message_start_time >= time_range[1]):
-            return False  # outside the requested range: left unread
-        try:
-            records = breakup_chunk(rec, validate_crc=True)
-        except Exception as e:
-            why = ("CRC mismatch" if isinstance(e, CRCValidationError) else
-                   f"bad decompression ({type(e).__name__}: {e})" if type(e).__module__.startswith(("zstandard", "lz4"))
-                   or isinstance(e, RuntimeError) else "bad record lengths")
-            out.damage.append(Damage("chunk", f"chunk {k}{of} damaged ({why}) at byte {start}",
-                                     (rec.message_start_time, rec.message_end_time)))
-            state["lost"] = out.damage[-1]
-            return False
-        for r in records:
-            _take(out, r, time_range)
-    elif isinstance(rec, Metadata):
-        out.metadata[rec.name] = dict(rec.metadata)
-    elif isinstance(rec, Header):
-        out.library = rec.library
-    elif isinstance(rec, DataEnd):
-        if rec.data_section_crc and time_range is None and not out.damage \
-                and zlib.crc32(data[:start]) != rec.data_section_crc:
-            out.damage.append(Damage("data", "the data section's CRC does not match: a byte outside the chunks' "
-                                             "data is damaged (a record header, a metadata record or a message index); "
-                                             "every chunk read passed its own CRC"))
-        if out.summary is None and not any(d.kind == "summary" for d in out.damage):
-            out.damage.append(Damage("truncated", "the summary section at the end of the file is truncated (all "
-                                                  "recorded data is intact)"))
-        return True
-    else:
-        _take(out, rec, time_range)
-    return False
-
-
-def _skip_damaged(data, out: Scan, start: int, limit: int, err: Exception, state, indexed, of, anchors) -> int | None:
-    """Note the damaged record at ``start``; the offset to read on from (None: nothing follows)."""
-    n = len(data)
-    if start >= n:
-        out.damage.append(Damage("truncated", f"the file is truncated: it ends after {n} bytes at a record boundary, "
-                                              "before its data-end record; anything written after that and the "
-                                              "summary section are lost"))
+def _take_chunk(out: Scan, rec: Chunk, time_range) -> str | None:
+    """File the records of a chunk (left unread outside ``time_range``); why it is damaged, or None."""
+    if time_range is not None and out.channels and rec.message_start_time != 0 and (
+            rec.message_end_time < time_range[0] or rec.message_start_time >= time_range[1]):
         return None
-    opcode, length = _HEAD.unpack_from(data, start) if start + 9 <= n else (data[start], n)
-    is_chunk = opcode == Opcode.CHUNK
-    span = None
-    if is_chunk and start + 25 <= n:
-        span = struct.unpack_from("<QQ", data, start + 9)
-        span = span if span[0] <= span[1] else None
-    why = str(err) if isinstance(err, _Bad) else f"{type(err).__name__}: {err}" if str(err) else type(err).__name__
-    if start in indexed:  # the chunk index says where the next record starts
-        k, c = indexed[start]
-        state["visited"].add(start)
-        out.damage.append(Damage("chunk", f"chunk {k}{of} damaged ({why}) at byte {start}",
-                                 (c.message_start_time, c.message_end_time)))
-        state["lost"] = out.damage[-1]
-        return start + c.chunk_length
-    if anchors:
-        nxt = next((a for a in anchors if a > start), None)
-    else:
-        nxt = _find_next(data, start + 1, limit)
-        if nxt is None and start + 9 + length > n:
-            name = _record_name(opcode)
-            if is_chunk:
-                name = f"chunk {state['chunks'] + 1}, of {length} bytes at byte {start}" + (
-                    f", holding messages stamped {_describe_span(*span)}" if span else "")
-            out.damage.append(Damage("truncated", f"the file is truncated: it ends {n - start - 9} bytes into {name}; "
-                                                  "that record, anything after it and the summary section are lost",
-                                     span))
-            return None
-    if is_chunk:
-        state["chunks"] += 1
-        what = f"chunk {state['chunks']}{of} damaged ({why}) at byte {start}"
-    else:
-        what = f"a damaged record ({why}) at byte {start} was skipped"
-    out.damage.append(Damage("chunk" if is_chunk else "bytes", what + (f"; reading went on at byte {nxt}" if nxt else ""),
-                             span))
-    return nxt
+    try:
+        records = breakup_chunk(rec, validate_crc=True)
+    except CRCValidationError:
+        return "CRC mismatch"
+    except Exception as e:
+        if type(e).__module__.startswith(("zstandard", "lz4")) or isinstance(e, RuntimeError):
+            return f"bad decompression ({type(e).__name__}: {e})"
+        return "bad record lengths"
+    for r in records:
+        _take(out, r, time_range)
+    return None
+
+
+def _data_end(data: bytes, out: Scan, rec: DataEnd, start: int, time_range) -> None:
+    """The data section's CRC (on a full read of a file with no other damage), and a lost summary."""
+    if rec.data_section_crc and time_range is None and not out.damage and zlib.crc32(data[:start]) != rec.data_section_crc:
+        out.damage.append(Damage("data", "the data section's CRC does not match: a byte outside the chunks' data is "
+                                         "damaged (a record header, a metadata record or a message index); every "
+                                         "chunk read passed its own CRC"))
+    if out.summary is None and not any(d.kind == "summary" for d in out.damage):
+        out.damage.append(Damage("truncated", "the summary section at the end of the file is truncated (all recorded "
+                                              "data is intact)"))
 
 
 def _chunk_size(rec: Chunk) -> int:
