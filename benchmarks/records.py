@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.records import RecordWriter, read_records
-from pipeline.records.synthetic import make_batch, maze_layout, obstacle_assignment, tiny_png
+from tests.synthetic_records import make_batch, maze_layout, obstacle_assignment, tiny_png
 
 BATCH = 25  # episodes a sink batch (the trial runner's chunk_episodes)
 
