@@ -19,7 +19,7 @@ import pytest
 
 from pipeline.records import RecordsError, RecordsWarning, RecordWriter, read_records
 from pipeline.records import schema as S
-from pipeline.records.synthetic import LAYOUT_5X5, batches, obstacle_assignment, tiny_png
+from synthetic_records import LAYOUT_5X5, MAZE_5X5, batches, obstacle_assignment, tiny_png
 
 ROOT = Path(__file__).resolve().parents[1]
 RUNS, EPISODES = 3, 12
@@ -32,7 +32,7 @@ def write(path: Path, *, pictures: bool = True, flush_every: int = 8) -> Path:
     per_run = [[(b, g) for b, g in every if b["run"] == run] for run in range(RUNS)]
     with RecordWriter(path, metadata={"config": {"experiment": "faults", "runs": RUNS, "episodes": EPISODES,
                                                  "seed": 0}, "seeds": list(range(RUNS))},
-                      maze={"layout": LAYOUT_5X5, "categories": ["chair", "kettle", "carton", "basin", "basket"]},
+                      maze=MAZE_5X5,
                       runs=[obstacle_assignment(LAYOUT_5X5, r) for r in range(RUNS)],
                       pictures={p: tiny_png(p) for p in range(40)} if pictures else None,
                       flush_every=flush_every) as w:

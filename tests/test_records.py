@@ -10,8 +10,7 @@ import pytest
 
 from pipeline.records import RecordWriter, RecordsWarning, read_records
 from pipeline.records import schema as S
-from pipeline.records.synthetic import (LAYOUT_5X5, batches, make_batch, obstacle_assignment, tiny_png,
-                                        write_synthetic)
+from synthetic_records import LAYOUT_5X5, batches, make_batch, obstacle_assignment, tiny_png, write_synthetic
 
 
 def _episode(run=0, episode=0, n=3, **over):
@@ -153,7 +152,7 @@ def test_batches_of_the_runner_protocol_round_trip(tmp_path):
 
 def test_the_batch_encoder_matches_protobuf_byte_for_byte():
     from pipeline.records.batch import check_batch, encode_batch, encode_batch_protobuf
-    from pipeline.records.synthetic import maze_layout
+    from synthetic_records import maze_layout
 
     layout = maze_layout(11, seed=2)
     groups = [b for b, _ in batches(layout, batch_size=5, runs=2, episodes_per_run=30, seed=2, max_steps=300)]
@@ -266,7 +265,7 @@ def test_a_killed_writer_loses_at_most_the_episodes_since_its_last_flush(tmp_pat
     script = f"""
 import os, sys
 sys.path.insert(0, {str(Path(__file__).resolve().parents[1])!r})
-from pipeline.records.synthetic import LAYOUT_5X5, batches
+from tests.synthetic_records import LAYOUT_5X5, batches
 from pipeline.records import RecordWriter
 w = RecordWriter({str(tmp_path / 'k.mcap')!r}, maze={{"layout": LAYOUT_5X5}}, flush_every=5)
 for batch, _ in batches(LAYOUT_5X5, batch_size=3, runs=1, episodes_per_run=14):
@@ -338,7 +337,7 @@ def test_vectorised_decoding_equals_the_protobuf_runtime(tmp_path):
     from pipeline.records import reader
     from pipeline.records.decode import decode_batches, decode_batches_protobuf
     from pipeline.records.scan import scan
-    from pipeline.records.synthetic import maze_layout
+    from synthetic_records import maze_layout
 
     layout = maze_layout(11, seed=4)
     groups = [b for b, _ in batches(layout, batch_size=4, runs=2, episodes_per_run=15, seed=4, max_steps=300)]

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from pipeline.records.replay import ReplayError, build_replay
-from pipeline.records.synthetic import write_synthetic
+from synthetic_records import write_synthetic
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -87,3 +87,51 @@ def test_replay_stage_with_a_positional_file(recorded, tmp_path):
     bad = subprocess.run([sys.executable, "-m", "pipeline", "replay", f"file={path}", "run=0", "episode=2",
                           "viewer=desktop"], cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert bad.returncode == 2 and "config key 'viewer'" in bad.stderr
+
+
+def _columns(rrd: Path, entity: str) -> dict[str, list]:
+    import rerun.chunk
+
+    out: dict[str, list] = {}
+    for ch in rerun.chunk.RrdReader(rrd).stream().to_chunks():
+        if str(ch.entity_path) == entity:
+            for k, v in ch.to_record_batch().to_pydict().items():
+                out.setdefault(k, []).extend(v)
+    return out
+
+
+def test_the_trials_stage_records_the_worlds_moves_and_names(tmp_path):
+    from pipeline.records import read_records
+    from pipeline.stages._common import run_stage
+    from pipeline.world.maze import ACTION_NAMES, MOVES
+    from pipeline.world.pictures import CATEGORIES
+
+    run_stage("trials", ["method=shield", "maze=5x5", "runs=1", "episodes=2", "record=true", f"out={tmp_path}",
+                         "progress=false"])
+    (path,) = tmp_path.rglob("records.mcap")
+    maze = read_records(path, pictures=False).meta.maze
+    assert (maze["actions"], maze["moves"], maze["categories"]) == (list(ACTION_NAMES), list(MOVES), list(CATEGORIES))
+
+
+def test_replay_draws_with_the_files_moves_and_names(tmp_path):
+    from pipeline.records import RecordWriter
+
+    def write(path, **maze):
+        with RecordWriter(path, maze={"layout": ["S.", ".G"], **maze}) as w:
+            w.episode(run=0, episode=0, states=np.array([0, 1, 3, 2]), actions=np.array([1, 2, 3, 0]),
+                      rewards=np.zeros(4), flags=np.array([1, 0, 0, 8], np.uint8), recognitions={}, unsafe_added={},
+                      summary={"steps": 4, "collisions": 0, "return_": 0.0, "reached_goal": True, "prevented": 1,
+                               "epsilon": 0.1, "greedy_optimal": False})
+        return build_replay(path, 0, 0, out=path.with_suffix(".rrd"))
+
+    own = write(tmp_path / "own.mcap", actions=["up", "right", "down", "left"], moves=[(-1, 0), (0, 2), (1, 0), (0, -2)])
+    vectors = [v[0] for v in _columns(own, "/maze/robot/action")["Arrows2D:vectors"]]
+    assert np.allclose(vectors, [[0.8, 0], [0, 0.4], [-0.8, 0], [0, -0.4]])  # (x, y) = (d_col, d_row) * 0.4
+    assert [t[0] for t in _columns(own, "/events")["TextLog:text"]] == [
+        "run 0 ep 0 step 0: cell 0 action right: reselected", "run 0 ep 0 step 3: cell 2 action up: goal"]
+    old = write(tmp_path / "old.mcap")  # a file without moves or names (as older files): N, E, S, W
+    vectors = [v[0] for v in _columns(old, "/maze/robot/action")["Arrows2D:vectors"]]
+    assert np.allclose(vectors, [[0.4, 0], [0, 0.4], [-0.4, 0], [0, -0.4]])
+    assert "action E: reselected" in _columns(old, "/events")["TextLog:text"][0][0]
+    with pytest.raises(ValueError, match="maze.moves"):
+        write(tmp_path / "bad.mcap", actions=["up", "down"], moves=[(-1, 0), (0, 1), (1, 0)])

@@ -50,7 +50,7 @@ class FileMeta:
     config_yaml: str | None = None
     seeds: Any = None
     versions: dict[str, str] = field(default_factory=dict)
-    maze: dict[str, Any] | None = None  # layout (list of rows), width, height, categories
+    maze: dict[str, Any] | None = None  # layout (list of rows), width, height, categories, actions, moves
     obstacles: dict[int, list[dict[str, int]]] = field(default_factory=dict)  # run -> assignment
     info: dict[str, Any] = field(default_factory=dict)
     closed: dict[str, str] | None = None
@@ -332,7 +332,9 @@ def _file_meta(sc: Scan, pictures: bool) -> FileMeta:
 
     def maze(mz):
         out = {"layout": mz["layout"].split("\n"), "width": int(mz["width"]), "height": int(mz["height"]),
-               "categories": json.loads(mz["categories"]) if "categories" in mz else None}
+               "categories": json.loads(mz["categories"]) if "categories" in mz else None,
+               "actions": mz["actions"].split(",") if "actions" in mz else None,  # names; older files: N,E,S,W
+               "moves": [tuple(m) for m in json.loads(mz["moves"])] if "moves" in mz else None}  # older files: none
         if "extra" in mz:
             out.update(json.loads(mz["extra"]))
         meta.maze = out

@@ -4,10 +4,10 @@ One file holds every episode of every run of one trial cell. Per file:
 
 * MCAP **metadata** records (written first, so a killed run keeps them): ``recording`` (format
   version, time unit), ``config`` (resolved config as YAML and JSON), ``seeds``, ``versions``
-  (package versions), ``maze`` (layout rows of ``S``/``G``/``X``/``.``, width, height, action
-  names, category names), ``obstacles`` (the per-run obstacle assignment, JSON), ``info`` (any
-  other key of the writer's ``metadata``), and ``closed`` (counts; written by ``close()`` only,
-  so its absence marks an unfinished file).
+  (package versions), ``maze`` (layout rows of ``S``/``G``/``X``/``.``, width, height, and the
+  caller's action names, moves and category names), ``obstacles`` (the per-run obstacle
+  assignment, JSON), ``info`` (any other key of the writer's ``metadata``), and ``closed``
+  (counts; written by ``close()`` only, so its absence marks an unfinished file).
 * The query pictures **once**, as ``foxglove.CompressedImage`` on ``/pictures/<id>`` (and the
   initial support-set thumbnails, when given, on ``/support/<category>/<position>``).
 * ``/episodes``: ONE :data:`EpisodeBatch` message per batch the trial runner hands to its sink
@@ -48,8 +48,6 @@ FLAG_TRUNCATED = 16
 FLAG_NAMES = {"reselected": FLAG_RESELECTED, "collided": FLAG_COLLIDED, "recovered": FLAG_RECOVERED,
               "goal": FLAG_GOAL, "truncated": FLAG_TRUNCATED}
 SOURCE_NAMES = ("recognition", "collision", "ssrl_rule")
-ACTION_NAMES = ("N", "E", "S", "W")
-ACTION_DELTAS = ((-1, 0), (0, 1), (1, 0), (0, -1))  # (d_row, d_col) of actions 0 N, 1 E, 2 S, 3 W
 
 # Timestamps: log_time_ns = run * RUN_NS + episode * EPISODE_NS + step * STEP_NS.
 STEP_NS = 1_000_000  # 1 ms
@@ -183,7 +181,7 @@ def file_descriptor_set(message_class) -> bytes:
 
 
 __all__ = [
-    "ACTION_DELTAS", "ACTION_NAMES", "CompressedImage", "EpisodeBatch", "EpisodeSummaries", "FLAG_NAMES",
+    "CompressedImage", "EpisodeBatch", "EpisodeSummaries", "FLAG_NAMES",
     "FORMAT_VERSION", "Recognitions", "SOURCE_NAMES", "Steps", "Substitution", "TOPIC_EPISODES",
     "TOPIC_PICTURES", "TOPIC_SUBSTITUTIONS", "TOPIC_SUPPORT", "UnsafeAdditions", "file_descriptor_set",
     "log_time_ns", "split_log_time",

@@ -98,10 +98,20 @@ def _check_maze(maze: Mapping[str, Any]) -> dict[str, str]:
     if bad:
         raise ValueError(f"maze.layout: unknown cell characters {sorted(bad)}; allowed: 'S', 'G', 'X', '.'")
     out = {"layout": "\n".join(rows), "height": str(len(rows)), "width": str(len(rows[0])),
-           "cell_index": "row * width + col", "actions": ",".join(S.ACTION_NAMES)}
+           "cell_index": "row * width + col"}
     if maze.get("categories") is not None:
         out["categories"] = to_json(list(maze["categories"]))
-    extra = {k: v for k, v in maze.items() if k not in ("layout", "categories")}
+    names, moves = maze.get("actions"), maze.get("moves")  # the caller's: records has no moves of its own
+    if names is not None:  # comma-separated, as files have always had them
+        if not (names := [str(n) for n in names]) or not all(names) or "," in "".join(names):
+            raise ValueError(f"maze.actions: names must be non-empty and without commas, got {names!r}")
+        out["actions"] = ",".join(names)
+    if moves is not None:
+        m = np.asarray(moves)
+        if m.ndim != 2 or m.shape[1] != 2 or m.dtype.kind not in "iu" or len(names or m) != len(m):
+            raise ValueError(f"maze.moves: one (d_row, d_col) pair of integers per action name, got {moves!r}")
+        out["moves"] = to_json(m)
+    extra = {k: v for k, v in maze.items() if k not in ("layout", "categories", "actions", "moves")}
     if extra:
         out["extra"] = to_json(extra)
     return out

@@ -16,10 +16,10 @@ from matplotlib.ticker import FuncFormatter  # noqa: E402
 import numpy as np  # noqa: E402
 
 from pipeline.report.stats import describe, mean_band  # noqa: E402
+from pipeline.world.maze import MOVES  # noqa: E402
+from pipeline.world.pictures import CATEGORIES  # noqa: E402
 
 CATEGORY_COLOURS = ("#8c564b", "#1f77b4", "#ff7f0e", "#2ca02c", "#9467bd")
-CATEGORY_NAMES = ("chair", "kettle", "carton", "basin", "basket")
-MOVES = ((-1, 0), (0, 1), (1, 0), (0, -1))
 
 
 def save(fig, path: Path) -> Path:
@@ -129,7 +129,7 @@ def optimal_path(layout: list[str], obstacles: list[dict], path_cells: list[int]
     if path_cells:
         rc = np.array([divmod(s, w) for s in path_cells])
         ax.plot(rc[:, 1], rc[:, 0], "o-", color="#1f77b4", ms=6)
-    handles = [matplotlib.patches.Patch(color=c, label=n) for c, n in zip(CATEGORY_COLOURS, CATEGORY_NAMES)]
+    handles = [matplotlib.patches.Patch(color=c, label=n) for c, n in zip(CATEGORY_COLOURS, CATEGORIES)]
     ax.legend(handles=handles, fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1))
     ax.set_title(title, fontsize=9)
     return save(fig, path)

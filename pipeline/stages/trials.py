@@ -30,7 +30,7 @@ from pipeline.stages._common import one_line, stage_main
 from pipeline.stages._recognisers import build_recogniser
 from pipeline.stages._schema import Experiment, TrialsConfig
 from pipeline.world.geometry import build_geometry
-from pipeline.world.maze import Layout, load_layout
+from pipeline.world.maze import ACTION_NAMES, MOVES, Layout, load_layout
 from pipeline.world.pictures import CATEGORIES
 
 #: Keys a cell may pin; the top level (experiment globals, command line) gives the others.
@@ -176,7 +176,8 @@ def run_cell(cell: CellRun, folder: Path) -> tuple[dict, float]:
                       "info": {"cell": name, "method": method.as_dict(), "maze": layout.name,
                                "substitution": cfg.substitution, "support": cfg.support,
                                "recogniser": recogniser.describe() if hasattr(recogniser, "describe") else None}},
-            maze={"layout": list(layout.rows), "name": layout.name, "categories": list(CATEGORIES)},
+            maze={"layout": list(layout.rows), "name": layout.name, "categories": list(CATEGORIES),
+                  "actions": ACTION_NAMES, "moves": MOVES},
             runs=placements, pictures=pictures, flush_every=cfg.flush_every)
     t0 = time.perf_counter()
     try:

@@ -1,7 +1,8 @@
-"""Synthetic episode records, structurally valid (same fields, dtypes and flag semantics as the trial
-runner hands to its sink), for the records tests and the write-speed benchmark. Not a simulation:
-the robot random-walks on the free cells, a step toward an obstacle is a recognition, a wrong
-recognition a collision with self-recovery.
+"""Synthetic episode records for the records tests and benchmarks (``from synthetic_records import
+...`` in tests, ``from tests.synthetic_records import ...`` from the repository root): the fields,
+dtypes and flag semantics the trial runner hands to its sink. Not a simulation: the robot
+random-walks on the free cells, a step toward an obstacle is a recognition, a wrong recognition a
+collision with self-recovery.
 """
 from __future__ import annotations
 
@@ -10,9 +11,14 @@ from typing import Any, Iterator
 
 import numpy as np
 
-from . import schema as S
+from pipeline.records import RecordWriter
+from pipeline.records import schema as S
+from pipeline.world.maze import ACTION_NAMES, MOVES
+from pipeline.world.pictures import CATEGORIES
 
-LAYOUT_5X5 = ["S...X", ".X...", "...X.", "X....", "..X.G"]
+MAZE_5X5 = {"layout": ["S...X", ".X...", "...X.", "X....", "..X.G"], "categories": list(CATEGORIES),
+            "actions": ACTION_NAMES, "moves": MOVES}  # what the trials stage records
+LAYOUT_5X5 = MAZE_5X5["layout"]
 
 
 def maze_layout(size: int = 11, n_obstacles: int | None = None, seed: int = 0) -> list[str]:
@@ -40,10 +46,8 @@ def tiny_png(seed: int, size: int = 8) -> bytes:
     """A small deterministic PNG (needs Pillow)."""
     from PIL import Image
 
-    rng = np.random.default_rng(seed)
-    img = Image.fromarray(rng.integers(0, 256, (size, size, 3), dtype=np.uint8))
-    buf = io.BytesIO()
-    img.save(buf, format="PNG")
+    Image.fromarray(np.random.default_rng(seed).integers(0, 256, (size, size, 3), dtype=np.uint8)).save(
+        buf := io.BytesIO(), format="PNG")
     return buf.getvalue()
 
 
@@ -55,7 +59,7 @@ def episodes(layout: list[str], *, runs: int, episodes_per_run: int, seed: int =
     ``sink.substitution``)."""
     height, width = len(layout), len(layout[0])
     obstacle = np.array([ch == "X" for row in layout for ch in row])
-    deltas = np.array(S.ACTION_DELTAS)
+    deltas = np.array(MOVES)
     for run in range(runs):
         rng = np.random.default_rng([seed, run])
         assignment = {o["cell"]: o for o in obstacle_assignment(layout, run, seed)}
@@ -65,10 +69,7 @@ def episodes(layout: list[str], *, runs: int, episodes_per_run: int, seed: int =
             states = np.empty(n, np.int32)
             flags = np.zeros(n, np.uint8)
             rewards = np.zeros(n, np.float32)
-            r_rows = []
-            u_rows = []
-            subs = []
-            pos = 0
+            r_rows, u_rows, subs, pos = [], [], [], 0
             for t in range(n):
                 states[t] = pos
                 row, col = divmod(pos, width)
@@ -159,14 +160,11 @@ def write_synthetic(path, *, runs: int = 3, episodes_per_run: int = 10, seed: in
                     **kw) -> list[dict[str, Any]]:
     """Write a small synthetic record file, ``batch_size`` episodes a sink batch; return the episode
     fields written (each with its ``_substitutions``)."""
-    from .writer import RecordWriter
-
     layout = LAYOUT_5X5 if size == 5 else maze_layout(size, seed=seed)
     written = []
     pics = {pid: tiny_png(pid) for pid in range(40)} if pictures else None
     with RecordWriter(path, metadata={"config": {"experiment": "synthetic", "seed": seed, "runs": runs},
-                                      "seeds": list(range(runs))},
-                      maze={"layout": layout, "categories": ["chair", "kettle", "carton", "basin", "basket"]},
+                                      "seeds": list(range(runs))}, maze={**MAZE_5X5, "layout": layout},
                       runs=[obstacle_assignment(layout, r, seed) for r in range(runs)],
                       pictures=pics, flush_every=flush_every, **kw) as w:
         for batch, group in batches(layout, batch_size=batch_size, runs=runs, episodes_per_run=episodes_per_run,
