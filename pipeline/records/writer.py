@@ -1,17 +1,14 @@
 """The MCAP record writer: an episode sink (``pipeline/rl/sink.py``) that records every episode of
-every run (DESIGN.md "Records"; schema in :mod:`pipeline.records.schema`).
+every run (DESIGN.md "Records"; docs/records.md; schema in :mod:`.schema`, encoding in :mod:`.codec`).
 
-    with RecordWriter("datasets/runs/fig8/fewshot.mcap", metadata={"config": cfg, "seeds": seeds},
-                      maze={"layout": rows, "categories": names}, runs=assignments,
-                      pictures=query_pngs) as sink:
+    with RecordWriter(out / "records.mcap", metadata={"config": cfg, "seeds": seeds}, maze={"layout": rows},
+                      runs=assignments, pictures=query_pngs) as sink:
         run_trials(..., sink=sink)     # calls sink.episodes(**batch) and sink.substitution(...)
 
-Finishing is atomic: the writer writes ``<name>.mcap.partial`` and renames it to ``<name>.mcap``
-only when :meth:`RecordWriter.close` succeeds. Each sink batch becomes one ``EpisodeBatch`` message
-(checked and encoded per batch, :mod:`.codec`). It closes a chunk once ``flush_every`` episodes have come in,
-so a killed run loses at most the episodes since its last flush, and its ``.partial`` file reads
-up to there (:func:`pipeline.records.read_records`). If the ``with`` block raises, the file is
-finished (a valid MCAP) but keeps its ``.partial`` name.
+It writes ``<name>.mcap.partial`` and renames it to ``<name>.mcap`` when :meth:`RecordWriter.close`
+succeeds (if the ``with`` block raises, the finished file keeps its ``.partial`` name). Metadata
+records and pictures come first; each sink batch is one ``EpisodeBatch`` message; a chunk is closed
+once ``flush_every`` episodes came in, so a killed run loses at most those. Same input, same bytes.
 """
 from __future__ import annotations
 
@@ -34,19 +31,21 @@ OBSTACLE_KEYS = ("cell", "physical", "category", "instance", "orientation")
 VERSION_PACKAGES = ("fewshot-safe-rl-pipeline", "numpy", "numba", "pandas", "torch", "mujoco", "mcap",
                     "mcap-protobuf-support", "protobuf", "foxglove-schemas-protobuf", "rerun-sdk",
                     "hydra-core", "omegaconf", "gymnasium")
+EPISODE_KEYS = {"run", "episode", "states", "actions", "rewards", "flags", "recognitions", "unsafe_added", "summary"}
+COMPRESSION = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
 
 
 def package_versions() -> dict[str, str]:
     """Versions of the packages that shape the results (read from installed metadata, no imports)."""
     import platform
 
-    out = {"python": platform.python_version()}
-    for name in VERSION_PACKAGES:
+    def version(name: str) -> str:
         try:
-            out[name] = _im.version(name)
+            return _im.version(name)
         except _im.PackageNotFoundError:
-            out[name] = "not installed"
-    return out
+            return "not installed"
+
+    return {"python": platform.python_version()} | {name: version(name) for name in VERSION_PACKAGES}
 
 
 def _plain(obj: Any) -> Any:
@@ -99,38 +98,52 @@ def _check_maze(maze: Mapping[str, Any]) -> dict[str, str]:
     return out
 
 
-def _check_runs(runs: Sequence | Mapping | None) -> dict[str, list[dict[str, int]]]:
-    items = runs.items() if isinstance(runs, Mapping) else enumerate(runs)
+def _check_runs(runs: Sequence | Mapping) -> dict[str, list[dict[str, int]]]:
     out: dict[str, list[dict[str, int]]] = {}
-    for run, obstacles in items:
-        rows = []
+    for run, obstacles in (runs.items() if isinstance(runs, Mapping) else enumerate(runs)):
         for i, ob in enumerate(obstacles):
-            missing = [k for k in OBSTACLE_KEYS if k not in ob]
-            if missing:
-                raise ValueError(f"runs[{run}][{i}]: obstacle assignment lacks {missing}; "
+            if [k for k in OBSTACLE_KEYS if k not in ob]:
+                raise ValueError(f"runs[{run}][{i}]: obstacle assignment lacks {[k for k in OBSTACLE_KEYS if k not in ob]}; "
                                  f"expected keys {list(OBSTACLE_KEYS)}")
-            rows.append({k: int(ob[k]) for k in OBSTACLE_KEYS})
-        out[str(int(run))] = rows
+        out[str(int(run))] = [{k: int(ob[k]) for k in OBSTACLE_KEYS} for ob in obstacles]
+    return out
+
+
+def _metadata_records(metadata: dict[str, Any], maze, runs) -> list[tuple[str, dict[str, str]]]:
+    import yaml
+
+    out = [("recording", {"format_version": S.FORMAT_VERSION, "library": LIBRARY,
+                          "time": "log_time_ns = run * 1e15 + episode * 1e9 + step * 1e6 (1 ms a step, 1 s an episode)",
+                          "episodes_topic": S.TOPIC_EPISODES, "substitutions_topic": S.TOPIC_SUBSTITUTIONS,
+                          "pictures_topic": S.TOPIC_PICTURES + "/<picture id>"})]
+    config = _plain(metadata.pop("config", None))
+    if config is not None:
+        parsed = yaml.safe_load(config) if isinstance(config, str) else json.loads(to_json(config))
+        text = config if isinstance(config, str) else yaml.safe_dump(parsed, sort_keys=True)
+        out.append(("config", {"yaml": text, "json": to_json(parsed)}))
+    if "seeds" in metadata:
+        out.append(("seeds", {"json": to_json(metadata.pop("seeds"))}))
+    out.append(("versions", package_versions() | {str(k): str(v) for k, v in
+                                                  dict(metadata.pop("versions", {}) or {}).items()}))
+    if maze is not None:
+        out.append(("maze", _check_maze(maze)))
+    if runs is not None:
+        out.append(("obstacles", {"json": to_json(_check_runs(runs)), "keys": ",".join(OBSTACLE_KEYS)}))
+    if metadata:
+        out.append(("info", {str(k): to_json(v) for k, v in sorted(metadata.items())}))
     return out
 
 
 class RecordWriter:
-    """Writes one MCAP file of episode records; implements the episode-sink protocol of
-    ``pipeline/rl/sink.py`` (:meth:`episodes`, :meth:`substitution`; :meth:`episode` records one
-    episode as a batch of one).
+    """Writes one MCAP file of episode records; the episode sink of ``pipeline/rl/sink.py``
+    (:meth:`episodes`, :meth:`substitution`; :meth:`episode` records one episode as a batch of one).
 
-    Args:
-        path: final file name (``.mcap``); written as ``<path>.partial`` until :meth:`close`.
-        metadata: ``config`` (dict, OmegaConf or YAML/JSON string), ``seeds``, ``versions``
-            (merged over the installed package versions) and any other JSON-able keys (``info``).
-        maze: ``layout`` (rows of ``S``/``G``/``X``/``.``; cell = row * width + col), optional
-            ``categories`` (names by category index) and other keys.
-        runs: per-run obstacle assignment, a list (index = run) or dict run -> list of
-            ``{cell, physical, category, instance, orientation}``.
-        pictures: query picture id -> PNG/JPEG bytes, recorded once as ``foxglove.CompressedImage``.
-        support_pictures: category -> list of K thumbnails of the initial support set (optional).
-        flush_every: close a chunk every this many episodes (what a killed run may lose).
-        compression: ``"zstd"``, ``"lz4"`` or ``"none"``.
+    ``path`` ends in ``.mcap``; ``metadata``: ``config`` (dict, OmegaConf or YAML/JSON string),
+    ``seeds``, ``versions`` (over the installed package versions), other JSON-able keys (``info``);
+    ``maze``: ``layout`` (rows of ``S``/``G``/``X``/``.``), ``categories``, other keys; ``runs``: per
+    run (list or dict) the obstacles ``{cell, physical, category, instance, orientation}``;
+    ``pictures``: query picture id -> PNG/JPEG/WebP bytes; ``support_pictures``: category -> K
+    initial thumbnails; ``flush_every``: episodes a chunk; ``compression``: zstd, lz4 or none.
     """
 
     def __init__(self, path: str | os.PathLike, *, metadata: Mapping[str, Any] | None = None,
@@ -143,23 +156,21 @@ class RecordWriter:
             raise ValueError(f"record file name must end in .mcap, got {self.path}")
         if flush_every < 1:
             raise ValueError(f"flush_every must be >= 1, got {flush_every}")
-        comp = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
-        if compression not in comp:
-            raise ValueError(f"compression must be one of {sorted(comp)}, got {compression!r}")
+        if compression not in COMPRESSION:
+            raise ValueError(f"compression must be one of {sorted(COMPRESSION)}, got {compression!r}")
         self.partial_path = self.path.with_name(self.path.name + ".partial")
         self.flush_every, self.n_episodes, self.n_substitutions = int(flush_every), 0, 0
         self._since_flush, self._closed = 0, False
         self._next_episode: dict[int, int] = {}  # run -> first episode not yet recorded
-        records = self._metadata_records(dict(metadata or {}), maze, runs)  # validate before touching the disk
+        records = _metadata_records(dict(metadata or {}), maze, runs)  # validate before touching the disk
         images = [(f"{S.TOPIC_PICTURES}/{int(p)}", _image(f"picture_{int(p)}", pictures[p])) for p in sorted(pictures or {})]
         images += [(f"{S.TOPIC_SUPPORT}/{int(c)}/{k}", _image(f"support_{int(c)}_{k}", data))
                    for c in sorted(support_pictures or {}) for k, data in enumerate(support_pictures[c])]
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._file = open(self.partial_path, "wb")
-        # enable_data_crcs: the data-end record carries a CRC of the whole data section, so a flipped
-        # byte outside the chunks (the header, a metadata record, a message index) of a finished file
-        # is detected too; the chunks and the summary have their own CRCs (docs/reliability.md)
-        self._mcap = Writer(self._file, chunk_size=chunk_size, compression=comp[compression], enable_data_crcs=True)
+        # enable_data_crcs: a flipped byte outside the chunks is detected too (docs/reliability.md)
+        self._mcap = Writer(self._file, chunk_size=chunk_size, compression=COMPRESSION[compression],
+                            enable_data_crcs=True)
         self._mcap.start(profile="", library=LIBRARY)
         # schemas 1-3, then channel 1 /episodes and 2 /substitutions: a reader falls back on this layout
         ids = [self._mcap.register_schema(name=cls.DESCRIPTOR.full_name, encoding="protobuf",
@@ -174,35 +185,6 @@ class RecordWriter:
                                    publish_time=0, data=data)
         self._mcap.flush()  # the pictures and channel definitions in a complete first chunk
 
-    @staticmethod
-    def _metadata_records(metadata: dict[str, Any], maze, runs) -> list[tuple[str, dict[str, str]]]:
-        import yaml
-
-        out: list[tuple[str, dict[str, str]]] = [("recording", {
-            "format_version": S.FORMAT_VERSION, "library": LIBRARY,
-            "time": "log_time_ns = run * 1e15 + episode * 1e9 + step * 1e6 (1 ms a step, 1 s an episode)",
-            "episodes_topic": S.TOPIC_EPISODES, "substitutions_topic": S.TOPIC_SUBSTITUTIONS,
-            "pictures_topic": S.TOPIC_PICTURES + "/<picture id>"})]
-        config = metadata.pop("config", None)
-        if config is not None:
-            config = _plain(config)
-            parsed = yaml.safe_load(config) if isinstance(config, str) else json.loads(to_json(config))
-            text = config if isinstance(config, str) else yaml.safe_dump(parsed, sort_keys=True)
-            out.append(("config", {"yaml": text, "json": to_json(parsed)}))
-        if "seeds" in metadata:
-            out.append(("seeds", {"json": to_json(metadata.pop("seeds"))}))
-        versions = package_versions()
-        versions.update({str(k): str(v) for k, v in dict(metadata.pop("versions", {}) or {}).items()})
-        out.append(("versions", versions))
-        if maze is not None:
-            out.append(("maze", _check_maze(maze)))
-        if runs is not None:
-            out.append(("obstacles", {"json": to_json(_check_runs(runs)), "keys": ",".join(OBSTACLE_KEYS)}))
-        if metadata:
-            out.append(("info", {str(k): to_json(v) for k, v in sorted(metadata.items())}))
-        return out
-
-    # ------------------------------------------------------------------ the sink protocol
     def episodes(self, **batch: Any) -> None:
         """Record a batch of consecutive finished episodes of one run (columnar fields as
         documented in ``pipeline/rl/sink.py``) as ONE ``EpisodeBatch`` message."""
@@ -219,18 +201,17 @@ class RecordWriter:
         S.log_time_ns(run, last, 0)  # range check of the last episode too
         self._mcap.add_message(self._ch_episodes, log_time=t, publish_time=t, data=encode_batch(b))
         self._next_episode[run] = last + 1
-        self.n_episodes += len(b["episode"])
-        self._since_flush += len(b["episode"])
+        self.n_episodes, self._since_flush = self.n_episodes + len(b["episode"]), self._since_flush + len(b["episode"])
         if self._since_flush >= self.flush_every:
             self.flush()
 
     def episode(self, **fields: Any) -> None:
         """Record one episode (``split_batch``'s per-episode fields; ``summary`` may hold ``steps``,
         ``q_values`` is one [n_states, n_actions] table) as a batch of one."""
-        keys = {"run", "episode", "states", "actions", "rewards", "flags", "recognitions", "unsafe_added", "summary"}
-        if keys - fields.keys() or fields.keys() - keys - {"steps", "q_values"}:
-            raise TypeError(f"episode record: missing fields {sorted(keys - fields.keys())}, unknown fields "
-                            f"{sorted(fields.keys() - keys - {'steps', 'q_values'})} (see pipeline/rl/sink.py)")
+        missing, unknown = EPISODE_KEYS - fields.keys(), fields.keys() - EPISODE_KEYS - {"steps", "q_values"}
+        if missing or unknown:
+            raise TypeError(f"episode record: missing fields {sorted(missing)}, unknown fields {sorted(unknown)} "
+                            "(see pipeline/rl/sink.py)")
         ep, n, summary = int(fields["episode"]), len(fields["states"]), dict(fields["summary"])
         for given in (summary.pop("steps", n), fields.get("steps", n)):
             if int(given) != n:
@@ -251,12 +232,10 @@ class RecordWriter:
         self._check_open()
         t = S.log_time_ns(int(run), int(episode), int(step))
         msg = S.Substitution(run=int(run), episode=int(episode), step=int(step), picture=int(picture),
-                             category=int(category), position=int(position),
-                             support_accuracy=float(support_accuracy))
+                             category=int(category), position=int(position), support_accuracy=float(support_accuracy))
         self._mcap.add_message(self._ch_subs, log_time=t, publish_time=t, data=msg.SerializeToString())
         self.n_substitutions += 1
 
-    # ------------------------------------------------------------------ life cycle
     def flush(self) -> None:
         """Close the current chunk and write it out: everything recorded so far survives a kill."""
         self._check_open()
@@ -268,8 +247,7 @@ class RecordWriter:
         ``complete=False`` (an interrupted run) the finished file keeps its ``.partial`` name.
         Returns the path of the file."""
         if not self._closed:
-            self._mcap.add_metadata("closed", {"complete": str(bool(complete)).lower(),
-                                               "episodes": str(self.n_episodes),
+            self._mcap.add_metadata("closed", {"complete": str(bool(complete)).lower(), "episodes": str(self.n_episodes),
                                                "substitutions": str(self.n_substitutions)})
             self._mcap.finish()
             self._file.flush()
