@@ -1,24 +1,14 @@
-"""The MCAP record schema (DESIGN.md "Records"; docs/records.md): Protobuf messages, topics and
-timestamps, and the one table of fields (:data:`MESSAGES`) that the encoder, the decoder and the
-reader's columns all derive from (:mod:`.codec`).
+"""The MCAP record schema (DESIGN.md "Records"; docs/records.md): Protobuf messages, topics,
+timestamps, and :data:`MESSAGES`, the one table of fields that the encoder, the decoder and the
+reader's frame columns derive from (:mod:`.codec`).
 
-One file holds every episode of every run of one trial cell: metadata records first (``recording``,
-``config``, ``seeds``, ``versions``, ``maze``, ``obstacles``, ``info``; ``closed`` by ``close()``
-only), the query pictures once (``foxglove.CompressedImage`` on ``/pictures/<id>``, initial
-support-set thumbnails on ``/support/<category>/<position>``), one :data:`EpisodeBatch` per sink
-batch on ``/episodes`` (``pipeline/rl/sink.py``: summaries, concatenated steps, recognitions,
-unsafe-set additions as packed arrays, optional Q tables; stamped at its first episode, step 0) and
-one :data:`Substitution` per support-set change on ``/substitutions``.
-
-Format 3: every packed integer column is fixed-width (``sfixed32``/``fixed32``: its wire payload is
-the raw little-endian numpy bytes), except the small code columns (actions, flags, unsafe-set
-source), ``uint32`` varints checked to lie in [0, 128) at the boundary, so one byte each (packed
-``uint32`` in this table always means such a code column). Measured on 100-episode batches of
-~44 steps (11x11), see :mod:`.codec` for the figures.
-
-Timestamps come from (run, episode, step), never the wall clock (:func:`log_time_ns`): 1 ms a step,
-1 s an episode, 10^6 s a run. Flag bits and unsafe-set sources mirror ``pipeline/rl/codes.py``
-(``records`` imports nothing from ``rl``; a test checks that they agree).
+A file: metadata records first, the pictures once (``foxglove.CompressedImage`` on
+``/pictures/<id>``, ``/support/<category>/<position>``), one :data:`EpisodeBatch` per sink batch on
+``/episodes`` (stamped at its first episode, step 0), one :data:`Substitution` per support-set change.
+Format 3: packed integer columns are ``fixed32``/``sfixed32`` (the wire payload is the raw
+little-endian numbers), except the code columns (packed ``uint32`` here: actions, flags, source),
+checked to lie in [0, 128) so each value is one byte. Timestamps come from (run, episode, step),
+never the wall clock. Flag bits and sources mirror ``pipeline/rl/codes.py`` (a test checks).
 """
 from __future__ import annotations
 
