@@ -150,22 +150,46 @@ def test_batches_of_the_runner_protocol_round_trip(tmp_path):
         a.steps[(a.steps.run == 1) & (a.steps.episode == 5)].drop(columns="file").reset_index(drop=True))
 
 
-def test_the_batch_encoder_matches_protobuf_byte_for_byte():
-    from pipeline.records.batch import check_batch, encode_batch, encode_batch_protobuf
+def _encode_with_the_runtime(b) -> bytes:
+    """The reference: a checked batch filled into the real ``EpisodeBatch`` through the runtime's
+    ``extend`` (what any Protobuf library writes for these values)."""
+    from pipeline.records.codec import SUBS
+
+    msg = S.EpisodeBatch(**{k: v for k, v in b["scalars"]["EpisodeBatch"].items()})
+    for name, cols in b["cols"].items():
+        sub = msg if name == "EpisodeBatch" else getattr(msg, {m: f for f, m in SUBS.items()}[name])
+        for k, a in cols.items():
+            if len(a):
+                getattr(sub, k).extend(a.tolist())
+    if b["scalars"]["Recognitions"]["n_categories"]:
+        msg.recognitions.n_categories = b["scalars"]["Recognitions"]["n_categories"]
+    return msg.SerializeToString(deterministic=True)
+
+
+def _odd_batches(seed: int, n: int = 30):
+    """Batches of the 11x11 maze with large states, negative predictions, no scores, -0.0 returns,
+    Q tables and no unsafe-set additions."""
     from synthetic_records import maze_layout
 
-    layout = maze_layout(11, seed=2)
-    groups = [b for b, _ in batches(layout, batch_size=5, runs=2, episodes_per_run=30, seed=2, max_steps=300)]
-    groups[1]["states"] = groups[1]["states"] + 20000  # multi-byte varints
-    groups[2]["recognitions"]["predicted"][:] = -1  # negative int32: 10-byte varints
+    layout = maze_layout(11, seed=seed)
+    groups = [b for b, _ in batches(layout, batch_size=5, runs=2, episodes_per_run=n, seed=seed, max_steps=300)]
+    groups[1]["states"] = groups[1]["states"] + 70000
+    groups[2]["recognitions"]["predicted"][:] = -1
     groups[3]["recognitions"]["scores"] = np.zeros((0, 0), np.float32)
     groups[4]["summary"]["return_"] = -0.0 * groups[4]["summary"]["return_"]
     groups[5]["q_values"] = np.arange(5 * 121 * 4, dtype=np.float32).reshape(5, 121, 4)
     for k in ("step", "state", "action", "source", "episode"):
         groups[6]["unsafe_added"][k] = groups[6]["unsafe_added"][k][:0]
-    for b in groups:
+    return groups
+
+
+def test_the_batch_encoder_matches_protobuf_byte_for_byte():
+    """The raw-view encoding equals the real class filled through the runtime, byte for byte."""
+    from pipeline.records.codec import check_batch, encode_batch
+
+    for b in _odd_batches(2):
         checked = check_batch(b)
-        assert encode_batch(checked) == encode_batch_protobuf(checked)
+        assert encode_batch(checked) == _encode_with_the_runtime(checked)
 
 
 def test_bad_input_is_refused_with_a_message_naming_it(tmp_path):
@@ -333,33 +357,118 @@ def test_rerun_mcap_convert_yields_the_pictures(tmp_path):
     assert "/pictures/39" in paths
 
 
-def test_vectorised_decoding_equals_the_protobuf_runtime(tmp_path):
-    from pipeline.records import reader
-    from pipeline.records.decode import decode_batches, decode_batches_protobuf
+def test_raw_view_decoding_equals_the_protobuf_runtime(tmp_path):
+    from pipeline.records import codec
     from pipeline.records.scan import scan
-    from synthetic_records import maze_layout
 
-    layout = maze_layout(11, seed=4)
-    groups = [b for b, _ in batches(layout, batch_size=4, runs=2, episodes_per_run=15, seed=4, max_steps=300)]
-    groups[0]["states"] = groups[0]["states"] + 70000
-    groups[1]["recognitions"]["predicted"][:] = -1
-    groups[2]["recognitions"]["scores"] = np.zeros((0, 0), np.float32)
-    groups[3]["q_values"] = np.arange(3 * 121 * 4, dtype=np.float32).reshape(3, 121, 4)
+    groups = _odd_batches(4, 20)
     with RecordWriter(tmp_path / "v.mcap") as w:
         for b in groups:
             w.episodes(**b)
-    data = [d for _, d in scan(tmp_path / "v.mcap").messages["/episodes"]]
-    fast, slow = decode_batches(data), decode_batches_protobuf(data)
+    msgs = scan(tmp_path / "v.mcap").messages["/episodes"]
+    data = [d for _, d in msgs]
+    fast, slow = codec._flat_fast(data), codec._flat_runtime(data, {"EpisodeBatch": S.EpisodeBatch})
     assert fast is not None and fast.keys() == slow.keys()  # the fast path handles all of these
     for k in fast:
-        for a, b in ([(fast[k], slow[k])] if k != "counts" else [(fast[k][c], slow[k][c]) for c in fast[k]]):
-            np.testing.assert_array_equal(a, b, err_msg=k)
-            assert a.dtype == b.dtype, k
-    cols = reader._columns(fast, "v")
-    assert cols is not None
-    assert cols["q_values"].keys() == {("v", 0, e) for e in range(12, 15)}
-    np.testing.assert_array_equal(cols["q_values"][("v", 0, 13)], groups[3]["q_values"][1])
-    assert np.isnan(reader._columns(fast, "v")["recognitions"]["score_0"]).sum() > 0  # group 2: no scores
+        for a, b in zip(fast[k], slow[k]) if isinstance(k, tuple) else [(fast[k], slow[k])]:
+            np.testing.assert_array_equal(a, b, err_msg=str(k))
+    cols, ref = codec._columns(fast, "v"), codec._columns(slow, "v")
+    for key in ("steps", "recognitions", "unsafe", "episodes"):
+        assert cols[key].keys() == ref[key].keys()
+        for k in cols[key]:
+            np.testing.assert_array_equal(cols[key][k], ref[key][k], err_msg=k)
+            assert cols[key][k].dtype == ref[key][k].dtype, k
+    assert cols["q_values"].keys() == {("v", 1, e) for e in range(5, 10)}  # group 5: run 1, episodes 5-9
+    np.testing.assert_array_equal(cols["q_values"][("v", 1, 6)], groups[5]["q_values"][1])
+    assert np.isnan(cols["recognitions"]["score_0"]).sum() > 0  # group 3: no scores
+    # other valid encodings of the same values: the fast path declines, the runtime decodes them
+    one = S.EpisodeBatch.FromString(data[0])
+    states = one.steps.states
+    split = one.SerializeToString(deterministic=True)
+    tail = S.EpisodeBatch(steps=S.Steps(states=states[len(states) // 2:]))
+    one.steps.ClearField("states")
+    one.steps.states.extend(states[:len(states) // 2])
+    split = one.SerializeToString(deterministic=True) + tail.SerializeToString()  # a packed field in two
+    unknown = data[0] + bytes([(15 << 3) | 0, 1])  # an unknown field 15
+    long_code = S.EpisodeBatch.FromString(data[0])
+    long_code.steps.flags[0] = 200  # a two-byte varint in a code column
+    for odd in (split, unknown, long_code.SerializeToString()):
+        assert codec._flat_fast([odd]) is None
+        got = codec.decode_batches([(0, odd)], "v")
+        want = codec._columns(codec._flat_runtime([odd], {"EpisodeBatch": S.EpisodeBatch}), "v")
+        for k in want["steps"]:
+            np.testing.assert_array_equal(got["steps"][k], want["steps"][k])
+    np.testing.assert_array_equal(codec.decode_batches([(0, split)], "v")["steps"]["state"],
+                                  np.asarray(states, np.int32))
+
+
+def _format_2_classes():
+    """The format-2 schema: the same messages with varint integer columns (int32 / uint32)."""
+    from google.protobuf import descriptor_pb2
+
+    fdp = descriptor_pb2.FileDescriptorProto()
+    fdp.CopyFrom(S.FILE_DESCRIPTOR_PROTO)
+    F = descriptor_pb2.FieldDescriptorProto
+    for m in fdp.message_type:
+        for f in m.field:
+            f.type = {F.TYPE_SFIXED32: F.TYPE_INT32, F.TYPE_FIXED32: F.TYPE_UINT32}.get(f.type, f.type)
+    fds = descriptor_pb2.FileDescriptorSet()
+    fds.file.append(fdp)
+    return S.message_classes([fdp]), fds.SerializeToString(deterministic=True)
+
+
+def test_an_older_format_file_is_decoded_with_its_own_schema_not_misread(tmp_path):
+    """A format-2 file (varint columns, its own schema record) reads like the same batches written
+    now; a file whose schema lacks a column we read is refused in one line."""
+    from mcap.writer import Writer
+
+    from pipeline.records.codec import SUBS, check_batch
+
+    groups = _odd_batches(3, 20)
+    with RecordWriter(tmp_path / "new.mcap") as w:
+        for b in groups:
+            w.episodes(**b)
+    classes, schema = _format_2_classes()
+
+    def write_old(path, schema_data, cls):
+        with open(path, "wb") as f:
+            mw = Writer(f)
+            mw.start(profile="", library="pipeline.records/2")
+            sid = mw.register_schema(name="fsrl.records.EpisodeBatch", encoding="protobuf", data=schema_data)
+            ch = mw.register_channel(S.TOPIC_EPISODES, "protobuf", sid)
+            mw.add_metadata("recording", {"format_version": "2"})
+            for b in groups:
+                c = check_batch(b)
+                msg = cls(run=c["run"], n_actions=c["scalars"]["EpisodeBatch"]["n_actions"])
+                for name, cols in c["cols"].items():  # the same values through the format-2 classes
+                    sub = msg if name == "EpisodeBatch" else getattr(msg, {m: f for f, m in SUBS.items()}[name])
+                    for k, a in cols.items():
+                        if len(a):
+                            getattr(sub, k).extend(a.tolist())
+                msg.recognitions.n_categories = c["scalars"]["Recognitions"]["n_categories"]
+                t = S.log_time_ns(c["run"], int(c["episode"][0]))
+                mw.add_message(ch, log_time=t, publish_time=t, data=msg.SerializeToString())
+            mw.add_metadata("closed", {"complete": "true", "episodes": str(sum(len(b["episode"]) for b in groups)),
+                                       "substitutions": "0"})
+            mw.finish()
+
+    write_old(tmp_path / "old.mcap", schema, classes["EpisodeBatch"])
+    new, old = read_records(tmp_path / "new.mcap"), read_records(tmp_path / "old.mcap")
+    assert len(old.steps) > 1000
+    for key in ("steps", "episodes", "recognitions", "unsafe"):
+        assert getattr(old, key).drop(columns="file").equals(getattr(new, key).drop(columns="file")), key
+    assert len(old.q_values) == 5
+    # a schema without a column we read: refused, not misread
+    from google.protobuf import descriptor_pb2
+
+    fds = descriptor_pb2.FileDescriptorSet.FromString(schema)
+    steps = next(m for m in fds.file[0].message_type if m.name == "Steps")
+    del steps.field[3]  # flags
+    write_old(tmp_path / "other.mcap", fds.SerializeToString(), classes["EpisodeBatch"])
+    from pipeline.records import RecordsError
+
+    with pytest.raises(RecordsError, match="other.mcap: .*Steps.flags differs.*re-run the trials that wrote it"):
+        read_records(tmp_path / "other.mcap")
 
 
 def test_the_info_command_lists_runs_and_warns_about_truncation(tmp_path, capsys):

@@ -9,8 +9,8 @@ after a bad chunk or record); a :class:`RecordsWarning` names the file and says 
 runs and episodes, counted from what its metadata says it should hold (:mod:`.loss`). A file with
 nothing to read (empty, not MCAP, another program's MCAP) raises :class:`RecordsError`, a
 :class:`~pipeline.errors.UserError`. Nothing is dropped silently.
-Decoding is vectorised (:mod:`.decode`): a few tag reads per message (one per sink batch of
-episodes), then a handful of numpy operations per column over all messages at once.
+Decoding (:mod:`.codec`): the Protobuf runtime with raw-view classes, one ``np.frombuffer`` per
+column; a file of an older format is decoded with its own schema.
 """
 from __future__ import annotations
 
@@ -25,7 +25,7 @@ import numpy as np
 import pandas as pd
 
 from . import schema as S
-from .decode import decode_batches, decode_batches_protobuf
+from .codec import FormatError, decode_batches, decode_substitutions
 from .loss import account, damaged, expected_shape
 from .scan import Damage, RecordsError, Scan, message_kind, scan
 
@@ -175,141 +175,6 @@ def read_records(path: str | Path | Iterable[str | Path], *, run: int | None = N
 
 
 # ---------------------------------------------------------------------------------------------
-def _i(values, dtype) -> np.ndarray:
-    return np.array(values, dtype=dtype)
-
-
-def _step_index(lengths: np.ndarray) -> np.ndarray:
-    """0..n-1 within each episode, for concatenated episodes of the given lengths."""
-    total = int(lengths.sum())
-    starts = np.cumsum(lengths) - lengths
-    return (np.arange(total, dtype=np.int64) - np.repeat(starts, lengths)).astype(np.int32)
-
-
-def _decode_batches(messages: list[tuple[int, bytes]], name: str) -> dict[str, Any]:
-    """Columns of the EpisodeBatch messages: vectorised (:mod:`.decode`), or through the Protobuf
-    runtime when a message has a shape the fast path does not handle."""
-    data = [d for _, d in messages]
-    flat = decode_batches(data)
-    out = _columns(flat, name) if flat is not None else None
-    return out if out is not None else _columns(decode_batches_protobuf(data), name, strict=True)
-
-
-class _Inconsistent(ValueError):
-    pass
-
-
-def _columns(d: dict[str, Any], name: str, strict: bool = False) -> dict[str, Any] | None:
-    """The frames' columns from the flat columns of :mod:`.decode` (None, or with ``strict`` an
-    error naming the problem, when the messages' arrays do not fit together)."""
-    c = d["counts"]
-
-    def bad(why: str):
-        if strict:
-            raise _Inconsistent(f"{name}: episode batch messages are inconsistent: {why}")
-        return None
-
-    n_eps = c["episode"]
-    for k in ("s_steps", "s_collisions", "s_return", "s_reached_goal", "s_prevented", "s_epsilon",
-              "s_greedy_optimal"):
-        if not np.array_equal(c[k], n_eps):
-            return bad(f"summary column {k[2:]} does not have one entry per episode")
-    lens = d["s_steps"]
-    msg_steps = np.bincount(np.repeat(np.arange(len(n_eps)), n_eps), weights=lens,
-                            minlength=len(n_eps)).astype(np.int64)
-    for k in ("states", "actions", "rewards", "flags"):
-        if not np.array_equal(c[k], msg_steps):
-            return bad(f"step column {k} does not have the episodes' step count")
-    rec_m, un_k = c["r_episode"], c["u_episode"]
-    if any(not np.array_equal(c[k], rec_m) for k in ("r_step", "r_state", "r_action", "r_picture",
-                                                       "r_predicted", "r_true")):
-        return bad("recognition columns differ in length")
-    if any(not np.array_equal(c[k], un_k) for k in ("u_step", "u_state", "u_action", "u_source")):
-        return bad("unsafe-set columns differ in length")
-    ncat = d["n_categories"]
-    if not np.array_equal(c["scores"], np.where(c["scores"] > 0, rec_m * ncat, 0)):
-        return bad("scores do not have n_categories columns")
-    ep_run = np.repeat(d["run"], n_eps).astype(np.int32)
-    ep_ep = d["episode"].astype(np.int32)
-    ep_key = ep_run.astype(np.int64) << 32 | ep_ep
-    flags_a = d["flags"].astype(np.uint8)
-    steps = {"run": np.repeat(ep_run, lens), "episode": np.repeat(ep_ep, lens), "step": _step_index(lens),
-             "state": d["states"].astype(np.int32), "action": d["actions"].astype(np.int8),
-             "reward": d["rewards"].astype(np.float32), "flags": flags_a}
-    for flag_name, bit in S.FLAG_NAMES.items():
-        steps[flag_name] = (flags_a & bit) != 0
-    rec = {"run": np.repeat(d["run"], rec_m).astype(np.int32), "episode": d["r_episode"].astype(np.int32),
-           "step": d["r_step"].astype(np.int32), "state": d["r_state"].astype(np.int32),
-           "action": d["r_action"].astype(np.int8), "picture": d["r_picture"].astype(np.int16),
-           "predicted": d["r_predicted"].astype(np.int8), "true": d["r_true"].astype(np.int8)}
-    rec["correct"] = rec["predicted"] == rec["true"]
-    n_rec = len(rec["step"])
-    has_scores = c["scores"] > 0
-    width = int(ncat[has_scores].max()) if has_scores.any() else 0
-    if width:
-        if has_scores[rec_m > 0].all() and (ncat[has_scores] == width).all():
-            scores = d["scores"].astype(np.float32).reshape(n_rec, width)
-        else:  # some batches without scores (or fewer columns): NaN there
-            scores = np.full((n_rec, width), np.nan, dtype=np.float32)
-            row, pos = 0, 0
-            for m, k, has in zip(rec_m, ncat, has_scores):
-                if has:
-                    scores[row:row + m, :k] = d["scores"][pos:pos + m * k].reshape(m, k)
-                    pos += m * k
-                row += m
-        for j in range(width):
-            rec[f"score_{j}"] = scores[:, j]
-    unsafe = {"run": np.repeat(d["run"], un_k).astype(np.int32), "episode": d["u_episode"].astype(np.int32),
-              "step": d["u_step"].astype(np.int32), "state": d["u_state"].astype(np.int32),
-              "action": d["u_action"].astype(np.int8), "source": d["u_source"].astype(np.int8)}
-    per_episode = {}
-    order = np.argsort(ep_key, kind="stable")
-    sorted_keys = ep_key[order]
-    for what, cols in (("recognitions", rec), ("unsafe", unsafe)):
-        key = cols["run"].astype(np.int64) << 32 | cols["episode"]
-        pos = np.searchsorted(sorted_keys, key)
-        if len(key) and (pos.max() >= len(sorted_keys) or not np.array_equal(sorted_keys[pos], key)):
-            return bad(f"{what} of episodes that are not in their batch")
-        per_episode[what] = np.bincount(order[pos], minlength=len(ep_key)).astype(np.int32)
-    episodes = {"run": ep_run, "episode": ep_ep, "steps": lens.astype(np.int32),
-                "collisions": d["s_collisions"].astype(np.int32), "return_": d["s_return"].astype(np.float64),
-                "reached_goal": d["s_reached_goal"] != 0, "prevented": d["s_prevented"].astype(np.int32),
-                "epsilon": d["s_epsilon"].astype(np.float64), "greedy_optimal": d["s_greedy_optimal"] != 0,
-                "n_recognitions": per_episode["recognitions"], "n_unsafe_added": per_episode["unsafe"]}
-    q_values = {}
-    if c["q_values"].any():
-        pos, row = 0, 0
-        for i, (cnt, na, e) in enumerate(zip(c["q_values"], d["n_actions"], n_eps)):
-            if cnt:
-                if not na or cnt % (na * e):
-                    return bad("q_values do not have n_actions columns for every episode")
-                tables = d["q_values"][pos:pos + cnt].astype(np.float32).reshape(e, -1, int(na))
-                for j in range(e):
-                    q_values[(name, int(ep_run[row + j]), int(ep_ep[row + j]))] = tables[j]
-                pos += cnt
-            row += e
-    return {"steps": steps, "recognitions": rec, "unsafe": unsafe, "episodes": episodes, "q_values": q_values,
-            "batch_sizes": n_eps}
-
-
-def _decode_substitutions(messages: list[tuple[int, bytes]], damage: list[Damage]) -> dict[str, np.ndarray]:
-    cols = {k: [] for k in ("run", "episode", "step", "picture", "category", "position", "support_accuracy")}
-    bad = 0
-    for _, data in messages:
-        try:
-            m = S.Substitution.FromString(data)
-        except Exception:  # passed its chunk's CRC (or had none) and still does not parse
-            bad += 1
-            continue
-        for k, col in cols.items():
-            col.append(getattr(m, k))
-    if bad:
-        damage.append(Damage("decode", f"{bad} substitution messages did not decode"))
-    types = {"run": np.int32, "episode": np.int32, "step": np.int32, "picture": np.int16,
-             "category": np.int8, "position": np.int8, "support_accuracy": np.float64}
-    return {k: _i(v, types[k]) for k, v in cols.items()}
-
-
 def _file_meta(sc: Scan, pictures: bool) -> FileMeta:
     """The file's metadata records; one that does not parse is a damaged part (named), not an error."""
     md = sc.metadata
@@ -427,20 +292,26 @@ def _read_file(path: Path, time_range, pictures: bool) -> dict[str, Any]:
     name = str(path)
     _check_ours(sc)
     ep_msgs = sc.messages.get(S.TOPIC_EPISODES, [])
+    schema = next((sc.schemas[c.schema_id].data for c in sc.channels.values()
+                   if c.topic == S.TOPIC_EPISODES and c.schema_id in sc.schemas), None)
     try:
-        dec = _decode_batches(ep_msgs, name)
+        dec = decode_batches(ep_msgs, name, schema)
+    except FormatError as e:
+        raise RecordsError(f"{path}: {e}") from None
     except Exception:  # a message that passed its chunk's CRC but does not parse: keep the rest
         good = []
         for t, data in ep_msgs:
             try:
-                _decode_batches([(t, data)], name)
+                decode_batches([(t, data)], name, schema)
                 good.append((t, data))
             except Exception as e:
                 sc.damage.append(Damage("decode", f"the episode batch message stamped "
                                                   f"{_describe_time(t)} did not decode ({type(e).__name__}: {e})",
                                         (t, t)))
-        dec = _decode_batches(good, name)
-    dec["substitutions"] = _decode_substitutions(sc.messages.get(S.TOPIC_SUBSTITUTIONS, []), sc.damage)
+        dec = decode_batches(good, name, schema)
+    dec["substitutions"], bad = decode_substitutions(sc.messages.get(S.TOPIC_SUBSTITUTIONS, []))
+    if bad:
+        sc.damage.append(Damage("decode", f"{bad} substitution messages did not decode"))
     meta = _file_meta(sc, pictures)
     runs, per_run = expected_shape(meta.config, meta.obstacles, meta.closed)
     batch_size = _batch_size(dec, per_run) if sc.damage else None  # before filtering: whole batches
