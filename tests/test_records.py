@@ -362,6 +362,14 @@ def test_raw_view_decoding_equals_the_protobuf_runtime(tmp_path):
     from pipeline.records.scan import scan
 
     groups = _odd_batches(4, 20)
+    with RecordWriter(tmp_path / "wide.mcap") as w:  # states of 128 or more: varints of several bytes
+        for b in groups:
+            w.episodes(**b)
+    wide = [d for _, d in scan(tmp_path / "wide.mcap").messages["/episodes"]]
+    assert codec._flat_fast(wide) is None  # the fast path declines; the runtime reads the states back
+    states = read_records(tmp_path / "wide.mcap").steps.query("run == 0 and episode in [5, 6, 7, 8, 9]")["state"]
+    np.testing.assert_array_equal(states, groups[1]["states"])
+    groups[1]["states"] = groups[1]["states"] - 70000
     with RecordWriter(tmp_path / "v.mcap") as w:
         for b in groups:
             w.episodes(**b)

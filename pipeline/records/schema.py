@@ -5,10 +5,11 @@ reader's frame columns derive from (:mod:`.codec`).
 A file: metadata records first, the pictures once (``foxglove.CompressedImage`` on
 ``/pictures/<id>``, ``/support/<category>/<position>``), one :data:`EpisodeBatch` per sink batch on
 ``/episodes`` (stamped at its first episode, step 0), one :data:`Substitution` per support-set change.
-Format 3: packed integer columns are ``fixed32``/``sfixed32`` (the wire payload is the raw
-little-endian numbers), except the code columns (packed ``uint32`` here: actions, flags, source),
-checked to lie in [0, 128) so each value is one byte. The maze record holds the layout and the caller's action names, moves and category
-names. Timestamps come from (run, episode, step),
+Format 4: packed integer columns are ``fixed32``/``sfixed32`` (the wire payload is the raw
+little-endian numbers), except the code columns (packed ``uint32`` varints: states, actions, flags,
+source), one byte a value when all of a batch's values are below 128 (every paper maze has at most
+121 cells), which the codec writes and reads as raw bytes. The maze record holds the layout and
+the caller's action names, moves and category names. Timestamps come from (run, episode, step),
 never the wall clock. Flag bits and sources mirror ``pipeline/rl/codes.py`` (a test checks).
 """
 from __future__ import annotations
@@ -18,7 +19,7 @@ from typing import NamedTuple
 from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
 from foxglove_schemas_protobuf.CompressedImage_pb2 import CompressedImage
 
-FORMAT_VERSION = "3"  # 3: fixed-width packed columns (2: varint columns; 1: one Episode per episode)
+FORMAT_VERSION = "4"  # 4: states as codes (3: fixed-width packed columns; 2: varint columns; 1: one Episode each)
 PACKAGE = "fsrl.records"
 TOPIC_EPISODES, TOPIC_SUBSTITUTIONS = "/episodes", "/substitutions"
 TOPIC_PICTURES, TOPIC_SUPPORT = "/pictures", "/support"  # + "/<picture id>", + "/<category>/<position>"
@@ -31,15 +32,16 @@ STEP_NS = 1_000_000  # 1 ms
 EPISODE_NS = 1_000 * STEP_NS  # 1 s: at most 1,000 steps an episode
 RUN_NS = 1_000_000 * EPISODE_NS  # 10^6 s: at most 10^6 episodes a run
 MAX_RUN = (2**63 - 1) // RUN_NS - 1  # about 9,000 runs
+_STEPS, _EPISODES = EPISODE_NS // STEP_NS, RUN_NS // EPISODE_NS
 
 
 def log_time_ns(run: int, episode: int, step: int = 0) -> int:
     """Timestamp (ns) of ``step`` of ``episode`` of ``run``: deterministic, never the wall clock."""
-    for what, v, n in (("step", step, EPISODE_NS // STEP_NS), ("episode", episode, RUN_NS // EPISODE_NS),
-                       ("run", run, MAX_RUN + 1)):
-        if not 0 <= v < n:
-            raise ValueError(f"{what} {v} out of range 0..{n - 1} for a record timestamp")
-    return run * RUN_NS + episode * EPISODE_NS + step * STEP_NS
+    if 0 <= step < _STEPS and 0 <= episode < _EPISODES and 0 <= run <= MAX_RUN:
+        return run * RUN_NS + episode * EPISODE_NS + step * STEP_NS
+    what, v, n = next(x for x in (("step", step, _STEPS), ("episode", episode, _EPISODES), ("run", run, MAX_RUN + 1))
+                      if not 0 <= x[1] < x[2])
+    raise ValueError(f"{what} {v} out of range 0..{n - 1} for a record timestamp")
 
 
 def split_log_time(t: int) -> tuple[int, int, int]:
@@ -51,7 +53,7 @@ def split_log_time(t: int) -> tuple[int, int, int]:
 
 _F = descriptor_pb2.FieldDescriptorProto
 I32, U32, F32, F64, BOOL = _F.TYPE_SFIXED32, _F.TYPE_FIXED32, _F.TYPE_FLOAT, _F.TYPE_DOUBLE, _F.TYPE_BOOL
-CODE = _F.TYPE_UINT32  # packed: a code column in [0, 128), one byte a value; scalar: a plain uint32
+CODE = _F.TYPE_UINT32  # packed: a varint column, one byte a value below 128; scalar: a plain uint32
 
 
 class Field(NamedTuple):
@@ -74,7 +76,7 @@ MESSAGES: dict[str, list[Field]] = {
         Field("epsilon", 6, F64, "epsilon", "float64"),  # at the end of the episode
         Field("greedy_optimal", 7, BOOL, "greedy_optimal", "bool")],  # the greedy policy is optimal after it
     "Steps": [  # one entry per executed step of the batch's episodes, concatenated
-        Field("states", 1, U32, "state", "int32"),  # cell row * width + col before the step
+        Field("states", 1, CODE, "state", "int32"),  # cell row * width + col before the step
         Field("actions", 2, CODE, "action", "int8"),  # 0 N, 1 E, 2 S, 3 W
         Field("rewards", 3, F32, "reward", "float32"), Field("flags", 4, CODE, "flags", "uint8")],  # FLAG_* bits
     "Recognitions": [  # one entry per picture seen (section 3.2.1)
@@ -139,11 +141,11 @@ def message_classes(files) -> dict:
 
 
 FILE_DESCRIPTOR_PROTO = _file(view=False)
-_classes = message_classes([FILE_DESCRIPTOR_PROTO])
+CLASSES = message_classes([FILE_DESCRIPTOR_PROTO])
 VIEWS = message_classes([_file(view=True)])
-EpisodeBatch, Substitution = _classes["EpisodeBatch"], _classes["Substitution"]
-EpisodeSummaries, Steps = _classes["EpisodeSummaries"], _classes["Steps"]
-Recognitions, UnsafeAdditions = _classes["Recognitions"], _classes["UnsafeAdditions"]
+EpisodeBatch, Substitution = CLASSES["EpisodeBatch"], CLASSES["Substitution"]
+EpisodeSummaries, Steps = CLASSES["EpisodeSummaries"], CLASSES["Steps"]
+Recognitions, UnsafeAdditions = CLASSES["Recognitions"], CLASSES["UnsafeAdditions"]
 
 
 def file_descriptor_set(message_class) -> bytes:

@@ -8,6 +8,8 @@ Usage::
 """
 from __future__ import annotations
 
+import contextlib
+
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -118,11 +120,13 @@ def _emit(sink, r, run_id, first_ep, last_ep, results, trace, recognitions, addi
         eps = slice(first_ep, last_ep)
         steps = results.steps[r, eps]
         n = int(steps.sum())
-        lo, hi = cursors["rec"][r], int(recognitions.length[r])
+        lo = cursors["rec"][r]  # recognitions and additions of the finished episodes only
+        hi = lo + int(np.searchsorted(recognitions.episode[r, lo:int(recognitions.length[r])], last_ep))
         rec = slice(lo, hi)
         part = scores[r][lo:hi]
         sc = np.stack(part).astype(np.float32) if len(part) == hi - lo and hi > lo else np.zeros((hi - lo, 0), np.float32)
-        alo, ahi = cursors["add"][r], int(additions.length[r])
+        alo = cursors["add"][r]
+        ahi = alo + int(np.searchsorted(additions.episode[r, alo:int(additions.length[r])], last_ep))
         add = slice(alo, ahi)
         cursors["rec"][r], cursors["add"][r] = hi, ahi
         sink.episodes(
@@ -155,7 +159,7 @@ def _emit(sink, r, run_id, first_ep, last_ep, results, trace, recognitions, addi
 def run_trials(layout: Layout, method: MethodSpec, runs: int, episodes: int, seed: int = 0, *,
                recogniser: Recogniser | None = None, sink: EpisodeSink | None = None,
                run_offset: int = 0, progress: bool = True, chunk_episodes: int = 100,
-               trace_capacity: int = 16384, shared_support: bool = False) -> TrialResult:
+               trace_capacity: int = 32768, shared_support: bool = False) -> TrialResult:
     """Run ``runs`` independent runs (ids ``run_offset ..``) of ``episodes`` episodes each.
 
     Run ``r`` draws its obstacle placement, its agent's random stream and its recogniser seed from
@@ -193,13 +197,16 @@ def run_trials(layout: Layout, method: MethodSpec, runs: int, episodes: int, see
     def slot(r: int) -> int:
         return run_offset if shared_support else run_offset + r
 
+    def support_accuracy(r: int) -> float:  # of run r's support set on the query pictures
+        return np.count_nonzero(predicted[r] == PICTURE_CATEGORY) / N_PICTURES
+
     def start(r: int) -> None:
         if uses_recogniser:
             recogniser.start_run(slot(r), run_seeds(seed, run_offset + r).recogniser)
             predicted[r] = recogniser.predictions(slot(r))
             if sink is not None:
                 sink.substitution(run=run_offset + r, episode=0, step=0, picture=-1, category=-1,
-                                  position=-1, support_accuracy=float((predicted[r] == PICTURE_CATEGORY).mean()))
+                                  position=-1, support_accuracy=support_accuracy(r))
 
     state = RunState.fresh(runs, layout.n_cells, layout.start, method.epsilon, rng)
     results = Results.zeros(runs, episodes)
@@ -243,7 +250,7 @@ def run_trials(layout: Layout, method: MethodSpec, runs: int, episodes: int, see
                     if sink is not None:
                         sink.substitution(run=run_offset + r, episode=ep, step=step, picture=pic,
                                           category=cat, position=int(position),
-                                          support_accuracy=float((predicted[r] == PICTURE_CATEGORY).mean()))
+                                          support_accuracy=support_accuracy(r))
                     again.append(r)
                 elif why == Status.flush:
                     emit(r)
@@ -254,17 +261,29 @@ def run_trials(layout: Layout, method: MethodSpec, runs: int, episodes: int, see
     bar = tqdm(total=runs * episodes, disable=not progress, unit="ep",
                desc=f"{method.name} {layout.name}", leave=False)
     groups = [np.array([r], np.int64) for r in range(runs)] if shared_support else [np.arange(runs, dtype=np.int64)]
-    for group in groups:
-        for r in group:
-            start(int(r))
-        for limit in ([episodes] if shared_support else limits):
-            before = int(state.episode[group].sum())
-            advance(group, limit)
-            bar.update(int(state.episode[group].sum()) - before)
-            if record:  # hand finished episodes over as we go: a killed run loses little
-                for r in group:
-                    emit(int(r))
-    bar.close()
+    try:
+        for group in groups:
+            for r in group:
+                start(int(r))
+            for limit in ([episodes] if shared_support else limits):
+                before = int(state.episode[group].sum())
+                advance(group, limit)
+                bar.update(int(state.episode[group].sum()) - before)
+                if record:  # hand finished episodes over in batches of at least half the trace
+                    last = limit == episodes
+                    for r in group:
+                        if last or 2 * int(trace.length[r]) >= trace.states.shape[1]:
+                            emit(int(r))
+    except Exception:
+        raise
+    except BaseException:  # Ctrl-C or SIGTERM: every finished episode goes to the sink first
+        for r in range(runs) if record else ():
+            with contextlib.suppress(Exception):  # a batch the signal cut in two is not sent again
+                if emitted[r] < int(state.episode[r]):
+                    emit(r)
+        raise
+    finally:
+        bar.close()
     return TrialResult(layout, method, seed, results.steps, results.collisions, results.returns,
                        results.reached_goal, results.prevented, results.greedy_optimal, results.epsilon,
                        [w.placement for w in worlds])
