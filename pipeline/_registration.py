@@ -64,7 +64,12 @@ class _RegisterWhenGymnasiumLoads:
         def exec_module(module):
             load(module)
             _uninstall()
-            register_envs(module)
+            try:
+                register_envs(module)
+            except Exception as exc:  # noqa: BLE001 - never break ``import gymnasium`` for our ids
+                import warnings
+                warnings.warn(f"pipeline could not register its Gymnasium ids ({exc!r}); "
+                              "call pipeline.register_envs() to see why", stacklevel=2)
 
         try:
             loader.exec_module = exec_module  # on this loader object only; its class is untouched

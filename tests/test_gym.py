@@ -63,6 +63,17 @@ def test_every_way_of_importing_registers(code):
     run_python(code)
 
 
+def test_a_failing_registration_does_not_break_importing_gymnasium():
+    out = run_python(
+        "import warnings, pipeline, pipeline._registration as r\n"
+        "r.MAZES = ('nonexistent',) * 3; r.ENV_IDS = ('bad id',) * 3  # gymnasium refuses this id\n"
+        "with warnings.catch_warnings(record=True) as w:\n"
+        "    warnings.simplefilter('always')\n"
+        "    import gymnasium\n"
+        "print(any('could not register' in str(x.message) for x in w))\n")
+    assert out.strip() == "True"
+
+
 def test_gymnasium_has_no_plugin_entry_points():
     """Why pyproject.toml declares no ``gymnasium.envs`` entry point: Gymnasium 1.x does not read
     them. Should a version load plugins again, this fails: then add
