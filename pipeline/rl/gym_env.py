@@ -28,7 +28,17 @@ Rewards
 
 Termination
     Terminated on reaching the goal, and on a collision when the method has no self-recovery
-    (Q-learning, Sarsa, constrained RL). Truncated after ``max_steps`` (200) steps.
+    (Q-learning, Sarsa, constrained RL).
+
+Truncation
+    After the method's ``max_steps`` (200) executed moves: ``truncated`` and ``StepFlag.truncated``
+    in ``info["flags"]``; ``info["step"]`` counts the moves. ``gymnasium.make`` adds its
+    ``TimeLimit`` with the registered ``max_episode_steps``, the same 200, which counts ``step``
+    calls: the two agree on every step unless actions were prevented (below; only few-shot methods
+    prevent), and then the wrapper cuts the episode one move earlier per prevented call. For the
+    paper's count with a few-shot method pass ``max_episode_steps=-1`` to ``gymnasium.make`` (no
+    wrapper; the environment still truncates after ``max_steps`` moves). To change the length,
+    change both: ``method=get_method("fewshot", max_steps=n)`` and ``max_episode_steps=n``.
 
 Safety guarantee
     When the chosen action runs into an obstacle and the recogniser names its category, the action
@@ -41,17 +51,38 @@ Runs and episodes
     ``run_seeds(s, run)``, empty A_d, recogniser support set restored. ``reset()`` without a seed
     starts the next episode of the same run (A_d is knowledge that persists).
 
+Arguments
+    ``maze`` (built-in name or ``Layout``), ``method`` (name in ``conf/method/`` or ``MethodSpec``),
+    ``recogniser`` (an object of the ``pipeline.rl.recogniser.Recogniser`` protocol; needed by the
+    methods that reason with pictures, ``fewshot`` and ``fewshot_dss``), ``run``, ``render_mode``,
+    ``tile_size`` (pixels per cell of ``rgb_array``). This class lives in ``rl`` and so never
+    imports ``fewshot`` or the configs: recognisers by name (``"relation_net"``, ``"oracle"``,
+    ``"fixed_accuracy"``, the files of ``conf/recogniser/``) are built by ``pipeline.envs.make_env``,
+    the entry point of the registered ids, which then constructs this class.
+
+Render modes
+    ``"rgb_array"``: the maze from above, ``(height * tile_size, width * tile_size, 3)`` uint8:
+    obstacles in the colour of their category, the start pale green, the goal a yellow oval, each
+    (s, a) of A_d a red bar on the edge of cell s toward a, the robot a blue disc (colours in
+    ``pipeline.rl.gym_render``). ``"ansi"``: the same as a text grid (obstacles as category digits).
+    ``metadata["render_fps"]`` is 4.
+
 Registered configurations
-    ``SafeNav-5x5-v0``, ``SafeNav-7x7-v0``, ``SafeNav-11x11-v0`` (method ``shield``; pass
-    ``method=...`` and ``recogniser=...`` to ``gymnasium.make`` for others).
+    ``SafeNav-5x5-v0``, ``SafeNav-7x7-v0``, ``SafeNav-11x11-v0``: method ``shield``,
+    ``max_episode_steps=200``; registered on ``import pipeline`` (or ``gymnasium.make("pipeline:SafeNav-5x5-v0")``),
+    see ``pipeline/__init__.py``. Other methods and recognisers by keyword:
+    ``gymnasium.make("SafeNav-5x5-v0", method="fewshot_dss", recogniser="oracle")``.
 """
 from __future__ import annotations
+
+from typing import Any, ClassVar
 
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
 from pipeline.rl.codes import Outcome, StepFlag
+from pipeline.rl.gym_render import ansi_frame, rgb_frame
 from pipeline.rl.methods import MethodSpec, get_method
 from pipeline.rl.recogniser import Recogniser
 from pipeline.rl.rng import run_seeds
@@ -59,24 +90,35 @@ from pipeline.rl.rules import apply_action, empty_added, reasons_with_pictures
 from pipeline.rl.runner import make_run_world
 from pipeline.rl.structs import MethodParams
 from pipeline.world.geometry import build_geometry
-from pipeline.world.maze import ACTION_NAMES, Layout, load_layout
+from pipeline.world.maze import Layout, load_layout
 from pipeline.world.pictures import N_PICTURES
+
+#: How to pass a recogniser, for the error messages.
+HOW_TO_PASS = ("pass recogniser=<name> to gymnasium.make or pipeline.envs.make_env (a file of "
+               "conf/recogniser/: relation_net, oracle, fixed_accuracy), or a Recogniser object "
+               "(pipeline.rl.recogniser) to SafeNavigationEnv")
 
 
 class SafeNavigationEnv(gym.Env):
-    metadata = {"render_modes": ["ansi"]}
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["ansi", "rgb_array"], "render_fps": 4}
 
     def __init__(self, maze: str | Layout = "5x5", method: str | MethodSpec = "shield",
-                 recogniser: Recogniser | None = None, run: int = 0, render_mode: str | None = None):
+                 recogniser: Recogniser | None = None, run: int = 0, render_mode: str | None = None,
+                 tile_size: int = 32):
         self.layout = maze if isinstance(maze, Layout) else load_layout(maze)
         self.method = method if isinstance(method, MethodSpec) else get_method(method)
         self._params = MethodParams.of(self.method)
         self._sees_pictures = reasons_with_pictures(self._params.safety)
+        if isinstance(recogniser, str):
+            raise TypeError(f"SafeNavigationEnv takes a Recogniser object, not the name {recogniser!r}: {HOW_TO_PASS}")
         if self._sees_pictures and recogniser is None:
-            raise ValueError(f"method {self.method.name!r} reasons with pictures: pass a recogniser")
-        if render_mode not in (None, "ansi"):
-            raise ValueError(f"render_mode={render_mode!r}: only 'ansi' is supported")
+            raise ValueError(f"method {self.method.name!r} reasons with pictures and needs a recogniser: {HOW_TO_PASS}")
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode={render_mode!r}: expected one of {', '.join(self.metadata['render_modes'])} or None")
+        if int(tile_size) < 8:
+            raise ValueError(f"tile_size={tile_size}: too small to draw, use 8 pixels or more")
         self.render_mode = render_mode
+        self.tile_size = int(tile_size)
         self.recogniser = recogniser
         self.run_id = run
         self.geometry = build_geometry(self.layout)
@@ -142,13 +184,12 @@ class SafeNavigationEnv(gym.Env):
             flags=int(flags), added=added)
 
     def render(self):
-        grid = [list(row.replace("S", ".")) for row in self.layout.rows]
-        r, c = self.layout.cell(self.state)
-        grid[r][c] = "R"
-        text = "\n".join("".join(row) for row in grid)
-        return text + f"\nstep {self.t}  |A_d| = {int(self.unsafe.sum())}  actions {ACTION_NAMES}\n"
-
-
-for _name in ("5x5", "7x7", "11x11"):
-    gym.register(id=f"SafeNav-{_name}-v0", entry_point=SafeNavigationEnv, kwargs={"maze": _name},
-                 max_episode_steps=None)
+        """``rgb_array``: the top-down picture; ``ansi``: the text grid (see Render modes)."""
+        if self.render_mode is None:
+            gym.logger.warn("render() without a render_mode: make the environment with "
+                            "render_mode='rgb_array' or 'ansi'")
+            return None
+        categories = self.world.true_category
+        if self.render_mode == "rgb_array":
+            return rgb_frame(self.layout, categories, self.unsafe, self.state, self.tile_size)
+        return ansi_frame(self.layout, categories, self.unsafe, self.state, self.t)

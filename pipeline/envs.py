@@ -1,0 +1,92 @@
+"""What ``gymnasium.make("SafeNav-<maze>-v0", ...)`` calls: the environment with its recogniser.
+
+``make_env`` is the entry point of the registered ids (``pipeline._registration``). It takes the
+keywords of :class:`pipeline.rl.gym_env.SafeNavigationEnv`, and the recogniser also by name::
+
+    gymnasium.make("SafeNav-5x5-v0", method="fewshot_dss", recogniser="oracle")
+    gymnasium.make("SafeNav-7x7-v0", method="fewshot", recogniser="fixed_accuracy",
+                   recogniser_options={"p": 0.8}, render_mode="rgb_array")
+
+Why here: the environment lives in ``rl``, which never imports ``fewshot`` (DESIGN.md "Who may
+import whom"), and a recogniser by name may be the Relation Network of ``fewshot``. Building
+recognisers from ``conf/recogniser/<name>.yaml`` is the stages' job, done by
+``pipeline.stages._recognisers.build_recogniser`` (its ``_target_`` and the argument check against
+the target's signature). This module is wiring like the stages: it loads the yaml and hands it to
+that same function, so the trials stage and ``gymnasium.make`` build a recogniser through one path,
+and the ``rl`` environment only ever receives an object. ``make_recogniser`` is the resolver.
+Nothing here is imported by ``import pipeline``.
+
+Relative paths in a yaml (``relation_net``: ``datasets/...``) are read from the working directory,
+as in the stages: run from the project root or pass absolute paths in ``recogniser_options``.
+"""
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from omegaconf import OmegaConf
+
+from pipeline.rl.gym_env import SafeNavigationEnv
+from pipeline.rl.methods import MethodSpec, get_method
+from pipeline.rl.recogniser import Recogniser
+from pipeline.world.maze import Layout
+
+#: ``conf/recogniser/<name>.yaml``: the recognisers by name (the trials stage's config group).
+RECOGNISER_DIR = Path(__file__).resolve().parents[1] / "conf" / "recogniser"
+
+
+def recogniser_names() -> list[str]:
+    """The recognisers of ``conf/recogniser/``, sorted."""
+    return sorted(p.stem for p in RECOGNISER_DIR.glob("*.yaml"))
+
+
+def _check_name(name: str) -> Path:
+    path = RECOGNISER_DIR / f"{name}.yaml"
+    if not path.is_file():
+        raise ValueError(f"unknown recogniser {name!r}; expected one of {', '.join(recogniser_names())} "
+                         f"(conf/recogniser/<name>.yaml), or a Recogniser object")
+    return path
+
+
+def make_recogniser(name: str, options: Mapping[str, Any] | None = None, *, substitution_way: int = 0,
+                    carry_over: bool = False) -> Recogniser:
+    """The recogniser ``conf/recogniser/<name>.yaml``, with ``options`` overriding its keys, built
+    as the trials stage builds it. Bad names and values raise ``ValueError`` (``ConfigError``)."""
+    # Hydra (about 0.2 s to import) only when a recogniser is built, not for every environment
+    from pipeline.stages._recognisers import build_recogniser
+
+    node = OmegaConf.to_container(OmegaConf.load(_check_name(name)), resolve=True)
+    node.update(dict(options or {}))
+    return build_recogniser(node, substitution_way=substitution_way, carry_over=carry_over)
+
+
+def make_env(maze: str | Layout = "5x5", method: str | MethodSpec = "shield",
+             recogniser: Recogniser | str | None = None, *, recogniser_options: Mapping[str, Any] | None = None,
+             substitution: int = 1, run: int = 0, render_mode: str | None = None,
+             tile_size: int = 32) -> SafeNavigationEnv:
+    """A :class:`SafeNavigationEnv`; ``recogniser`` an object or a name of ``conf/recogniser/``.
+
+    A name is built only for the methods that reason with pictures (like the trials stage); with
+    ``fewshot_dss`` the recogniser gets substitution way ``substitution`` (1-4, section 3.3), as
+    ``substitution=`` does for the trials stage. Each ``reset(seed=...)`` restores its support set."""
+    spec = method if isinstance(method, MethodSpec) else get_method(method)
+    if isinstance(recogniser, str):
+        _check_name(recogniser)
+        if spec.uses_recogniser:
+            way = substitution if spec.dynamic_support else 0
+            recogniser = make_recogniser(recogniser, recogniser_options, substitution_way=way)
+        else:
+            recogniser = None
+    elif recogniser_options:
+        raise ValueError("recogniser_options go with a recogniser name (recogniser='fixed_accuracy', ...)")
+    elif recogniser is None and spec.uses_recogniser:
+        raise ValueError(f"method {spec.name!r} reasons with pictures and needs a recogniser: pass "
+                         f"recogniser=<name> with a name of conf/recogniser/ ({', '.join(recogniser_names())}), "
+                         f"e.g. gymnasium.make('SafeNav-5x5-v0', method={spec.name!r}, recogniser='oracle'), "
+                         f"or a Recogniser object (pipeline.rl.recogniser)")
+    return SafeNavigationEnv(maze, spec, recogniser, run=run, render_mode=render_mode, tile_size=tile_size)
+
+
+#: ``gymnasium.make`` reads the render modes from the entry point (to add its render wrappers).
+make_env.metadata = SafeNavigationEnv.metadata
