@@ -18,6 +18,18 @@ if ! ldconfig -p 2>/dev/null | grep -q "libEGL_mesa.so"; then
   fi
 fi
 
+# Debian's chromium for the web viewer's browser test (tests/test_replay_browser.py drives it with
+# Playwright; Playwright's own browser download is not reachable). Without it that test is skipped.
+if ! command -v chromium >/dev/null 2>&1; then
+  if command -v apt-get >/dev/null 2>&1 && [ "$(id -u)" = "0" ]; then
+    echo "[setup] installing chromium (for tests/test_replay_browser.py)"
+    { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null; } ||
+      echo "[setup] WARNING: could not install chromium; tests/test_replay_browser.py will be skipped" >&2
+  else
+    echo "[setup] note: no chromium and cannot apt-get install it; tests/test_replay_browser.py will be skipped" >&2
+  fi
+fi
+
 if [ ! -x .venv/bin/python ]; then
   "$PY" -m venv .venv
 fi

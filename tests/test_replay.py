@@ -1,15 +1,26 @@
 """Replay of recorded episodes in Rerun (pipeline.records.replay, stage ``replay``)."""
 from __future__ import annotations
 
+import contextlib
+import os
+import queue
+import re
+import signal
+import socket
 import subprocess
 import sys
+import threading
+import time
+import urllib.parse
+import urllib.request
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
 import pytest
+from synthetic_records import write_synthetic
 
 from pipeline.records.replay import ReplayError, build_replay
-from synthetic_records import write_synthetic
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -71,7 +82,8 @@ def test_replay_shows_recorded_q_values(tmp_path):
             w.episode(run=0, episode=e, states=np.array([0, 1, 3, 2])[:n], actions=np.array([1, 2, 3, 0]),
                       rewards=np.zeros(n), flags=np.zeros(n, np.uint8), recognitions={}, unsafe_added={},
                       summary={"steps": n, "collisions": 0, "return_": 0.0, "reached_goal": False,
-                               "prevented": 0, "epsilon": 0.1, "greedy_optimal": False}, q_values=np.full((4, 4), e + 0.5))
+                               "prevented": 0, "epsilon": 0.1, "greedy_optimal": False},
+                      q_values=np.full((4, 4), e + 0.5))
     rows = _rows(build_replay(tmp_path / "q.mcap", 0, 1, out=tmp_path / "q.rrd"))
     assert rows["/q_values/max"] == 2 and "/derived/visits" not in rows
 
@@ -80,12 +92,12 @@ def test_replay_stage_with_a_positional_file(recorded, tmp_path):
     path, written = recorded
     out = tmp_path / "stage.rrd"
     res = subprocess.run([sys.executable, "-m", "pipeline", "replay", str(path), "run=0", "episode=2",
-                          f"out={out}"], cwd=ROOT, capture_output=True, text=True, timeout=120)
+                          f"out={out}"], check=False, cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert res.returncode == 0, res.stderr
     f = next(w for w in written if w["run"] == 0 and w["episode"] == 2)
     assert _rows(out)["/maze/robot"] == len(f["states"])
     bad = subprocess.run([sys.executable, "-m", "pipeline", "replay", f"file={path}", "run=0", "episode=2",
-                          "viewer=desktop"], cwd=ROOT, capture_output=True, text=True, timeout=120)
+                          "viewer=desktop"], check=False, cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert bad.returncode == 2 and "config key 'viewer'" in bad.stderr
 
 
@@ -124,7 +136,8 @@ def test_replay_draws_with_the_files_moves_and_names(tmp_path):
                                "epsilon": 0.1, "greedy_optimal": False})
         return build_replay(path, 0, 0, out=path.with_suffix(".rrd"))
 
-    own = write(tmp_path / "own.mcap", actions=["up", "right", "down", "left"], moves=[(-1, 0), (0, 2), (1, 0), (0, -2)])
+    own = write(tmp_path / "own.mcap", actions=["up", "right", "down", "left"],
+                moves=[(-1, 0), (0, 2), (1, 0), (0, -2)])
     vectors = [v[0] for v in _columns(own, "/maze/robot/action")["Arrows2D:vectors"]]
     assert np.allclose(vectors, [[0.8, 0], [0, 0.4], [-0.8, 0], [0, -0.4]])  # (x, y) = (d_col, d_row) * 0.4
     assert [t[0] for t in _columns(own, "/events")["TextLog:text"]] == [
@@ -135,3 +148,124 @@ def test_replay_draws_with_the_files_moves_and_names(tmp_path):
     assert "action E: reselected" in _columns(old, "/events")["TextLog:text"][0][0]
     with pytest.raises(ValueError, match="maze.moves"):
         write(tmp_path / "bad.mcap", actions=["up", "down"], moves=[(-1, 0), (0, 1), (1, 0)])
+
+
+# ---------------------------------------------------------------- viewer=web (serving, lifetime, ports, bind)
+@contextmanager
+def web_replay(path: Path, out: Path, *overrides: str, timeout: float = 120):
+    """``python -m pipeline replay ... viewer=web`` on free ports, as a subprocess: yields it, the
+    address it printed and its children, once it says "serving"; ends whatever is left afterwards."""
+    import psutil
+
+    proc = subprocess.Popen([sys.executable, "-m", "pipeline", "replay", f"file={path}", "run=0", "episode=1",
+                             f"out={out}", "viewer=web", "web_port=0", "grpc_port=0", *overrides],
+                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    lines: queue.Queue = queue.Queue()
+    threading.Thread(target=lambda: [lines.put(x) for x in proc.stdout], daemon=True).start()
+    children: list = []
+    try:
+        url = _serving_url(lines, proc, timeout)
+        children = psutil.Process(proc.pid).children(recursive=True)
+        yield proc, url, children
+    finally:
+        for p in [proc, *children]:
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(p.pid, signal.SIGKILL)
+        proc.wait(10)
+
+
+def _serving_url(lines: queue.Queue, proc: subprocess.Popen, timeout: float) -> str:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        try:
+            line = lines.get(timeout=1)
+        except queue.Empty:
+            if proc.poll() is not None:
+                raise AssertionError(f"replay ended ({proc.returncode}) before serving: {proc.stderr.read()}")
+            continue
+        if line.startswith("serving "):
+            return re.search(r"http://\S+", line).group(0)
+    raise AssertionError(f"no 'serving' line within {timeout} s")
+
+
+def _ports(url: str) -> tuple[int, int]:
+    """(web port, gRPC port) of a printed address."""
+    web = urllib.parse.urlsplit(url)
+    grpc = urllib.parse.urlsplit(urllib.parse.parse_qs(web.query)["url"][0])
+    return web.port, grpc.port
+
+
+def _free(port: int) -> bool:
+    with socket.socket() as s:
+        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            s.bind(("127.0.0.1", port))
+        except OSError:
+            return False
+    return True
+
+
+def _gone(pid: int) -> bool:
+    import psutil
+
+    try:
+        return psutil.Process(pid).status() == psutil.STATUS_ZOMBIE
+    except psutil.NoSuchProcess:
+        return True
+
+
+@pytest.mark.parametrize("sig, code", [(signal.SIGTERM, 143), (signal.SIGINT, 0), (signal.SIGKILL, -9)],
+                         ids=["SIGTERM", "Ctrl-C", "SIGKILL"])
+def test_web_viewer_lives_and_dies_with_the_command(recorded, tmp_path, sig, code):
+    path, _ = recorded
+    with web_replay(path, tmp_path / "w.rrd") as (proc, url, children):
+        web_port, grpc_port = _ports(url)
+        assert url == (f"http://127.0.0.1:{web_port}?url=rerun%2Bhttp%3A%2F%2F127.0.0.1%3A{grpc_port}%2Fproxy")
+        assert [c.name() for c in children] == ["rerun"]  # the binary itself, not its Python wrapper
+        assert not _free(web_port) and not _free(grpc_port)
+        with urllib.request.urlopen(f"http://127.0.0.1:{web_port}/", timeout=10) as page:
+            assert page.status == 200
+        proc.send_signal(sig)
+        assert proc.wait(30) == code
+        deadline = time.monotonic() + 10  # SIGKILL: the child's parent-death signal, then its own exit
+        while not (_gone(children[0].pid) and _free(web_port) and _free(grpc_port)) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert _gone(children[0].pid) and _free(web_port) and _free(grpc_port)
+
+
+def test_web_viewer_refuses_a_busy_port(recorded, tmp_path):
+    path, _ = recorded
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        port = busy.getsockname()[1]
+        for key, other in (("web_port", "grpc_port"), ("grpc_port", "web_port")):
+            res = subprocess.run([sys.executable, "-m", "pipeline", "replay", f"file={path}", "run=0", "episode=1",
+                                  f"out={tmp_path / 'b.rrd'}", "viewer=web", f"{key}={port}", f"{other}=0"],
+                                 check=False, cwd=ROOT, capture_output=True, text=True, timeout=120)
+            assert res.returncode == 2, res.stderr
+            assert res.stderr.splitlines() == [(f"error: config key '{key}': cannot listen on 127.0.0.1 port {port}: "
+                                                f"Address already in use (another viewer? {key}=0 picks a free port)")]
+            assert "serving" not in res.stdout and not (tmp_path / "b.rrd").exists()  # refused before any work
+
+
+def test_web_viewer_needs_allow_remote_off_the_loopback(recorded, tmp_path, capsys):
+    from pipeline.stages._common import load_config
+    from pipeline.stages.replay import web_address
+
+    path, _ = recorded
+    res = subprocess.run([sys.executable, "-m", "pipeline", "replay", f"file={path}", "run=0", "episode=1",
+                          f"out={tmp_path / 'r.rrd'}", "viewer=web", "bind=0.0.0.0"],
+                         check=False, cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert res.returncode == 2 and len(res.stderr.splitlines()) == 1
+    assert res.stderr.startswith("error: config key 'bind': 0.0.0.0 is reachable from other machines")
+    assert "allow_remote=true" in res.stderr and not (tmp_path / "r.rrd").exists()
+
+    def address(*overrides):
+        return web_address(load_config("replay", [f"file={path}", "web_port=0", "grpc_port=0", *overrides]))
+
+    web = address("bind=0.0.0.0", "allow_remote=true")  # checks the ports on every interface, serves nothing
+    assert capsys.readouterr().err.startswith("warning: bind=0.0.0.0: the viewer and the recording are served")
+    assert web.bind == "0.0.0.0" and web.url.startswith("http://127.0.0.1:") and web.web_port != web.grpc_port
+    assert address("bind=::1").url.startswith("http://[::1]:")
+    assert capsys.readouterr().err == ""  # loopback: no warning

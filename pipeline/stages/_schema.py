@@ -202,8 +202,13 @@ class ReplayConfig:
     out: Optional[str] = None
     viewer: str = setting(choices=VIEWERS)
     bind: str = setting(nonempty=True)
+    """IP address the web viewer listens on; off the loopback only with ``allow_remote``."""
+    allow_remote: bool = MISSING
+    """Allow a ``bind`` reachable from other machines (``0.0.0.0``, a LAN address); warns."""
     web_port: int = setting(ge=0, le=65535)
+    """HTTP port of the web viewer; 0 picks a free one (printed)."""
     grpc_port: int = setting(ge=0, le=65535)
+    """gRPC port that serves the recording to the viewer; 0 picks a free one."""
 
 
 @dataclass

@@ -5,26 +5,59 @@
 The file may also be given positionally (``python -m pipeline replay <file.mcap> run=3 ...``).
 Logic in :mod:`pipeline.records.replay`; this is the thin entry point (conf/replay.yaml) and
 starts the viewer.
+
+``viewer=web`` serves the recording with the Rerun CLI of the rerun-sdk wheel and prints the one
+address that opens it (``http://127.0.0.1:<web_port>?url=rerun+http://127.0.0.1:<grpc_port>/proxy``,
+URL-encoded); the bare web port only opens Rerun's welcome page. The viewer lives and dies with the
+command: Ctrl-C or SIGTERM stop it, and so does the command's death on Linux (parent-death signal).
+Both ports are checked before any work (a busy one is a config error naming its key; port 0 picks a
+free one), and a bind address off the loopback needs ``allow_remote=true``.
 """
 from __future__ import annotations
 
+import ctypes
+import importlib.util
+import ipaddress
+import os
+import signal
+import socket
 import subprocess
 import sys
+import time
 import warnings
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
+from urllib.parse import quote
 
 from pipeline.errors import ConfigError
 from pipeline.stages._common import stage_main
 from pipeline.stages._schema import ReplayConfig
 
+#: Seconds to wait for the Rerun server to listen on both ports, and for it to end when stopped.
+START_TIMEOUT, STOP_TIMEOUT = 30.0, 5.0
+
 
 def run(cfg: ReplayConfig, overrides: list[str] = ()) -> Path:
-    from pipeline.records import RecordsWarning
-    from pipeline.records.replay import ReplayError, build_replay
-
     path = Path(cfg.file).resolve()
     if not path.is_file():
         raise ConfigError(f"config key 'file': no such record file: {path}")
+    web = web_address(cfg) if cfg.viewer == "web" else None  # refused before any work
+    rrd = write_replay(path, cfg)
+    print(f"wrote {rrd}  (open it with: rerun {rrd})", flush=True)
+    if web is not None:
+        serve_web(rrd, web)
+    else:
+        open_viewer(rrd, cfg.viewer)
+    return rrd
+
+
+def write_replay(path: Path, cfg: ReplayConfig) -> Path:
+    """The ``.rrd`` of ``cfg.run``/``cfg.episode``; a damaged record file warns in one line."""
+    from pipeline.records import RecordsWarning
+    from pipeline.records.replay import ReplayError, build_replay
+
     stem = path.name.removesuffix(".partial").removesuffix(".mcap")
     out = cfg.out or f"replays/{stem}-run{cfg.run}-" + ("all" if cfg.whole_run else f"ep{cfg.episode}") + ".rrd"
     out = Path(out).resolve()
@@ -38,32 +71,141 @@ def run(cfg: ReplayConfig, overrides: list[str] = ()) -> Path:
     except ReplayError as exc:
         keys = "key 'file'" if exc.key == "file" else "keys 'run'/'episode'"
         raise ConfigError(f"config {keys}: {exc}") from None
-    for w in caught:  # a damaged or truncated record file: one line saying what it lost
+    for w in caught:
         if issubclass(w.category, RecordsWarning):
             print(f"warning: {w.message}", file=sys.stderr, flush=True)
-    print(f"wrote {rrd}  (open it with: rerun {rrd})", flush=True)
-    open_viewer(rrd, cfg.viewer, bind=cfg.bind, web_port=cfg.web_port, grpc_port=cfg.grpc_port)
-    return rrd
+    return Path(rrd)
 
 
-def open_viewer(rrd: str | Path, viewer: str, *, bind: str = "127.0.0.1", web_port: int = 9090,
-                grpc_port: int = 9876) -> subprocess.Popen | None:
-    """``"web"``: serve ``rrd`` to a web viewer on ``bind`` (never all interfaces unless asked) and
-    block until Ctrl-C; ``"native"``: spawn the desktop viewer (needs a display); ``"none"``: nothing.
-    The viewer is the Rerun CLI of the rerun-sdk wheel, beside this interpreter."""
-    exe = Path(sys.executable).with_name("rerun")
-    cmd = [str(exe)] if exe.exists() else [sys.executable, "-m", "rerun_cli"]
-    if viewer == "native":
-        return subprocess.Popen(cmd + [str(rrd)])
-    if viewer == "web":
-        print(f"serving {rrd} at http://{bind}:{web_port} (Ctrl-C to stop)", flush=True)
+# ---------------------------------------------------------------- the web viewer
+@dataclass(frozen=True)
+class WebAddress:
+    """Where the web viewer listens (``bind``) and the address a browser opens (``host``)."""
+    bind: str
+    host: str
+    web_port: int
+    grpc_port: int
+
+    @property
+    def url(self) -> str:
+        """The page that opens the recording: the web port, told where the gRPC proxy is."""
+        grpc = f"rerun+http://{self.host}:{self.grpc_port}/proxy"
+        return f"http://{self.host}:{self.web_port}?url={quote(grpc, safe='')}"
+
+
+def web_address(cfg: ReplayConfig) -> WebAddress:
+    """Check ``bind`` and both ports: a non-loopback bind needs ``allow_remote`` (and warns), a busy
+    port is a :class:`ConfigError` naming its key, port 0 becomes a free port (the two differ)."""
+    ip = bind_address(cfg.bind, cfg.allow_remote)
+    if cfg.web_port and cfg.web_port == cfg.grpc_port:
+        raise ConfigError(f"config keys 'web_port'/'grpc_port': both are {cfg.web_port}; give two ports")
+    with _bound(ip, cfg.web_port, "web_port") as web, _bound(ip, cfg.grpc_port, "grpc_port") as grpc:
+        ports = web.getsockname()[1], grpc.getsockname()[1]
+    host = "127.0.0.1" if ip.is_unspecified else f"[{ip}]" if ip.version == 6 else str(ip)
+    return WebAddress(str(ip), host, *ports)
+
+
+def bind_address(bind: str, allow_remote: bool) -> ipaddress.IPv4Address | ipaddress.IPv6Address:
+    """``bind`` as an IP address; one off the loopback only with ``allow_remote`` (and a warning)."""
+    try:
+        ip = ipaddress.ip_address("127.0.0.1" if bind == "localhost" else bind)
+    except ValueError:
+        raise ConfigError(f"config key 'bind': not an IP address: {bind!r} (127.0.0.1 keeps it local)") from None
+    if ip.is_loopback:
+        return ip
+    if not allow_remote:
+        raise ConfigError(f"config key 'bind': {bind} is reachable from other machines; keep 127.0.0.1, "
+                          "or add allow_remote=true to serve the recording to the network")
+    print(f"warning: bind={bind}: the viewer and the recording are served to every machine that can reach "
+          "this one, without authentication (allow_remote=true)", file=sys.stderr, flush=True)
+    return ip
+
+
+@contextmanager
+def _bound(ip, port: int, key: str) -> Iterator[socket.socket]:
+    """A socket bound to ``(ip, port)`` (with the server's own ``SO_REUSEADDR``): the port is free;
+    port 0 picks one."""
+    with socket.socket(socket.AF_INET6 if ip.version == 6 else socket.AF_INET, socket.SOCK_STREAM) as sock:
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         try:
-            subprocess.run(cmd + ["--serve-web", "--bind", bind, "--web-viewer-port", str(web_port),
-                                  "--port", str(grpc_port), str(rrd)], check=False)
-        except KeyboardInterrupt:
+            sock.bind((str(ip), port))
+        except OSError as exc:
+            hint = f" (another viewer? {key}=0 picks a free port)" if port else ""
+            raise ConfigError(f"config key '{key}': cannot listen on {ip} port {port}: {exc.strerror}{hint}") from None
+        yield sock
+
+
+def serve_web(rrd: str | Path, web: WebAddress) -> None:
+    """Serve ``rrd`` at ``web`` until Ctrl-C, SIGTERM (through the stage's handler) or the server's
+    end; the server never outlives this call."""
+    cmd = rerun_command() + ["--serve-web", "--bind", web.bind, "--web-viewer-port", str(web.web_port),
+                             "--port", str(web.grpc_port), str(rrd)]
+    env = {"RUST_LOG": "warn", **os.environ}  # Rerun's own log repeats the address without the recording
+    # preexec_fn: this stage starts no threads, so the fork-unsafety it warns of does not apply
+    proc = subprocess.Popen(cmd, env=env, start_new_session=True, preexec_fn=_die_with_parent)  # noqa: PLW1509
+    try:
+        _wait_listening(proc, web)
+        print(f"serving {rrd} at {web.url}  (Ctrl-C to stop)", flush=True)
+        if proc.wait():
+            raise SystemExit(f"error: the Rerun viewer exited with status {proc.returncode}")
+    except KeyboardInterrupt:
+        print("viewer stopped", file=sys.stderr, flush=True)
+    finally:
+        _stop(proc)
+
+
+def _wait_listening(proc: subprocess.Popen, web: WebAddress) -> None:
+    """Return once both ports accept connections; a server that ends first is a port problem."""
+    deadline = time.monotonic() + START_TIMEOUT
+    while not all(_accepts(web.host.strip("[]"), port) for port in (web.grpc_port, web.web_port)):
+        if proc.poll() is not None:
+            raise ConfigError(f"config keys 'web_port'/'grpc_port': the Rerun viewer ended at start "
+                              f"(status {proc.returncode}; its log is above)")
+        if time.monotonic() > deadline:
+            raise SystemExit(f"error: the Rerun viewer did not listen on {web.host} in {START_TIMEOUT:.0f} s")
+        time.sleep(0.1)
+
+
+def _accepts(host: str, port: int) -> bool:
+    try:
+        socket.create_connection((host, port), timeout=0.5).close()
+    except OSError:
+        return False
+    return True
+
+
+def _stop(proc: subprocess.Popen) -> None:
+    """End the server's process group: SIGTERM, then SIGKILL after :data:`STOP_TIMEOUT`."""
+    for sig in (signal.SIGTERM, signal.SIGKILL):
+        if proc.poll() is not None:
+            break
+        try:
+            os.killpg(proc.pid, sig)
+            proc.wait(STOP_TIMEOUT)
+        except (ProcessLookupError, subprocess.TimeoutExpired):
             pass
-    elif viewer != "none":
-        raise ValueError(f"viewer must be 'none', 'web' or 'native', got {viewer!r}")
+
+
+def _die_with_parent() -> None:
+    """In the child (Linux): SIGTERM when the command dies, even by SIGKILL (``prctl(PR_SET_PDEATHSIG)``)."""
+    if sys.platform.startswith("linux"):
+        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGTERM)
+
+
+def rerun_command() -> list[str]:
+    """The Rerun CLI binary of the rerun-sdk wheel (not its Python wrapper, so one process to stop)."""
+    spec = importlib.util.find_spec("rerun_cli")
+    exe = Path(spec.origin).with_name("rerun") if spec and spec.origin else None
+    return [str(exe)] if exe and exe.exists() else [sys.executable, "-m", "rerun_cli"]
+
+
+def open_viewer(rrd: str | Path, viewer: str) -> subprocess.Popen | None:
+    """``"native"``: spawn the desktop viewer (needs a display); ``"none"``: nothing (``"web"``: see
+    :func:`serve_web`)."""
+    if viewer == "native":
+        return subprocess.Popen(rerun_command() + [str(rrd)])
+    if viewer != "none":
+        raise ValueError(f"viewer must be 'none' or 'native' here, got {viewer!r}")
     return None
 
 
@@ -71,7 +213,7 @@ def main() -> None:
     """Accept the record file as a positional argument too (``replay <file.mcap> run=3``)."""
     args = sys.argv[1:]
     for i, a in enumerate(args):
-        if "=" not in a and not a.startswith("-") and (a.endswith(".mcap") or a.endswith(".mcap.partial")):
+        if "=" not in a and not a.startswith("-") and a.endswith((".mcap", ".mcap.partial")):
             args[i] = "file=" + "'" + a.replace("'", "\\'") + "'"
     stage_main("replay", run, args)
 
