@@ -1,7 +1,8 @@
 """The report is driven by the experiment files: a cells-only experiment gets the default section
 (collisions with 95% intervals, learning curves with bands) with no code change; the paper's
 experiments keep their sections through the ``report:`` blocks of their yamls, read back from the
-records; the block is typed. Smoke scale with the oracle recogniser (no model needed)."""
+records; the block is typed; rows are named from what their cells ran. Smoke scale with the oracle
+recogniser (no model needed)."""
 import dataclasses
 import shutil
 
@@ -49,17 +50,18 @@ def test_a_cells_only_experiment_gets_the_default_section(built):
     d, index = built
     assert "## Experiment mine" in index
     table = pd.read_csv(d / "reports" / "tables" / "mine.csv")
-    assert table["cell"].tolist() == ["a", "b"] and table["method"].tolist() == ["shield", "ssrl"]
+    assert table["cell"].tolist() == ["Shield", "SSRL"]  # named from the recorded methods, not the cell ids
     assert table["runs"].tolist() == [3, 3]
     ci = table["collisions (mean ± s.d. [95% CI])"]
     assert ci.str.fullmatch(r"[\d.]+ ± [\d.]+ \[[\d.]+, [\d.]+\]").all()
     assert (d / "reports" / "figures" / "mine_learning_curves.png").stat().st_size > 1000
     curves = pd.read_csv(d / "reports" / "tables" / "mine_learning_curves.csv")
-    assert curves["episode"].tolist() == list(range(20))  # from episode 0, every episode
-    assert {"a", "a_ci_low", "a_ci_high", "b", "b_ci_low", "b_ci_high"} <= set(curves.columns)
-    assert (curves["a_ci_low"] <= curves["a"]).all() and (curves["a"] <= curves["a_ci_high"]).all()
+    assert curves.columns.tolist() == ["series", "key", "episode", "mean", "ci_low", "ci_high"]
+    a = curves[curves["key"] == "a"]
+    assert set(a["series"]) == {"Shield"} and a["episode"].tolist() == list(range(20))  # from episode 0
+    assert (a["ci_low"] <= a["mean"]).all() and (a["mean"] <= a["ci_high"]).all()
     # shield: every run collides in the first episode; the mean of the table is the curves' sum
-    assert curves["a"].sum() == pytest.approx(float(table["collisions (mean ± s.d. [95% CI])"][0].split()[0]), abs=0.01)
+    assert a["mean"].sum() == pytest.approx(float(table["collisions (mean ± s.d. [95% CI])"][0].split()[0]), abs=0.01)
 
 
 def test_paper_sections_come_from_their_report_blocks(built):
@@ -70,20 +72,38 @@ def test_paper_sections_come_from_their_report_blocks(built):
     assert index.index("## Figure 7") < index.index("## Figure 8") < index.index("## Table 3") < index.index("## Experiment mine")
     assert "Paper: Methods with a safety guarantee collide far less than Q-learning" in index
     fig8 = pd.read_csv(d / "reports" / "tables" / "fig8.csv")
-    assert fig8["method"].tolist() == ["Q-learning", "online shield", "SSRL", "few-shot, no DSS", "few-shot with DSS"]
+    names = ["Q-learning", "Shield", "SSRL", "Few-shot (static support set)", "Few-shot + DSS"]
+    assert fig8["method"].tolist() == names
+    # the paper's numbers for Figure 8 are Table 3's for the same setting (recorded in table3's block)
+    assert fig8["paper"].fillna("").tolist() == ["", "", "", "8.77 (Table 3)", "7.145 (Table 3, ways 1-4 pooled)"]
     for name in ("fig8_collisions.png", "fig8_learning_curves.png", "fig8_path.png", "fig8_support_accuracy.png",
                  "table3_learning_curves_11x11.png", "table3_support_accuracy_7x7.png"):
         assert (d / "reports" / "figures" / name).stat().st_size > 1000, name
     curves = pd.read_csv(d / "reports" / "tables" / "fig8_learning_curves.csv")  # dvc.yaml's plots read these columns
-    assert {"episode", "qlearning", "shield", "ssrl", "fewshot", "fewshot_dss"} <= set(curves.columns)
+    assert curves["series"].unique().tolist() == names and {"episode", "mean", "ci_low", "ci_high"} <= set(curves)
     table3 = pd.read_csv(d / "reports" / "tables" / "table3.csv")
-    assert table3["method"].tolist() == ["Sarsa", "constrained RL", "few-shot, no DSS", "few-shot with DSS"]
+    assert table3["method"].tolist() == ["Sarsa", "Constrained RL", "Few-shot (static support set)", "Few-shot + DSS"]
     assert table3.columns.tolist()[1:] == ["5x5 ours", "5x5 paper", "7x7 ours", "7x7 paper", "11x11 ours", "11x11 paper"]
-    assert table3.set_index("method").loc["few-shot with DSS", "5x5 paper"] == 7.145
+    assert table3.set_index("method").loc["Few-shot + DSS", "5x5 paper"] == 7.145
     assert table3.set_index("method").loc["Sarsa", "7x7 paper"] == "not converged"
     data = pd.read_csv(d / "reports" / "tables" / "table3_data.csv")
     dss = data[(data["row"] == "fewshot_dss") & (data["maze"] == "5x5")]
     assert dss["n"].tolist() == [12]  # the DSS row pools the four ways: 4 cells x 3 runs
+    curves = pd.read_csv(d / "reports" / "tables" / "table3_learning_curves.csv")
+    assert "Few-shot + DSS (5x5)" in set(curves["series"])
+
+
+def test_claims_section_is_generated_from_the_records(built):
+    d, index = built
+    assert index.index("## Claims of the paper against our data") < index.index("## Figure 8")
+    claims = pd.read_csv(d / "reports" / "tables" / "claims.csv")
+    assert set(claims["claim verdict"]) <= {"holds", "does not hold", "not resolved", "not checked"}
+    by_source = claims.groupby("source")["claim verdict"].apply(set)
+    assert by_source["Figure 9"] == {"not checked"} and by_source["Table 2"] == {"not checked"}  # no records, no study
+    order = claims[claims["claim text"].str.startswith("collisions fall in the order")]
+    assert len(order) == 9 and order["check verdict"].isin(["holds", "does not hold", "not resolved"]).all()
+    assert (order["ci_low"] <= order["estimate"]).all() and (order["estimate"] <= order["ci_high"]).all()
+    assert order["interval over"].eq("3 run seeds, paired").all()  # the cells of table3 share run seeds
 
 
 def test_experiments_and_cells_without_records_are_named(built, tmp_path):
@@ -96,7 +116,7 @@ def test_experiments_and_cells_without_records_are_named(built, tmp_path):
     run_stage("report", [f"runs_dir={runs}", f"accuracy_dir={tmp_path}/none", f"out={tmp_path}/reports", "allow_missing=true"])
     index = (tmp_path / "reports" / "index.md").read_text()
     assert "cell mine/b" in next(x for x in index.splitlines() if x.startswith("**Missing from this report**"))
-    assert pd.read_csv(tmp_path / "reports" / "tables" / "mine.csv")["cell"].tolist() == ["a"]
+    assert pd.read_csv(tmp_path / "reports" / "tables" / "mine.csv")["cell"].tolist() == ["Shield"]
 
 
 @pytest.mark.parametrize("override,message", [
@@ -122,6 +142,10 @@ def test_spec_round_trips_through_the_recorded_dict():
     spec = load_config("trials", ["+experiment=table3", "recogniser=oracle"]).experiment.report
     assert ReportSpec.from_dict(dataclasses.asdict(spec)) == spec
     assert ReportSpec.from_dict(None) == ReportSpec()
+    # blocks recorded before rows were named from their cells still read (their labels unused)
+    old = {**dataclasses.asdict(spec), "labels": {"x": "y"}}
+    old["groups"] = [{**g, "label": "old"} for g in old["groups"]]
+    assert ReportSpec.from_dict(old) == spec
     with pytest.raises(ValueError, match="unknown key"):
         ReportSpec.from_dict({"colour": "red"})
     with pytest.raises(ValueError, match="report.kind"):

@@ -1,20 +1,113 @@
 """Tables 1 and 2 (paper section 4.2.1) and the model's validation accuracy, from the accuracy
 study's data files (``baseline.csv``, ``table1.csv``, ``table2.csv``, ``summary.json``) and the
-meta-training metrics. The paper's numbers come in those files' ``paper_*`` columns."""
+meta-training metrics. The paper's numbers come in those files' ``paper_*`` columns.
+
+Intervals: the study's random unit is a draw (which query pictures replace which support pictures;
+``repeats`` draws per substituted category, independent), and its files keep sums over draws, not
+each draw. So an accuracy's standard error is bounded from the sums (:class:`Study`): one draw's
+accuracy on a category's pictures lies in [0, 1], so its variance is at most ``p (1 - p)``, and the
+s.d. of an accuracy over several categories is at most the sum of theirs. The 95% interval
+``p ± 1.96 se`` with that bound is conservative. The original support set involves no draw, so its
+accuracy has no interval.
+"""
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass
 from pathlib import Path
 
 import matplotlib.pyplot as plt
+import numpy as np
 import pandas as pd
 
 from pipeline.report import figures as F
+from pipeline.report.stats import bounded_sd, normal_ci
 
 #: Table 2's columns (the accuracy study's ``table2.csv``) as the report prints them.
-TABLE2_HEADERS = {"substitution_number": "substitutions", "mean_accuracy": "ours",
-                  "mean_accuracy_no_same": "ours, no same picture", "paper_mean_accuracy": "paper",
+TABLE2_HEADERS = {"substitution_number": "substitutions", "mean_accuracy": "ours [95% CI]",
+                  "mean_accuracy_no_same": "ours, no same picture [95% CI]", "paper_mean_accuracy": "paper",
                   "paper_mean_accuracy_no_same": "paper, no same picture"}
+
+#: ``table2.csv``'s column of each variant of Table 1 (``table1.csv``'s ``variant``).
+VARIANTS = {"with_same": "mean_accuracy", "no_same": "mean_accuracy_no_same"}
+
+
+@dataclass
+class Estimate:
+    value: float
+    se: float = 0.0
+
+    def ci(self) -> tuple[float, float]:
+        return normal_ci(self.value, self.se)
+
+    def __sub__(self, other: Estimate) -> Estimate:
+        """The difference of two estimates from independent draws."""
+        return Estimate(self.value - other.value, float(np.hypot(self.se, other.se)))
+
+
+class Study:
+    """The accuracy study's data files and each accuracy's standard error over the draws (the
+    largest the recorded sums allow, :func:`~pipeline.report.stats.bounded_sd`)."""
+
+    def __init__(self, accuracy_dir: Path):
+        self.summary = json.loads((accuracy_dir / "summary.json").read_text())
+        self.table1 = pd.read_csv(accuracy_dir / "table1.csv")
+        self.table2 = pd.read_csv(accuracy_dir / "table2.csv").set_index("substitution_number")
+        self.names = self.summary["class_names"]
+        self.draws = int(self.summary["config"]["repeats"])
+        self.baseline = self.summary["baseline"]
+        self.pictures = int(sum(self.baseline["total"]))
+
+    def cells(self, variant: str, substituted: int) -> pd.DataFrame:
+        t = self.table1
+        return t[(t["variant"] == variant) & (t["substituted_category"] == substituted)].sort_values("tested_category")
+
+    def row(self, variant: str, substituted: int) -> Estimate:
+        """Table 1: accuracy on all pictures with one picture of ``substituted`` substituted."""
+        d = self.cells(variant, substituted)
+        weights = d["total"] / d["total"].sum()
+        sd = bounded_sd(d["correct"] / d["total"], weights)
+        return Estimate(float(d["correct"].sum() / d["total"].sum()), sd / np.sqrt(self.draws))
+
+    def cell(self, variant: str, substituted: int, tested: int) -> Estimate:
+        d = self.cells(variant, substituted)
+        p = float((d["correct"] / d["total"])[d["tested_category"] == tested].iloc[0])
+        return Estimate(p, bounded_sd(p) / np.sqrt(self.draws))
+
+    def mean(self, variant: str) -> Estimate:
+        """Table 1's mean over the substituted categories (independent draws each)."""
+        rows = [self.row(variant, s) for s in range(len(self.names))]
+        se = float(np.sqrt(sum(r.se ** 2 for r in rows))) / len(rows)
+        return Estimate(float(np.mean([r.value for r in rows])), se)
+
+    def substitutions(self, n: int, variant: str = "with_same") -> Estimate:
+        """Table 2: mean accuracy with ``n`` substitutions (no draw for 0; Table 1's bound for 1)."""
+        value = float(self.table2.loc[n, VARIANTS[variant]])
+        if n == 0:
+            return Estimate(value)
+        if n == 1:
+            return Estimate(value, self.mean(variant).se)
+        return Estimate(value, bounded_sd(value) / np.sqrt(len(self.names) * self.draws))
+
+    def paper(self, n: int, variant: str = "with_same") -> float | None:
+        value = self.table2.loc[n].get("paper_" + VARIANTS[variant])
+        return None if value is None or pd.isna(value) else float(value)
+
+
+def percent(value, estimate: Estimate | None = None) -> str:
+    """``57.71%`` or, with an estimate whose interval to show, ``57.71% [55.49, 59.93]``."""
+    if value is None or pd.isna(value):
+        return ""
+    if estimate is None or estimate.se == 0:
+        return f"{100 * value:.2f}%"
+    lo, hi = estimate.ci()
+    return f"{100 * value:.2f}% [{100 * lo:.2f}, {100 * hi:.2f}]"
+
+
+def intervals_note(study: Study) -> str:
+    return (f"[95% CI] over the study's random draws ({study.draws} per substituted category), conservative: "
+            "the data files keep sums over draws, and the interval takes the largest spread those sums allow "
+            "(each draw's accuracy on a category lies in [0, 1]); the original support set involves no draw.")
 
 
 def accuracy_tables(rep, accuracy_dir: Path, model_metrics: Path) -> None:
@@ -27,53 +120,74 @@ def accuracy_tables(rep, accuracy_dir: Path, model_metrics: Path) -> None:
     if not (accuracy_dir / "table2.csv").exists():
         rep.add(f"Accuracy study: no data under `{accuracy_dir}`.\n")
         return
-    summary = json.loads((accuracy_dir / "summary.json").read_text())
-    names = summary["class_names"]
-    base = summary["baseline"]
+    study = Study(accuracy_dir)
+    names, base = study.names, study.baseline
     rows = [{"": "ours", **{n: f"{c}/{t}" for n, c, t in zip(names, base["correct"], base["total"])},
              "overall": f"{100 * base['accuracy']:.1f}%"}]
-    paper_base = base.get("paper") or {}
-    if paper_base:
-        pc = paper_base.get("correct", paper_base) if isinstance(paper_base, dict) else paper_base
-        if isinstance(pc, (list, tuple)):
-            rows.append({"": "paper", **{n: f"{c}/8" for n, c in zip(names, pc)},
-                         "overall": f"{100 * sum(pc) / 40:.1f}%"})
+    paper = (base.get("paper") or {}).get("correct")
+    if paper:
+        rows.append({"": "paper", **{n: f"{c}/{t}" for n, c, t in zip(names, paper, base["total"])},
+                     "overall": f"{100 * sum(paper) / study.pictures:.1f}%"})
     rep.add("## Table 1: recognition accuracy of the 40 query pictures\n")
-    rep.table("table1_no_substitution", pd.DataFrame(rows), "Original support set (no substitution), correct per category.")
-    t1 = pd.read_csv(accuracy_dir / "table1.csv")
+    rep.table("table1_no_substitution", pd.DataFrame(rows),
+              "Original support set (no substitution), correct per category (no random draw: no interval).")
     for variant, title in (("with_same", "one substitution"), ("no_same", "one substitution, no same picture")):
-        d = t1[t1["variant"] == variant]
-        wide = d.pivot(index="substituted_category", columns="tested_category", values="correct").astype(int).astype(str) + \
-            "/" + d.pivot(index="substituted_category", columns="tested_category", values="total").astype(int).astype(str)
-        wide.columns = [names[int(c)] for c in wide.columns]
-        wide.insert(0, "substituted", [names[int(i)] for i in wide.index])
-        if d["paper_correct"].notna().all():
-            pw = d.pivot(index="substituted_category", columns="tested_category", values="paper_correct").astype(int).astype(str) + \
-                "/" + d.pivot(index="substituted_category", columns="tested_category", values="paper_total").astype(int).astype(str)
-            for j, c in enumerate(pw.columns):
-                wide[f"{names[int(c)]} (paper)"] = pw[c].to_numpy()
-        rep.table(f"table1_{variant}", wide.reset_index(drop=True), f"Table 1, {title}: correct/tested per category.")
-    mean_key = summary["table1"]
-    rep.add(f"Mean accuracy after one substitution: ours {100 * mean_key['mean']:.2f}% "
-            f"(no same picture {100 * mean_key['mean_no_same']:.2f}%); paper {100 * mean_key['paper_mean']:.2f}% "
-            f"({100 * mean_key['paper_mean_no_same']:.2f}%).\n")
-    t2 = pd.read_csv(accuracy_dir / "table2.csv")
+        rep.table(f"table1_{variant}", table1(study, variant),
+                  f"Table 1, {title}: correct/tested per category; {intervals_note(study)}")
+    with_same, no_same = study.mean("with_same"), study.mean("no_same")
+    summary = study.summary["table1"]
+    rep.add(f"Mean accuracy after one substitution: ours {percent(with_same.value, with_same)} (no same picture "
+            f"{percent(no_same.value, no_same)}); paper {percent(summary['paper_mean'])} "
+            f"({percent(summary['paper_mean_no_same'])}); [95% CI] over the draws of the {len(names)} categories.\n")
     rep.add("## Table 2: accuracy against the number of substitutions\n")
-    show = t2.copy()
-    for col in [c for c in show.columns if "accuracy" in c]:
-        show[col] = show[col].map(lambda v: "" if pd.isna(v) else f"{100 * v:.2f}%")
-    show = show.rename(columns=TABLE2_HEADERS)
-    rep.table("table2", show, "Mean accuracy over the 40 query pictures (ours and the paper's).")
+    rep.table("table2", table2(study), f"Mean accuracy over the {study.pictures} query pictures (ours and the "
+                                       f"paper's); {intervals_note(study)}")
+    table2_figure(rep, study)
+
+
+def table1(study: Study, variant: str) -> pd.DataFrame:
+    """Table 1 (one substitution) as correct/tested per substituted and tested category, ours
+    (with each row's accuracy and interval) beside the paper's."""
+    names = study.names
+    out = []
+    for s in range(len(names)):
+        d = study.cells(variant, s)
+        line = {"substituted": names[s], **{names[int(t)]: f"{c}/{n}" for t, c, n in
+                                            zip(d["tested_category"], d["correct"], d["total"])}}
+        row = study.row(variant, s)
+        line["overall, ours [95% CI]"] = percent(row.value, row)
+        if d["paper_correct"].notna().all():
+            line.update({f"{names[int(t)]} (paper)": f"{int(c)}/{int(n)}"
+                         for t, c, n in zip(d["tested_category"], d["paper_correct"], d["paper_total"])})
+            line["overall, paper"] = f"{int(d['paper_correct'].sum())}/{int(d['paper_total'].sum())}"
+        out.append(line)
+    return pd.DataFrame(out)
+
+
+def table2(study: Study) -> pd.DataFrame:
+    show = study.table2.reset_index()
+    for variant, column in VARIANTS.items():
+        show[column] = [percent(v, study.substitutions(int(n), variant)) for n, v in zip(show["substitution_number"],
+                                                                                        show[column])]
+        show["paper_" + column] = show["paper_" + column].map(percent)
+    return show.rename(columns=TABLE2_HEADERS)
+
+
+def table2_figure(rep, study: Study) -> None:
     fig, ax = plt.subplots(figsize=(5.5, 3.4))
-    n = t2["substitution_number"]
-    ax.plot(n, 100 * t2["mean_accuracy"], "o-", label="ours")
-    ax.plot(n, 100 * t2["mean_accuracy_no_same"], "o--", label="ours, no same picture")
-    if t2["paper_mean_accuracy"].notna().any():
-        ax.plot(n, 100 * t2["paper_mean_accuracy"], "s-", color="red", alpha=0.6, label="paper")
-        ax.plot(n, 100 * t2["paper_mean_accuracy_no_same"], "s--", color="red", alpha=0.6, label="paper, no same picture")
+    n = study.table2.index.to_numpy()
+    for (variant, column), style, label in zip(VARIANTS.items(), ("o-", "o--"), ("ours", "ours, no same picture")):
+        estimates = [study.substitutions(int(k), variant) for k in n]
+        values = np.array([100 * e.value for e in estimates])
+        err = np.array([[100 * (e.value - e.ci()[0]), 100 * (e.ci()[1] - e.value)] for e in estimates]).T
+        ax.errorbar(n, values, yerr=err, fmt=style, capsize=3, label=f"{label} (95% CI)")
+        paper = study.table2.get("paper_" + column)
+        if paper is not None and paper.notna().any():
+            ax.plot(n, 100 * paper, "s" + style[1:], color="red", alpha=0.6, label=label.replace("ours", "paper"))
     ax.set_xlabel("substitution number")
     ax.set_ylabel("mean accuracy (%)")
     ax.legend(fontsize=8)
     ax.set_title("Table 2 as a plot", fontsize=10)
     F.save(fig, rep.out / "figures" / "table2_accuracy.png")
-    rep.figure("figures/table2_accuracy.png", "Accuracy rises with substitutions (ours beside the paper's).")
+    rep.figure("figures/table2_accuracy.png", "Table 2: mean accuracy against the number of substitutions, ours with "
+                                              "conservative 95% intervals over the draws, beside the paper's.")

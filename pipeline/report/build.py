@@ -20,6 +20,7 @@ from pathlib import Path
 import pandas as pd
 
 from pipeline.files import swap_in
+from pipeline.report.claims import claims_section
 from pipeline.report.experiments import ReportInputError, load_all
 from pipeline.report.sections import section
 
@@ -115,10 +116,11 @@ def _build(inputs: Inputs) -> Path:
     if missing:
         rep.add(f"**Missing from this report** (no complete records; built with `allow_missing=true`): "
                 f"{', '.join(missing)}.\n")
+    claims_section(rep, experiments, inputs.accuracy_dir)
     accuracy_section(rep, inputs.accuracy_dir, inputs.model_metrics)
     not_shown = []
     for exp in experiments:
-        not_shown += section(rep, exp)
+        not_shown += section(rep, exp, experiments)
     contact_sheets(rep, inputs.contact_dir)
     if not_shown:
         rep.add(f"Not in this report (no records found): {', '.join(not_shown)}.\n")

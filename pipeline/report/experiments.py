@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import json
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +16,7 @@ import pandas as pd
 from pipeline.errors import UserError
 from pipeline.records import read_records
 from pipeline.records.reader import RecordsWarning
+from pipeline.report.names import row_names
 from pipeline.report.spec import ReportSpec, Row
 
 
@@ -42,6 +43,15 @@ class Cell:
 
     def collisions_per_run(self) -> np.ndarray:
         return self.episodes.groupby("run")["collisions"].sum().to_numpy()
+
+    def runs(self) -> np.ndarray:
+        """The run indices, in the order of :meth:`collisions_per_run` and the rows of the
+        per-episode arrays; run ``r`` has the seed ``(seed, r)`` in every cell of ``seed``."""
+        return np.sort(self.episodes["run"].unique())
+
+    @property
+    def seed(self):
+        return (self.config or {}).get("seed")
 
     def collisions_by_episode(self) -> np.ndarray:
         """(runs, episodes): collisions of each run in each episode (NaN: episode not recorded)."""
@@ -100,13 +110,15 @@ class Experiment:
         return [c for c in self.declared if c not in self.cells]
 
     def rows(self) -> list[tuple[Row, list[Cell]]]:
-        """The section's rows with their recorded cells; rows without any are left out."""
+        """The section's rows with their recorded cells, named from them
+        (:func:`~pipeline.report.names.row_names`); rows without any are left out."""
         out = []
         for row in self.spec.rows(self.declared or self.cells):
             cells = [self.cells[c] for c in row.cells if c in self.cells]
             if cells:
                 out.append((row, cells))
-        return out
+        names = row_names([[c.info for c in cells] for _, cells in out])
+        return [(replace(row, label=name), cells) for (row, cells), name in zip(out, names)]
 
 
 class ReportInputError(UserError):

@@ -5,6 +5,7 @@ same records give the same PNG bytes.
 """
 from __future__ import annotations
 
+import textwrap
 from collections import Counter
 from pathlib import Path
 
@@ -29,8 +30,40 @@ def save(fig, path: Path) -> Path:
     return path
 
 
-def bars(labels, samples, title, ylabel, path: Path):
-    """Mean with s.d. (thin) and 95% bootstrap interval (thick) per label, the runs as dots."""
+def ticks(ax, labels) -> None:
+    """Labels as the ticks of a bar chart, wrapped; a name all labels begin with (``Few-shot +
+    DSS, way 1``, ``..., way 2``) goes to the axis label instead."""
+    labels = list(labels)
+    heads = {label.split(", ", 1)[0] for label in labels}
+    if len(heads) == 1 and len(labels) > 1 and all(", " in label for label in labels):
+        ax.set_xlabel(heads.pop())
+        labels = [label.split(", ", 1)[1] for label in labels]
+    ax.set_xticks(range(len(labels)), [textwrap.fill(label, 16) for label in labels])
+
+
+def paper_marks(ax, paper) -> None:
+    """The paper's numbers (``paper``: per bar a :class:`~pipeline.report.sections.PaperValue` or
+    None) as red dashes over the bars, dashed where the paper's number pools more cells, with
+    the value beside; a legend names them."""
+    drawn, last = {}, {}
+    for i, ref in enumerate(paper or []):
+        value = ref.number() if ref is not None else None
+        if value is None:
+            continue
+        label = f"paper ({ref.source}{', ' + ref.pools if ref.pools else ''})"
+        drawn[label] = ax.hlines(value, i - 0.42, i + 0.42, colors="red", linestyles="--" if ref.pools else "-",
+                                 lw=2, zorder=4)
+        last[(label, value)] = i
+    for (_, value), i in last.items():  # the value once, at the last bar it marks
+        ax.text(i + 0.42, value, f"{value:g}", color="red", fontsize=7, ha="right", va="bottom")
+    if drawn:
+        ax.set_ylim(top=ax.get_ylim()[1] * 1.3)  # room for the legend above the marks
+        ax.legend(drawn.values(), drawn.keys(), fontsize=7, loc="upper right")
+
+
+def bars(labels, samples, title, ylabel, path: Path, paper=None):
+    """Mean with s.d. (thin) and 95% bootstrap interval (thick) per label, the runs as dots; the
+    paper's numbers where given (:func:`paper_marks`)."""
     fig, ax = plt.subplots(figsize=(1.3 * len(labels) + 2, 3.6))
     rng = np.random.default_rng(0)
     for i, (label, v) in enumerate(zip(labels, samples)):
@@ -40,7 +73,8 @@ def bars(labels, samples, title, ylabel, path: Path):
         ax.vlines(i, d["ci_low"], d["ci_high"], color="black", lw=3)
         ax.scatter(i + rng.uniform(-0.25, 0.25, len(v)), v, s=4, color="#3182bd", alpha=0.4, zorder=3)
         ax.text(i, d["mean"], f"{d['mean']:.1f}", ha="center", va="bottom", fontsize=8)
-    ax.set_xticks(range(len(labels)), labels, rotation=20)
+    paper_marks(ax, paper)
+    ticks(ax, labels)
     ax.set_ylabel(ylabel)
     ax.set_title(title, fontsize=10)
     return save(fig, path)
@@ -86,20 +120,21 @@ def curves(series: dict[str, np.ndarray], title: str, path: Path, ylabel="collis
     return "; ".join(notes)
 
 
-def long_term(series: dict[str, np.ndarray], ticks: list[str], title: str, path: Path):
+def long_term(series: dict[str, np.ndarray], title: str, path: Path, paper=None):
     """Collisions of each consecutive experiment (the runs in order) per label, and their means
-    with 95% bootstrap intervals (ticks: short names of the labels)."""
-    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(9, 3.6), gridspec_kw={"width_ratios": [3, 1]})
+    with 95% bootstrap intervals and the paper's numbers where given (:func:`paper_marks`)."""
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 3.8), gridspec_kw={"width_ratios": [2.2, 1]})
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     for i, (label, values) in enumerate(series.items()):
         ax1.plot(np.arange(1, len(values) + 1), values, label=label, lw=1.2, color=colours[i % len(colours)])
         d = describe(values)
         ax2.bar(i, d["mean"], color=colours[i % len(colours)], alpha=0.5)
         ax2.vlines(i, d["ci_low"], d["ci_high"], color="black", lw=3)
+    paper_marks(ax2, paper)
     ax1.set_xlabel("experiment (consecutive runs)")
     ax1.set_ylabel("collisions per experiment")
     ax1.legend(fontsize=8)
-    ax2.set_xticks(range(len(ticks)), ticks, rotation=20)
+    ticks(ax2, series)
     ax2.set_title("mean, 95% CI", fontsize=9)
     fig.suptitle(title, fontsize=10)
     return save(fig, path)

@@ -3,8 +3,9 @@
 The block is optional. Without it an experiment gets the default section: a table of collisions
 per run (mean ± s.d. [95% bootstrap CI]) with one row per cell, learning curves with a 95% band and,
 for cells with a recogniser, the query accuracy of the support set over the run. With it the file
-says which kind of section, the order and labels of the rows, which cells pool into one row, the
-paper's numbers and the paper's claim. The trials stage embeds the block in every record file
+says which kind of section, the order of the rows, which cells pool into one row, the paper's
+numbers and the paper's claim; rows are named from what their cells ran
+(:mod:`pipeline.report.names`). The trials stage embeds the block in every record file
 (``experiment.report`` of the recorded config), and the report reads it from there, so a report is
 built from the records alone.
 
@@ -32,11 +33,9 @@ class Group:
     the group's cells on that maze."""
 
     key: str = field(default="", metadata={"nonempty": True})
-    """Names the row in CSV files (a column of the learning curves' table)."""
+    """Names the row in CSV files (the ``key`` column of the learning curves' table)."""
     cells: List[str] = field(default_factory=list)
     """The cells whose runs count together."""
-    label: Optional[str] = None
-    """The row's readable label (tables, legends); default: the group's key."""
     paper: Dict[str, str] = field(default_factory=dict)
     """The paper's figure for this row, by maze (``{5x5: 192.3, 7x7: not converged}``), as printed."""
 
@@ -72,8 +71,6 @@ class ReportSpec:
     """Which cells, in which order, one row (and one curve) each; default: every cell, sorted by
     name (the records keep the config with sorted keys, so the file's order of cells is not
     kept). Give ``cells`` or ``groups``, not both."""
-    labels: Dict[str, str] = field(default_factory=dict)
-    """Readable labels of cells for tables and legends (default: the cell's name)."""
     groups: List[Group] = field(default_factory=list)
     """Rows that pool cells, in order (a list: order is kept in the records)."""
     curves: bool = True
@@ -90,9 +87,10 @@ class ReportSpec:
         gives the default. Unknown keys and an unknown kind raise ``ValueError``."""
         if data is None:
             return cls()
-        values = _known(cls, data, "report")
+        values = _known(cls, data, "report", LEGACY)
         if "groups" in values:
-            values["groups"] = [Group(**_known(Group, g, f"report.groups.{i}")) for i, g in enumerate(values["groups"])]
+            values["groups"] = [Group(**_known(Group, g, f"report.groups.{i}", LEGACY_GROUP))
+                                for i, g in enumerate(values["groups"])]
         if values.get("path") is not None:
             values["path"] = PathSpec(**_known(PathSpec, values["path"], "report.path"))
         spec = cls(**values)
@@ -114,8 +112,6 @@ class ReportSpec:
 
         for name in self.cells:
             need("cells", name)
-        for name in self.labels:
-            need("labels", name)
         seen = set()
         for i, group in enumerate(self.groups):
             if not group.key.strip():
@@ -138,16 +134,14 @@ class ReportSpec:
         """The section's rows: its groups, or one row per cell (``cells`` of the block, else every
         cell of ``cells``, sorted by name)."""
         if self.groups:
-            return [Row(g.key, g.label or g.key, list(g.cells), dict(g.paper)) for g in self.groups]
-        return [Row(name, self.labels.get(name, name), [name], {}) for name in (self.cells or sorted(cells))]
-
-    def label(self, cell: str) -> str:
-        return self.labels.get(cell, cell)
+            return [Row(g.key, g.key, list(g.cells), dict(g.paper)) for g in self.groups]
+        return [Row(name, name, [name], {}) for name in (self.cells or sorted(cells))]
 
 
 @dataclass
 class Row:
-    """One row of a section (one curve in its figures): a key, a label and the cells it pools."""
+    """One row of a section (one curve in its figures): a key, a label (the key until
+    :meth:`pipeline.report.experiments.Experiment.rows` names it) and the cells it pools."""
 
     key: str
     label: str
@@ -155,11 +149,16 @@ class Row:
     paper: Dict[str, str]
 
 
-def _known(cls, data: Any, where: str) -> dict[str, Any]:
+#: Keys of blocks recorded before rows were named from their cells (``labels``, a group's
+#: ``label``): read and ignored, so those records still make a report.
+LEGACY, LEGACY_GROUP = ("labels",), ("label",)
+
+
+def _known(cls, data: Any, where: str, legacy: tuple[str, ...] = ()) -> dict[str, Any]:
     if not isinstance(data, dict):
         raise ValueError(f"{where}: expected a mapping; got {data!r}")
     names = {f.name for f in fields(cls)}
-    unknown = sorted(set(data) - names)
+    unknown = sorted(set(data) - names - set(legacy))
     if unknown:
         raise ValueError(f"{where}: unknown key(s) {', '.join(unknown)} (known: {', '.join(sorted(names))})")
-    return dict(data)
+    return {k: v for k, v in data.items() if k in names}

@@ -1,5 +1,13 @@
 """Summary statistics for the report: mean, standard deviation and a seeded 95% bootstrap interval
-of the mean (tables); per-episode means with a 95% t interval (the bands of learning curves)."""
+of the mean (tables); per-episode means with a 95% t interval (the bands of learning curves);
+bootstrap intervals of differences between cells (the claims); Wilson intervals of shares of runs;
+conservative normal intervals for accuracies of which only sums over draws are recorded (Tables 1
+and 2: :func:`bounded_sd`).
+
+The independent unit of a trial is its run seed: the cells of an experiment (and the experiments
+recorded with the same seed and run count) share run ``r``'s obstacle placement and random
+streams, so a row that pools cells resamples run seeds (``clusters``), and a difference between
+cells is bootstrapped over run seeds, pairing run ``r`` of one cell with run ``r`` of the other."""
 from __future__ import annotations
 
 import warnings
@@ -20,9 +28,18 @@ def bootstrap_ci(values, *, level: float = 0.95, resamples: int = 2000, seed: in
     return (float(lo), float(hi))
 
 
-def describe(values) -> dict:
+def cluster_means(values, clusters) -> np.ndarray:
+    """The mean of ``values`` per cluster id (in the order of the sorted ids)."""
+    ids, index = np.unique(np.asarray(clusters), return_inverse=True)
     v = np.asarray(values, dtype=float)
-    lo, hi = bootstrap_ci(v)
+    return np.bincount(index, weights=v, minlength=ids.size) / np.bincount(index, minlength=ids.size)
+
+
+def describe(values, clusters=None) -> dict:
+    """Mean, s.d. (of the values) and 95% bootstrap CI of the mean; with ``clusters`` (one id per
+    value, e.g. the run seed of each pooled run) the CI resamples clusters, not values."""
+    v = np.asarray(values, dtype=float)
+    lo, hi = bootstrap_ci(v if clusters is None else cluster_means(v, clusters))
     return {"n": int(v.size), "mean": float(v.mean()) if v.size else float("nan"),
             "std": float(v.std(ddof=1)) if v.size > 1 else 0.0, "ci_low": lo, "ci_high": hi}
 
@@ -31,6 +48,9 @@ def fmt(d: dict, digits: int = 2) -> str:
     """``mean ± std [lo, hi]`` for tables."""
     return f"{d['mean']:.{digits}f} ± {d['std']:.{digits}f} [{d['ci_low']:.{digits}f}, {d['ci_high']:.{digits}f}]"
 
+
+#: The standard normal's 0.975 quantile.
+Z975 = 1.959963984540054
 
 #: Student's t 0.975 quantiles for 1-10 degrees of freedom; beyond, the Cornish-Fisher expansion
 #: (:func:`t_quantile_975`) is within 0.01% of the exact value.
@@ -63,3 +83,43 @@ def mean_band(values) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         sd = np.nanstd(v, axis=0, ddof=1) if v.shape[0] > 1 else np.zeros(v.shape[1])
         half = np.array([t_quantile_975(int(k) - 1) if k > 1 else 0.0 for k in n]) * np.nan_to_num(sd) / np.sqrt(np.maximum(n, 1))
     return mean, mean - half, mean + half
+
+
+def bootstrap_difference(a, b, *, paired: bool, level: float = 0.95, resamples: int = 2000,
+                         seed: int = 0) -> tuple[float, float, float]:
+    """``mean(a) - mean(b)`` and its percentile-bootstrap interval. ``paired``: ``a[i]`` and
+    ``b[i]`` come from one run seed (resample seeds, the differences' mean); else the two are
+    resampled independently."""
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    if paired:
+        d = a - b
+        return (float(d.mean()), *bootstrap_ci(d, level=level, resamples=resamples, seed=seed))
+    rng = np.random.default_rng(seed)
+    means = [x[rng.integers(0, x.size, size=(resamples, x.size))].mean(axis=1) for x in (a, b)]
+    lo, hi = np.quantile(means[0] - means[1], [(1 - level) / 2, 1 - (1 - level) / 2])
+    return (float(a.mean() - b.mean()), float(lo), float(hi))
+
+
+def wilson_ci(share: float, n: int) -> tuple[float, float]:
+    """95% score (Wilson) interval of a share of ``n`` independent yes/no outcomes (converged runs)."""
+    if n < 1:
+        return (float("nan"), float("nan"))
+    z = Z975
+    centre = (share + z * z / (2 * n)) / (1 + z * z / n)
+    half = z / (1 + z * z / n) * np.sqrt(share * (1 - share) / n + z * z / (4 * n * n))
+    return (float(max(centre - half, 0.0)), float(min(centre + half, 1.0)))
+
+
+def bounded_sd(means, weights=None, low: float = 0.0, high: float = 1.0) -> float:
+    """The largest standard deviation of a weighted sum of parts, each in ``[low, high]`` with the
+    given mean: a part's variance is at most ``(high - mean) * (mean - low)`` (Bhatia-Davis), and
+    the standard deviations of a sum add at most. For accuracies of which only sums over draws are
+    recorded: the parts are what the sums give separately (Table 1's categories)."""
+    m = np.atleast_1d(np.asarray(means, dtype=float))
+    w = np.full(m.size, 1.0 / m.size) if weights is None else np.asarray(weights, dtype=float)
+    return float(np.sum(w * np.sqrt(np.clip((high - m) * (m - low), 0.0, None))))
+
+
+def normal_ci(value: float, se: float) -> tuple[float, float]:
+    """``value ± 1.96 se``: the 95% interval of an estimate with standard error ``se``."""
+    return (value - Z975 * se, value + Z975 * se)
