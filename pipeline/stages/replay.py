@@ -41,7 +41,7 @@ def run(cfg: ReplayConfig, overrides: list[str] = ()) -> Path:
     for w in caught:  # a damaged or truncated record file: one line saying what it lost
         if issubclass(w.category, RecordsWarning):
             print(f"warning: {w.message}", file=sys.stderr, flush=True)
-    print(f"wrote {rrd}  (open it with: rerun {rrd})", flush=True)
+    print(f"open it with: rerun {rrd}", flush=True)
     open_viewer(rrd, cfg.viewer, bind=cfg.bind, web_port=cfg.web_port, grpc_port=cfg.grpc_port)
     return rrd
 
