@@ -4,8 +4,9 @@ cell), with the Relation Network in the loop and every episode recorded to MCAP.
     python -m benchmarks.experiments [--out /tmp/bench-experiments] [--no-record]
 
 Runs `python -m pipeline trials +experiment=<name>` for fig8, fig9, fig10 and table3 into a
-scratch folder (the committed datasets/runs are left alone) and prints each experiment's wall time
-(process start to end, numba compile and model loading included) and each cell's trial time.
+scratch folder (replaced on every run; the committed datasets/runs are left alone) and prints each
+experiment's wall time (process start to end, numba compile and model loading included) and each
+cell's trial time.
 Writes reports/benchmarks/experiments.json.
 """
 from __future__ import annotations
@@ -30,7 +31,7 @@ def main() -> None:
     for exp in EXPERIMENTS:
         t0 = time.perf_counter()
         cmd = [sys.executable, "-m", "pipeline", "trials", f"+experiment={exp}", "progress=false",
-               f"out={args.out}/{exp}", f"record={'false' if args.no_record else 'true'}",
+               f"out={args.out}/{exp}", "overwrite=true", f"record={'false' if args.no_record else 'true'}",
                f"timing_file={args.out}/{exp}-timing.json"]
         out = subprocess.run(cmd, capture_output=True, text=True)
         wall = time.perf_counter() - t0

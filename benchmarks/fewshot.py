@@ -1,4 +1,4 @@
-"""Speed of the few-shot module (docs/fewshot.md, issue 4's goals), on this machine:
+"""Speed of the few-shot module (docs/fewshot.md; goals in README "Measured"), on this machine:
 
 1. meta-training with the default ``conf/meta_train.yaml``: time until a model-selection evaluation
    first reaches the validation goal (75%), total wall time, and the 600-episode accuracy;

@@ -17,7 +17,7 @@ images dir, ``flush_every`` 500 as in conf/trials.yaml; construction and ``close
 The three are alternated within every repeat (the order rotates from repeat to repeat). Overhead =
 recorded / unrecorded - 1, fastest vs fastest and median vs median (and "paired": the median of the
 per-repeat ratios, which a slow spell of the shared host disturbs least), in CPU seconds of this process
-(``time.process_time``; numba and torch on one thread) and in wall seconds. Goals (the issue): at
+(``time.process_time``; numba and torch on one thread) and in wall seconds. Goals (README "Measured"): at
 most 40% with the table lookup, at most 15% with the Relation Network.
 
 3. ``read_records(folder)`` of each paper experiment folder under ``--runs-dir`` (fig8, fig9,

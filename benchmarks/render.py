@@ -4,7 +4,7 @@ Prints (and writes ``reports/benchmarks/render.json``):
 * renderer start-up (compile + ``mujoco.Renderer``) per scene, in seconds;
 * pictures per second of one renderer in one process, per setting (maze, catalogue, studio);
 * the render stage end to end on a small config, and with ``--full`` the default config
-  (4,865 pictures; the issue asks for at most 3 minutes on 2 cores).
+  (4,865 pictures; the goal is at most 3 minutes on 2 cores, README "Measured").
 """
 from __future__ import annotations
 

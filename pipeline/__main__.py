@@ -1,7 +1,8 @@
 """``python -m pipeline <stage> [hydra overrides...]``: one thin Hydra entry point per stage.
 
-Each stage lives in ``pipeline/stages/<stage>.py`` with a ``main()`` decorated by ``hydra.main``
-and composes ``conf/<stage>.yaml``.
+Each stage lives in ``pipeline/stages/<stage>.py`` with a ``main()`` that composes
+``conf/<stage>.yaml`` (``pipeline/stages/_common.py``); the first line of its docstring is the
+description ``--help`` lists.
 """
 from __future__ import annotations
 
@@ -10,17 +11,26 @@ import pkgutil
 import sys
 
 import pipeline.stages as _stages
+from pipeline.stages._common import describe
 
 
 def available_stages() -> list[str]:
     return sorted(m.name for m in pkgutil.iter_modules(_stages.__path__) if not m.name.startswith("_"))
 
 
+def usage(stages: list[str]) -> str:
+    """The top-level help: the stages, one line each."""
+    width = max(len(s) for s in stages) + 2
+    lines = [f"  {s:<{width}}{describe(s)}" for s in stages]
+    return "\n".join(["usage: python -m pipeline <stage> [key=value ...]", "", "stages:", *lines, "",
+                      "python -m pipeline <stage> --help lists a stage's config groups and keys."])
+
+
 def main(argv: list[str] | None = None) -> None:
     argv = list(sys.argv[1:] if argv is None else argv)
     stages = available_stages()
     if not argv or argv[0] in ("-h", "--help"):
-        print("usage: python -m pipeline <stage> [key=value ...]\nstages: " + ", ".join(stages))
+        print(usage(stages))
         raise SystemExit(0 if argv else 2)
     stage = argv.pop(0)
     if stage not in stages:

@@ -231,7 +231,7 @@ def test_a_second_writer_fails_at_once_and_the_first_is_untouched(tmp_path):
 def test_a_killed_trial_says_what_it_kept_and_loses_nothing(tmp_path, sig, code):
     assert cli("trials", "method=ssrl", f"out={tmp_path}", *FAST).returncode == 0
     before = digest(tmp_path)
-    proc = _start(*LONG, f"out={tmp_path}")
+    proc = _start(*LONG, f"out={tmp_path}", "overwrite=true")
     _wait_for_partial(tmp_path)
     proc.send_signal(sig)
     _, err = proc.communicate(timeout=60)
@@ -250,7 +250,7 @@ def test_a_killed_experiment_rerun_keeps_the_previous_experiment(tmp_path):
     assert cli("trials", "+experiment=fig9", "recogniser=oracle", f"out={tmp_path}", *FAST).returncode == 0
     before = digest(tmp_path)
     proc = _start("+experiment=fig9", "recogniser=oracle", "runs=100", "episodes=100000", "seed=3",
-                  "progress=false", f"out={tmp_path}")
+                  "progress=false", f"out={tmp_path}", "overwrite=true")
     t0 = time.time()
     while not list(tmp_path.glob(".staging-*/way1/records.mcap.partial")) and time.time() - t0 < 120:
         time.sleep(0.2)
@@ -260,7 +260,8 @@ def test_a_killed_experiment_rerun_keeps_the_previous_experiment(tmp_path):
     assert proc.returncode == 143
     assert {k: v for k, v in digest(tmp_path).items() if not k.startswith(".staging-")} == before
     # the next complete run replaces it and clears the partial one
-    assert cli("trials", "+experiment=fig9", "recogniser=oracle", "seed=3", f"out={tmp_path}", *FAST).returncode == 0
+    assert cli("trials", "+experiment=fig9", "recogniser=oracle", "seed=3", f"out={tmp_path}", "overwrite=true",
+               *FAST).returncode == 0
     assert not list(tmp_path.glob(".staging-*"))
     assert json.loads((tmp_path / "way1" / "summary.json").read_text())["seed"] == 3
 

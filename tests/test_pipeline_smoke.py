@@ -19,6 +19,7 @@ def stage(*args):
     out = subprocess.run([sys.executable, "-m", "pipeline", *args, "profile=smoke"], cwd=ROOT, env=env,
                          capture_output=True, text=True, timeout=600)
     assert out.returncode == 0, f"{args[0]} failed:\n{out.stdout[-3000:]}\n{out.stderr[-3000:]}"
+    assert out.stdout.splitlines()[-1].startswith("wrote "), f"{args[0]} does not say where it wrote"
     return out
 
 
@@ -71,6 +72,7 @@ def test_replay_of_a_recorded_episode(smoke):
                           "run=1", "episode=3", f"out={rrd}"], cwd=ROOT, capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr[-2000:]
     assert rrd.stat().st_size > 0
+    assert out.stdout.splitlines()[-1] == f"wrote {rrd}"
 
 
 def test_same_experiment_and_seed_give_identical_summaries_and_records(smoke):

@@ -1,4 +1,4 @@
-"""MCAP records: schema, writer, reader, truncated files (DESIGN.md "Records")."""
+"""MCAP records: schema, writer, reader, truncated files (docs/records.md)."""
 from __future__ import annotations
 
 import subprocess

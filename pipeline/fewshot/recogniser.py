@@ -13,7 +13,7 @@ The columns are always computed for all pictures in one fixed-size batch, so a s
 on which picture was asked for first. Scores agree with the plain forward pass to float rounding.
 
 Each run owns its support set. ``start_run`` restores the original support set, or, with
-``carry_over=True`` (long-term autonomy, DESIGN.md), keeps the run's current one and only reseeds
+``carry_over=True`` (long-term autonomy, paper Figure 10), keeps the run's current one and only reseeds
 its substitution stream.
 """
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Build ``reports/`` from the recorded data alone (issue 7; paper Tables 1-3, Figures 7-10).
+"""Build ``reports/`` from the recorded data alone (paper Tables 1-3, Figures 7-10).
 
 Inputs: the MCAP records of the experiments (``<runs_dir>/<experiment>/<cell>/records.mcap``, each
 embedding its experiment's ``report:`` block: :mod:`pipeline.report.sections`), the accuracy
@@ -8,16 +8,21 @@ experiment files (``conf/experiment/*.yaml``) without records are listed as not 
 
 Outputs: ``index.md``, ``tables/*.md|csv``, ``figures/*.png`` (these three are replaced on every
 build; the rest of the folder, e.g. ``benchmarks/``, is left alone). Deleting them and building
-again gives the same bytes.
+again gives the same bytes. On a terminal, a progress bar on stderr counts the parts (reading the
+records, the accuracy section, one per experiment, the contact sheets) and names the one being
+built; elsewhere (a pipe, a log) stderr holds only errors, in one line.
 """
 from __future__ import annotations
 
 import os
 import shutil
+import threading
+from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 import pandas as pd
+from tqdm import tqdm
 
 from pipeline.files import swap_in
 from pipeline.report.claims import claims_section
@@ -96,6 +101,30 @@ def build_report(inputs: Inputs) -> Path:
 
 
 def _build(inputs: Inputs) -> Path:
+    with tqdm(total=3, desc="report", unit="part", disable=None) as bar, ticking(bar):  # None: only on a terminal
+        return _build_parts(inputs, bar)
+
+
+@contextmanager
+def ticking(bar: tqdm, every: float = 1.0):
+    """Redraw ``bar`` every ``every`` seconds, so its clock moves while a long part runs."""
+    done = threading.Event()
+
+    def tick() -> None:
+        while not done.wait(every):
+            bar.refresh()
+
+    thread = threading.Thread(target=tick, daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        done.set()
+        thread.join()
+
+
+def _build_parts(inputs: Inputs, bar: tqdm) -> Path:
+    """The report, part by part; ``bar`` names the part being built and counts those done."""
     rep = Report(inputs.out)
     rep.add("# Few-shot reasoning-based safe RL: our results beside the paper's\n\n"
             "Built by `python -m pipeline report` from the recorded data only (MCAP records of every "
@@ -103,11 +132,38 @@ def _build(inputs: Inputs) -> Path:
             "is mean ± standard deviation over independent runs with a 95% percentile-bootstrap "
             "interval of the mean (2000 resamples, seed 0); learning curves show the mean over runs "
             "per episode with its 95% t interval shaded.\n")
+    bar.set_postfix_str(f"reading the records under {inputs.runs_dir}")
     experiments = load_all(inputs.runs_dir)
+    bar.total += len(experiments)
+    bar.update()
+    refuse_missing(rep, inputs, experiments)
+    bar.set_postfix_str("claims")
+    claims_section(rep, experiments, inputs.accuracy_dir)
+    bar.set_postfix_str("accuracy")
+    accuracy_section(rep, inputs.accuracy_dir, inputs.model_metrics)
+    bar.update()
+    not_shown = []
+    for exp in experiments:
+        bar.set_postfix_str(exp.folder)
+        not_shown += section(rep, exp, experiments)
+        bar.update()
+    bar.set_postfix_str("contact sheets")
+    contact_sheets(rep, inputs.contact_dir)
+    if not_shown:
+        rep.add(f"Not in this report (no records found): {', '.join(not_shown)}.\n")
+    bar.update()
+    return rep.write()
+
+
+def refuse_missing(rep: Report, inputs: Inputs, experiments: list) -> None:
+    """Nothing to report, or experiment files and cells without complete records: refused, unless
+    ``allow_missing`` (then the report says at the top what it lacks)."""
     if not experiments and not inputs.accuracy_dir.exists():
-        raise ReportInputError(f"nothing to report: no experiments under {inputs.runs_dir} and no {inputs.accuracy_dir}")
+        raise ReportInputError(f"nothing to report: no experiments under {inputs.runs_dir} and no "
+                               f"{inputs.accuracy_dir}")
     recorded = {e.name for e in experiments} | {e.folder for e in experiments}
-    files = sorted(inputs.experiments_dir.glob("*.yaml")) if inputs.experiments_dir and inputs.experiments_dir.is_dir() else []
+    folder = inputs.experiments_dir
+    files = sorted(folder.glob("*.yaml")) if folder and folder.is_dir() else []
     missing = [f"experiment {p.stem}" for p in files if p.stem not in recorded]
     missing += [f"cell {e.folder}/{c}" for e in experiments for c in e.missing]
     if missing and not inputs.allow_missing:
@@ -116,12 +172,3 @@ def _build(inputs: Inputs) -> Path:
     if missing:
         rep.add(f"**Missing from this report** (no complete records; built with `allow_missing=true`): "
                 f"{', '.join(missing)}.\n")
-    claims_section(rep, experiments, inputs.accuracy_dir)
-    accuracy_section(rep, inputs.accuracy_dir, inputs.model_metrics)
-    not_shown = []
-    for exp in experiments:
-        not_shown += section(rep, exp, experiments)
-    contact_sheets(rep, inputs.contact_dir)
-    if not_shown:
-        rep.add(f"Not in this report (no records found): {', '.join(not_shown)}.\n")
-    return rep.write()

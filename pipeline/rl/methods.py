@@ -16,8 +16,9 @@ fewshot_dss    Q         as fewshot, and each misrecognised picture   yes       
                          substitutes into the dynamic support set
 =============  ========  ==========================================  =========  ===========
 
-``recovery`` is configurable for every method (DESIGN.md): with it a collision reverts the robot
-to the previous safe state and the episode goes on; without it the collision ends the episode.
+``recovery`` is configurable for every method (on by default for the shield, SSRL and few-shot
+reasoning; README "Where we differ from the paper", Collisions): with it a collision reverts the
+robot to the previous safe state and the episode goes on; without it the collision ends the episode.
 """
 from __future__ import annotations
 

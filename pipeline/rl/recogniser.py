@@ -1,6 +1,7 @@
-"""The recogniser as the RL loop sees it (paper section 3.2.1, eq. 2; DESIGN.md "Who may import whom").
+"""The recogniser as the RL loop sees it (paper section 3.2.1, eq. 2).
 
-``rl`` never imports ``fewshot``: any object with these methods drives Algorithm 1. The Relation
+``rl`` never imports ``fewshot`` (``world``, ``fewshot`` and ``records`` import none of each other;
+README "Layout"): any object with these methods drives Algorithm 1. The Relation
 Network recogniser with its dynamic support set (``pipeline.fewshot``) implements it; the tests
 use small deterministic recognisers.
 

@@ -1,5 +1,6 @@
 """The world's response to one chosen action, with the method's safety layer and self-recovery
-(paper section 3.2.2, 3.3 and Algorithm 1 lines 4-25; DESIGN.md decisions).
+(paper section 3.2.2, 3.3 and Algorithm 1 lines 4-25; where the paper is vague, the decisions of
+README "Where we differ from the paper").
 
 ``apply_action`` is the single implementation of these rules; the batched kernel and the
 Gymnasium environment both call it. It is also the only code that tells safety methods apart

@@ -1,4 +1,4 @@
-"""What the trial runner hands to whoever records its episodes (DESIGN.md "Records").
+"""What the trial runner hands to whoever records its episodes (docs/records.md).
 
 The runner calls ``sink.episodes(**batch)`` with a batch of consecutive finished episodes of one
 run (columnar: the steps of all the batch's episodes concatenated, so a recorder encodes arrays,

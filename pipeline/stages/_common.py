@@ -8,10 +8,17 @@ file) prints ``error: <what>: <problem>`` on stderr and exits 2, before any work
 detected up front. With ``-m`` (multirun sweeps) or Hydra's own flags (``--help``, ``--cfg``...)
 the stage runs under ``hydra.main`` instead, so launchers (joblib, submitit) work; each job then
 goes through the same conversion and error handling.
+
+Every stage ends by printing one line on stdout naming what it wrote (``wrote <path>, <path>``):
+its module's ``written(cfg, result)``, or, for a stage without one, the path its ``run`` returns.
+A stage's one-line description (``python -m pipeline --help``, ``<stage> --help``) is the first
+line of its module's docstring.
 """
 from __future__ import annotations
 
+import ast
 import importlib
+import importlib.util
 import signal
 import sys
 from contextlib import contextmanager
@@ -113,11 +120,33 @@ def load_config(stage: str, overrides: list[str] = ()) -> Any:
     return typed(compose(stage, list(overrides)))
 
 
+def describe(stage: str) -> str:
+    """The stage's one-line description: the first line of its module's docstring without the
+    ``Stage ``<name>``:`` in front (read from the source: no import, so ``--help`` stays fast)."""
+    spec = importlib.util.find_spec(f"pipeline.stages.{stage}")
+    doc = ast.get_docstring(ast.parse(Path(spec.origin).read_text())) or ""
+    first = doc.strip().splitlines()[0] if doc.strip() else ""
+    return first.removeprefix(f"Stage ``{stage}``:").strip().replace("``", "")
+
+
+def wrote(stage: str, cfg: Any, result: Any) -> None:
+    """Print the stage's last line: ``wrote`` and the folders and files it wrote."""
+    module = importlib.import_module(f"pipeline.stages.{stage}")
+    paths = module.written(cfg, result) if hasattr(module, "written") else [result]
+    print("wrote " + ", ".join(str(p) for p in paths), flush=True)
+
+
+def _run_and_say(stage: str, run: Runner, cfg: Any, overrides: list[str]) -> Any:
+    result = run(cfg, overrides)
+    wrote(stage, cfg, result)
+    return result
+
+
 def run_stage(stage: str, overrides: list[str] = ()) -> Any:
     """Run a stage in this process, as the command line would; a user error raises
     :class:`~pipeline.errors.UserError` (tests, benchmarks and notebooks use this)."""
     module = importlib.import_module(f"pipeline.stages.{stage}")
-    return module.run(load_config(stage, overrides), list(overrides))
+    return _run_and_say(stage, module.run, load_config(stage, overrides), list(overrides))
 
 
 def stage_main(config_name: str, run: Runner, args: list[str] | None = None) -> Any:
@@ -126,7 +155,7 @@ def stage_main(config_name: str, run: Runner, args: list[str] | None = None) -> 
     if _hydra_mode(args):
         return _hydra_main(config_name, run, args)
     with user_facing():
-        return run(load_config(config_name, args), args)
+        return _run_and_say(config_name, run, load_config(config_name, args), args)
 
 
 def sweep_points(args: list[str]) -> list[list[str]]:
@@ -171,7 +200,15 @@ def _hydra_main(config_name: str, run: Runner, args: list[str]) -> None:
     @hydra.main(config_path=CONF_DIR, config_name=config_name, version_base="1.3")
     def task(cfg: DictConfig) -> Any:
         with user_facing():
-            return run(typed(cfg), list(HydraConfig.get().overrides.task))
+            return _run_and_say(config_name, run, typed(cfg), list(HydraConfig.get().overrides.task))
 
-    sys.argv = [sys.argv[0], *args]
+    sys.argv = [sys.argv[0], *args, *_help_header(config_name, args)]
     task()
+
+
+def _help_header(stage: str, args: list[str]) -> list[str]:
+    """With ``--help``, the override that heads Hydra's help with the stage's name and description."""
+    if not {"-h", "--help"} & set(args):
+        return []
+    header = f"python -m pipeline {stage} [key=value ...]: {describe(stage)}".replace("'", "\\'")
+    return [f"hydra.help.header='{header}'"]

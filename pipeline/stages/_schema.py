@@ -110,6 +110,9 @@ class TrialsConfig:
     episodes: int = setting(II("profile.trials.episodes"), ge=1)
     seed: int = setting(ge=0)
     out: str = setting(nonempty=True)
+    overwrite: bool = MISSING
+    """Replace results already in ``out``; without it such an ``out`` is refused (unless ``dvc.yaml``
+    declares it: DVC keeps its outs in its cache)."""
     metrics_file: Optional[str] = None
     timing_file: Optional[str] = None
     record: bool = MISSING

@@ -1,5 +1,6 @@
-"""Stage ``accuracy``: the few-shot accuracy study of the paper's section 4.2.1 (Tables 1 and 2)
-on the rendered query and support pictures with the meta-trained checkpoint (docs/fewshot.md).
+"""Stage ``accuracy``: the few-shot accuracy study of the paper's section 4.2.1 (Tables 1 and 2).
+
+On the rendered query and support pictures with the meta-trained checkpoint (docs/fewshot.md).
 
     python -m pipeline accuracy [recogniser=relation_net|oracle|fixed_accuracy] [recogniser.checkpoint=...] [study.repeats=...]
 
@@ -48,8 +49,12 @@ def run(cfg: AccuracyConfig, overrides: list[str] = ()) -> dict:
     )
     for n, (w, ns) in sorted(result.table2.items()):
         print(f"  {n} substitution(s): {100 * w:.2f}%  (no same picture {100 * ns:.2f}%)")
-    print(f"written to {out} in {time.perf_counter() - start:.1f} s")
+    print(f"accuracy study in {time.perf_counter() - start:.1f} s")
     return data
+
+
+def written(cfg: AccuracyConfig, data: dict) -> list[str]:
+    return [cfg.out_dir]
 
 
 def main() -> None:

@@ -1,5 +1,7 @@
-"""Stage ``meta_train``: episodic meta-training of the Relation Network on the rendered training
-classes, checkpoint selection on the validation classes (paper section 3.2.1; docs/fewshot.md).
+"""Stage ``meta_train``: episodic meta-training of the Relation Network, checkpoint chosen on held-out classes.
+
+Episodic meta-training on the rendered training classes, checkpoint selection on the validation
+classes (paper section 3.2.1; docs/fewshot.md).
 
     python -m pipeline meta_train [images_dir=...] [train.episodes=...]
 
@@ -42,9 +44,13 @@ def run(cfg: MetaTrainConfig, overrides: list[str] = ()) -> dict:
     print(
         f"validation accuracy {100 * metrics['val_accuracy']:.2f}% +- {100 * metrics['val_ci95']:.2f}% "
         f"({metrics['val_episodes']} episodes, {val.n_classes} held-out classes); "
-        f"{metrics['episodes_trained']} episodes in {metrics['train_seconds']:.0f} s -> {cfg.checkpoint}"
+        f"{metrics['episodes_trained']} episodes in {metrics['train_seconds']:.0f} s"
     )
     return metrics
+
+
+def written(cfg: MetaTrainConfig, metrics: dict) -> list[str | Path]:
+    return [cfg.checkpoint, cfg.metrics_file, Path(cfg.metrics_file).with_name("train_info.json"), cfg.history_file]
 
 
 def main() -> None:

@@ -1,4 +1,6 @@
-"""Render stage: ``python -m pipeline render [key=value ...]`` (config ``conf/render.yaml``).
+"""Stage ``render``: the query, support and meta-training pictures, rendered with MuJoCo, and their manifest.
+
+    python -m pipeline render [key=value ...]            # config conf/render.yaml
 
 Writes ``<out_dir>/{query,support,train,val}/**.png``, then ``<out_dir>/manifest.csv`` (last,
 atomically: a manifest exists only for a complete render), then contact sheets under
@@ -128,10 +130,13 @@ def run(cfg: RenderConfig, overrides: list[str] = ()) -> dict:
                                       cfg.contact_train_classes, cfg.contact_per_class)
     figures = {"pictures": n, "seconds": round(seconds, 2), "pictures_per_second": round(n / seconds, 1),
                "manifest": str(out / MANIFEST), "contact_sheets": [str(p) for p in sheets]}
-    print(f"[render] {n} pictures in {seconds:.1f} s ({n / seconds:.1f}/s) -> {out / MANIFEST}")
-    for p in sheets:
-        print(f"[render] contact sheet {p}")
+    print(f"[render] {n} pictures in {seconds:.1f} s ({n / seconds:.1f}/s)")
     return figures
+
+
+def written(cfg: RenderConfig, figures: dict) -> list[str]:
+    """The pictures' folder (with its manifest) and the contact sheets' folder, if any were made."""
+    return [cfg.out_dir, *([cfg.figures_dir] if figures["contact_sheets"] else [])]
 
 
 def main() -> None:

@@ -45,7 +45,7 @@ def run(cfg: ReplayConfig, overrides: list[str] = ()) -> Path:
         raise ConfigError(f"config key 'file': no such record file: {path}")
     web = web_address(cfg) if cfg.viewer == "web" else None  # refused before any work
     rrd = write_replay(path, cfg)
-    print(f"wrote {rrd}  (open it with: rerun {rrd})", flush=True)
+    print(f"open it with: rerun {rrd}", flush=True)
     if web is not None:
         serve_web(rrd, web)
     else:

@@ -23,7 +23,6 @@ def run(cfg: ReportConfig, overrides: list[str] = ()) -> Path:
         raise ConfigError(f"config key 'runs_dir': {exc}") from None
     except OSError as exc:
         raise ConfigError(f"config key 'out': cannot write the report into {cfg.out} ({exc.strerror})") from None
-    print(f"wrote {index}")
     return index
 
 

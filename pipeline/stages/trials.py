@@ -5,7 +5,10 @@
 
 One cell (method, maze, substitution way, support restore/carry) writes ``summary.json`` and
 ``records.mcap`` into its folder: ``<out>/`` for a single cell, ``<out>/<cell>/`` for each cell
-of an experiment, plus ``<out>/summary.json`` listing the cells.
+of an experiment, plus ``<out>/summary.json`` listing the cells. An ``out`` that already holds
+results is refused unless ``overwrite=true`` is given or ``dvc.yaml`` declares it (``dvc repro``
+removes a stage's outs before it runs it, and keeps them in its cache). Everything is built in
+``<out>/.staging-<pid>/`` and moved in only when complete.
 """
 from __future__ import annotations
 
@@ -17,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 import numba
+import yaml
 from hydra.core.override_parser.overrides_parser import OverridesParser
 from omegaconf import OmegaConf
 
@@ -26,7 +30,7 @@ from pipeline.rl.methods import MethodSpec, load_method
 from pipeline.rl.rng import run_seeds
 from pipeline.rl.runner import make_run_world, run_trials
 from pipeline.schema import check
-from pipeline.stages._common import one_line, stage_main
+from pipeline.stages._common import CONF_DIR, one_line, stage_main
 from pipeline.stages._recognisers import build_recogniser
 from pipeline.stages._schema import Experiment, TrialsConfig
 from pipeline.world.geometry import build_geometry
@@ -35,6 +39,9 @@ from pipeline.world.pictures import CATEGORIES
 
 #: Keys a cell may pin; the top level (experiment globals, command line) gives the others.
 CELL_KEYS = ("maze", "substitution", "support")
+
+#: The DVC pipeline, whose declared outs the trials may replace without ``overwrite=true``.
+DVC_YAML = Path(CONF_DIR).parent / "dvc.yaml"
 
 
 @dataclass
@@ -238,6 +245,7 @@ def run(cfg: TrialsConfig, overrides: list[str]) -> dict:
     if cfg.threads > 0:
         numba.set_num_threads(cfg.threads)
     with exclusive_folder(cfg.out) as out:
+        refuse_overwrite(cfg, out)
         staging = out / f".staging-{os.getpid()}"
         shutil.rmtree(staging, ignore_errors=True)
         index = run_cells(cfg, cells, staging)
@@ -245,9 +253,40 @@ def run(cfg: TrialsConfig, overrides: list[str]) -> dict:
         for stale in out.glob(".staging-*"):  # partial records of interrupted runs, now superseded
             shutil.rmtree(stale, ignore_errors=True)
             print(f"removed the partial records of an interrupted run: {stale}")
-    where = out / "records.mcap" if cfg.experiment is None and cfg.record else out
-    print(f"wrote {where}")
     return index
+
+
+def written(cfg: TrialsConfig, index: dict) -> list[Path | str]:
+    """``out`` (an experiment) or its files (one cell), and the experiment's metrics and timing files."""
+    out = Path(cfg.out)
+    if cfg.experiment is None:
+        return [out / "summary.json", *([out / "records.mcap"] if cfg.record else []), *filter(None, [cfg.timing_file])]
+    return [out, *filter(None, [cfg.metrics_file, cfg.timing_file])]
+
+
+def dvc_outs(dvc_yaml: Path) -> set[Path]:
+    """The outs ``dvc_yaml`` declares (``foreach`` items filled in), resolved; none without the file."""
+    if not dvc_yaml.is_file():
+        return set()
+    outs = set()
+    for stage in (yaml.safe_load(dvc_yaml.read_text()) or {}).get("stages", {}).values():
+        body = stage.get("do", stage)
+        for item in stage.get("foreach", [None]):
+            for out in body.get("outs", []):
+                name = next(iter(out)) if isinstance(out, dict) else out
+                outs.add((dvc_yaml.parent / name.replace("${item}", str(item))).resolve())
+    return outs
+
+
+def refuse_overwrite(cfg: TrialsConfig, out: Path) -> None:
+    """Results already in ``out`` (anything but hidden entries: the lock, staging folders) are
+    replaced only with ``overwrite=true``, or when ``dvc.yaml`` declares ``out``."""
+    held = sorted(p.name for p in out.iterdir() if not p.name.startswith("."))
+    if not held or cfg.overwrite or out.resolve() in dvc_outs(DVC_YAML):
+        return
+    shown = ", ".join(held[:3]) + (", ..." if len(held) > 3 else "")
+    raise ConfigError(f"config key 'out': {out} already holds results ({shown}); give overwrite=true to "
+                      "replace them, or choose another out")
 
 
 def run_cells(cfg: TrialsConfig, cells: list[CellRun], out: Path) -> dict:

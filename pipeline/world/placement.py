@@ -1,5 +1,5 @@
-"""Which physical obstacle stands on which obstacle cell, turned how (paper section 4.1;
-DESIGN.md "Obstacles").
+"""Which physical obstacle stands on which obstacle cell, turned how (paper section 4.1; README
+"Where we differ from the paper", Obstacles).
 
 Ten physical obstacles (5 categories x 2 instances). Each independent run assigns them to the
 maze's obstacle cells at random, without repetition while there are enough (the paper's 5x5 maze
