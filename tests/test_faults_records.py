@@ -9,6 +9,7 @@ runs and episodes, runs interleaved batch by batch, a chunk every 8 episodes: ma
 from __future__ import annotations
 
 import hashlib
+import os
 import subprocess
 import sys
 import warnings
@@ -343,6 +344,29 @@ def test_runs_piped_into_a_closed_pipe_stop_quietly(files, tmp_path):
     res = subprocess.run(f"{sys.executable} -m pipeline.records {path} --runs | head -1", shell=True, cwd=ROOT,
                          capture_output=True, text=True, timeout=120)
     assert res.returncode == 0 and res.stderr == "" and res.stdout.count("\n") == 1
+
+
+@pytest.mark.parametrize("unbuffered", ["1", ""])
+def test_a_folder_listing_into_a_reader_that_stops_early_ends_quietly(files, tmp_path, unbuffered):
+    """``python -m pipeline.records DIR --runs | head``: the reader goes away mid-listing (an unreadable file named
+    on stderr, a warning, more files to list), stdout unbuffered or not: exit 141, no traceback, nothing on stderr
+    but the error line."""
+    data = files["pictures"][1]
+    folder = tmp_path / "runs"
+    folder.mkdir()
+    (folder / "a-picture.mcap").write_bytes(tiny_png(1))
+    (folder / "b-cut.mcap").write_bytes(data[:len(data) // 2])
+    for i in range(60):  # some 30 kB of listing: still writing when the reader stops
+        (folder / f"run{i:02d}.mcap").write_bytes(data)
+    proc = subprocess.Popen([sys.executable, "-m", "pipeline.records", str(folder), "--runs"], cwd=ROOT,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            env={**os.environ, "PYTHONUNBUFFERED": unbuffered})
+    first = proc.stdout.readline().decode()
+    proc.stdout.close()  # like `| head -1`
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=300) == 141 and first.startswith(f"warning: {folder / 'b-cut.mcap'}: ")
+    assert "Traceback" not in err
+    assert err.splitlines() == [f"error: {folder / 'a-picture.mcap'}: not an MCAP file (it is a PNG image)"]
 
 
 def test_the_writer_layout_the_reader_falls_back_on(files):

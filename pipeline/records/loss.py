@@ -10,8 +10,7 @@ unfinished file (a killed run stops there) and "lost" otherwise.
 """
 from __future__ import annotations
 
-import bisect
-from dataclasses import dataclass, field
+from itertools import groupby
 
 import numpy as np
 
@@ -23,205 +22,98 @@ DAMAGE_KINDS = frozenset({"chunk", "bytes", "metadata", "summary", "decode", "da
 _MAX_RANGES = 6
 
 
-def _int(v) -> int | None:
-    if isinstance(v, bool):
-        return None
-    if isinstance(v, int):
-        return v
-    if isinstance(v, str) and v.isdigit():
-        return int(v)
-    return None
-
-
 def expected_shape(config: dict | None, obstacles: dict, closed: dict | None) -> tuple[int | None, int | None]:
     """(runs, episodes per run) the file should hold, when its metadata says."""
-    cfg = config or {}
-    runs = _int(cfg.get("runs"))
-    if runs is None and obstacles:
-        runs = len(obstacles)
-    episodes = _int(cfg.get("episodes"))
-    closed = closed or {}
-    n_closed = _int(closed.get("episodes"))
-    if episodes is None and runs and closed.get("complete") == "true" and n_closed is not None \
-            and n_closed % runs == 0:
-        episodes = n_closed // runs
+    def number(v) -> int | None:
+        return int(v) if type(v) is int or isinstance(v, str) and v.isdigit() else None
+
+    cfg, closed = config or {}, closed or {}
+    runs, episodes, n = number(cfg.get("runs")), number(cfg.get("episodes")), number(closed.get("episodes"))
+    if runs is None:
+        runs = len(obstacles) or None
+    if episodes is None and runs and closed.get("complete") == "true" and n is not None and n % runs == 0:
+        episodes = n // runs
     return runs, episodes
 
 
 def ranges(runs: np.ndarray, eps: np.ndarray) -> list[tuple[int, int, int]]:
     """Contiguous (run, first, last) episode ranges of the given (run, episode) pairs."""
-    if not len(runs):
-        return []
     key = np.unique(runs.astype(np.int64) << 32 | eps.astype(np.int64))
     r, e = key >> 32, key & 0xFFFFFFFF
-    breaks = np.flatnonzero((np.diff(r) != 0) | (np.diff(e) != 1)) + 1
-    starts = np.r_[0, breaks]
-    stops = np.r_[breaks, len(key)] - 1
-    return [(int(r[a]), int(e[a]), int(e[b])) for a, b in zip(starts, stops)]
+    first = np.flatnonzero(np.r_[True, (np.diff(r) != 0) | (np.diff(e) != 1)][:len(key)])
+    return [(int(r[a]), int(e[a]), int(e[b - 1])) for a, b in zip(first, np.r_[first[1:], len(key)])]
 
 
 def describe(rgs: list[tuple[int, int, int]], per_run: int | None) -> str:
-    """``run 1 episodes 40-59, runs 2-3 (all 50 episodes each)``: consecutive runs missing the same
-    episodes are one part; long lists are shortened."""
-    parts: list[str] = []
-    i = 0
-    while i < len(rgs):
-        r, a, b = rgs[i]
-        j = i
-        while j + 1 < len(rgs) and rgs[j + 1] == (rgs[j][0] + 1, a, b):
-            j += 1
-        runs = f"runs {r}-{rgs[j][0]}" if j > i else f"run {r}"
-        each = " each" if j > i else ""
-        if per_run is not None and a == 0 and b == per_run - 1:
-            parts.append(f"{runs} (all {per_run} episodes{each})")
-        elif a == b:
-            parts.append(f"{runs} episode {a}{each}")
-        else:
-            parts.append(f"{runs} episodes {a}-{b}{each}")
-        i = j + 1
-    total = sum(b - a + 1 for _, a, b in rgs)
+    """``run 1 episodes 40-59, runs 2-3 (all 50 episodes each)``: adjacent ranges joined, long lists shortened."""
+    joined: list[tuple[int, int, int]] = []
+    for r, a, b in sorted(rgs):
+        if joined and joined[-1][0] == r and joined[-1][2] + 1 == a:
+            a = joined.pop()[1]
+        joined.append((r, a, b))
+    parts = []
+    for (_, a, b), group in groupby(enumerate(joined), lambda x: (x[1][0] - x[0], x[1][1], x[1][2])):
+        rs = [r for _, (r, _, _) in group]
+        runs, each = (f"runs {rs[0]}-{rs[-1]}", " each") if len(rs) > 1 else (f"run {rs[0]}", "")
+        eps = f"episode {a}" if a == b else f"episodes {a}-{b}"
+        full = per_run is not None and a == 0 and b == per_run - 1
+        parts.append(f"{runs} (all {per_run} episodes{each})" if full else f"{runs} {eps}{each}")
     if len(parts) > _MAX_RANGES:
         parts = parts[:_MAX_RANGES - 1] + [f"and {len(parts) - _MAX_RANGES + 1} more ranges"]
-    return ", ".join(parts) + (f" ({total} episodes)" if len(rgs) > 1 else "")
+    return ", ".join(parts) + (f" ({sum(b - a + 1 for _, a, b in joined)} episodes)" if len(joined) > 1 else "")
 
 
-@dataclass
-class Loss:
-    """The loss accounting of one file."""
-
-    expected: int | None  # episodes the file should hold (in the requested window), when known
-    read: int
-    sentences: list[str] = field(default_factory=list)  # the warning, one sentence per finding
-    lost: list[tuple[int, int, int]] = field(default_factory=list)  # damaged away
-    absent: list[tuple[int, int, int]] = field(default_factory=list)  # not in an unfinished file
-    headline: str = ""  # short: what was lost, for the one-line listing
-
-
-def _grid(runs: int, per_run: int, window) -> tuple[np.ndarray, np.ndarray]:
-    r = np.repeat(np.arange(runs, dtype=np.int64), per_run)
-    e = np.tile(np.arange(per_run, dtype=np.int64), runs)
-    if window is not None:
-        t = r * S.RUN_NS + e * S.EPISODE_NS
-        keep = (t >= window[0]) & (t < window[1])
-        r, e = r[keep], e[keep]
-    return r, e
-
-
-def account(sc: Scan, read_runs: np.ndarray, read_eps: np.ndarray, *, runs: int | None,
-            per_run: int | None, unfinished: bool, window=None, batch_size: int | None = None,
-            counts: dict[str, tuple[int, int]] | None = None) -> Loss:
-    """Compare what was read with what the file should hold and put every missing range down to the
-    damaged part that held it. ``batch_size``: the episodes of every sink batch, when uniform (a
-    lost batch then holds that many); ``counts``: kind -> (read, expected) messages (pictures,
-    substitutions) when the file's statistics or closing record say how many there were."""
-    read_key = np.unique(read_runs.astype(np.int64) << 32 | read_eps.astype(np.int64))
-    if runs is not None and per_run is not None:
-        er, ee = _grid(runs, per_run, window)
-        expected = len(er)
-        if len(read_key) == expected and not sc.damage:
-            return Loss(expected, len(read_key))
-        ekey = er << 32 | ee
-        miss = ekey[~np.isin(ekey, read_key)]
-    else:
-        expected = None
-        if not sc.damage:
-            return Loss(None, len(read_key))
-        # gaps before the last read episode of each run; runs with nothing read, when runs is known
-        rr, re_ = read_key >> 32, read_key & 0xFFFFFFFF
-        parts = []
-        for r in (range(runs) if runs is not None else np.unique(rr)):
-            have = re_[rr == r]
-            if len(have):
-                allowed = np.arange(int(have.max()) + 1, dtype=np.int64)
-                parts.append(np.int64(r) << 32 | allowed[~np.isin(allowed, have)])
-        miss = np.concatenate(parts) if parts else np.zeros(0, np.int64)
-    loss = Loss(expected, len(read_key))
-    rgs = ranges(miss >> 32, miss & 0xFFFFFFFF)
-    ends = np.flatnonzero(np.r_[np.diff(read_key >> 32) != 0, True]) if len(read_key) else np.zeros(0, np.int64)
-    last_read = dict(zip((read_key[ends] >> 32).tolist(), (read_key[ends] & 0xFFFFFFFF).tolist()))
+def account(sc: Scan, read_runs: np.ndarray, read_eps: np.ndarray, *, runs: int | None, per_run: int | None,
+            unfinished: bool, window=None, batch_size: int | None = None, counts: dict | None = None) -> tuple:
+    """(episodes expected, when known; the warning's sentences; a short headline): every missing range put down
+    to the damaged part that held it. ``batch_size``: the episodes of every sink batch, when uniform (a lost
+    batch holds that many); ``counts``: kind -> (read, expected) messages, when the file says."""
+    read = np.unique(read_runs.astype(np.int64) << 32 | read_eps.astype(np.int64))
+    rr, re_ = read >> 32, read & 0xFFFFFFFF
+    last = np.r_[rr[1:] != rr[:-1], True][:len(read)]  # the last episode read of each run
+    # expected: the runs x episodes grid (in the window); the shape unknown, each run up to its last episode read
+    known = runs is not None and per_run is not None
+    ends, upto = (np.arange(runs), np.full(runs, per_run)) if known else (rr[last], re_[last] + 1)
+    upto[(ends < 0) | (ends >= (np.inf if runs is None else runs))] = 0  # only runs 0..runs-1, when known
+    want = (np.repeat(ends, upto) << 32) | (np.arange(upto.sum()) - np.repeat(np.cumsum(upto) - upto, upto))
+    if known and window is not None:
+        t = (want >> 32) * S.RUN_NS + (want & 0xFFFFFFFF) * S.EPISODE_NS
+        want = want[(t >= window[0]) & (t < window[1])]
+    expected = len(want) if known else None
+    if not sc.damage and (expected is None or len(read) == expected):
+        return expected, [], ""
+    miss, last_read = want[~np.isin(want, read)], dict(zip(rr[last].tolist(), re_[last].tolist()))
     spanned = [d for d in sc.damage if d.span is not None and d.kind in ("chunk", "bytes", "truncated", "decode")]
-    spanless = [d for d in sc.damage if d.span is None and d.kind in ("chunk", "bytes")]
-    truncation = next((d for d in sc.damage if d.kind == "truncated"), None)
-    # the exact batch stamps of lost chunks (from their message index records): a missing range
-    # is split where a batch of another lost chunk starts
+    # what no span holds: the tail of an unfinished file (a truncation's), else a gap (a damaged record's)
+    tail = next((d for d in sc.damage if d.kind == "truncated"), None) or Damage(
+        "tail", "not recorded (the trials stopped before them)")
+    gaps = next((d for d in sc.damage if d.span is None and d.kind in ("chunk", "bytes")), None) or Damage(
+        "gaps", "missing, with no damaged part found to explain it")
+    # a missing range is split where a batch of a lost chunk starts (its message index records say)
     stamp_owner = {t: d for d in sc.damage for t in d.batch_stamps}
-    stamps_of_run: dict[int, list[int]] = {}
-    for t in sorted(stamp_owner):
-        r, e, _ = S.split_log_time(t)
-        stamps_of_run.setdefault(r, []).append(e)
-    for d in sc.damage:
-        d.lost = []
-    tail, gaps = [], []
-    for r, a, b in rgs:
-        run_stamps = stamps_of_run.get(r, [])
-        lo = a
+    stamps = np.array(sorted({r << 32 | e for r, e, _ in map(S.split_log_time, stamp_owner)}), np.int64)
+    for r, lo, b in ranges(miss >> 32, miss & 0xFFFFFFFF):
         while lo <= b:
-            i = bisect.bisect_right(run_stamps, lo)
-            hi = min(b, run_stamps[i] - 1) if i < len(run_stamps) else b
+            i = np.searchsorted(stamps, r << 32 | lo, side="right")
+            hi = min(b, int(stamps[i]) - (r << 32) - 1) if i < len(stamps) else b
             t = S.log_time_ns(r, lo)
-            owner = stamp_owner.get(t)
-            if owner is not None and batch_size:
-                hi = min(hi, lo + batch_size - 1)  # a lost batch holds batch_size episodes
+            owner, start = stamp_owner.get(t), lo  # start: of the owner's last batch of the run, when known
             if owner is None:
                 owner = next((d for d in spanned if d.span[0] <= t <= d.span[1]), None)
-                if owner is not None and batch_size:
-                    r_end, e_end, _ = S.split_log_time(owner.span[1])
-                    if r_end == r:  # its last batch of this run starts by e_end
-                        hi = min(hi, max(lo, e_end) + batch_size - 1)
-            if owner is not None:
-                owner.lost.append((r, lo, hi))
-            elif unfinished and lo > last_read.get(r, -1):
-                tail.append((r, lo, hi))
-            else:
-                gaps.append((r, lo, hi))
+                r_end, e_end, _ = S.split_log_time(owner.span[1]) if owner is not None else (None, 0, 0)
+                start = e_end if r_end == r else None  # lo <= e_end: t is in the span
+                owner = owner or (tail if unfinished and lo > last_read.get(r, -1) else gaps)
+            if batch_size and start is not None:
+                hi = min(hi, start + batch_size - 1)  # a lost batch holds batch_size episodes
+            owner.lost.append((r, lo, hi))
             lo = hi + 1
-    if gaps and spanless:
-        spanless[0].lost.extend(gaps)
-        gaps = []
-    tail, gaps = _merged(tail), _merged(gaps)
-    for d in sc.damage:
-        d.lost = _merged(d.lost)
-        s = d.what
-        if d.kind == "truncated":
-            held = _merged(d.lost + tail)
-            if held:
-                s += f"; missing {describe(held, per_run)}"
-            loss.absent.extend(held)
-        elif d.lost:
-            s += f": lost {describe(d.lost, per_run)}"
-            loss.lost.extend(d.lost)
-        elif d.kind in ("chunk", "bytes", "decode") and expected is not None:
-            s += ": no episode lost"
-        loss.sentences.append(s)
-    if tail and truncation is None:
-        loss.sentences.append(f"not recorded (the trials stopped before them): {describe(tail, per_run)}")
-        loss.absent.extend(tail)
-    if gaps:
-        loss.sentences.append(f"missing, with no damaged part found to explain it: {describe(gaps, per_run)}")
-        loss.lost.extend(gaps)
-    msgs = [f"{exp - got} of {exp} {kind}" for kind, (got, exp) in (counts or {}).items() if got < exp]
-    if msgs:
-        loss.sentences.append("messages lost: " + ", ".join(msgs))
-    heads = []
-    if loss.lost:
-        heads.append("lost " + describe(_merged(loss.lost), per_run))
-    if loss.absent:
-        heads.append("missing " + describe(_merged(loss.absent), per_run))
-    if msgs:
-        heads.append("lost " + ", ".join(msgs))
-    loss.headline = "; ".join(heads)
-    return loss
-
-
-def _merged(rgs: list[tuple[int, int, int]]) -> list[tuple[int, int, int]]:
-    out: list[tuple[int, int, int]] = []
-    for r, a, b in sorted(rgs):
-        if out and out[-1][0] == r and out[-1][2] + 1 == a:
-            out[-1] = (r, out[-1][1], b)
-        else:
-            out.append((r, a, b))
-    return out
-
-
-def damaged(damage: list[Damage]) -> bool:
-    return any(d.kind in DAMAGE_KINDS for d in damage)
+    lost, absent, sentences = [], [], []
+    for d in sc.damage + [d for d in (tail, gaps) if d.kind in ("tail", "gaps") and d.lost]:
+        (absent if d.kind in ("truncated", "tail") else lost).extend(d.lost)
+        how = {"tail": ":", "gaps": ":", "truncated": "; missing"}.get(d.kind, ": lost")
+        none = ": no episode lost" if d.kind in ("chunk", "bytes", "decode") and expected is not None else ""
+        sentences.append(f"{d.what}{how} {describe(d.lost, per_run)}" if d.lost else d.what + none)
+    msgs = ", ".join(f"{exp - got} of {exp} {kind}" for kind, (got, exp) in (counts or {}).items() if got < exp)
+    sentences += [f"messages lost: {msgs}"] if msgs else []
+    heads = [f"{word} {describe(rgs, per_run)}" for word, rgs in (("lost", lost), ("missing", absent)) if rgs]
+    return expected, sentences, "; ".join(heads + ([f"lost {msgs}"] if msgs else []))
