@@ -7,8 +7,8 @@ keywords of :class:`pipeline.rl.gym_env.SafeNavigationEnv`, and the recogniser a
     gymnasium.make("SafeNav-7x7-v0", method="fewshot", recogniser="fixed_accuracy",
                    recogniser_options={"p": 0.8}, render_mode="rgb_array")
 
-Why here: the environment lives in ``rl``, which never imports ``fewshot`` (DESIGN.md "Who may
-import whom"), and a recogniser by name may be the Relation Network of ``fewshot``. Building
+Why here: the environment lives in ``rl``, which never imports ``fewshot`` (the science
+packages stay independent; README "Layout"), and a recogniser by name may be the Relation Network of ``fewshot``. Building
 recognisers from ``conf/recogniser/<name>.yaml`` is the stages' job, done by
 ``pipeline.stages._recognisers.build_recogniser`` (its ``_target_`` and the argument check against
 the target's signature). This module is wiring like the stages: it loads the yaml and hands it to

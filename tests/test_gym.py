@@ -266,8 +266,8 @@ def test_every_method_keeps_the_registered_step_limit(name):
 
 
 def test_rl_imports_neither_fewshot_nor_the_wiring():
-    """DESIGN.md "Who may import whom": the environment gets recognisers as objects; names are
-    resolved by ``pipeline.envs`` (wiring, like the stages)."""
+    """The science packages stay independent (README "Layout"): the environment gets recognisers as
+    objects; names are resolved by ``pipeline.envs`` (wiring, like the stages)."""
     import ast
     for path in (ROOT / "pipeline" / "rl").glob("*.py"):
         for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):

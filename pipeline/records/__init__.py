@@ -1,5 +1,5 @@
 """Episode records: the MCAP schema, writer and reader (including reading a truncated file), and
-the MCAP -> Rerun replay (DESIGN.md "Records"; docs/records.md).
+the MCAP -> Rerun replay (docs/records.md).
 
 ``records`` imports nothing from ``world``, ``fewshot`` or ``rl``: the writer takes plain numpy
 arrays and dicts through the episode-sink protocol of ``pipeline/rl/sink.py``.

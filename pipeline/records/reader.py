@@ -1,4 +1,4 @@
-"""Load MCAP records into pandas DataFrames (DESIGN.md "Records"): ``read_records("datasets/runs/fig8").episodes``.
+"""Load MCAP records into pandas DataFrames (docs/records.md): ``read_records("datasets/runs/fig8").episodes``.
 
 A damaged or truncated file keeps what its intact parts hold (:mod:`.scan`), with a :class:`RecordsWarning` naming the
 file and what was lost (:mod:`.loss`); a file with nothing to read raises :class:`RecordsError`.

@@ -1,4 +1,4 @@
-"""The MCAP record schema (DESIGN.md "Records"; docs/records.md): Protobuf messages, topics,
+"""The MCAP record schema (docs/records.md): Protobuf messages, topics,
 timestamps, and :data:`MESSAGES`, the one table of fields that the encoder, the decoder and the
 reader's frame columns derive from (:mod:`.codec`).
 

@@ -1,5 +1,5 @@
 """The MCAP record writer: an episode sink (``pipeline/rl/sink.py``) that records every episode of
-every run (DESIGN.md "Records"; docs/records.md; schema in :mod:`.schema`, encoding in :mod:`.codec`).
+every run (docs/records.md; schema in :mod:`.schema`, encoding in :mod:`.codec`).
 
     with RecordWriter(out / "records.mcap", metadata={"config": cfg, "seeds": seeds}, maze={"layout": rows},
                       runs=assignments, pictures=query_pngs) as sink:
