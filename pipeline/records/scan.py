@@ -1,35 +1,32 @@
 """What survives of an MCAP record file, read through the mcap package.
 
-* A file whose footer and summary section are intact (the summary's CRC checked) is read with mcap's
-  seeking reader: messages through the chunk index (only chunks overlapping a requested time range
-  are read; every chunk's CRC checked), metadata through the metadata index, and, on a full read,
-  the data section's CRC from the data-end record (the writer enables it), so a flipped byte
-  anywhere is noticed. If any of that fails, the file is read as below, with its summary's index.
-* Otherwise (a killed run, a cut copy, damage) it is read front to back with mcap's
-  ``StreamReader(emit_chunks=True)``, every chunk through ``breakup_chunk(validate_crc=True)``. A
-  chunk that fails is a :class:`Damage` and reading goes on; the message index records after it
-  say what it held. A record whose header is wrong stops the stream reader; a new one starts at the
-  next record the summary's indexes name or, without them, at the next offset where a valid chunk
-  (its CRC checked), metadata or data-end record starts. A record running past the end of a file
-  no valid record follows is a truncation.
+* A file whose footer and summary section are intact (the summary's CRC checked) is read with mcap's seeking
+  reader: messages through the chunk index (each chunk's CRC checked; with a time range, only the chunks that can
+  hold its messages), metadata through its index and, on a full read, the data section's CRC (the data-end
+  record's), which covers the bytes outside the chunks' data. If any of that fails, it is read as below.
+* Otherwise it is read front to back with ``StreamReader(emit_chunks=True)``, each chunk through
+  ``breakup_chunk(validate_crc=True)``. A damaged chunk is a :class:`Damage` (the message indexes after it say what
+  it held) and reading goes on. A record whose header is wrong stops the stream reader; a new one starts where the
+  summary's chunk index says that record ends or else at the next valid chunk (its CRC checked), metadata or
+  data-end record. A record running past the end of a file that no valid record follows is a truncation.
 
-Channel definitions lost with a damaged part come from a later copy or, for this writer's files,
-from its fixed channel layout (:data:`WRITER_CHANNELS`). A file with nothing to read (empty, not
-MCAP) raises :class:`RecordsError`, naming the file and the problem.
+Channel definitions lost with a damaged part come from a later copy or, in this writer's files, its fixed layout
+(:data:`WRITER_CHANNELS`). A file with nothing to read (empty, not MCAP) raises :class:`RecordsError`.
 """
 from __future__ import annotations
 
+import contextlib
 import io
 import re
 import struct
 import zlib
 from dataclasses import dataclass, field
+from operator import attrgetter
 from pathlib import Path
 
 from mcap.opcode import Opcode
-from mcap.reader import make_reader
-from mcap.records import (Attachment, Channel, Chunk, DataEnd, Footer, Header, Message, MessageIndex, Metadata,
-                          Schema)
+from mcap.reader import FOOTER_SIZE, make_reader
+from mcap.records import Channel, Chunk, DataEnd, Header, Message, MessageIndex, Metadata, Schema
 from mcap.stream_reader import CRCValidationError, StreamReader, breakup_chunk
 from mcap.summary import Summary
 
@@ -43,12 +40,13 @@ LIBRARY = "pipeline.records/" + S.FORMAT_VERSION
 #: The writer registers these first, in this order, in every file (tested): channel id -> (topic,
 #: schema id, message class); used when every copy of a file's channel definitions is lost.
 WRITER_CHANNELS = {1: (S.TOPIC_EPISODES, 1, S.EpisodeBatch), 2: (S.TOPIC_SUBSTITUTIONS, 2, S.Substitution)}
-_OPCODE = {Header: Opcode.HEADER, Schema: Opcode.SCHEMA, Channel: Opcode.CHANNEL, Message: Opcode.MESSAGE,
-           Chunk: Opcode.CHUNK, MessageIndex: Opcode.MESSAGE_INDEX, Metadata: Opcode.METADATA,
-           Attachment: Opcode.ATTACHMENT, DataEnd: Opcode.DATA_END}
+_DATA_RECORDS = {Opcode.HEADER, Opcode.SCHEMA, Opcode.CHANNEL, Opcode.MESSAGE, Opcode.CHUNK, Opcode.MESSAGE_INDEX,
+                 Opcode.METADATA, Opcode.ATTACHMENT, Opcode.DATA_END}  # the records a data section may hold
+_NAMES = {o: f"a {o.name.lower().replace('_', ' ')} record" for o in Opcode}
 _RESYNC = re.compile(rb"[\x06\x0c\x0f]")  # chunk, metadata, data end: where reading can start again
-_HEAD = struct.Struct("<BQ")
-_FOOTER_SIZE = 1 + 8 + 8 + 8 + 4
+_HEAD, _TIMES, _FOOTER = struct.Struct("<BQ"), struct.Struct("<QQ"), struct.Struct("<BQQQI")
+_SPAN = attrgetter("message_start_time", "message_end_time")  # of a chunk or a chunk index
+_PICTURES = (S.TOPIC_PICTURES, S.TOPIC_SUPPORT)  # stamped 0: read whatever the time range
 _SIGNATURES = ((b"\x89PNG\r\n\x1a\n", "a PNG image"), (b"\xff\xd8\xff", "a JPEG image"),
                (b"PK\x03\x04", "a zip archive"), (b"\x1f\x8b", "a gzip file"), (b"\x28\xb5\x2f\xfd", "a zstd file"),
                (b"SQLite format 3\x00", "an SQLite database"), (b"RRF", "a Rerun .rrd file"))
@@ -86,7 +84,7 @@ class Scan:
     summary: Summary | None = None  # the summary section, when intact
     complete: bool = False  # read through its intact summary, nothing damaged
     dropped: int = 0  # messages whose channel definition is lost everywhere
-    orphans: list[Message] = field(default_factory=list)
+    orphans: list[Message] = field(default_factory=list)  # messages read before their channel's definition
 
 
 def message_kind(topic: str) -> str | None:
@@ -107,107 +105,76 @@ def scan(path: str | Path, *, time_range: tuple[int, int] | None = None) -> Scan
     except OSError as e:
         raise RecordsError(f"{path}: cannot be read ({e.strerror or e})") from None
     if data[:8] != MAGIC:
-        raise RecordsError(_not_mcap(path, data))
-    out = Scan(path)
-    summary = out.summary = _summary(data, out)
-    if summary is not None:
-        try:
-            _read_indexed(data, out, summary, time_range)
-            out.complete = not out.damage
-            return out
-        except Exception:  # a damaged chunk or record: read it record by record
-            out = Scan(path, schemas=dict(summary.schemas), channels=dict(summary.channels), summary=summary)
-    _walk(data, out, time_range)
-    _resolve_orphans(out, time_range)
-    for d in out.damage:
-        for cid, times in d.index.items():
-            topic = out.channels[cid].topic if cid in out.channels else None
-            kind = message_kind(topic) if topic else ("pictures" if out.library == LIBRARY and cid > 2 else
-                                                      "messages of channels whose definitions were lost")
-            if topic == S.TOPIC_EPISODES:
-                d.batch_stamps = sorted(times)
-            if kind:
-                d.held[kind] = d.held.get(kind, 0) + len(times)
+        what = next((f"it is {w}" for sig, w in _SIGNATURES if data.startswith(sig)),
+                    "it does not start with the MCAP magic bytes")
+        raise RecordsError(f"{path}: empty file (0 bytes): not an MCAP record file" if not data else
+                           f"{path}: truncated after {len(data)} bytes, inside the MCAP magic bytes: nothing to read"
+                           if len(data) < 8 and MAGIC.startswith(data) else f"{path}: not an MCAP file ({what})")
+    out, reader = Scan(path), make_reader(io.BytesIO(data), validate_crcs=True)
+    end = _summary(data, out, reader)
+    if out.summary is not None:
+        with contextlib.suppress(Exception):  # damage found: read it record by record
+            return _read_indexed(data, path, reader, end, time_range)
+    _walk(data, out, end, time_range)
     return out
 
 
-def _not_mcap(path: Path, data: bytes) -> str:
-    if not data:
-        return f"{path}: empty file (0 bytes): not an MCAP record file"
-    if len(data) < 8 and MAGIC.startswith(data):
-        return f"{path}: truncated after {len(data)} bytes, inside the MCAP magic bytes: nothing to read"
-    what = next((w for sig, w in _SIGNATURES if data.startswith(sig)), None)
-    return f"{path}: not an MCAP file ({f'it is {what}' if what else 'it does not start with the MCAP magic bytes'})"
-
-
-def _summary(data: bytes, out: Scan) -> Summary | None:
-    """The summary section, if the footer is intact and the section's CRC matches."""
-    foot = len(data) - 8 - _FOOTER_SIZE
+def _summary(data: bytes, out: Scan, reader) -> int:
+    """The summary section, if intact (CRC checked), as ``out.summary``; returns where the data section ends."""
+    foot = len(data) - 8 - FOOTER_SIZE
     if foot < 8 or data[-8:] != MAGIC:
-        return None
-    try:
-        footer = next(StreamReader(io.BytesIO(data[foot:]), skip_magic=True).records)
-        if not isinstance(footer, Footer) or _HEAD.unpack_from(data, foot)[1] != _FOOTER_SIZE - 9:
-            raise ValueError("not a footer")
-    except Exception:
+        return len(data)
+    opcode, length, start, _, crc = _FOOTER.unpack_from(data, foot)
+    if (opcode, length) != (Opcode.FOOTER, FOOTER_SIZE - 9):
         out.damage.append(Damage("summary", f"the footer at byte {foot} is damaged; the file was read without its "
                                             "summary section"))
-        return None
-    start = footer.summary_start
-    if start == 0:
-        return None
-    problem = "names a summary section outside the file" if not 8 < start <= foot else None
-    if problem is None and footer.summary_crc and zlib.crc32(data[start:foot + _FOOTER_SIZE - 4]) != footer.summary_crc:
-        problem = "CRC mismatch"
-    try:
-        summary = None if problem else make_reader(io.BytesIO(data)).get_summary()
-    except Exception as e:
-        problem = f"it does not parse ({type(e).__name__}: {e})"
-    if problem:
-        out.damage.append(Damage("summary", f"the summary section at byte {start} is damaged ({problem}); the file "
-                                            "was read without it"))
-        return None
-    summary.chunk_indexes.sort(key=lambda c: c.chunk_start_offset)
-    summary.data_end = start
-    return summary
+    elif start:
+        problem = ("names a summary section outside the file" if not 8 < start <= foot else
+                   "CRC mismatch" if crc and zlib.crc32(data[start:foot + FOOTER_SIZE - 4]) != crc else None)
+        try:
+            out.summary = None if problem else reader.get_summary()
+        except Exception as e:
+            problem = f"it does not parse ({type(e).__name__}: {e})"
+        if problem:
+            out.damage.append(Damage("summary", f"the summary section at byte {start} is damaged ({problem}); the "
+                                                "file was read without it"))
+    return len(data) if out.summary is None else start
 
 
-def _read_indexed(data: bytes, out: Scan, summary: Summary, time_range) -> None:
+def _read_indexed(data: bytes, path: Path, reader, end: int, time_range) -> Scan:
     """A file with an intact summary, through mcap's seeking reader; raises on any damage found."""
-    reader = make_reader(io.BytesIO(data), validate_crcs=True)
-    out.library = reader.get_header().library
-    out.schemas, out.channels = dict(summary.schemas), dict(summary.channels)
-    for m in reader.iter_metadata():
-        out.metadata[m.name] = dict(m.metadata)
-    queries: list[dict] = [{}]
-    if time_range is not None:  # pictures (stamped 0) always, the rest in the range
-        pictures = {c.topic for c in summary.channels.values() if c.topic.startswith((S.TOPIC_PICTURES, S.TOPIC_SUPPORT))}
-        queries = [dict(topics=sorted(pictures)), dict(topics=sorted({c.topic for c in summary.channels.values()}
-                                                                     - pictures),
-                                                       starting_at=time_range[0], ending_before=time_range[1])]
-    for query in queries:
-        for _, ch, m in reader.iter_messages(log_time_order=False, **query):
-            out.messages.setdefault(ch.topic, []).append((m.log_time, m.data))
-    end = summary.data_end - 13  # the data-end record
-    rec = next(StreamReader(io.BytesIO(data[end:summary.data_end]), skip_magic=True).records)
+    summary = reader.get_summary()
+    out = Scan(path, schemas=dict(summary.schemas), channels=dict(summary.channels), summary=summary)
+    topics = {c.topic for c in summary.channels.values()}
+    pictures = {t for t in topics if t.startswith(_PICTURES)}
+    queries = [{}] if time_range is None else [{"topics": pictures}, {
+        "topics": topics - pictures, "starting_at": time_range[0], "ending_before": time_range[1]}]
+    messages = (m for query in queries for _, _, m in reader.iter_messages(log_time_order=False, **query))
+    for rec in (reader.get_header(), *reader.iter_metadata(), *messages):
+        _file(out, rec, None)
+    rec = next(StreamReader(io.BytesIO(data[end - 13:end]), skip_magic=True).records)
     if not isinstance(rec, DataEnd):
-        raise ValueError("no data-end record before the summary")
-    _data_end(data, out, rec, end, time_range)
+        raise TypeError("no data-end record before the summary")
+    _data_end(data, out, rec, end - 13, time_range)
+    out.complete = not out.damage
+    return out
 
 
-def _walk(data: bytes, out: Scan, time_range) -> None:
-    """Front to back with mcap's stream reader, a new one after each damaged record."""
-    n, summary = len(data), out.summary
-    limit = summary.data_end if summary is not None else n
-    indexed = {c.chunk_start_offset: (k, c) for k, c in enumerate(summary.chunk_indexes, 1)} if summary else {}
-    of = f" of {len(indexed)}" if summary is not None else ""
-    chunks, lost, visited = 0, None, set()
-    f, pos = io.BytesIO(data), 8
+def _walk(data: bytes, out: Scan, limit: int, time_range) -> None:
+    """Front to back with mcap's stream reader, a new one after each damaged record; then what was lost."""
+    n, f, pos = len(data), io.BytesIO(data), 8
+    chunks, lost, visited = 0, None, set()  # chunks met, the damaged chunk just read, chunks reached
+    indexes = sorted(out.summary.chunk_indexes, key=attrgetter("chunk_start_offset")) if out.summary else []
+    indexed = {c.chunk_start_offset: c for c in indexes}
+    number = {c.chunk_start_offset: k for k, c in enumerate(indexes, 1)}
+    of = f" of {len(indexed)}" if out.summary is not None else ""
+    if out.summary is not None:
+        out.schemas, out.channels = dict(out.summary.schemas), dict(out.summary.channels)
 
-    def damaged_chunk(start: int, why: str, span) -> Damage:
-        k = indexed[start][0] if start in indexed else chunks
-        out.damage.append(Damage("chunk", f"chunk {k}{of} damaged ({why}) at byte {start}", span))
+    def damaged_chunk(start: int, why: str, span, went_on: str = "") -> Damage:
         visited.add(start)
+        out.damage.append(Damage("chunk", f"chunk {number.get(start, chunks)}{of} damaged ({why}) at byte "
+                                          f"{start}{went_on}", span))
         return out.damage[-1]
 
     while pos is not None and pos < limit:
@@ -215,34 +182,25 @@ def _walk(data: bytes, out: Scan, time_range) -> None:
         pos = None
         try:
             for rec in StreamReader(f, skip_magic=True, emit_chunks=True, record_size_limit=n).records:
-                end = f.tell()
-                if data[start] != _OPCODE.get(type(rec)) or (start in indexed and end - start != indexed[start][1]
-                                                              .chunk_length):
-                    raise ValueError("its record header disagrees with " + ("the chunk index" if start in indexed
-                                                                            else "its contents"))
+                end, c = f.tell(), indexed.get(start)
+                if data[start] not in _DATA_RECORDS or (c and end - start != c.chunk_length):
+                    raise ValueError("its record header disagrees with " + ("the chunk index" if c else "its contents"))
                 if isinstance(rec, MessageIndex):
                     if lost is not None:  # what the damaged chunk before it held
                         lost.index.setdefault(rec.channel_id, []).extend(t for t, _ in rec.records)
-                    start = end
-                    continue
-                lost = None
-                if isinstance(rec, Chunk):
-                    if end - start != _chunk_size(rec):
-                        raise ValueError("bad chunk header: its data length disagrees with its record length")
-                    chunks += 1
-                    visited.add(start)
-                    why = _take_chunk(out, rec, time_range)
-                    if why:
-                        lost = damaged_chunk(start, why, (rec.message_start_time, rec.message_end_time))
                 elif isinstance(rec, DataEnd):
                     _data_end(data, out, rec, start, time_range)
                     break
-                elif isinstance(rec, Metadata):
-                    out.metadata[rec.name] = dict(rec.metadata)
-                elif isinstance(rec, Header):
-                    out.library = rec.library
+                elif not isinstance(rec, Chunk):
+                    lost = None
+                    _file(out, rec, time_range)
+                elif end - start != _chunk_size(rec):
+                    raise ValueError("bad chunk header: its data length disagrees with its record length")
                 else:
-                    _take(out, rec, time_range)
+                    chunks += 1
+                    visited.add(start)
+                    why = _file(out, rec, time_range)
+                    lost = damaged_chunk(start, why, _SPAN(rec)) if why else None
                 start = end
         except Exception as e:
             why = str(e) if isinstance(e, ValueError) and str(e) else f"{type(e).__name__}: {e}".rstrip(": ")
@@ -251,56 +209,72 @@ def _walk(data: bytes, out: Scan, time_range) -> None:
                                                       "boundary, before its data-end record; anything written after "
                                                       "that and the summary section are lost"))
             elif start in indexed:  # the chunk index says where the next record starts
-                lost = damaged_chunk(start, why, (indexed[start][1].message_start_time,
-                                                  indexed[start][1].message_end_time))
-                pos = start + indexed[start][1].chunk_length
+                lost = damaged_chunk(start, why, _SPAN(indexed[start]))
+                pos = start + indexed[start].chunk_length
             else:
                 opcode, length = _HEAD.unpack_from(data, start) if start + 9 <= n else (data[start], n)
-                span = struct.unpack_from("<QQ", data, start + 9) if opcode == Opcode.CHUNK and start + 25 <= n else None
+                span = _TIMES.unpack_from(data, start + 9) if opcode == Opcode.CHUNK and start + 25 <= n else None
                 span = span if span and span[0] <= span[1] else None
                 pos = _find_next(data, start + 1, limit)
+                went_on = f"; reading went on at byte {pos}" if pos else ""
                 if pos is None and start + 9 + length > n:
-                    name = f"chunk {chunks + 1}, of {length} bytes at byte {start}" + (
-                        f", holding messages stamped {_describe_span(*span)}" if span else "") \
-                        if opcode == Opcode.CHUNK else _record_name(opcode)
+                    name = _NAMES.get(opcode, f"a record (opcode {opcode:#x})")
+                    if opcode == Opcode.CHUNK:
+                        name = f"chunk {chunks + 1}, of {length} bytes at byte {start}"
+                        if span:
+                            (r0, e0, _), (r1, e1, _) = map(S.split_log_time, span)
+                            name += f", holding messages stamped run {r0} episode {e0}" + (
+                                "" if (r0, e0) == (r1, e1) else f" to run {r1} episode {e1}")
                     out.damage.append(Damage("truncated", f"the file is truncated: it ends {n - start - 9} bytes into "
                                                           f"{name}; that record, anything after it and the summary "
                                                           "section are lost", span))
                 elif opcode == Opcode.CHUNK:
                     chunks += 1
-                    lost = damaged_chunk(start, why, span)
-                    lost.what += f"; reading went on at byte {pos}" if pos else ""
+                    lost = damaged_chunk(start, why, span, went_on)
                 else:
-                    out.damage.append(Damage("bytes", f"a damaged record ({why}) at byte {start} was skipped"
-                                                      + (f"; reading went on at byte {pos}" if pos else "")))
-    for k, c in indexed.values():
-        if c.chunk_start_offset not in visited:
-            out.damage.append(Damage("chunk", f"chunk {k}{of} at byte {c.chunk_start_offset} was not reached (the "
-                                              "records before it are damaged)",
-                                     (c.message_start_time, c.message_end_time)))
+                    out.damage.append(Damage("bytes", f"a damaged record ({why}) at byte {start} was skipped{went_on}"))
+    for start, c in indexed.items():
+        if start not in visited:
+            out.damage.append(Damage("chunk", f"chunk {number[start]}{of} at byte {start} was not reached (the "
+                                              "records before it are damaged)", _SPAN(c)))
+    _settle(out, time_range)
 
 
-def _take_chunk(out: Scan, rec: Chunk, time_range) -> str | None:
-    """File the records of a chunk (left unread outside ``time_range``); why it is damaged, or None."""
-    if time_range is not None and out.channels and rec.message_start_time != 0 and (
-            rec.message_end_time < time_range[0] or rec.message_start_time >= time_range[1]):
-        return None
-    try:
-        records = breakup_chunk(rec, validate_crc=True)
-    except CRCValidationError:
-        return "CRC mismatch"
-    except Exception as e:
-        if type(e).__module__.startswith(("zstandard", "lz4")) or isinstance(e, RuntimeError):
-            return f"bad decompression ({type(e).__name__}: {e})"
-        return "bad record lengths"
-    for r in records:
-        _take(out, r, time_range)
+def _file(out: Scan, rec, time_range) -> str | None:
+    """File one record (a chunk: its records, unless outside ``time_range``); returns why a chunk is damaged."""
+    if isinstance(rec, Message):
+        ch = out.channels.get(rec.channel_id)
+        if ch is None:
+            out.orphans.append(rec)
+        elif time_range is None or time_range[0] <= rec.log_time < time_range[1] or ch.topic.startswith(_PICTURES):
+            out.messages.setdefault(ch.topic, []).append((rec.log_time, rec.data))
+    elif isinstance(rec, Chunk):
+        if time_range is not None and out.channels and rec.message_start_time != 0 and (
+                rec.message_end_time < time_range[0] or rec.message_start_time >= time_range[1]):
+            return None
+        try:
+            records = breakup_chunk(rec, validate_crc=True)
+        except Exception as e:
+            bad = type(e).__module__.startswith(("zstandard", "lz4")) or isinstance(e, RuntimeError)
+            return "CRC mismatch" if isinstance(e, CRCValidationError) else \
+                f"bad decompression ({type(e).__name__}: {e})" if bad else "bad record lengths"
+        for r in records:
+            _file(out, r, time_range)
+    elif isinstance(rec, Channel):
+        out.channels[rec.id] = rec
+    elif isinstance(rec, Schema):
+        out.schemas[rec.id] = rec
+    elif isinstance(rec, Metadata):
+        out.metadata[rec.name] = dict(rec.metadata)
+    elif isinstance(rec, Header):
+        out.library = rec.library
     return None
 
 
 def _data_end(data: bytes, out: Scan, rec: DataEnd, start: int, time_range) -> None:
     """The data section's CRC (on a full read of a file with no other damage), and a lost summary."""
-    if rec.data_section_crc and time_range is None and not out.damage and zlib.crc32(data[:start]) != rec.data_section_crc:
+    crc = rec.data_section_crc
+    if crc and time_range is None and not out.damage and zlib.crc32(memoryview(data)[:start]) != crc:
         out.damage.append(Damage("data", "the data section's CRC does not match: a byte outside the chunks' data is "
                                          "damaged (a record header, a metadata record or a message index); every "
                                          "chunk read passed its own CRC"))
@@ -314,69 +288,43 @@ def _chunk_size(rec: Chunk) -> int:
     return 9 + 8 * 3 + 4 + 4 + len(rec.compression) + 8 + len(rec.data)
 
 
-def _record_name(opcode: int) -> str:
-    try:
-        return f"a {Opcode(opcode).name.lower().replace('_', ' ')} record"
-    except ValueError:
-        return f"a record (opcode {opcode:#x})"
-
-
-def _describe_span(start: int, end: int) -> str:
-    (r0, e0, _), (r1, e1, _) = S.split_log_time(start), S.split_log_time(end)
-    return f"run {r0} episode {e0}" + ("" if (r0, e0) == (r1, e1) else f" to run {r1} episode {e1}")
-
-
 def _find_next(data: bytes, start: int, limit: int) -> int | None:
     """The first offset >= ``start`` where a valid chunk (CRC checked), metadata or data-end record starts."""
     for m in _RESYNC.finditer(data, start, limit):
-        p = m.start()
-        try:
-            opcode, length = _HEAD.unpack_from(data, p)
-            if p + 9 + length > limit:
-                continue
-            rec = next(StreamReader(io.BytesIO(data[p:p + 9 + length]), skip_magic=True, emit_chunks=True).records)
-            if isinstance(rec, Chunk) and rec.uncompressed_crc and _chunk_size(rec) == 9 + length:
+        with contextlib.suppress(Exception):
+            size = 9 + _HEAD.unpack_from(data, p := m.start())[1]
+            rec = next(StreamReader(io.BytesIO(data[p:p + size]), skip_magic=True, emit_chunks=True).records) \
+                if p + size <= limit else None
+            if isinstance(rec, Chunk) and rec.uncompressed_crc and _chunk_size(rec) == size:
                 breakup_chunk(rec, validate_crc=True)
                 return p
-            if isinstance(rec, Metadata) or (isinstance(rec, DataEnd) and length == 4):
+            if isinstance(rec, Metadata) or (isinstance(rec, DataEnd) and size == 13):
                 return p
-        except Exception:
-            continue
     return None
 
 
-def _take(out: Scan, rec, time_range) -> None:
-    """File a schema, channel, message or attachment record (a message of an unknown channel waits)."""
-    if isinstance(rec, Message):
-        ch = out.channels.get(rec.channel_id)
-        if ch is None:
-            out.orphans.append(rec)
-        elif time_range is None or time_range[0] <= rec.log_time < time_range[1] \
-                or ch.topic.startswith((S.TOPIC_PICTURES, S.TOPIC_SUPPORT)):
-            out.messages.setdefault(ch.topic, []).append((rec.log_time, rec.data))
-    elif isinstance(rec, Channel):
-        out.channels[rec.id] = rec
-    elif isinstance(rec, Schema):
-        out.schemas[rec.id] = rec
-
-
-def _resolve_orphans(out: Scan, time_range) -> None:
-    """Messages read before (or without) their channel's definition: a later definition, or this
-    writer's fixed layout for its own files; the rest are dropped, and counted."""
+def _settle(out: Scan, time_range) -> None:
+    """After a walk: messages read before their channel's definition, filed or dropped; what damaged parts held."""
     missing = {m.channel_id for m in out.orphans} - set(out.channels)
-    used = []
-    for cid in sorted(missing & set(WRITER_CHANNELS)) if out.library == LIBRARY else ():
+    used = sorted(missing & set(WRITER_CHANNELS)) if out.library == LIBRARY else []
+    for cid in used:
         topic, sid, cls = WRITER_CHANNELS[cid]
         out.channels[cid] = Channel(id=cid, topic=topic, message_encoding="protobuf", schema_id=sid, metadata={})
         out.schemas.setdefault(sid, Schema(id=sid, name=cls.DESCRIPTOR.full_name, encoding="protobuf",
                                            data=S.file_descriptor_set(cls)))
-        used.append(topic)
     if used:
-        out.notes.append(f"the definitions of channels {', '.join(used)} were lost with the damaged part; taken "
-                         f"from this writer's fixed channel layout ({LIBRARY})")
+        out.notes.append(f"the definitions of channels {', '.join(WRITER_CHANNELS[c][0] for c in used)} were lost "
+                         f"with the damaged part; taken from this writer's fixed channel layout ({LIBRARY})")
     orphans, out.orphans = out.orphans, []
     for m in orphans:
-        if m.channel_id in out.channels:
-            _take(out, m, time_range)
-        else:
-            out.dropped += 1
+        _file(out, m, time_range)
+    out.dropped, out.orphans = len(out.orphans), []
+    for d in out.damage:
+        for cid, times in d.index.items():
+            topic = out.channels[cid].topic if cid in out.channels else None
+            kind = message_kind(topic) if topic else ("pictures" if out.library == LIBRARY and cid > 2 else
+                                                      "messages of channels whose definitions were lost")
+            if topic == S.TOPIC_EPISODES:
+                d.batch_stamps = sorted(times)
+            if kind:
+                d.held[kind] = d.held.get(kind, 0) + len(times)
