@@ -417,3 +417,17 @@ def test_any_single_flipped_byte_is_reported_and_nothing_breaks(files, tmp_path)
             assert at < 8 and "not an MCAP file" in str(e)
             continue
         assert not r.meta.complete and len(msgs) == 1 and str(bad) in msgs[0], at
+
+
+@pytest.mark.parametrize("length", [0, 1, 2, 3, 5])
+def test_a_damaged_data_end_length_is_reported(files, tmp_path, length):
+    """The data-end record's length (4) has no CRC over it; a changed one is found all the same."""
+    path, data, full, cks = files["pictures"]
+    foot = len(data) - 8 - 29  # the footer: opcode, length, summary start, summary offset start, CRC
+    head = int.from_bytes(data[foot + 9:foot + 17], "little") - 13  # the data-end record before the summary
+    assert data[head] == 0x0F and int.from_bytes(data[head + 1:head + 9], "little") == 4
+    bad = tmp_path / "dataend.mcap"
+    bad.write_bytes(data[:head + 1] + length.to_bytes(8, "little") + data[head + 9:])
+    r, msgs = read_warned(bad)
+    assert not r.meta.complete and len(msgs) == 1 and str(bad) in msgs[0]
+    assert len(r.episodes) == len(full.episodes)

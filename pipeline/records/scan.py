@@ -45,6 +45,7 @@ _DATA_RECORDS = {Opcode.HEADER, Opcode.SCHEMA, Opcode.CHANNEL, Opcode.MESSAGE, O
 _NAMES = {o: f"a {o.name.lower().replace('_', ' ')} record" for o in Opcode}
 _RESYNC = re.compile(rb"[\x06\x0c\x0f]")  # chunk, metadata, data end: where reading can start again
 _HEAD, _TIMES, _FOOTER = struct.Struct("<BQ"), struct.Struct("<QQ"), struct.Struct("<BQQQI")
+_DATA_END_HEAD = _HEAD.pack(Opcode.DATA_END, 4)  # a data-end record's opcode and length
 _SPAN = attrgetter("message_start_time", "message_end_time")  # of a chunk or a chunk index
 _PICTURES = (S.TOPIC_PICTURES, S.TOPIC_SUPPORT)  # stamped 0: read whatever the time range
 _SIGNATURES = ((b"\x89PNG\r\n\x1a\n", "a PNG image"), (b"\xff\xd8\xff", "a JPEG image"),
@@ -152,9 +153,9 @@ def _read_indexed(data: bytes, path: Path, reader, end: int, time_range) -> Scan
     messages = (m for query in queries for _, _, m in reader.iter_messages(log_time_order=False, **query))
     for rec in (reader.get_header(), *reader.iter_metadata(), *messages):
         _file(out, rec, None)
-    rec = next(StreamReader(io.BytesIO(data[end - 13:end]), skip_magic=True).records)
-    if not isinstance(rec, DataEnd):
+    if data[end - 13:end - 4] != _DATA_END_HEAD:
         raise TypeError("no data-end record before the summary")
+    rec = next(StreamReader(io.BytesIO(data[end - 13:end]), skip_magic=True).records)
     _data_end(data, out, rec, end - 13, time_range)
     out.complete = not out.damage
     return out
@@ -189,6 +190,8 @@ def _walk(data: bytes, out: Scan, limit: int, time_range) -> None:
                     if lost is not None:  # what the damaged chunk before it held
                         lost.index.setdefault(rec.channel_id, []).extend(t for t, _ in rec.records)
                 elif isinstance(rec, DataEnd):
+                    if data[start:start + 9] != _DATA_END_HEAD:
+                        raise ValueError("its record header disagrees with its contents")
                     _data_end(data, out, rec, start, time_range)
                     break
                 elif not isinstance(rec, Chunk):
