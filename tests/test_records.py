@@ -508,4 +508,20 @@ def test_the_file_is_self_describing_for_generic_protobuf_readers(tmp_path):
     assert list(eps[0].steps.states) == np.concatenate([f["states"] for f in written]).tolist()
     assert list(eps[0].summary.return_) == [f["summary"]["return_"] for f in written]
     assert decoded["/pictures/5"][0].format == "png" and decoded["/pictures/5"][0].data == tiny_png(5)
-    assert len(decoded["/substitutions"]) == sum(len(f["_substitutions"]) for f in written)
+    subs = [s for f in written for s in f["_substitutions"]]  # format 5: in the batch of their episodes
+    assert subs and list(eps[0].substitutions.picture) == [s["picture"] for s in subs]
+    assert list(eps[0].substitutions.category) == [s["category"] for s in subs]
+
+
+def test_a_file_of_record_format_4_reads_as_it_was_written(tmp_path):
+    """tests/data/format4.mcap was written by the format-4 writer (one /substitutions message per
+    substitution) from ``write_synthetic(runs=2, episodes_per_run=5, pictures=False)``: it reads into
+    the same frames as the same episodes written today (substitutions inside the batches)."""
+    import pandas as pd
+
+    old = read_records(Path(__file__).parent / "data" / "format4.mcap")
+    write_synthetic(tmp_path / "new.mcap", runs=2, episodes_per_run=5, pictures=False)
+    new = read_records(tmp_path / "new.mcap")
+    assert old.meta.versions and old.meta.complete and len(old.substitutions) == 36
+    for frame in ("episodes", "steps", "recognitions", "unsafe", "substitutions"):
+        pd.testing.assert_frame_equal(getattr(old, frame).drop(columns="file"), getattr(new, frame).drop(columns="file"))

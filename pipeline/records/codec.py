@@ -25,12 +25,13 @@ import numpy as np
 from google.protobuf import descriptor_pb2
 
 from . import schema as S
-from .schema import BOOL, CODE, F32, F64, MESSAGES, VIEWS, WIRE_DTYPES, Field
+from .schema import BOOL, CODE, F32, F64, I32, MESSAGES, VIEWS, WIRE_DTYPES, Field
 
 SUBS = {f.name: f.type for f in MESSAGES["EpisodeBatch"] if isinstance(f.type, str)}  # summary -> EpisodeSummaries
 BATCH = [m for m in MESSAGES if m != "Substitution"]
 COLUMNS = {m: [f for f in MESSAGES[m] if f.repeated and not isinstance(f.type, str)] for m in BATCH}
-BATCH_KEYS = frozenset({f.name for f in MESSAGES["EpisodeBatch"]} - {"n_actions", "q_values"}
+OPTIONAL = frozenset({"q_values", "substitutions"})  # sink batch keys that may be left out
+BATCH_KEYS = frozenset({f.name for f in MESSAGES["EpisodeBatch"]} - {"n_actions"} - OPTIONAL
                        | {f.name for f in COLUMNS["Steps"]})
 _RANGE = {S.I32: (-2**31, 2**31), S.U32: (0, 2**31), CODE: (0, 2**32), BOOL: (0, 2**63)}
 OUR_SCHEMA = S.file_descriptor_set(S.EpisodeBatch)
@@ -57,7 +58,9 @@ def _column(a: Any, f: Field, n: int | None, where: str, wide: list) -> np.ndarr
         raise ValueError(f"{where}: integer fields must hold integers or booleans, got {a.dtype}")
     if f.type == BOOL:
         return (a != 0).view(wire)
-    (lo, hi), (low, high) = _RANGE[f.type], (int(a.min()), int(a.max())) if len(a) else (0, 0)
+    if f.type == I32 and a.dtype.itemsize <= 4 and a.dtype != np.uint32 or not len(a):
+        return a.astype(wire, copy=False)  # fits whatever its values
+    (lo, hi), (low, high) = _RANGE[f.type], (int(a.min()), int(a.max()))
     if low < lo or high >= hi:
         raise ValueError(f"{where}: values {low}..{high} outside {lo}..{hi - 1}")
     if f.type == CODE and high >= 128:
@@ -70,7 +73,7 @@ def check_batch(batch: Mapping[str, Any]) -> dict[str, Any]:
     """Check a sink batch at the boundary and return ``run``, ``episode`` and ``cols`` (message ->
     field -> wire array) and ``scalars`` (message -> field -> int). Raises TypeError / ValueError
     naming the bad field (missing or unknown fields, lengths, dtypes, ranges, episode ids)."""
-    missing, unknown = BATCH_KEYS - batch.keys(), batch.keys() - BATCH_KEYS - {"q_values"}
+    missing, unknown = BATCH_KEYS - batch.keys(), batch.keys() - BATCH_KEYS - OPTIONAL
     if missing or unknown:
         raise TypeError(f"episode batch: missing fields {sorted(missing)}, unknown fields {sorted(unknown)} "
                         "(see pipeline/rl/sink.py)")
@@ -90,8 +93,8 @@ def check_batch(batch: Mapping[str, Any]) -> dict[str, Any]:
                                  for f in COLUMNS["EpisodeSummaries"][1:]}
     cols["Steps"] = {f.name: _column(batch[f.name], f, t, f"{where}.{f.name}", wide) for f in COLUMNS["Steps"]}
     scalars = {"EpisodeBatch": {"run": run, "n_actions": 0}, "Recognitions": {"n_categories": 0}}
-    for sub in ("recognitions", "unsafe_added"):
-        d, msg = batch[sub] or {}, SUBS[sub]
+    for sub in ("recognitions", "unsafe_added", "substitutions"):
+        d, msg = batch.get(sub) or {}, SUBS[sub]
         n = len(d.get("step", ()))
         names = [f.key or f.name for f in COLUMNS[msg] if f.name != "scores"]
         if n and set(names) - d.keys():
@@ -154,11 +157,12 @@ def _flat_fast(data: list[bytes]) -> dict | None:
 def _flat_runtime(data: list[bytes], classes: dict) -> dict:
     """The same columns through real message classes (ours, or built from a file's own schema)."""
     top = [classes["EpisodeBatch"].FromString(d) for d in data]
-    msgs = {"EpisodeBatch": top} | {sub: [getattr(v, field) for v in top] for field, sub in SUBS.items()}
+    has = classes["EpisodeBatch"].DESCRIPTOR.fields_by_name  # an older file's batches may lack S.ADDED
+    msgs = {"EpisodeBatch": top} | {sub: [getattr(v, field) for v in top] for field, sub in SUBS.items() if field in has}
     out: dict = {}
     for msg, fields in COLUMNS.items():
         for f in fields:
-            lists = [getattr(m, f.name) for m in msgs[msg]]
+            lists = [getattr(m, f.name) for m in msgs[msg]] if msg in msgs else [()] * len(top)
             dtype = {F32: np.float32, F64: np.float64}.get(f.type, np.int64)
             out[msg, f.name] = (np.array([x for xs in lists for x in xs], dtype),
                                 np.array([len(x) for x in lists], np.int64))
@@ -182,6 +186,8 @@ def classes_of(schema_data: bytes) -> dict:
             have = classes[msg].DESCRIPTOR.fields_by_name if msg in classes else {}
             for f in fields:
                 d = have.get(f.name)
+                if (msg in S.ADDED or f.type in S.ADDED) and d is None:
+                    continue
                 if d is None or d.is_repeated != f.repeated or (d.type == d.TYPE_MESSAGE) != isinstance(f.type, str) \
                         or d.type in (d.TYPE_STRING, d.TYPE_BYTES, d.TYPE_GROUP):
                     raise FormatError(f"its episode batches use another record schema (not format "
@@ -221,7 +227,9 @@ def _columns(flat: dict, name: str) -> dict[str, Any]:
     for msg, expected, why in (("Steps", np.bincount(msg_of_ep, lens, len(n_eps)), "step column {} does not have "
                                 "the episodes' step count"), ("Recognitions", count["Recognitions", "episode"],
                                 "recognition columns differ in length ({})"), ("UnsafeAdditions",
-                               count["UnsafeAdditions", "episode"], "unsafe-set columns differ in length ({})")):
+                               count["UnsafeAdditions", "episode"], "unsafe-set columns differ in length ({})"),
+                               ("Substitutions", count["Substitutions", "episode"],
+                                "substitution columns differ in length ({})")):
         for f in COLUMNS[msg]:
             if f.name != "scores" and not np.array_equal(count[msg, f.name], expected):
                 raise bad(why.format(f.name))
@@ -249,10 +257,12 @@ def _columns(flat: dict, name: str) -> dict[str, Any]:
                 scores[r:r + m, :k] = values[p:p + m * k].reshape(m, k)
         rec |= {f"score_{j}": scores[:, j] for j in range(width)}
     unsafe = _frame(flat, "UnsafeAdditions", {"run": np.repeat(flat["run"], un_k).astype(np.int32)})
+    subs = _frame(flat, "Substitutions", {"run": np.repeat(flat["run"], count["Substitutions", "episode"])
+                                          .astype(np.int32)})
     ep_key = ep_run.astype(np.int64) << 32 | ep_ep
     order = np.argsort(ep_key, kind="stable")
     per_episode = {}
-    for what, cols in (("recognitions", rec), ("unsafe", unsafe)):
+    for what, cols in (("recognitions", rec), ("unsafe", unsafe), ("substitutions", subs)):
         key = cols["run"].astype(np.int64) << 32 | cols["episode"]
         pos = np.searchsorted(ep_key[order], key)
         if len(key) and (pos.max() >= len(order) or not np.array_equal(ep_key[order][pos], key)):
@@ -268,12 +278,12 @@ def _columns(flat: dict, name: str) -> dict[str, Any]:
             raise bad("q_values do not have n_actions columns for every episode")
         tables = q[pos[i]:pos[i] + n_q[i]].astype(np.float32).reshape(e, -1, na)
         q_values |= {(name, int(ep_run[row[i] + j]), int(ep_ep[row[i] + j])): tables[j] for j in range(e)}
-    return {"steps": steps, "recognitions": rec, "unsafe": unsafe, "episodes": episodes, "q_values": q_values,
-            "batch_sizes": n_eps}
+    return {"steps": steps, "recognitions": rec, "unsafe": unsafe, "substitutions": subs, "episodes": episodes,
+            "q_values": q_values, "batch_sizes": n_eps}
 
 
 def decode_substitutions(messages: list[tuple[int, bytes]]) -> tuple[dict[str, np.ndarray], int]:
-    """Columns of ``Substitution`` messages and how many did not parse."""
+    """Columns of ``Substitution`` messages (files of format 4 and older) and how many did not parse."""
     fields, rows, bad = MESSAGES["Substitution"], [], 0
     for _, data in messages:
         try:

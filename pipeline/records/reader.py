@@ -236,7 +236,8 @@ def _decode(sc: Scan) -> dict[str, Any]:
             else:
                 good.append((t, data))
         dec = decode_batches(good, str(sc.path), schema)
-    dec["substitutions"], bad = decode_substitutions(sc.messages.get(S.TOPIC_SUBSTITUTIONS, []))
+    old, bad = decode_substitutions(sc.messages.get(S.TOPIC_SUBSTITUTIONS, []))  # files of format 4 and older
+    dec["substitutions"] = {k: np.concatenate([v, old[k]]) for k, v in dec["substitutions"].items()}
     if bad:
         sc.damage.append(Damage("decode", f"{bad} substitution messages did not decode"))
     return dec

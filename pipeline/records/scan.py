@@ -39,7 +39,7 @@ MAGIC = b"\x89MCAP0\r\n"
 LIBRARY = "pipeline.records/" + S.FORMAT_VERSION
 #: The writer registers these first, in this order, in every file (tested): channel id -> (topic,
 #: schema id, message class); used when every copy of a file's channel definitions is lost.
-WRITER_CHANNELS = {1: (S.TOPIC_EPISODES, 1, S.EpisodeBatch), 2: (S.TOPIC_SUBSTITUTIONS, 2, S.Substitution)}
+WRITER_CHANNELS = {1: (S.TOPIC_EPISODES, 1, S.EpisodeBatch)}
 _DATA_RECORDS = {Opcode.HEADER, Opcode.SCHEMA, Opcode.CHANNEL, Opcode.MESSAGE, Opcode.CHUNK, Opcode.MESSAGE_INDEX,
                  Opcode.METADATA, Opcode.ATTACHMENT, Opcode.DATA_END}  # the records a data section may hold
 _NAMES = {o: f"a {o.name.lower().replace('_', ' ')} record" for o in Opcode}
@@ -325,7 +325,7 @@ def _settle(out: Scan, time_range) -> None:
     for d in out.damage:
         for cid, times in d.index.items():
             topic = out.channels[cid].topic if cid in out.channels else None
-            kind = message_kind(topic) if topic else ("pictures" if out.library == LIBRARY and cid > 2 else
+            kind = message_kind(topic) if topic else ("pictures" if out.library == LIBRARY and cid > 1 else
                                                       "messages of channels whose definitions were lost")
             if topic == S.TOPIC_EPISODES:
                 d.batch_stamps = sorted(times)

@@ -4,7 +4,8 @@ reader's frame columns derive from (:mod:`.codec`).
 
 A file: metadata records first, the pictures once (``foxglove.CompressedImage`` on
 ``/pictures/<id>``, ``/support/<category>/<position>``), one :data:`EpisodeBatch` per sink batch on
-``/episodes`` (stamped at its first episode, step 0), one :data:`Substitution` per support-set change.
+``/episodes`` (stamped at its first episode, step 0) holding its episodes' support-set changes too
+(format 5; files of format 4 and older have one :data:`Substitution` message each on ``/substitutions``).
 Format 4: packed integer columns are ``fixed32``/``sfixed32`` (the wire payload is the raw
 little-endian numbers), except the code columns (packed ``uint32`` varints: states, actions, flags,
 source), one byte a value when all of a batch's values are below 128 (every paper maze has at most
@@ -19,7 +20,8 @@ from typing import NamedTuple
 from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
 from foxglove_schemas_protobuf.CompressedImage_pb2 import CompressedImage
 
-FORMAT_VERSION = "4"  # 4: states as codes (3: fixed-width packed columns; 2: varint columns; 1: one Episode each)
+FORMAT_VERSION = "5"  # 5: substitutions in the batches (4: states as codes; 3: fixed-width packed columns;
+#                       2: varint columns; 1: one Episode each)
 PACKAGE = "fsrl.records"
 TOPIC_EPISODES, TOPIC_SUBSTITUTIONS = "/episodes", "/substitutions"
 TOPIC_PICTURES, TOPIC_SUPPORT = "/pictures", "/support"  # + "/<picture id>", + "/<category>/<position>"
@@ -90,14 +92,21 @@ MESSAGES: dict[str, list[Field]] = {
         Field("episode", 1, U32, "episode", "int32"), Field("step", 2, I32, "step", "int32"),
         Field("state", 3, I32, "state", "int32"), Field("action", 4, CODE, "action", "int8"),
         Field("source", 5, CODE, "source", "int8")],  # 0 recognition, 1 collision, 2 ssrl rule
+    "Substitutions": [  # one entry per support-set change (section 3.3, Figure 5); the run's start: -1s
+        Field("episode", 1, U32, "episode", "int32"), Field("step", 2, I32, "step", "int32"),
+        Field("picture", 3, I32, "picture", "int16"),  # entered the support set
+        Field("category", 4, I32, "category", "int8"),  # the class it entered
+        Field("position", 5, I32, "position", "int8"),  # replaced shot 0..K-1
+        Field("support_accuracy", 6, F64, "support_accuracy", "float64")],  # on the query pictures, after it
     "EpisodeBatch": [  # consecutive finished episodes of one run (the sink's batch)
         Field("run", 1, CODE, repeated=False), Field("episode", 2, U32, "episode", "int32"),
         Field("summary", 3, "EpisodeSummaries", repeated=False), Field("steps", 4, "Steps", repeated=False),
         Field("recognitions", 5, "Recognitions", repeated=False),
         Field("unsafe_added", 6, "UnsafeAdditions", repeated=False),
         Field("n_actions", 7, CODE, repeated=False),  # columns of q_values; 0 when absent
-        Field("q_values", 8, F32, "q_values", "float32")],  # optional Q tables [E, n_states, n_actions]
-    "Substitution": [  # the dynamic support set changed (section 3.3, Figure 5)
+        Field("q_values", 8, F32, "q_values", "float32"),  # optional Q tables [E, n_states, n_actions]
+        Field("substitutions", 9, "Substitutions", repeated=False)],  # format 5
+    "Substitution": [  # format 4 and older: one message on /substitutions per support-set change
         Field("run", 1, CODE, "run", "int32", repeated=False),
         Field("episode", 2, CODE, "episode", "int32", repeated=False),
         Field("step", 3, CODE, "step", "int32", repeated=False),
@@ -106,6 +115,8 @@ MESSAGES: dict[str, list[Field]] = {
         Field("position", 6, _F.TYPE_INT32, "position", "int8", repeated=False),  # replaced shot 0..K-1
         Field("support_accuracy", 7, F64, "support_accuracy", "float64", repeated=False)],  # after it
 }
+#: What files of an older format may lack: these messages, and the EpisodeBatch fields that hold them.
+ADDED = {"Substitutions": "5"}
 WIRE_DTYPES = {I32: "<i4", U32: "<u4", F32: "<f4", F64: "<f8", BOOL: "u1", CODE: "u1"}  # packed payloads
 
 

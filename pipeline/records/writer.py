@@ -7,7 +7,9 @@ every run (docs/records.md; schema in :mod:`.schema`, encoding in :mod:`.codec`)
 
 It writes ``<name>.mcap.partial`` and renames it to ``<name>.mcap`` when :meth:`RecordWriter.close`
 succeeds (if the ``with`` block raises, the finished file keeps its ``.partial`` name). Metadata
-records and pictures come first; each sink batch is one ``EpisodeBatch`` message; a chunk is closed
+records and pictures come first; each sink batch is one ``EpisodeBatch`` message, with the
+substitutions of its episodes (held until their batch comes: one message each cost more than the
+rest of the writer's per-substitution work, measured in benchmarks.records_overhead); a chunk is closed
 once ``flush_every`` episodes came in, so a killed run loses at most those. Same input, same bytes.
 """
 from __future__ import annotations
@@ -33,6 +35,7 @@ VERSION_PACKAGES = ("fewshot-safe-rl-pipeline", "numpy", "numba", "pandas", "tor
                     "mcap-protobuf-support", "protobuf", "foxglove-schemas-protobuf", "rerun-sdk",
                     "hydra-core", "omegaconf", "gymnasium")
 EPISODE_KEYS = {"run", "episode", "states", "actions", "rewards", "flags", "recognitions", "unsafe_added", "summary"}
+SUBSTITUTION_KEYS = tuple(f.name for f in S.MESSAGES["Substitutions"])  # of the substitution() call
 COMPRESSION = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
 
 
@@ -127,7 +130,7 @@ def _metadata_records(metadata: dict[str, Any], maze, runs) -> list[tuple[str, d
 
     out = [("recording", {"format_version": S.FORMAT_VERSION, "library": LIBRARY,
                           "time": "log_time_ns = run * 1e15 + episode * 1e9 + step * 1e6 (1 ms a step, 1 s an episode)",
-                          "episodes_topic": S.TOPIC_EPISODES, "substitutions_topic": S.TOPIC_SUBSTITUTIONS,
+                          "episodes_topic": S.TOPIC_EPISODES,
                           "pictures_topic": S.TOPIC_PICTURES + "/<picture id>"})]
     config = _plain(metadata.pop("config", None))
     if config is not None:
@@ -175,6 +178,7 @@ class RecordWriter:
         self.flush_every, self.n_episodes, self.n_substitutions = int(flush_every), 0, 0
         self._since_flush, self._closed = 0, False
         self._next_episode: dict[int, int] = {}  # run -> first episode not yet recorded
+        self._subs: dict[int, list[tuple]] = {}  # run -> substitutions waiting for their episode's batch
         records = _metadata_records(dict(metadata or {}), maze, runs)  # validate before touching the disk
         images = [(f"{S.TOPIC_PICTURES}/{int(p)}", _image(f"picture_{int(p)}", pictures[p])) for p in sorted(pictures or {})]
         images += [(f"{S.TOPIC_SUPPORT}/{int(c)}/{k}", _image(f"support_{int(c)}_{k}", data))
@@ -185,23 +189,27 @@ class RecordWriter:
         self._mcap = Writer(self._file, chunk_size=chunk_size, compression=COMPRESSION[compression],
                             enable_data_crcs=True)
         self._mcap.start(profile="", library=LIBRARY)
-        # schemas 1-3, then channel 1 /episodes and 2 /substitutions: a reader falls back on this layout
+        # schemas 1-2, then channel 1 /episodes: a reader falls back on this layout
         ids = [self._mcap.register_schema(name=cls.DESCRIPTOR.full_name, encoding="protobuf",
-                                          data=S.file_descriptor_set(cls))
-               for cls in (S.EpisodeBatch, S.Substitution, S.CompressedImage)]
+                                          data=S.file_descriptor_set(cls)) for cls in (S.EpisodeBatch, S.CompressedImage)]
         self._ch_episodes = self._mcap.register_channel(S.TOPIC_EPISODES, "protobuf", ids[0])
-        self._ch_subs = self._mcap.register_channel(S.TOPIC_SUBSTITUTIONS, "protobuf", ids[1])
         for name, data in records:
             self._mcap.add_metadata(name, data)
         for topic, data in images:
-            self._mcap.add_message(self._mcap.register_channel(topic, "protobuf", ids[2]), log_time=0,
+            self._mcap.add_message(self._mcap.register_channel(topic, "protobuf", ids[1]), log_time=0,
                                    publish_time=0, data=data)
         self._mcap.flush()  # the pictures and channel definitions in a complete first chunk
 
     def episodes(self, **batch: Any) -> None:
         """Record a batch of consecutive finished episodes of one run (columnar fields as
-        documented in ``pipeline/rl/sink.py``) as ONE ``EpisodeBatch`` message."""
+        documented in ``pipeline/rl/sink.py``) as ONE ``EpisodeBatch`` message, with the substitutions
+        recorded for its episodes."""
         self._check_open()
+        run, waiting = int(batch["run"]), None
+        if len(batch["episode"]) and (waiting := self._subs.get(run)):
+            last = int(batch["episode"][-1])
+            k = next((i for i, s in enumerate(waiting) if s[0] > last), len(waiting))
+            batch = dict(batch, substitutions=dict(zip(SUBSTITUTION_KEYS, map(np.array, zip(*waiting[:k])))))
         b = check_batch(batch)
         if not len(b["episode"]):
             return
@@ -213,6 +221,9 @@ class RecordWriter:
         t = S.log_time_ns(run, first, 0)
         S.log_time_ns(run, last, 0)  # range check of the last episode too
         self._mcap.add_message(self._ch_episodes, log_time=t, publish_time=t, data=encode_batch(b))
+        if waiting:
+            self.n_substitutions += len(b["cols"]["Substitutions"].get("episode", ()))
+            del waiting[:len(b["cols"]["Substitutions"].get("episode", ()))]
         self._next_episode[run] = last + 1
         self.n_episodes, self._since_flush = self.n_episodes + len(b["episode"]), self._since_flush + len(b["episode"])
         if self._since_flush >= self.flush_every:
@@ -241,13 +252,11 @@ class RecordWriter:
                      position: int, support_accuracy: float = float("nan")) -> None:
         """Record that ``picture`` replaced shot ``position`` of class ``category`` (section 3.3),
         and the accuracy of the support set on the query pictures after it. ``picture = -1``
-        (position -1) records the support set a run starts with."""
+        (position -1) records the support set a run starts with. It is written with the batch of its
+        episode (substitutions of episodes never recorded are not written)."""
         self._check_open()
-        t = S.log_time_ns(int(run), int(episode), int(step))
-        msg = S.Substitution(run=int(run), episode=int(episode), step=int(step), picture=int(picture),
-                             category=int(category), position=int(position), support_accuracy=float(support_accuracy))
-        self._mcap.add_message(self._ch_subs, log_time=t, publish_time=t, data=msg.SerializeToString())
-        self.n_substitutions += 1
+        S.log_time_ns(int(run), int(episode), int(step))  # range check
+        self._subs.setdefault(int(run), []).append((episode, step, picture, category, position, support_accuracy))
 
     def flush(self) -> None:
         """Close the current chunk and write it out: everything recorded so far survives a kill."""
