@@ -111,3 +111,21 @@ def test_gym_and_batched_runner_give_identical_trajectories(name):
         gym_ep = run_episode(env, agent, seed=seed if ep == 0 else None)
         for key in ("states", "actions", "rewards", "flags"):
             np.testing.assert_array_equal(gym_ep[key], recorded[key], err_msg=f"episode {ep} {key}")
+
+
+def test_recorded_relation_scores_are_the_recognisers_at_the_time_of_each_recognition():
+    """Scores are asked for once per recognition, before a collision teaches the recogniser: with the
+    fixed-accuracy recogniser (one-hot scores) every recorded row is one-hot on the recorded prediction,
+    across the runner's batches and trace hand-overs (a small trace forces many)."""
+    from pipeline.rl.fixed_accuracy import FixedAccuracyRecogniser
+
+    sink = ListSink()
+    run_trials(load_layout("7x7"), get_method("fewshot_dss"), runs=3, episodes=80, seed=4, sink=sink,
+               recogniser=FixedAccuracyRecogniser(p=0.4, learn=True, substitution_way=1), progress=False,
+               trace_capacity=256)
+    rec = [b["recognitions"] for b in sink.batches if len(b["recognitions"]["step"])]
+    assert len(rec) > 3 and any(s["picture"] >= 0 for s in sink.substitutions)
+    scores = np.concatenate([r["scores"] for r in rec])
+    predicted = np.concatenate([r["predicted"] for r in rec])
+    assert scores.shape == (len(predicted), 5) and (scores.sum(axis=1) == 1).all()
+    np.testing.assert_array_equal(scores.argmax(axis=1), predicted)

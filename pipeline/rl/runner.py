@@ -123,8 +123,8 @@ def _emit(sink, r, run_id, first_ep, last_ep, results, trace, recognitions, addi
         lo = cursors["rec"][r]  # recognitions and additions of the finished episodes only
         hi = lo + int(np.searchsorted(recognitions.episode[r, lo:int(recognitions.length[r])], last_ep))
         rec = slice(lo, hi)
-        part = scores[r][lo:hi]
-        sc = np.stack(part).astype(np.float32) if len(part) == hi - lo and hi > lo else np.zeros((hi - lo, 0), np.float32)
+        table = scores["table"]  # relation scores of run r's recognitions, when asked for
+        sc = table[r, lo:hi].copy() if table is not None and scores["done"][r] >= hi else np.zeros((hi - lo, 0), np.float32)
         alo = cursors["add"][r]
         ahi = alo + int(np.searchsorted(additions.episode[r, alo:int(additions.length[r])], last_ep))
         add = slice(alo, ahi)
@@ -214,7 +214,7 @@ def run_trials(layout: Layout, method: MethodSpec, runs: int, episodes: int, see
     recognitions = Recognitions.empty(runs, n_dangerous)
     additions = Additions.empty(runs, n_dangerous)
     substitution = Substitution.empty(runs)
-    scores: list[list] = [[] for _ in range(runs)]
+    scores = {"table": None, "done": [0] * runs}  # (runs, n_dangerous, n_categories) and rows filled a run
     cursors = {"rec": [0] * runs, "add": [0] * runs}
     emitted = [0] * runs
     status = np.zeros(runs, np.int64)
@@ -223,10 +223,12 @@ def run_trials(layout: Layout, method: MethodSpec, runs: int, episodes: int, see
     def score_pending(r: int) -> None:
         if not want_scores:
             return
-        lo, hi = len(scores[r]), int(recognitions.length[r])
+        lo, hi = scores["done"][r], int(recognitions.length[r])
         if hi > lo:
-            pics = recognitions.picture[r, lo:hi].astype(np.int64)
-            scores[r].extend(np.asarray(recogniser.scores(slot(r), pics), dtype=np.float32))
+            got = np.asarray(recogniser.scores(slot(r), recognitions.picture[r, lo:hi].astype(np.int64)), np.float32)
+            if scores["table"] is None:
+                scores["table"] = np.zeros((runs, n_dangerous, got.shape[1]), np.float32)
+            scores["table"][r, lo:hi], scores["done"][r] = got, hi
 
     def emit(r: int) -> None:
         done = int(state.episode[r])
