@@ -11,6 +11,7 @@ import pkgutil
 import sys
 
 import pipeline.stages as _stages
+from pipeline.errors import quiet_broken_pipe
 from pipeline.stages._common import describe
 
 
@@ -42,4 +43,5 @@ def main(argv: list[str] | None = None) -> None:
 
 
 if __name__ == "__main__":
-    main()
+    with quiet_broken_pipe():
+        main()

@@ -6,6 +6,10 @@ bug and keeps its traceback.
 """
 from __future__ import annotations
 
+import contextlib
+import os
+import sys
+
 
 class UserError(ValueError):
     """Input the user can fix; the message names the input (config key, file, line) and the problem."""
@@ -22,3 +26,14 @@ class Interrupted(BaseException):
         super().__init__(message)
         self.code = code
         self.message = message
+
+
+@contextlib.contextmanager
+def quiet_broken_pipe():
+    """``... | head``: a reader that stops early ends the command with status 141 (as a shell's
+    SIGPIPE would), without a traceback."""
+    try:
+        yield
+    except BrokenPipeError:
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # the interpreter's last flush must not fail
+        raise SystemExit(141) from None

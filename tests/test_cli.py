@@ -85,3 +85,13 @@ def test_the_pipelines_trials_outs_are_declared():
     for name in ("fig8", "fig9", "fig10", "table3"):
         assert (ROOT / "datasets" / "runs" / name).resolve() in declared
     assert (ROOT / "datasets" / "runs" / "adhoc").resolve() not in declared
+
+
+@pytest.mark.parametrize("args", [["--help"], ["trials", "--help"]])
+def test_help_into_a_reader_that_is_gone_ends_quietly(args):
+    """``python -m pipeline --help | head``: status 141 and no traceback when the reader left first."""
+    proc = subprocess.Popen([sys.executable, "-m", "pipeline", *args], cwd=ROOT, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE)
+    proc.stdout.close()  # like `| head -0`: the reader is gone before anything is written
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=120) == 141 and "Traceback" not in err and "BrokenPipe" not in err, err

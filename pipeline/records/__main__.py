@@ -4,10 +4,11 @@ episodes, collisions, what a damaged or cut file lost); a folder's ``*.mcap`` an
 status: 0, all listed; 1, some files could not be read; 2, none could, or no such file or folder; 141, pipe closed.
 """
 import argparse
-import os
 import sys
 import warnings
 from pathlib import Path
+
+from pipeline.errors import quiet_broken_pipe
 
 from .loss import expected_shape
 from .reader import RecordsError, RecordsWarning, find_record_files, read_records
@@ -22,7 +23,7 @@ def main(argv: list[str] | None = None) -> None:
     args, bad = ap.parse_args(argv), 0
     path = args.path
     files = find_record_files(path, every_partial=True) if path.is_dir() else [path] if path.exists() else []
-    try:  # every write to stdout: a reader that goes away (``| head``) ends it quietly, as a shell reports SIGPIPE
+    with quiet_broken_pipe():  # every write to stdout: a reader that goes away (``| head``) ends it quietly
         for f in files:
             try:
                 with warnings.catch_warnings(record=True) as caught:
@@ -54,9 +55,6 @@ def main(argv: list[str] | None = None) -> None:
             why = (f"none of its {bad} record files could be read" if files else "no such record file or folder"
                    if not path.is_dir() else "no record files (*.mcap, *.mcap.partial) under this folder")
             print(f"error: {path}: {why}", file=sys.stderr, flush=True)
-    except BrokenPipeError:
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # the interpreter's last flush must not fail
-        raise SystemExit(141) from None
     if bad or not files:
         raise SystemExit(2 if bad == len(files) else 1)
 
