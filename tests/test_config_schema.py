@@ -35,7 +35,8 @@ def test_every_stage_composes_to_its_schema(stage, profile):
 
 @pytest.mark.parametrize("override,key,problem", [
     ("runs=2.7", "runs", "could not be converted to Integer"),
-    ("record=maybe", "record", "not a valid bool"),
+    ("record=maybe", "record", "must be one of steps, episodes, none; got 'maybe'"),
+    ("record=false", "record", "must be one of steps, episodes, none"),  # the old boolean key: refused
     ("episodes=abc", "episodes", "could not be converted to Integer"),
     ("method.alpha=abc", "method.alpha", "could not be converted to Float"),
     ("method.alpha=1.5", "method.alpha", "must be <= 1.0"),
@@ -166,11 +167,11 @@ def test_fixed_accuracy_recogniser_is_seeded_and_has_its_accuracy():
 
 
 def test_recognisers_are_chosen_by_name(tmp_path):
-    perfect = run_stage("trials", ["method=fewshot", "recogniser=fixed_accuracy", "recogniser.p=1.0", "record=false",
+    perfect = run_stage("trials", ["method=fewshot", "recogniser=fixed_accuracy", "recogniser.p=1.0", "record=none",
                                    f"out={tmp_path / 'a'}", *SMOKE])
-    oracle = run_stage("trials", ["method=fewshot", "recogniser=oracle", "record=false", f"out={tmp_path / 'b'}", *SMOKE])
+    oracle = run_stage("trials", ["method=fewshot", "recogniser=oracle", "record=none", f"out={tmp_path / 'b'}", *SMOKE])
     assert perfect["runs"] == oracle["runs"] and perfect["collisions"]["mean"] == 0
-    blind = run_stage("trials", ["method=fewshot", "recogniser=fixed_accuracy", "recogniser.p=0.0", "record=false",
+    blind = run_stage("trials", ["method=fewshot", "recogniser=fixed_accuracy", "recogniser.p=0.0", "record=none",
                                  f"out={tmp_path / 'c'}", *SMOKE])
     assert blind["collisions"]["mean"] > 0
     with pytest.raises(ConfigError, match="config key 'recogniser.p'"):
@@ -196,7 +197,7 @@ def test_accuracy_study_takes_any_recogniser(tmp_path):
 
 def test_a_bad_sweep_value_is_refused_before_any_job(tmp_path):
     out = subprocess.run([sys.executable, "-m", "pipeline", "trials", "-m", "runs=2,2.7", f"out={tmp_path}/o",
-                          f"hydra.sweep.dir={tmp_path}/sweep", "episodes=2", "record=false", "progress=false"],
+                          f"hydra.sweep.dir={tmp_path}/sweep", "episodes=2", "record=none", "progress=false"],
                          capture_output=True, text=True, cwd=ROOT)
     assert out.returncode == 2 and out.stderr.strip() == \
         "error: config key 'runs': Value '2.7' of type 'float' could not be converted to Integer"

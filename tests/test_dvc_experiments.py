@@ -19,7 +19,7 @@ stages:
   trials:
     foreach: [fig10]
     do:
-      cmd: python -m pipeline trials +experiment=${item} profile=smoke recogniser=oracle record=false
+      cmd: python -m pipeline trials +experiment=${item} profile=smoke recogniser=oracle record=none
         progress=false out=runs/${item} metrics_file=metrics/${item}.json
       deps:
         - pipeline/rl

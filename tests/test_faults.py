@@ -113,8 +113,8 @@ def test_bad_trial_configs(tmp_path, args, words):
     one_line_error(cli("trials", *args, "progress=false"), *words)
 
 
-def test_record_no_means_no_records(tmp_path):
-    assert cli("trials", "record=no", f"out={tmp_path}", *FAST).returncode == 0
+def test_record_none_means_no_records(tmp_path):
+    assert cli("trials", "record=none", f"out={tmp_path}", *FAST).returncode == 0
     assert sorted(p.name for p in tmp_path.iterdir()) == ["summary.json"]
 
 

@@ -525,3 +525,18 @@ def test_a_file_of_record_format_4_reads_as_it_was_written(tmp_path):
     assert old.meta.versions and old.meta.complete and len(old.substitutions) == 36
     for frame in ("episodes", "steps", "recognitions", "unsafe", "substitutions"):
         pd.testing.assert_frame_equal(getattr(old, frame).drop(columns="file"), getattr(new, frame).drop(columns="file"))
+
+
+def test_record_level_episodes_keeps_everything_but_the_steps(tmp_path):
+    """``steps=False`` (``record=episodes``): the same episodes, recognitions, unsafe-set additions and
+    substitutions as a full recording, no step rows, the level in the metadata, and a smaller file."""
+    import pandas as pd
+
+    write_synthetic(tmp_path / "steps.mcap", runs=2, episodes_per_run=6)
+    write_synthetic(tmp_path / "episodes.mcap", runs=2, episodes_per_run=6, steps=False)
+    full, lean = read_records(tmp_path / "steps.mcap"), read_records(tmp_path / "episodes.mcap")
+    assert (full.meta.record, lean.meta.record) == ("steps", "episodes") and lean.meta.complete
+    assert len(full.steps) > 0 and lean.steps.empty and list(lean.steps.columns) == list(full.steps.columns)
+    for frame in ("episodes", "recognitions", "unsafe", "substitutions"):
+        pd.testing.assert_frame_equal(getattr(lean, frame).drop(columns="file"), getattr(full, frame).drop(columns="file"))
+    assert (tmp_path / "episodes.mcap").stat().st_size < (tmp_path / "steps.mcap").stat().st_size

@@ -118,7 +118,7 @@ def test_the_trials_stage_records_the_worlds_moves_and_names(tmp_path):
     from pipeline.world.maze import ACTION_NAMES, MOVES
     from pipeline.world.pictures import CATEGORIES
 
-    run_stage("trials", ["method=shield", "maze=5x5", "runs=1", "episodes=2", "record=true", f"out={tmp_path}",
+    run_stage("trials", ["method=shield", "maze=5x5", "runs=1", "episodes=2", "record=steps", f"out={tmp_path}",
                          "progress=false"])
     (path,) = tmp_path.rglob("records.mcap")
     maze = read_records(path, pictures=False).meta.maze

@@ -129,3 +129,28 @@ def test_recorded_relation_scores_are_the_recognisers_at_the_time_of_each_recogn
     predicted = np.concatenate([r["predicted"] for r in rec])
     assert scores.shape == (len(predicted), 5) and (scores.sum(axis=1) == 1).all()
     np.testing.assert_array_equal(scores.argmax(axis=1), predicted)
+
+
+def test_a_sink_without_steps_gets_the_same_episodes_without_the_step_rows():
+    """``records_steps = False`` (``record=episodes``): no step trace is kept; the trial's outcome and every
+    per-episode field handed over are those of a full recording."""
+    from pipeline.rl.fixed_accuracy import FixedAccuracyRecogniser
+
+    def trial(sink):
+        return run_trials(load_layout("7x7"), get_method("fewshot_dss"), runs=3, episodes=50, seed=2, sink=sink,
+                          recogniser=FixedAccuracyRecogniser(p=0.5, substitution_way=1), progress=False,
+                          chunk_episodes=20)
+
+    full, lean = ListSink(), ListSink()
+    lean.records_steps = False
+    a, b = trial(full), trial(lean)
+    np.testing.assert_array_equal(a.collisions, b.collisions)
+    assert full.substitutions == lean.substitutions
+    assert all(len(ep["states"]) == 0 for ep in lean.all_episodes)
+    key = lambda e: (e["run"], e["episode"])  # noqa: E731
+    for f, g in zip(sorted(full.all_episodes, key=key), sorted(lean.all_episodes, key=key)):
+        assert key(f) == key(g) and f["steps"] == g["steps"] > 0 and f["summary"] == g["summary"]
+        for sub in ("recognitions", "unsafe_added"):
+            assert f[sub].keys() == g[sub].keys()
+            for k in f[sub]:
+                np.testing.assert_array_equal(f[sub][k], g[sub][k])

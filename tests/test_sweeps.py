@@ -13,7 +13,7 @@ ROOT = Path(__file__).resolve().parents[1]
 @pytest.mark.parametrize("launcher", ["joblib", "submitit_local"])
 def test_sweep_over_methods(tmp_path, launcher):
     args = [sys.executable, "-m", "pipeline", "trials", "-m", "method=shield,ssrl", "maze=5x5", "profile=smoke",
-            "record=false", "progress=false", f"out={tmp_path}/" + "${method.name}", f"hydra/launcher={launcher}",
+            "record=none", "progress=false", f"out={tmp_path}/" + "${method.name}", f"hydra/launcher={launcher}",
             f"hydra.sweep.dir={tmp_path}/multirun"]
     if launcher == "joblib":
         args.append("hydra.launcher.n_jobs=2")

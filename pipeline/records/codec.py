@@ -69,10 +69,11 @@ def _column(a: Any, f: Field, n: int | None, where: str, wide: list) -> np.ndarr
     return a.astype(wire, copy=False)
 
 
-def check_batch(batch: Mapping[str, Any]) -> dict[str, Any]:
+def check_batch(batch: Mapping[str, Any], *, with_steps: bool = True) -> dict[str, Any]:
     """Check a sink batch at the boundary and return ``run``, ``episode`` and ``cols`` (message ->
     field -> wire array) and ``scalars`` (message -> field -> int). Raises TypeError / ValueError
-    naming the bad field (missing or unknown fields, lengths, dtypes, ranges, episode ids)."""
+    naming the bad field (missing or unknown fields, lengths, dtypes, ranges, episode ids).
+    ``with_steps=False`` (``record=episodes``): the step columns are left out, whatever the batch holds."""
     missing, unknown = BATCH_KEYS - batch.keys(), batch.keys() - BATCH_KEYS - OPTIONAL
     if missing or unknown:
         raise TypeError(f"episode batch: missing fields {sorted(missing)}, unknown fields {sorted(unknown)} "
@@ -91,7 +92,8 @@ def check_batch(batch: Mapping[str, Any]) -> dict[str, Any]:
     cols = {"EpisodeBatch": {"episode": ep}, "EpisodeSummaries": {"steps": steps}}
     cols["EpisodeSummaries"] |= {f.name: _column(summary[f.name], f, e, f"{where}.summary.{f.name}", wide)
                                  for f in COLUMNS["EpisodeSummaries"][1:]}
-    cols["Steps"] = {f.name: _column(batch[f.name], f, t, f"{where}.{f.name}", wide) for f in COLUMNS["Steps"]}
+    cols["Steps"] = {f.name: _column(batch[f.name], f, t, f"{where}.{f.name}", wide)
+                     for f in COLUMNS["Steps"] if with_steps}
     scalars = {"EpisodeBatch": {"run": run, "n_actions": 0}, "Recognitions": {"n_categories": 0}}
     for sub in ("recognitions", "unsafe_added", "substitutions"):
         d, msg = batch.get(sub) or {}, SUBS[sub]
@@ -224,6 +226,8 @@ def _columns(flat: dict, name: str) -> dict[str, Any]:
         if not np.array_equal(count["EpisodeSummaries", f.name], n_eps):
             raise bad(f"summary column {f.name} does not have one entry per episode")
     msg_of_ep = np.repeat(np.arange(len(n_eps)), n_eps)
+    if not count["Steps", "states"].any():  # recorded without steps (record=episodes)
+        lens = np.zeros_like(lens)
     for msg, expected, why in (("Steps", np.bincount(msg_of_ep, lens, len(n_eps)), "step column {} does not have "
                                 "the episodes' step count"), ("Recognitions", count["Recognitions", "episode"],
                                 "recognition columns differ in length ({})"), ("UnsafeAdditions",

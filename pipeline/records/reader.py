@@ -51,6 +51,7 @@ class FileMeta:
     obstacles: dict[int, list[dict[str, int]]] = field(default_factory=dict)  # run -> assignment
     info: dict[str, Any] = field(default_factory=dict)
     closed: dict[str, str] | None = None
+    record: str = "steps"  # what was recorded: "steps" (every step) or "episodes" (no step rows)
     pictures: dict[int, bytes] = field(default_factory=dict)
     support_pictures: dict[tuple[int, int], bytes] = field(default_factory=dict)  # (category, position)
     problems: list[str] = field(default_factory=list)  # what the warning said, one sentence each
@@ -264,7 +265,7 @@ def _file_meta(sc: Scan, pictures: bool) -> FileMeta:
     """The file's metadata records and pictures; one that does not parse is a damaged part, not an error."""
     md = sc.metadata
     fields = {"config_yaml": md.get("config", {}).get("yaml"), "versions": dict(md.get("versions", {})),
-              "closed": md.get("closed")}
+              "closed": md.get("closed"), "record": md.get("recording", {}).get("record", "steps")}
     for name, parse in _METADATA.items():
         try:
             fields |= parse(md[name]) if name in md else {}

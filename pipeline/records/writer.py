@@ -125,10 +125,10 @@ def _check_runs(runs: Sequence | Mapping) -> dict[str, list[dict[str, int]]]:
     return out
 
 
-def _metadata_records(metadata: dict[str, Any], maze, runs) -> list[tuple[str, dict[str, str]]]:
+def _metadata_records(metadata: dict[str, Any], maze, runs, level: str) -> list[tuple[str, dict[str, str]]]:
     import yaml
 
-    out = [("recording", {"format_version": S.FORMAT_VERSION, "library": LIBRARY,
+    out = [("recording", {"format_version": S.FORMAT_VERSION, "library": LIBRARY, "record": level,
                           "time": "log_time_ns = run * 1e15 + episode * 1e9 + step * 1e6 (1 ms a step, 1 s an episode)",
                           "episodes_topic": S.TOPIC_EPISODES,
                           "pictures_topic": S.TOPIC_PICTURES + "/<picture id>"})]
@@ -159,14 +159,18 @@ class RecordWriter:
     ``maze``: ``layout`` (rows of ``S``/``G``/``X``/``.``), ``categories``, other keys; ``runs``: per
     run (list or dict) the obstacles ``{cell, physical, category, instance, orientation}``;
     ``pictures``: query picture id -> PNG/JPEG/WebP bytes; ``support_pictures``: category -> K
-    initial thumbnails; ``flush_every``: episodes a chunk; ``compression``: zstd, lz4 or none.
+    initial thumbnails; ``flush_every``: episodes a chunk; ``compression``: zstd, lz4 or none;
+    ``steps``: record every step (``record=steps``) or, False, only what happens per episode
+    (``record=episodes``: summaries, recognitions, unsafe-set additions, substitutions; the runner then
+    keeps no step trace, see ``records_steps`` in ``pipeline/rl/sink.py``).
     """
 
     def __init__(self, path: str | os.PathLike, *, metadata: Mapping[str, Any] | None = None,
                  maze: Mapping[str, Any] | None = None, runs: Sequence | Mapping | None = None,
                  pictures: Mapping[int, bytes] | None = None,
                  support_pictures: Mapping[int, Sequence[bytes]] | None = None,
-                 flush_every: int = 100, compression: str = "zstd", chunk_size: int = 8 * 2**20):
+                 flush_every: int = 100, compression: str = "zstd", chunk_size: int = 8 * 2**20,
+                 steps: bool = True):
         self.path = Path(path)
         if self.path.suffix != ".mcap":
             raise ValueError(f"record file name must end in .mcap, got {self.path}")
@@ -175,11 +179,12 @@ class RecordWriter:
         if compression not in COMPRESSION:
             raise ValueError(f"compression must be one of {sorted(COMPRESSION)}, got {compression!r}")
         self.partial_path = self.path.with_name(self.path.name + ".partial")
+        self.records_steps = bool(steps)
         self.flush_every, self.n_episodes, self.n_substitutions = int(flush_every), 0, 0
         self._since_flush, self._closed = 0, False
         self._next_episode: dict[int, int] = {}  # run -> first episode not yet recorded
         self._subs: dict[int, list[tuple]] = {}  # run -> substitutions waiting for their episode's batch
-        records = _metadata_records(dict(metadata or {}), maze, runs)  # validate before touching the disk
+        records = _metadata_records(dict(metadata or {}), maze, runs, "steps" if steps else "episodes")  # validated
         images = [(f"{S.TOPIC_PICTURES}/{int(p)}", _image(f"picture_{int(p)}", pictures[p])) for p in sorted(pictures or {})]
         images += [(f"{S.TOPIC_SUPPORT}/{int(c)}/{k}", _image(f"support_{int(c)}_{k}", data))
                    for c in sorted(support_pictures or {}) for k, data in enumerate(support_pictures[c])]
@@ -210,7 +215,7 @@ class RecordWriter:
             last = int(batch["episode"][-1])
             k = next((i for i, s in enumerate(waiting) if s[0] > last), len(waiting))
             batch = dict(batch, substitutions=dict(zip(SUBSTITUTION_KEYS, map(np.array, zip(*waiting[:k])))))
-        b = check_batch(batch)
+        b = check_batch(batch, with_steps=self.records_steps)
         if not len(b["episode"]):
             return
         run, first, last = b["run"], int(b["episode"][0]), int(b["episode"][-1])

@@ -119,7 +119,7 @@ def _emit(sink, r, run_id, first_ep, last_ep, results, trace, recognitions, addi
     if last_ep > first_ep:
         eps = slice(first_ep, last_ep)
         steps = results.steps[r, eps]
-        n = int(steps.sum())
+        n = int(steps.sum()) if trace.record else 0  # a sink without steps (records_steps False) gets none
         lo = cursors["rec"][r]  # recognitions and additions of the finished episodes only
         hi = lo + int(np.searchsorted(recognitions.episode[r, lo:int(recognitions.length[r])], last_ep))
         rec = slice(lo, hi)
@@ -184,6 +184,7 @@ def run_trials(layout: Layout, method: MethodSpec, runs: int, episodes: int, see
     # each dangerous pair (eq. 4) is seen and joins A_d at most once a run
     n_dangerous = max(1, int((geometry.obstacle >= 0).sum()))
     record = sink is not None
+    trace_steps = record and getattr(sink, "records_steps", True)
 
     worlds = [make_run_world(geometry, seed, run_offset + r) for r in range(runs)]
     sights = Sights(
@@ -210,7 +211,7 @@ def run_trials(layout: Layout, method: MethodSpec, runs: int, episodes: int, see
 
     state = RunState.fresh(runs, layout.n_cells, layout.start, method.epsilon, rng)
     results = Results.zeros(runs, episodes)
-    trace = Trace.empty(runs, max(trace_capacity, method.max_steps) if record else 1, record)
+    trace = Trace.empty(runs, max(trace_capacity, method.max_steps) if trace_steps else 1, trace_steps)
     recognitions = Recognitions.empty(runs, n_dangerous)
     additions = Additions.empty(runs, n_dangerous)
     substitution = Substitution.empty(runs)
@@ -272,7 +273,7 @@ def run_trials(layout: Layout, method: MethodSpec, runs: int, episodes: int, see
                 advance(group, limit)
                 bar.update(int(state.episode[group].sum()) - before)
                 if record:  # hand finished episodes over in batches of at least half the trace
-                    last = limit == episodes
+                    last = limit == episodes or not trace_steps
                     for r in group:
                         if last or 2 * int(trace.length[r]) >= trace.states.shape[1]:
                             emit(int(r))

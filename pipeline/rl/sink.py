@@ -5,7 +5,10 @@ run (columnar: the steps of all the batch's episodes concatenated, so a recorder
 not Python objects per episode), in episode order per run (batches of different runs may
 interleave), and ``sink.substitution(...)`` whenever a run's dynamic support set changed. ``rl``
 does not import ``records``: the MCAP writer implements this protocol, and so can anything else
-(a list in a test; :func:`split_batch` gives one dict per episode).
+(a list in a test; :func:`split_batch` gives one dict per episode). A sink whose attribute
+``records_steps`` is False (the MCAP writer at ``record=episodes``) gets every field but the step rows
+(``states``, ``actions``, ``rewards``, ``flags`` empty; ``steps`` still counts them): the runner then
+keeps no step trace and hands a run's episodes over every ``chunk_episodes``.
 
 Batch fields (numpy arrays):
     run                          int

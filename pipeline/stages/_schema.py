@@ -24,6 +24,7 @@ from pipeline.schema import setting
 SUPPORT_MODES = ("restore", "carry")
 SUBSTITUTION_WAYS = (1, 2, 3, 4)
 VIEWERS = ("none", "web", "native")
+RECORD_LEVELS = ("steps", "episodes", "none")
 
 
 # ---------------------------------------------------------------- profile (conf/profile/*.yaml)
@@ -115,7 +116,9 @@ class TrialsConfig:
     declares it: DVC keeps its outs in its cache)."""
     metrics_file: Optional[str] = None
     timing_file: Optional[str] = None
-    record: bool = MISSING
+    record: str = setting(choices=RECORD_LEVELS)
+    """What the MCAP records hold (docs/records.md "Record levels"): ``steps`` every step, ``episodes``
+    per-episode summaries and every recognition, substitution and unsafe pair, ``none`` no record file."""
     flush_every: int = setting(ge=1)
     progress: bool = MISSING
     threads: int = setting(ge=0)

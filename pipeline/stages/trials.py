@@ -170,7 +170,7 @@ def run_cell(cell: CellRun, folder: Path) -> tuple[dict, float]:
     runs, episodes, seed = cfg.runs, cfg.episodes, cfg.seed
     recogniser = cell.recogniser
     writer = None
-    if cfg.record:
+    if cfg.record != "none":
         from pipeline.records.writer import RecordWriter
         geometry = build_geometry(layout)
         placements = [make_run_world(geometry, seed, r).placement.as_records(layout.obstacles) for r in range(runs)]
@@ -185,7 +185,7 @@ def run_cell(cell: CellRun, folder: Path) -> tuple[dict, float]:
                                "recogniser": recogniser.describe() if hasattr(recogniser, "describe") else None}},
             maze={"layout": list(layout.rows), "name": layout.name, "categories": list(CATEGORIES),
                   "actions": ACTION_NAMES, "moves": MOVES},
-            runs=placements, pictures=pictures, flush_every=cfg.flush_every)
+            runs=placements, pictures=pictures, flush_every=cfg.flush_every, steps=cfg.record == "steps")
     t0 = time.perf_counter()
     try:
         result = run_trials(layout, method, runs, episodes, seed, recogniser=recogniser, sink=writer,
@@ -193,7 +193,7 @@ def run_cell(cell: CellRun, folder: Path) -> tuple[dict, float]:
     except (KeyboardInterrupt, Interrupted) as exc:
         code = exc.code if isinstance(exc, Interrupted) else 130
         if writer is None:
-            raise Interrupted(code, f"interrupted; nothing recorded (record=false); {folder} left as it was") from None
+            raise Interrupted(code, f"interrupted; nothing recorded (record=none); {folder} left as it was") from None
         path = writer.close(complete=False)
         raise Interrupted(code, f"interrupted; partial records at {path}: {writer.n_episodes} episodes") from None
     except BaseException:
@@ -213,8 +213,8 @@ def run_cell(cell: CellRun, folder: Path) -> tuple[dict, float]:
 def memory_estimate(cfg: TrialsConfig, layout: Layout) -> int:
     """Bytes the runner's arrays take for one cell (``pipeline.rl.runner.run_trials``): per-episode
     results (22 bytes a run-episode), Q and A_d (36 bytes a run-cell-action), the step trace when
-    recording (10 bytes x 16384 steps a run) and the per-run summaries."""
-    per_run = cfg.episodes * 22 + layout.n_cells * 4 * 9 + (16384 * 10 if cfg.record else 0) + 2048
+    recording steps (10 bytes x 32768 steps a run) and the per-run summaries."""
+    per_run = cfg.episodes * 22 + layout.n_cells * 4 * 9 + (32768 * 10 if cfg.record == "steps" else 0) + 2048
     return cfg.runs * per_run
 
 
