@@ -102,7 +102,8 @@ class TrialsConfig:
     """The recogniser group (``conf/recogniser/``): ``_target_`` and its arguments."""
     experiment: Optional[Experiment] = None
     maze: str = setting(nonempty=True)
-    """A built-in layout (``conf/mazes/<name>.txt``) or a path to a layout file."""
+    """A built-in layout (``conf/mazes/<name>.txt``), a path to a layout file, or a generated layout
+    ``random:<W>x<H>:<obstacles>:<seed>[:unique]`` (``pipeline/world/generate.py``)."""
     substitution: int = setting(choices=SUBSTITUTION_WAYS)
     """Dynamic support set: substitution way 1-4 (section 3.3); used by methods with dynamic_support."""
     support: str = setting(choices=SUPPORT_MODES)

@@ -1,6 +1,7 @@
 """Maze layouts as plain text (paper section 4.1, Figures 6 and 11).
 
-One row per line: ``S`` start, ``G`` goal, ``X`` obstacle, ``.`` free. Blank lines at the end of
+One row per line: ``S`` start, ``G`` goal, ``X`` obstacle, ``.`` free; ``random:...`` names a
+generated layout instead of a file (:mod:`pipeline.world.generate`). Blank lines at the end of
 the file and trailing whitespace are ignored; ``#`` starts a comment line. Cells are numbered
 ``row * width + col``; actions are 0 N, 1 E, 2 S, 3 W, one cell a step.
 """
@@ -13,6 +14,7 @@ from pathlib import Path
 
 import numba as nb
 import numpy as np
+
 from pipeline.errors import UserError
 
 #: Action -> (d_row, d_col). 0 N, 1 E, 2 S, 3 W (the order of ``pictures.FACE_NAMES``).
@@ -94,18 +96,17 @@ def _neighbour(layout_h: int, layout_w: int, cell: int, action: int) -> int | No
 
 
 @nb.njit(cache=True)
-def _bfs_length(blocked: np.ndarray, h: int, w: int, start: int, goal: int) -> int:
-    """Moves on a shortest start->goal path around obstacles, or -1 (breadth-first, O(cells))."""
+def bfs_distances(blocked: np.ndarray, h: int, w: int, source: int) -> np.ndarray:
+    """Moves from ``source`` to every cell around the ``blocked`` cells (-1 where unreachable):
+    breadth-first search over the 4-neighbourhood, O(cells)."""
     dist = np.full(h * w, -1, dtype=np.int64)
     queue = np.empty(h * w, dtype=np.int64)
-    dist[start] = 0
-    queue[0] = start
+    dist[source] = 0
+    queue[0] = source
     head, tail = 0, 1
     while head < tail:
         s = queue[head]
         head += 1
-        if s == goal:
-            return dist[s]
         r, c = s // w, s % w
         for a in range(4):
             if a == 0:
@@ -120,12 +121,12 @@ def _bfs_length(blocked: np.ndarray, h: int, w: int, start: int, goal: int) -> i
                 dist[n] = dist[s] + 1
                 queue[tail] = n
                 tail += 1
-    return -1
+    return dist
 
 
 def shortest_path_length(layout: Layout) -> int | None:
     """Breadth-first search from start to goal around obstacles; None if the goal is unreachable."""
-    n = int(_bfs_length(layout.is_obstacle(), layout.height, layout.width, layout.start, layout.goal))
+    n = int(bfs_distances(layout.is_obstacle(), layout.height, layout.width, layout.start)[layout.goal])
     return None if n < 0 else n
 
 
@@ -197,7 +198,13 @@ def parse_layout(text: str, source: str = "<string>") -> Layout:
 
 
 def load_layout(spec: str | Path) -> Layout:
-    """Load a layout by built-in name (``5x5``, ``7x7``, ``11x11``: files in ``conf/mazes/``) or path."""
+    """Load a layout by built-in name (``5x5``, ``7x7``, ``11x11``: files in ``conf/mazes/``), by
+    path, or generate one from a ``random:<W>x<H>:<obstacles>:<seed>[:unique]`` name
+    (:mod:`pipeline.world.generate`)."""
+    from pipeline.world import generate  # it builds on this module
+
+    if generate.is_spec(spec):
+        return generate.generate_layout(spec)
     path = Path(spec)
     if not path.suffix and not path.exists():
         builtin = BUILTIN_DIR / f"{spec}.txt"
