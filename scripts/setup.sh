@@ -30,6 +30,18 @@ if ! command -v chromium >/dev/null 2>&1; then
   fi
 fi
 
+# Debian's slurm-wlm and munge for tests/test_slurm.py, which starts a one-node SLURM cluster on this
+# machine and sends a sweep to it through Hydra's submitit launcher. Without them that test is skipped.
+if ! command -v slurmctld >/dev/null 2>&1 && [ ! -x /usr/sbin/slurmctld ]; then
+  if command -v apt-get >/dev/null 2>&1 && [ "$(id -u)" = "0" ]; then
+    echo "[setup] installing slurm-wlm and munge (for tests/test_slurm.py)"
+    { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq slurm-wlm munge >/dev/null; } ||
+      echo "[setup] WARNING: could not install slurm-wlm/munge; tests/test_slurm.py will be skipped" >&2
+  else
+    echo "[setup] note: no slurm-wlm and cannot apt-get install it; tests/test_slurm.py will be skipped" >&2
+  fi
+fi
+
 if [ ! -x .venv/bin/python ]; then
   "$PY" -m venv .venv
 fi
