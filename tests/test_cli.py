@@ -82,7 +82,7 @@ def test_the_outs_dvc_yaml_declares_are_replaced(tmp_path, monkeypatch):
 
 def test_the_pipelines_trials_outs_are_declared():
     declared = trials.dvc_outs(trials.DVC_YAML)
-    for name in ("fig8", "fig9", "fig10", "table3"):
+    for name in ("fig8", "fig9", "fig10", "table3", "accuracy_curve"):
         assert (ROOT / "datasets" / "runs" / name).resolve() in declared
     assert (ROOT / "datasets" / "runs" / "adhoc").resolve() not in declared
 

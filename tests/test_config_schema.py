@@ -215,3 +215,58 @@ def test_overrides_that_no_cell_reads_are_refused(args, key, tmp_path):
     with pytest.raises(ConfigError, match=f"config key '{key}'.*cannot apply"):
         run_stage("trials", [*args, f"out={tmp_path}", *SMOKE])
     assert not list(tmp_path.iterdir())
+
+
+def test_a_cell_pins_recogniser_arguments_and_its_records_say_so(tmp_path):
+    """``experiment.cells.<name>.recogniser`` ({p: ...}) is applied to that cell only, over the top
+    level's recogniser, and the records hold the config that ran."""
+    from pipeline.records import read_records
+    from pipeline.stages._schema import Cell
+    from pipeline.stages.trials import run
+
+    args = ["+experiment=fig8", "recogniser=fixed_accuracy", "recogniser.learn=false", f"out={tmp_path}", *SMOKE]
+    cfg = load_config("trials", args)
+    cfg.experiment.cells = {"blind": Cell(method="fewshot", recogniser={"p": 0.0}),
+                            "perfect": Cell(method="fewshot", recogniser={"p": 1.0}),
+                            "top": Cell(method="fewshot"), "ssrl": Cell(method="ssrl")}
+    cfg.experiment.report = None
+    index = run(cfg, args)
+    collisions = {name: cell["collisions"]["mean"] for name, cell in index["cells"].items()}
+    assert collisions["perfect"] == 0 and collisions["blind"] > collisions["top"] > 0
+    for name, p in (("blind", 0.0), ("perfect", 1.0), ("top", 0.5)):  # top: conf/recogniser/fixed_accuracy.yaml's
+        config = read_records(tmp_path / name / "records.mcap", pictures=False).meta.config
+        assert config["recogniser"]["p"] == p and config["recogniser"]["learn"] is False
+
+
+@pytest.mark.parametrize("cells,args,message", [
+    ({"s": {"method": "ssrl", "recogniser": {"p": 0.3}}}, [],
+     r"config key 'experiment.cells.s.recogniser': method ssrl recognises no pictures"),
+    ({"a": {"method": "fewshot", "recogniser": {"p": 0.3}}, "s": {"method": "ssrl"}}, ["recogniser.p=0.4"],
+     r"config key 'recogniser.p': every cell of experiment fig8 with a recogniser pins it"),
+    ({"a": {"method": "fewshot", "recogniser": {"q": 0.3}}}, [],
+     r"config key 'experiment.cells.a.recogniser.q': .*parameters of .*FixedAccuracyRecogniser: p, learn"),
+    ({"a": {"method": "fewshot", "recogniser": {"p": 1.5}}}, [],
+     r"config key 'experiment.cells.a.recogniser': p must lie in \[0, 1\], got 1.5"),
+])
+def test_recogniser_pins_that_cannot_apply_are_refused(cells, args, message):
+    from pipeline.stages._schema import Cell
+    from pipeline.stages.trials import resolve_cells
+
+    args = ["+experiment=fig8", "recogniser=fixed_accuracy", *args, *SMOKE]
+    cfg = load_config("trials", args)
+    cfg.experiment.cells = {name: Cell(**cell) for name, cell in cells.items()}
+    cfg.experiment.report = None
+    with pytest.raises(ConfigError, match=message):
+        resolve_cells(cfg, args)
+
+
+def test_accuracy_curve_pins_each_cells_accuracy():
+    args = ["+experiment=accuracy_curve", *SMOKE]
+    cells = experiment_cells(load_config("trials", args), args)
+    assert len(cells) == 60
+    assert cells["fewshot_dss_11x11_p30"].recogniser["p"] == 0.3 and cells["fewshot_5x5_p100"].recogniser["p"] == 1.0
+    assert {c.recogniser["_target_"] for c in cells.values()} == {"pipeline.rl.fixed_accuracy.FixedAccuracyRecogniser"}
+    assert {(c.method.name, c.maze) for n, c in cells.items() if not c.method.uses_recogniser} == {
+        (m, z) for m in ("shield", "ssrl") for z in ("5x5", "7x7", "11x11")}
+    with pytest.raises(ConfigError, match="config key 'recogniser.p': every cell"):
+        experiment_cells(load_config("trials", [*args, "recogniser.p=0.5"]), [*args, "recogniser.p=0.5"])

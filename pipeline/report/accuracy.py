@@ -94,6 +94,16 @@ class Study:
         return None if value is None or pd.isna(value) else float(value)
 
 
+def query_accuracy(accuracy_dir: Path) -> tuple[int, int] | None:
+    """Correct and tested query pictures of the Relation Network with the original support set
+    (the accuracy study's ``summary.json``, Table 1's first row); None without the study."""
+    path = accuracy_dir / "summary.json"
+    if not path.is_file():
+        return None
+    baseline = json.loads(path.read_text())["baseline"]
+    return int(sum(baseline["correct"])), int(sum(baseline["total"]))
+
+
 def percent(value, estimate: Estimate | None = None) -> str:
     """``57.71%`` or, with an estimate whose interval to show, ``57.71% [55.49, 59.93]``."""
     if value is None or pd.isna(value):

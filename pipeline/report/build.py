@@ -42,10 +42,12 @@ class Inputs:
 
 
 class Report:
-    """Collects Markdown sections while tables and figures are written."""
+    """Collects Markdown sections while tables and figures are written; ``accuracy_dir``: the
+    accuracy study's data files, for sections that mark the Relation Network's accuracy."""
 
-    def __init__(self, out: Path):
+    def __init__(self, out: Path, accuracy_dir: Path | None = None):
         self.out = out
+        self.accuracy_dir = accuracy_dir
         self.sections: list[str] = []
         (out / "tables").mkdir(parents=True, exist_ok=True)
         (out / "figures").mkdir(parents=True, exist_ok=True)
@@ -125,7 +127,7 @@ def ticking(bar: tqdm, every: float = 1.0):
 
 def _build_parts(inputs: Inputs, bar: tqdm) -> Path:
     """The report, part by part; ``bar`` names the part being built and counts those done."""
-    rep = Report(inputs.out)
+    rep = Report(inputs.out, inputs.accuracy_dir)
     rep.add("# Few-shot reasoning-based safe RL: our results beside the paper's\n\n"
             "Built by `python -m pipeline report` from the recorded data only (MCAP records of every "
             "episode, the accuracy study's data files, the model's validation metrics). Every number "

@@ -187,3 +187,37 @@ def modal_final_path(steps_df, width: int, goal: int) -> list[int]:
         return []
     shortest = min(len(p) for p in paths)
     return list(Counter(p for p in paths if len(p) == shortest).most_common(1)[0][0])
+
+
+def accuracy_curves(panels: list[dict], path: Path, marker: float | None = None, marker_label: str = ""):
+    """One panel per maze: collisions per run against the recognition accuracy ``p``. Each panel:
+    ``title``; ``curves`` (label -> ``(p, mean, ci_low, ci_high)`` arrays: a line with its band);
+    ``references`` (label -> ``(mean, ci_low, ci_high)``: a horizontal line with its band);
+    ``measured`` (curve label -> ``(x, mean, ci_low, ci_high)``: a star with its interval, in the
+    colour of that curve). ``marker``: a vertical line at that accuracy, named ``marker_label``."""
+    fig, axes = plt.subplots(1, len(panels), figsize=(4.3 * len(panels), 3.8), squeeze=False)
+    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    for ax, panel in zip(axes[0], panels):
+        colour = {label: colours[i % len(colours)] for i, label in enumerate(panel["curves"])}
+        for label, (x, mean, lo, hi) in panel["curves"].items():
+            ax.plot(x, mean, "o-", color=colour[label], label=label, ms=3, lw=1.2)
+            ax.fill_between(x, lo, hi, color=colour[label], alpha=0.2, lw=0)
+        for j, (label, (mean, lo, hi)) in enumerate(panel["references"].items()):
+            ax.axhline(mean, color="black", ls=("--", "-.", ":")[j % 3], lw=1, label=label)
+            ax.axhspan(lo, hi, color="black", alpha=0.08, lw=0)
+        for label, (x, mean, lo, hi) in panel.get("measured", {}).items():
+            ax.errorbar([x], [mean], yerr=[[mean - lo], [hi - mean]], fmt="*", ms=11, capsize=3,
+                        color=colour.get(label, "red"), mec="black", mew=0.5, zorder=5,
+                        label=f"{label}, Relation Network")
+        if marker is not None:
+            ax.axvline(marker, color="red", ls=":", lw=1, label=marker_label)
+        ax.set_ylim(bottom=0)
+        ax.set_xlabel("recognition accuracy p")
+        ax.set_title(panel["title"], fontsize=10)
+    axes[0][0].set_ylabel("collisions per run (mean, 95% CI)")
+    legend = {}
+    for ax in axes[0]:  # one legend below the panels, each label once
+        legend.update({label: handle for handle, label in zip(*ax.get_legend_handles_labels()) if label not in legend})
+    fig.legend(legend.values(), legend.keys(), fontsize=8, loc="upper center", bbox_to_anchor=(0.5, 0.0),
+               ncol=min(len(legend), 5), frameon=False)
+    return save(fig, path)

@@ -3,15 +3,16 @@
 
 Kinds: ``default`` (a table of collisions per run with 95% bootstrap intervals, learning curves with
 95% bands, the support set's query accuracy), ``bars`` (the same with a bar chart), ``long_term``
-(the runs are consecutive experiments of one robot) and ``by_maze`` (one row per group of cells,
-one column per maze, ours beside the paper's). A ``path`` block adds a section with the learned
-path before the experiment's own. Tables and figures are named after the experiment's folder:
-``tables/<folder>.md|csv``, ``figures/<folder>_collisions.png``, ``<folder>_learning_curves.png``
-(its data ``tables/<folder>_learning_curves.csv``, long format: ``series`` (the row's name; with
-`` (<maze>)`` in ``by_maze``), ``key``, ``episode``, ``mean``, ``ci_low``, ``ci_high``; dvc.yaml's
-plots colour by ``series``), ``<folder>_support_accuracy.png``, ``<folder>_long_term.png``,
-``<folder>_path.png``; ``by_maze`` adds ``_<maze>`` to the figures and writes
-``tables/<folder>_data.csv``.
+(the runs are consecutive experiments of one robot), ``by_maze`` (one row per group of cells,
+one column per maze, ours beside the paper's) and ``accuracy_curve`` (collisions against a
+controlled recogniser's accuracy: :mod:`pipeline.report.accuracy_curve`). A ``path`` block adds
+a section with the learned path before the experiment's own. Tables and figures are named after
+the experiment's folder: ``tables/<folder>.md|csv``, ``figures/<folder>_collisions.png``,
+``<folder>_learning_curves.png`` (its data ``tables/<folder>_learning_curves.csv``, long format:
+``series`` (the row's name; with `` (<maze>)`` in ``by_maze``), ``key``, ``episode``, ``mean``,
+``ci_low``, ``ci_high``; dvc.yaml's plots colour by ``series``), ``<folder>_support_accuracy.png``,
+``<folder>_long_term.png``, ``<folder>_path.png``; ``by_maze`` adds ``_<maze>`` to the figures and
+writes ``tables/<folder>_data.csv``.
 
 Rows are named from their cells (:mod:`pipeline.report.names`). A row that pools cells (Table 3's
 four substitution ways) counts each run seed once in its intervals: the cells share run seeds, so
@@ -20,7 +21,7 @@ section prints the paper's number for the same setting (Table 3's 5x5 column for
 the tables and bar charts show it beside ours (:func:`paper_values`).
 
 ``rep`` is the report being written (:class:`pipeline.report.build.Report`): ``add``, ``table``,
-``figure`` and ``out``.
+``figure``, ``out`` and ``accuracy_dir``.
 """
 from __future__ import annotations
 
@@ -34,6 +35,7 @@ import pandas as pd
 
 from pipeline.records import read_records
 from pipeline.report import figures as F
+from pipeline.report.accuracy_curve import accuracy_curve_kind
 from pipeline.report.experiments import Cell, Experiment
 from pipeline.report.names import settings
 from pipeline.report.spec import Row
@@ -353,7 +355,8 @@ def by_maze_kind(rep, exp: Experiment, paper: dict[str, PaperValue]) -> None:
             support_part(rep, exp, [(row, cells) for row, cells in on_maze if cells], maze)
 
 
-KINDS = {"default": default_kind, "bars": bars_kind, "long_term": long_term_kind, "by_maze": by_maze_kind}
+KINDS = {"default": default_kind, "bars": bars_kind, "long_term": long_term_kind, "by_maze": by_maze_kind,
+         "accuracy_curve": accuracy_curve_kind}
 
 
 # ------------------------------------------------------------------------------------ path

@@ -23,7 +23,9 @@ from typing import Any, Dict, Iterable, List, Optional
 #: ``bars``: the same with a bar chart of collisions per run. ``long_term``: the runs are
 #: consecutive experiments of one robot (collisions of each, the support set's accuracy at the end
 #: of each). ``by_maze``: one row per group, one column per maze (ours and the paper's).
-KINDS = ("default", "bars", "long_term", "by_maze")
+#: ``accuracy_curve``: collisions against the recognition accuracy ``p`` of the cells' recogniser,
+#: per maze, the cells without a recogniser as reference lines, and the break-even accuracies.
+KINDS = ("default", "bars", "long_term", "by_maze", "accuracy_curve")
 
 
 @dataclass
@@ -112,6 +114,9 @@ class ReportSpec:
 
         for name in self.cells:
             need("cells", name)
+        if self.kind == "accuracy_curve" and self.groups:
+            why = "the accuracy_curve kind pools no cells (one curve per method and maze); give cells or nothing"
+            out.append(("groups", why))
         seen = set()
         for i, group in enumerate(self.groups):
             if not group.key.strip():

@@ -1,8 +1,8 @@
 """Summary statistics for the report: mean, standard deviation and a seeded 95% bootstrap interval
 of the mean (tables); per-episode means with a 95% t interval (the bands of learning curves);
-bootstrap intervals of differences between cells (the claims); Wilson intervals of shares of runs;
-conservative normal intervals for accuracies of which only sums over draws are recorded (Tables 1
-and 2: :func:`bounded_sd`).
+bootstrap intervals of differences between cells (the claims) and of break-even levels
+(:func:`break_even`); Wilson intervals of shares of runs; conservative normal intervals for
+accuracies of which only sums over draws are recorded (Tables 1 and 2: :func:`bounded_sd`).
 
 The independent unit of a trial is its run seed: the cells of an experiment (and the experiments
 recorded with the same seed and run count) share run ``r``'s obstacle placement and random
@@ -98,6 +98,34 @@ def bootstrap_difference(a, b, *, paired: bool, level: float = 0.95, resamples: 
     means = [x[rng.integers(0, x.size, size=(resamples, x.size))].mean(axis=1) for x in (a, b)]
     lo, hi = np.quantile(means[0] - means[1], [(1 - level) / 2, 1 - (1 - level) / 2])
     return (float(a.mean() - b.mean()), float(lo), float(hi))
+
+
+def break_even(levels, curve, reference, *, level: float = 0.95, resamples: int = 2000,
+               seed: int = 0) -> tuple[float, float, float]:
+    """The break-even level of a curve against a reference, and its percentile-bootstrap interval.
+
+    ``levels`` (k, increasing) are the settings of the curve's points; ``curve`` (k x runs) holds
+    each point's values per run, ``reference`` (runs) the reference's. The break-even level is the
+    smallest level whose mean over runs is at or below the reference's mean; ``inf`` if none is.
+    Run ``i`` of every point and of the reference share a run seed, so each of the ``resamples``
+    draws one set of run indices for all of them (paired), and the break-even level of the
+    resampled means is found the same way. The interval's ends are order statistics of those
+    levels (the ``(1-level)/2`` and ``(1+level)/2`` quantiles, lower and upper: values of the grid
+    or ``inf``), so its resolution is the grid's."""
+    levels = np.asarray(levels, dtype=float)
+    c, r = np.asarray(curve, dtype=float), np.asarray(reference, dtype=float)
+
+    def first(means: np.ndarray, ref: np.ndarray) -> np.ndarray:  # (k, b), (b,) -> (b,)
+        at_or_below = means <= ref
+        return np.where(at_or_below.any(axis=0), levels[np.argmax(at_or_below, axis=0)], np.inf)
+
+    point = float(first(c.mean(axis=1)[:, None], np.array([r.mean()]))[0])
+    rng = np.random.default_rng(seed)
+    index = rng.integers(0, r.size, size=(resamples, r.size))
+    levels_drawn = np.sort(first(c[:, index].mean(axis=2), r[index].mean(axis=1)))
+    low = levels_drawn[int(np.floor((1 - level) / 2 * resamples))]
+    high = levels_drawn[int(np.ceil((1 + level) / 2 * resamples)) - 1]
+    return point, float(low), float(high)
 
 
 def wilson_ci(share: float, n: int) -> tuple[float, float]:

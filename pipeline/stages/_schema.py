@@ -79,6 +79,10 @@ class Cell:
     support: Optional[str] = setting(None, choices=SUPPORT_MODES)
     params: Dict[str, Any] = field(default_factory=dict)
     """Method fields this cell pins (``{alpha: 0.05}``); the command line does not change them."""
+    recogniser: Dict[str, Any] = field(default_factory=dict)
+    """Recogniser arguments this cell pins (``{p: 0.3}``) over the top level's recogniser
+    (``recogniser=<name>``, ``recogniser.<arg>=``), checked against that recogniser's parameters;
+    only for methods that recognise pictures. The command line does not change them."""
 
 
 @dataclass

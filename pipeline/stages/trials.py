@@ -37,7 +37,8 @@ from pipeline.world.geometry import build_geometry
 from pipeline.world.maze import ACTION_NAMES, MOVES, Layout, load_layout
 from pipeline.world.pictures import CATEGORIES
 
-#: Keys a cell may pin; the top level (experiment globals, command line) gives the others.
+#: Keys a cell may pin; the top level (experiment globals, command line) gives the others. A cell
+#: also pins method fields (``params``) and recogniser arguments (``recogniser``).
 CELL_KEYS = ("maze", "substitution", "support")
 
 #: The DVC pipeline, whose declared outs the trials may replace without ``overwrite=true``.
@@ -91,18 +92,36 @@ def experiment_cells(cfg: TrialsConfig, overrides: list[str]) -> dict[str, Trial
             raise ConfigError(f"config key '{full}': every cell of experiment {exp.name} pins it "
                               f"(experiment.cells.*.{key if key in CELL_KEYS else 'params.' + key}); "
                               "the override cannot apply")
+    methods = {name: load_method(cell.method, {**method_over, **cell.params}, key=f"experiment.cells.{name}.method")
+               for name, cell in exp.cells.items()}
+    refuse_idle_recogniser_pins(exp, methods, given)
     cells = {}
     for name, cell in exp.cells.items():
-        key = f"experiment.cells.{name}"
-        method = load_method(cell.method, {**method_over, **cell.params}, key=f"{key}.method")
-        cells[name] = replace(cfg, method=method, **{k: getattr(cell, k) if getattr(cell, k) is not None
-                                                     else getattr(cfg, k) for k in CELL_KEYS})
+        cells[name] = replace(cfg, method=methods[name], recogniser={**cfg.recogniser, **cell.recogniser},
+                              **{k: getattr(cell, k) if getattr(cell, k) is not None
+                                 else getattr(cfg, k) for k in CELL_KEYS})
         check(cells[name])
     problems = exp.report.problems(exp.cells) if exp.report is not None else []
     if problems:
         key, problem = problems[0]
         raise ConfigError(f"config key 'experiment.report.{key}': {problem}")
     return cells
+
+
+def refuse_idle_recogniser_pins(exp: Experiment, methods: dict[str, MethodSpec], given: dict[str, Any]) -> None:
+    """Recogniser arguments would change nothing where no recogniser runs: a cell that pins them
+    for a method that sees no pictures is refused, and so is a command-line ``recogniser.<arg>``
+    that every cell with a recogniser pins."""
+    for name, cell in exp.cells.items():
+        if cell.recogniser and not methods[name].uses_recogniser:
+            raise ConfigError(f"config key 'experiment.cells.{name}.recogniser': method {methods[name].name} "
+                              "recognises no pictures, so the recogniser's arguments cannot apply")
+    seeing = [name for name in exp.cells if methods[name].uses_recogniser]
+    for key in given:
+        arg = key.removeprefix("recogniser.")
+        if key.startswith("recogniser.") and seeing and all(arg in exp.cells[n].recogniser for n in seeing):
+            raise ConfigError(f"config key '{key}': every cell of experiment {exp.name} with a recogniser pins it "
+                              f"(experiment.cells.*.recogniser.{arg}); the override cannot apply")
 
 
 #: Command-line keys that only some methods read: (what uses it, test on the cell's method).
@@ -136,17 +155,19 @@ def resolve_cells(cfg: TrialsConfig, overrides: list[str]) -> list[CellRun]:
             layout = load_layout(cell.maze)
         except UserError as exc:
             raise ConfigError(f"config key '{prefix}maze': {exc}") from None
-        out.append(CellRun(name, cell, layout, make_recogniser(cell)))
+        pins = name and cfg.experiment.cells[name].recogniser
+        out.append(CellRun(name, cell, layout, make_recogniser(cell, f"{prefix}recogniser" if pins else "recogniser")))
     return out
 
 
-def make_recogniser(cfg: TrialsConfig):
-    """The cell's recogniser (``conf/recogniser/``), or None for methods that see no pictures."""
+def make_recogniser(cfg: TrialsConfig, key: str = "recogniser"):
+    """The cell's recogniser (``conf/recogniser/``), or None for methods that see no pictures;
+    ``key`` names the config key in an error (a cell's own when it pins recogniser arguments)."""
     method = cfg.method
     if not method.uses_recogniser:
         return None
     way = cfg.substitution if method.dynamic_support else 0
-    return build_recogniser(cfg.recogniser, substitution_way=way, carry_over=cfg.support == "carry")
+    return build_recogniser(cfg.recogniser, substitution_way=way, carry_over=cfg.support == "carry", key=key)
 
 
 def query_pictures(images_dir: str) -> dict[int, bytes]:
