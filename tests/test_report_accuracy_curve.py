@@ -126,3 +126,8 @@ def test_the_block_chooses_cells_and_takes_no_groups(built):
     assert [(c.label, c.levels.tolist()) for c in parts.curves] == [("Few-shot (static support set)", [0.2, 0.5])]
     spec = ReportSpec(kind="accuracy_curve", groups=[Group(key="a", cells=["ssrl_7x7"])])
     assert [key for key, _ in spec.problems(exp.declared)] == ["groups"]
+    for key in ("curves", "support_accuracy"):  # given, even as true, they would be ignored: refused
+        for value in (True, False):
+            spec = ReportSpec(kind="accuracy_curve", **{key: value})
+            assert [k for k, _ in spec.problems(exp.declared)] == [key]
+    assert ReportSpec(kind="default", curves=False, support_accuracy=True).problems(exp.declared) == []

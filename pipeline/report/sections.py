@@ -275,9 +275,9 @@ def default_kind(rep, exp: Experiment, paper: dict[str, PaperValue], bars: bool 
                paper=[paper.get(r.key) for r, _ in rows])
         rep.figure(f"figures/{name}", "Collisions per run: mean (bar), s.d. (thin), 95% bootstrap CI (thick), runs "
                                       "(dots)" + ("; the paper's number in red" if paper else "") + ".")
-    if exp.spec.curves:
+    if exp.spec.curves is not False:
         curves_part(rep, exp, rows)
-    if exp.spec.support_accuracy:
+    if exp.spec.support_accuracy is not False:
         support_part(rep, exp, rows)
 
 
@@ -299,9 +299,9 @@ def long_term_kind(rep, exp: Experiment, paper: dict[str, PaperValue]) -> None:
                 paper=[paper.get(row.key) for row, _ in values])
     rep.figure(f"figures/{name}", "Collisions of each consecutive experiment; right: mean with 95% bootstrap CI"
                                   + ("; the paper's number in red" if paper else "") + ".")
-    if exp.spec.curves:
+    if exp.spec.curves is not False:
         curves_part(rep, exp, rows)
-    if exp.spec.support_accuracy:
+    if exp.spec.support_accuracy is not False:
         ends = {row.label: a[:, -1] for row, cells in rows if (a := pooled(cells, Cell.support_accuracy)).size}
         if ends:
             name = f"{exp.folder}_support_accuracy.png"
@@ -346,10 +346,10 @@ def by_maze_kind(rep, exp: Experiment, paper: dict[str, PaperValue]) -> None:
     for maze in mazes:
         on_maze = [(row, [c for c in cells if c.maze == maze]) for row, cells in rows]
         on_maze = [(row, cells) for row, cells in on_maze if cells]
-        if exp.spec.curves:
+        if exp.spec.curves is not False:
             curves_part(rep, exp, on_maze, maze, table=curves)
     write_curves_table(rep, exp, curves)
-    if exp.spec.support_accuracy:
+    if exp.spec.support_accuracy is not False:
         for maze in mazes:
             on_maze = [(row, [c for c in cells if c.maze == maze]) for row, cells in rows]
             support_part(rep, exp, [(row, cells) for row, cells in on_maze if cells], maze)

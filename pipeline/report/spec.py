@@ -75,10 +75,12 @@ class ReportSpec:
     kept). Give ``cells`` or ``groups``, not both."""
     groups: List[Group] = field(default_factory=list)
     """Rows that pool cells, in order (a list: order is kept in the records)."""
-    curves: bool = True
-    """Learning curves: collisions per episode, mean over runs with a 95% band, from episode 0."""
-    support_accuracy: bool = True
-    """The query accuracy of the support set over the run (rows whose cells have a recogniser)."""
+    curves: Optional[bool] = None
+    """Learning curves: collisions per episode, mean over runs with a 95% band, from episode 0
+    (drawn unless false; a kind without learning curves refuses the key)."""
+    support_accuracy: Optional[bool] = None
+    """The query accuracy of the support set over the run (rows whose cells have a recogniser;
+    drawn unless false; a kind without it refuses the key)."""
     path: Optional[PathSpec] = None
     """A learned-path figure in its own section before this one (the paper's Figure 7)."""
 
@@ -114,9 +116,12 @@ class ReportSpec:
 
         for name in self.cells:
             need("cells", name)
-        if self.kind == "accuracy_curve" and self.groups:
-            why = "the accuracy_curve kind pools no cells (one curve per method and maze); give cells or nothing"
-            out.append(("groups", why))
+        if self.kind == "accuracy_curve":
+            if self.groups:
+                out.append(("groups", "the accuracy_curve kind pools no cells (one curve per method and maze); "
+                                      "give cells or nothing"))
+            out += [(key, "the accuracy_curve kind draws no learning curves or support-set accuracy over the run")
+                    for key in ("curves", "support_accuracy") if getattr(self, key) is not None]
         seen = set()
         for i, group in enumerate(self.groups):
             if not group.key.strip():
