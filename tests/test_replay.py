@@ -194,7 +194,7 @@ def test_the_support_set_is_a_grid_of_25_with_substitutions_framed(with_support,
 def test_the_replay_says_when_the_file_holds_no_support_pictures(recorded, tmp_path):
     path, _ = recorded  # written without support pictures
     rrd = build_replay(path, 0, 1, out=tmp_path / "n.rrd")
-    assert "holds no support pictures" in _columns(rrd, "/support/note")["Boxes2D:labels"][0][0]
+    assert "holds no support pictures" in _columns(rrd, "/support/note")["Points2D:labels"][0][0]
 
 
 def test_the_scores_are_labelled_by_category(recorded, tmp_path):

@@ -26,6 +26,7 @@ NESW = {"N": (-1, 0), "E": (0, 1), "S": (1, 0), "W": (0, -1)}  # (d_row, d_col) 
 FREE, START, GOAL, RED, ORANGE, BLUE = (235, 235, 235), (120, 200, 120), (255, 215, 0), (220, 30, 30), \
     (255, 140, 0), (30, 30, 200)
 APPLICATION = "fewshot_safe_rl_replay"
+SHOTS = 5  # the support set's shots a category (the paper's K) when the file holds no support pictures
 
 
 class ReplayError(UserError):
@@ -126,7 +127,7 @@ class Replay:
                       *(self.subs.category + 1)])
         self.labels = [self.cat(c) for c in range(n_cats)]
         shots = max([0, *(p + 1 for _, p in meta.support_pictures), *(self.subs.position + 1)])
-        self.grid = SupportGrid(rec, self.labels, shots or 5)
+        self.grid = SupportGrid(rec, self.labels, shots if meta.support_pictures else max(shots, SHOTS))
         self.ad: list[list[int]] = []
 
     # ---------------------------------------------------------------- names and geometry

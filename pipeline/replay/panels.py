@@ -103,11 +103,10 @@ class SupportGrid:
         self.rec.log("support/categories", rr.Points2D(
             [[-0.8, c * PITCH[1] + 0.35] for c in range(n)], radii=0.12, class_ids=np.arange(n), show_labels=True),
             static=True)
-        if not has_pictures:
-            self.rec.log("support/note", rr.Boxes2D(
-                mins=[[0, 0]], sizes=[[self.shots * PITCH[0], n * PITCH[1]]], colors=[[150, 150, 150]], radii=0.02,
-                labels=["this file holds no support pictures: only pictures substituted during the replay show"],
-                show_labels=True), static=True)
+        if not has_pictures:  # in the middle of the grid, over whatever substituted pictures come in
+            self.rec.log("support/note", rr.Points2D(
+                [[self.shots * PITCH[0] / 2, n * PITCH[1] / 2]], radii=0.01, colors=[[90, 90, 90]], show_labels=True,
+                labels=["this file holds no support pictures:\nthe grid shows substituted ones only"]), static=True)
 
     def bounds(self) -> Bounds:
         """What the view shows: the grid and the row names left of it."""
