@@ -124,7 +124,7 @@ class Replay:
         self.score_cols = [c for c in self.recog.columns if c.startswith("score_")]
         self.q = {e: v for (_, r, e), v in recs.q_values.items() if r == run}
         n_cats = max([len(self.cats), len(self.score_cols), *(c + 1 for c, _ in meta.support_pictures),
-                      *(self.subs.category + 1)])
+                      *(self.subs.category + 1), *(o["category"] + 1 for o in meta.obstacles.get(run, []))])
         self.labels = [self.cat(c) for c in range(n_cats)]
         shots = max([0, *(p + 1 for _, p in meta.support_pictures), *(self.subs.position + 1)])
         self.grid = SupportGrid(rec, self.labels, shots if meta.support_pictures else max(shots, SHOTS))
