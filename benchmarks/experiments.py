@@ -31,7 +31,7 @@ def main() -> None:
     for exp in EXPERIMENTS:
         t0 = time.perf_counter()
         cmd = [sys.executable, "-m", "pipeline", "trials", f"+experiment={exp}", "progress=false",
-               f"out={args.out}/{exp}", "overwrite=true", f"record={'false' if args.no_record else 'true'}",
+               f"out={args.out}/{exp}", "overwrite=true", f"record={'none' if args.no_record else 'steps'}",
                f"timing_file={args.out}/{exp}-timing.json"]
         out = subprocess.run(cmd, capture_output=True, text=True)
         wall = time.perf_counter() - t0

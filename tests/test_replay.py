@@ -1,4 +1,4 @@
-"""Replay of recorded episodes in Rerun (pipeline.records.replay, stage ``replay``)."""
+"""Replay of recorded episodes in Rerun (pipeline.replay, stage ``replay``)."""
 from __future__ import annotations
 
 import contextlib
@@ -18,9 +18,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from synthetic_records import write_synthetic
+from synthetic_records import tiny_png, write_synthetic
 
-from pipeline.records.replay import ReplayError, build_replay
+from pipeline.records import FileMeta
+from pipeline.replay import ReplayError, build_replay, recording_name, replay_stem
+from pipeline.world.pictures import CATEGORIES
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -52,7 +54,8 @@ def test_replay_of_one_episode_has_the_entities_and_one_row_per_step(recorded, t
         assert rows[entity] == n, entity
     assert {"/maze/cells", "/maze/obstacles"} <= rows.keys()
     n_rec = len(f["recognitions"]["step"])
-    assert rows.get("/recognition/picture", 0) == rows.get("/recognition/scores", 0) == n_rec > 0
+    assert rows.get("/recognition/picture", 0) == n_rec > 0
+    assert [rows.get(f"/recognition/scores/{name}", 0) for name in CATEGORIES] == [n_rec] * 5  # a bar each
     assert rows["/maze/unsafe"] == 1 + len(set(f["unsafe_added"]["step"].tolist()))
     if f["_substitutions"]:
         assert any(k.startswith("/support/") for k in rows)
@@ -86,6 +89,8 @@ def test_replay_shows_recorded_q_values(tmp_path):
                       q_values=np.full((4, 4), e + 0.5))
     rows = _rows(build_replay(tmp_path / "q.mcap", 0, 1, out=tmp_path / "q.rrd"))
     assert rows["/q_values/max"] == 2 and "/derived/visits" not in rows
+    image = _columns(tmp_path / "q.rrd", "/q_values/max")
+    assert image["Image:format"][0][0]["width"] == image["Image:format"][0][0]["height"] == 2  # a pixel a cell
 
 
 def test_replay_stage_with_a_positional_file(recorded, tmp_path):
@@ -148,6 +153,112 @@ def test_replay_draws_with_the_files_moves_and_names(tmp_path):
     assert "action E: reselected" in _columns(old, "/events")["TextLog:text"][0][0]
     with pytest.raises(ValueError, match="maze.moves"):
         write(tmp_path / "bad.mcap", actions=["up", "down"], moves=[(-1, 0), (0, 1), (1, 0)])
+
+
+SUPPORT = {c: [tiny_png(100 + 5 * c + k) for k in range(5)] for c in range(5)}  # category -> 5 shots
+
+
+@pytest.fixture(scope="module")
+def with_support(tmp_path_factory):
+    """A record file with the initial support set, in an experiment's cell folder."""
+    path = tmp_path_factory.mktemp("runs") / "fig8" / "fewshot_dss" / "records.mcap"
+    return path, write_synthetic(path, runs=1, episodes_per_run=4, seed=3, support_pictures=SUPPORT)
+
+
+def test_the_support_set_is_a_grid_of_25_with_substitutions_framed(with_support, tmp_path):
+    path, written = with_support
+    rrd = build_replay(path, 0, 2, out=tmp_path / "g.rrd")
+    subs = [s for w in written for s in w["_substitutions"] if w["episode"] <= 2]  # episode, then step order
+    assert any(s["episode"] < 2 for s in subs) and any(s["episode"] == 2 for s in subs)
+    before = {(s["category"], s["position"]): s["picture"] for s in subs if s["episode"] < 2}
+    places = {}
+    for c in range(5):
+        for k in range(5):
+            cols = _columns(rrd, f"/support/{c}/{k}")
+            places[(c, k)] = tuple(cols["Transform3D:translation"][0][0][:2])
+            shown = bytes(cols["EncodedImage:blob"][0][0])  # what the episode starts with
+            assert shown == (tiny_png(before[(c, k)]) if (c, k) in before else SUPPORT[c][k]), (c, k)
+    xs, ys = sorted({x for x, _ in places.values()}), sorted({y for _, y in places.values()})
+    assert len(xs) == len(ys) == 5 and all(places[(c, k)] == (xs[k], ys[c]) for c, k in places)  # none stacked
+    marks = {(s["category"], s["position"]): f"ep {s['episode']} t {s['step']}" for s in subs}
+    frames = _columns(rrd, "/support/substituted")
+    centres = [tuple(np.round(np.add(places[ck], 0.5), 3)) for ck in sorted(marks)]
+    assert [tuple(np.round(c, 3)) for c in frames["Boxes2D:centers"][-1]] == centres  # frame the pictures
+    assert frames["Boxes2D:labels"][-1] == [marks[ck] for ck in sorted(marks)]
+    assert _columns(rrd, "/support/categories")["Points2D:class_ids"] == [[0, 1, 2, 3, 4]]  # rows, named:
+    context = _columns(rrd, "/")["AnnotationContext:context"][0][0]
+    assert [c["class_description"]["info"]["label"] for c in context] == list(CATEGORIES)
+    assert "/support/note" not in _rows(rrd)
+
+
+def test_the_replay_says_when_the_file_holds_no_support_pictures(recorded, tmp_path):
+    path, _ = recorded  # written without support pictures
+    rrd = build_replay(path, 0, 1, out=tmp_path / "n.rrd")
+    assert "holds no support pictures" in _columns(rrd, "/support/note")["Points2D:labels"][0][0]
+
+
+def test_the_scores_are_labelled_by_category(recorded, tmp_path):
+    path, written = recorded
+    rrd = build_replay(path, 1, 3, out=tmp_path / "s.rrd")
+    f = next(w for w in written if w["run"] == 1 and w["episode"] == 3)
+    for c, name in enumerate(CATEGORIES):  # each category its own bar, at its index, named by its entity
+        bars = _columns(rrd, f"/recognition/scores/{name}")
+        assert {v[0]["buffer"][0] for v in bars["BarChart:abscissa"]} == {c}
+        assert np.allclose([v[0]["buffer"][0] for v in bars["BarChart:values"]], f["recognitions"]["scores"][:, c])
+    text = _columns(rrd, "/recognition/result")["TextDocument:text"][-1][0]
+    last, predicted = f["recognitions"]["scores"][-1], f["recognitions"]["predicted"][-1]
+    assert text.endswith("| category | relation score |\n|---|---|\n" + "\n".join(  # the predicted one in bold
+        f"| {f'**{name}**' if c == predicted else name} | {last[c]:.3f} |" for c, name in enumerate(CATEGORIES)))
+
+
+def test_the_recording_is_named_by_experiment_cell_run_and_episode(with_support, tmp_path):
+    path, _ = with_support
+    rrd = build_replay(path, 0, 2, out=tmp_path / "p.rrd")
+    assert _columns(rrd, "/__properties")["RecordingInfo:name"] == [["synthetic/fewshot_dss run 0 ep 2"]]
+    folders = FileMeta(path=Path("datasets/runs/fig8/fewshot_dss/records.mcap"), complete=True)
+    assert recording_name(folders, 3, 120) == "fig8/fewshot_dss run 3 ep 120"  # no config: the folders
+    trials = FileMeta(path=path, complete=True, config={"experiment": {"name": "table3"}},
+                      info={"info": {"cell": "dss_7x7"}})
+    assert recording_name(trials, 3) == "table3/dss_7x7 run 3 all episodes"  # the trials stage's metadata
+
+
+def test_the_default_replay_file_names_the_cell(with_support, tmp_path, monkeypatch):
+    from pipeline.stages._common import run_stage
+
+    assert replay_stem("datasets/runs/fig8/fewshot_dss/records.mcap", 3, 120) == "fig8-fewshot_dss-run3-ep120"
+    assert replay_stem("datasets/runs/fig8/ssrl/records.mcap.partial", 3) == "fig8-ssrl-run3-all"
+    assert replay_stem("runs/mine/other.mcap", 0, 1) == "runs-mine-other-run0-ep1"
+    path, _ = with_support
+    monkeypatch.chdir(tmp_path)
+    assert run_stage("replay", [f"file={path}", "run=0", "episode=1"]) == tmp_path / "replays/fig8-fewshot_dss-run0-ep1.rrd"
+
+
+def test_the_trials_stage_records_the_initial_support_set(tmp_path):
+    import pandas as pd
+
+    from pipeline.errors import ConfigError
+    from pipeline.fewshot.synthetic import write_synthetic_dataset
+    from pipeline.records import read_records
+    from pipeline.stages._common import run_stage
+
+    images = tmp_path / "images"
+    write_synthetic_dataset(images, n_train=1, n_val=1, per_class=1, size=12)
+    rows = pd.read_csv(images / "manifest.csv").query("split == 'support'")  # shot k: instance k here
+    expected = {(int(r.category), int(r.instance)): (images / r.file).read_bytes() for r in rows.itertuples()}
+    trial = ["method=fewshot_dss", "recogniser=fixed_accuracy", "runs=1", "episodes=2", "progress=false",
+             f"out={tmp_path / 'cell'}", "overwrite=true"]
+    run_stage("trials", [*trial, f"images_dir={images}"])
+    first = (tmp_path / "cell" / "records.mcap").read_bytes()
+    meta = read_records(tmp_path / "cell" / "records.mcap").meta
+    assert len(expected) == 25 and meta.support_pictures == expected and len(meta.pictures) == 40
+    run_stage("trials", [*trial, f"images_dir={images}"])
+    assert (tmp_path / "cell" / "records.mcap").read_bytes() == first  # same config, same bytes
+    run_stage("trials", trial)  # no pictures of its own and no images_dir: none recorded
+    assert read_records(tmp_path / "cell" / "records.mcap").meta.support_pictures == {}
+    with pytest.raises(ConfigError, match="config key 'images_dir': .*manifest"):
+        run_stage("trials", [*trial, f"images_dir={tmp_path}"])
+    with pytest.raises(ConfigError, match="config key 'images_dir': read only by methods that recognise"):
+        run_stage("trials", ["method=shield", "runs=1", "episodes=2", f"out={tmp_path / 's'}", f"images_dir={images}"])
 
 
 # ---------------------------------------------------------------- viewer=web (serving, lifetime, ports, bind)

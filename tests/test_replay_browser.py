@@ -92,7 +92,7 @@ def test_the_printed_address_opens_the_recording_in_chromium(chromium, tmp_path)
         page.screenshot(path=tmp_path / "viewer.png")
         print(f"the viewer showed the recording after {time.monotonic() - start:.0f} s ({tmp_path / 'viewer.png'})")
         assert seen == expected, f"the viewer's active recording: {seen!r}"
-        assert {"/maze/robot", "/recognition/scores", "/events"} <= seen.keys()
+        assert {"/maze/robot", "/recognition/scores/chair", "/support/note", "/__properties", "/events"} <= seen.keys()
 
         start = time.monotonic()  # the bare web port: Rerun's welcome page, without the recording
         welcome = chromium.new_page(viewport={"width": 1280, "height": 800})

@@ -1,5 +1,5 @@
-"""Episode records: the MCAP schema, writer and reader (including reading a truncated file), and
-the MCAP -> Rerun replay (docs/records.md).
+"""Episode records: the MCAP schema, writer and reader (including reading a truncated file)
+(docs/records.md; the Rerun replay of the files is :mod:`pipeline.replay`).
 
 ``records`` imports nothing from ``world``, ``fewshot`` or ``rl``: the writer takes plain numpy
 arrays and dicts through the episode-sink protocol of ``pipeline/rl/sink.py``.

@@ -112,6 +112,10 @@ class TrialsConfig:
     """Dynamic support set: substitution way 1-4 (section 3.3); used by methods with dynamic_support."""
     support: str = setting(choices=SUPPORT_MODES)
     """``restore`` the support set before each run, or ``carry`` it over (long-term autonomy)."""
+    images_dir: Optional[str] = None
+    """Rendered pictures (the render stage's folder) whose query pictures and initial support set the
+    records keep, for recognisers without pictures of their own (oracle, fixed_accuracy); relation_net
+    records those of its ``recogniser.images_dir``."""
     runs: int = setting(II("profile.trials.runs"), ge=1)
     episodes: int = setting(II("profile.trials.episodes"), ge=1)
     seed: int = setting(ge=0)

@@ -3,7 +3,7 @@
     python -m pipeline replay file=<file.mcap> run=3 episode=120 [whole_run=true] [viewer=web|native]
 
 The file may also be given positionally (``python -m pipeline replay <file.mcap> run=3 ...``).
-Logic in :mod:`pipeline.records.replay`; this is the thin entry point (conf/replay.yaml) and
+Logic in :mod:`pipeline.replay`; this is the thin entry point (conf/replay.yaml) and
 starts the viewer.
 
 ``viewer=web`` serves the recording with the Rerun CLI of the rerun-sdk wheel and prints the one
@@ -56,10 +56,9 @@ def run(cfg: ReplayConfig, overrides: list[str] = ()) -> Path:
 def write_replay(path: Path, cfg: ReplayConfig) -> Path:
     """The ``.rrd`` of ``cfg.run``/``cfg.episode``; a damaged record file warns in one line."""
     from pipeline.records import RecordsWarning
-    from pipeline.records.replay import ReplayError, build_replay
+    from pipeline.replay import ReplayError, build_replay, replay_stem
 
-    stem = path.name.removesuffix(".partial").removesuffix(".mcap")
-    out = cfg.out or f"replays/{stem}-run{cfg.run}-" + ("all" if cfg.whole_run else f"ep{cfg.episode}") + ".rrd"
+    out = cfg.out or f"replays/{replay_stem(path, cfg.run, None if cfg.whole_run else cfg.episode)}.rrd"
     out = Path(out).resolve()
     if out.suffix != ".rrd":
         raise ConfigError(f"config key 'out': must end in .rrd, got {out}")

@@ -15,7 +15,7 @@ from __future__ import annotations
 import os
 import shutil
 import time
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -54,6 +54,10 @@ class CellRun:
     layout: Layout
     recogniser: Any = None
     """Built before any cell runs, so a broken checkpoint is refused up front."""
+    pictures: dict[int, bytes] = field(default_factory=dict)
+    """The query pictures the records keep, by picture id (read up front, like the recogniser)."""
+    support: dict[int, list[bytes]] = field(default_factory=dict)
+    """The initial support set the records keep: category -> its K shots in position order."""
 
     @property
     def method(self) -> MethodSpec:
@@ -129,6 +133,7 @@ ONLY_FOR = {
     "recogniser": ("methods that recognise pictures (safety: fewshot)", lambda m: m.uses_recogniser),
     "support": ("methods that recognise pictures (safety: fewshot)", lambda m: m.uses_recogniser),
     "substitution": ("methods with a dynamic support set (dynamic_support: true)", lambda m: m.dynamic_support),
+    "images_dir": ("methods that recognise pictures (safety: fewshot)", lambda m: m.uses_recogniser),
 }
 
 
@@ -156,7 +161,8 @@ def resolve_cells(cfg: TrialsConfig, overrides: list[str]) -> list[CellRun]:
         except UserError as exc:
             raise ConfigError(f"config key '{prefix}maze': {exc}") from None
         pins = name and cfg.experiment.cells[name].recogniser
-        out.append(CellRun(name, cell, layout, make_recogniser(cell, f"{prefix}recogniser" if pins else "recogniser")))
+        out.append(CellRun(name, cell, layout, make_recogniser(cell, f"{prefix}recogniser" if pins else "recogniser"),
+                           *recorded_pictures(cell)))
     return out
 
 
@@ -168,6 +174,43 @@ def make_recogniser(cfg: TrialsConfig, key: str = "recogniser"):
         return None
     way = cfg.substitution if method.dynamic_support else 0
     return build_recogniser(cfg.recogniser, substitution_way=way, carry_over=cfg.support == "carry", key=key)
+
+
+def pictures_dir(cfg: TrialsConfig) -> str | None:
+    """The rendered pictures the records keep, for methods that recognise pictures: the recogniser's
+    own ``images_dir`` (relation_net), else the trials key ``images_dir`` (oracle, fixed_accuracy)."""
+    own = cfg.recogniser.get("images_dir")
+    if not cfg.method.uses_recogniser or not (own or cfg.images_dir):
+        return None
+    if own and cfg.images_dir and Path(own).resolve() != Path(cfg.images_dir).resolve():
+        raise ConfigError(f"config key 'images_dir': the recogniser reads its pictures from recogniser.images_dir="
+                          f"{own}, and the records keep those; leave images_dir out")
+    return own or cfg.images_dir
+
+
+def recorded_pictures(cfg: TrialsConfig) -> tuple[dict[int, bytes], dict[int, list[bytes]]]:
+    """The query pictures and the initial support set the records keep (none without ``record`` or
+    a :func:`pictures_dir`); a folder that is not a rendered dataset is refused, naming the key."""
+    images_dir = pictures_dir(cfg) if cfg.record != "none" else None
+    if images_dir is None:
+        return {}, {}
+    try:
+        return query_pictures(images_dir), support_pictures(images_dir)
+    except (UserError, OSError) as exc:  # no manifest, missing or unreadable pictures
+        key = "images_dir" if cfg.images_dir else "recogniser.images_dir"
+        raise ConfigError(f"config key '{key}': {one_line(exc)}") from None
+
+
+def support_pictures(images_dir: str) -> dict[int, list[bytes]]:
+    """PNG bytes of the original support set by category, shot ``k`` of category ``c`` where the
+    Relation Network's support set holds it (the order of :func:`pipeline.fewshot.data.load_split`)."""
+    from pipeline.fewshot.data import load_split
+
+    support = load_split(images_dir, "support", 8)  # the order and categories; the pixels are read below
+    shots: dict[int, list[bytes]] = {}
+    for category, file in zip(support.labels.tolist(), support.files):
+        shots.setdefault(category, []).append((Path(images_dir) / file).read_bytes())
+    return shots
 
 
 def query_pictures(images_dir: str) -> dict[int, bytes]:
@@ -195,8 +238,6 @@ def run_cell(cell: CellRun, folder: Path) -> tuple[dict, float]:
         from pipeline.records.writer import RecordWriter
         geometry = build_geometry(layout)
         placements = [make_run_world(geometry, seed, r).placement.as_records(layout.obstacles) for r in range(runs)]
-        images_dir = cfg.recogniser.get("images_dir")
-        pictures = query_pictures(images_dir) if method.uses_recogniser and images_dir else {}
         writer = RecordWriter(
             folder / "records.mcap",
             metadata={"config": recorded_config(cell),
@@ -206,7 +247,8 @@ def run_cell(cell: CellRun, folder: Path) -> tuple[dict, float]:
                                "recogniser": recogniser.describe() if hasattr(recogniser, "describe") else None}},
             maze={"layout": list(layout.rows), "name": layout.name, "categories": list(CATEGORIES),
                   "actions": ACTION_NAMES, "moves": MOVES},
-            runs=placements, pictures=pictures, flush_every=cfg.flush_every, steps=cfg.record == "steps")
+            runs=placements, pictures=cell.pictures, support_pictures=cell.support, flush_every=cfg.flush_every,
+            steps=cfg.record == "steps")
     t0 = time.perf_counter()
     try:
         result = run_trials(layout, method, runs, episodes, seed, recogniser=recogniser, sink=writer,
@@ -281,7 +323,7 @@ def written(cfg: TrialsConfig, index: dict) -> list[Path | str]:
     """``out`` (an experiment) or its files (one cell), and the experiment's metrics and timing files."""
     out = Path(cfg.out)
     if cfg.experiment is None:
-        return [out / "summary.json", *([out / "records.mcap"] if cfg.record else []), *filter(None, [cfg.timing_file])]
+        return [out / "summary.json", *([out / "records.mcap"] if cfg.record != "none" else []), *filter(None, [cfg.timing_file])]
     return [out, *filter(None, [cfg.metrics_file, cfg.timing_file])]
 
 
