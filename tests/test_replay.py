@@ -76,6 +76,14 @@ def test_replay_names_a_missing_episode(recorded, tmp_path):
         build_replay(path, 5, 0, out=tmp_path / "x.rrd")
 
 
+def test_replay_of_a_file_without_steps_says_so(tmp_path):
+    """``record=episodes`` files hold no steps: the replay refuses them naming the level, and writes nothing."""
+    write_synthetic(tmp_path / "e.mcap", runs=1, episodes_per_run=3, steps=False)
+    with pytest.raises(ReplayError, match="recorded with record=episodes: it holds no steps to replay") as e:
+        build_replay(tmp_path / "e.mcap", 0, 1, out=tmp_path / "x.rrd")
+    assert e.value.key == "file" and not (tmp_path / "x.rrd").exists()
+
+
 def test_replay_shows_recorded_q_values(tmp_path):
     from pipeline.records import RecordWriter
 

@@ -73,6 +73,9 @@ def read_run(path: Path, run: int, episode: int | None) -> Records:
     meta = recs.meta
     if meta.unusable:  # our magic bytes and nothing readable after them
         raise ReplayError(meta.unusable, key="file")
+    if meta.record != "steps":  # record=episodes: summaries and events, no step to draw
+        raise ReplayError(f"{path}: recorded with record={meta.record}: it holds no steps to replay; run the cell "
+                          "again with record=steps (the default) to replay it", key="file")
     why = f"; the file is damaged or cut: {meta.lost}" if meta.lost else ""
     have = recs.episodes.episode[recs.episodes.run == run]
     if have.empty:
