@@ -130,10 +130,12 @@ def _build_parts(inputs: Inputs, bar: tqdm) -> Path:
     rep = Report(inputs.out, inputs.accuracy_dir)
     rep.add("# Few-shot reasoning-based safe RL: our results beside the paper's\n\n"
             "Built by `python -m pipeline report` from the recorded data only (MCAP records of every "
-            "episode, the accuracy study's data files, the model's validation metrics). Every number "
-            "is mean ± standard deviation over independent runs with a 95% percentile-bootstrap "
-            "interval of the mean (2000 resamples, seed 0); learning curves show the mean over runs "
-            "per episode with its 95% t interval shaded.\n")
+            "episode, the accuracy study's data files, the model's validation metrics). Collisions are "
+            "mean ± standard deviation over runs with a 95% percentile-bootstrap interval of the mean "
+            "(2000 resamples, seed 0); a pooled row pools its cells' runs, and the runs of a carried-over "
+            "support set are one robot's consecutive experiments, not independent ones. Accuracies carry "
+            "the interval their table names. Learning curves show the mean over runs per episode with its "
+            "95% t interval shaded.\n")
     bar.set_postfix_str(f"reading the records under {inputs.runs_dir}")
     experiments = load_all(inputs.runs_dir)
     bar.total += len(experiments)
