@@ -9,7 +9,6 @@ Usage::
 from __future__ import annotations
 
 import contextlib
-
 from dataclasses import dataclass, field
 
 import numpy as np
