@@ -540,3 +540,32 @@ def test_record_level_episodes_keeps_everything_but_the_steps(tmp_path):
     for frame in ("episodes", "recognitions", "unsafe", "substitutions"):
         pd.testing.assert_frame_equal(getattr(lean, frame).drop(columns="file"), getattr(full, frame).drop(columns="file"))
     assert (tmp_path / "episodes.mcap").stat().st_size < (tmp_path / "steps.mcap").stat().st_size
+
+
+@pytest.mark.parametrize("rewards", [[0, -1, 1], [0, 63, -64], [0.5, -1, 0], [64, 0, 0], [-65, 0, 0], [0, np.nan, 1]])
+def test_rewards_are_stored_in_one_byte_when_whole_and_small_and_read_back_exactly(tmp_path, rewards):
+    """Format 5: a batch whose rewards are whole numbers in -64..63 stores them as one-byte zigzag
+    varints (small_rewards), any other batch as floats; both read back to the same float32 values, in a
+    file that mixes the two, through the fast path and the Protobuf runtime, and encode byte for byte
+    as the runtime does."""
+    from pipeline.records import codec
+    from pipeline.records.scan import scan
+
+    groups = [b for b, _ in batches(LAYOUT_5X5, batch_size=3, runs=1, episodes_per_run=6, seed=5)]
+    odd = np.resize(np.asarray(rewards, np.float32), len(groups[1]["rewards"]))
+    groups[1]["rewards"] = odd
+    with RecordWriter(tmp_path / "r.mcap") as w:
+        for b in groups:
+            w.episodes(**b)
+    data = [d for _, d in scan(tmp_path / "r.mcap").messages["/episodes"]]
+    small = all(np.isfinite(odd)) and all(float(r).is_integer() and -64 <= r <= 63 for r in odd)
+    for d, b in zip(data, groups):
+        steps = S.EpisodeBatch.FromString(d).steps
+        assert (len(steps.small_rewards), len(steps.rewards)) == ((len(b["rewards"]), 0) if b is not groups[1] or small
+                                                                  else (0, len(b["rewards"])))
+        assert d == _encode_with_the_runtime(codec.check_batch(b))
+    want = np.concatenate([b["rewards"] for b in groups])
+    np.testing.assert_array_equal(read_records(tmp_path / "r.mcap").steps["reward"].to_numpy(), want)
+    slow = codec._columns(codec._flat_runtime(data, {"EpisodeBatch": S.EpisodeBatch}), "r")
+    np.testing.assert_array_equal(slow["steps"]["reward"], want)
+    assert slow["steps"]["reward"].dtype == np.float32

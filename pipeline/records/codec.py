@@ -25,14 +25,15 @@ import numpy as np
 from google.protobuf import descriptor_pb2
 
 from . import schema as S
-from .schema import BOOL, CODE, F32, F64, I32, MESSAGES, VIEWS, WIRE_DTYPES, Field
+from .schema import BOOL, CODE, F32, F64, I32, MESSAGES, SMALL, VIEWS, WIRE_DTYPES, Field
 
 SUBS = {f.name: f.type for f in MESSAGES["EpisodeBatch"] if isinstance(f.type, str)}  # summary -> EpisodeSummaries
 BATCH = [m for m in MESSAGES if m != "Substitution"]
 COLUMNS = {m: [f for f in MESSAGES[m] if f.repeated and not isinstance(f.type, str)] for m in BATCH}
 OPTIONAL = frozenset({"q_values", "substitutions"})  # sink batch keys that may be left out
 BATCH_KEYS = frozenset({f.name for f in MESSAGES["EpisodeBatch"]} - {"n_actions"} - OPTIONAL
-                       | {f.name for f in COLUMNS["Steps"]})
+                       | {f.key or f.name for f in COLUMNS["Steps"]})
+REWARDS, SMALL_REWARDS = (f for f in COLUMNS["Steps"] if f.column == "reward")  # one of the two per batch
 _RANGE = {S.I32: (-2**31, 2**31), S.U32: (0, 2**31), CODE: (0, 2**32), BOOL: (0, 2**63)}
 OUR_SCHEMA = S.file_descriptor_set(S.EpisodeBatch)
 
@@ -93,7 +94,13 @@ def check_batch(batch: Mapping[str, Any], *, with_steps: bool = True) -> dict[st
     cols["EpisodeSummaries"] |= {f.name: _column(summary[f.name], f, e, f"{where}.summary.{f.name}", wide)
                                  for f in COLUMNS["EpisodeSummaries"][1:]}
     cols["Steps"] = {f.name: _column(batch[f.name], f, t, f"{where}.{f.name}", wide)
-                     for f in COLUMNS["Steps"] if with_steps}
+                     for f in COLUMNS["Steps"] if with_steps and f.column != "reward"}
+    if with_steps:
+        r = _column(batch["rewards"], REWARDS, t, f"{where}.rewards", wide)
+        with np.errstate(invalid="ignore"):  # NaN, inf, huge: not whole and small, the floats keep them
+            small = r.astype(np.int8)
+        whole = not len(r) or (small == r).all() and -64 <= int(small.min()) and int(small.max()) <= 63
+        cols["Steps"] |= {SMALL_REWARDS.name: small} if whole else {REWARDS.name: r}
     scalars = {"EpisodeBatch": {"run": run, "n_actions": 0}, "Recognitions": {"n_categories": 0}}
     for sub in ("recognitions", "unsafe_added", "substitutions"):
         d, msg = batch.get(sub) or {}, SUBS[sub]
@@ -120,12 +127,19 @@ def check_batch(batch: Mapping[str, Any], *, with_steps: bool = True) -> dict[st
 
 def _message(msg: str, b: Mapping[str, Any], classes: dict):
     raw = classes is VIEWS
-    kw = {k: a.tobytes() if raw else a.tolist() for k, a in b["cols"].get(msg, {}).items() if len(a)}
+    kw = {k: (_zigzag(a) if k == SMALL_REWARDS.name else a).tobytes() if raw else a.tolist()
+          for k, a in b["cols"].get(msg, {}).items() if len(a)}
     kw.update({k: v for k, v in b["scalars"].get(msg, {}).items() if v})
     for field, sub in (SUBS.items() if msg == "EpisodeBatch" else ()):
         if (v := _message(sub, b, classes)) is not None:
             kw[field] = v
     return classes[msg](**kw) if kw else None
+
+
+def _zigzag(a: np.ndarray) -> np.ndarray:
+    """Protobuf's sint32 encoding of values in -64..63, one byte each: 0, -1, 1, -2 -> 0, 1, 2, 3."""
+    a = a.astype(np.int16)
+    return ((a << 1) ^ (a >> 15)).astype(np.uint8)
 
 
 def encode_batch(b: Mapping[str, Any]) -> bytes:
@@ -152,6 +166,8 @@ def _flat_fast(data: list[bytes]) -> dict | None:
             values = np.frombuffer(b"".join(raw), WIRE_DTYPES[f.type])
             if (lens % size).any() or (size == 1 and len(values) and values.max() >= 128):
                 return None  # not whole elements, or varints of more than one byte
+            if f.type == SMALL:  # zigzag back: 0, 1, 2, 3 -> 0, -1, 1, -2
+                values = (values >> 1).astype(np.int8) ^ -(values & 1).astype(np.int8)
             out[msg, f.name] = (values, lens // size)
     return out | _scalars(msgs["EpisodeBatch"])
 
@@ -164,7 +180,8 @@ def _flat_runtime(data: list[bytes], classes: dict) -> dict:
     out: dict = {}
     for msg, fields in COLUMNS.items():
         for f in fields:
-            lists = [getattr(m, f.name) for m in msgs[msg]] if msg in msgs else [()] * len(top)
+            known = msg in msgs and (not top or f.name in msgs[msg][0].DESCRIPTOR.fields_by_name)
+            lists = [getattr(m, f.name) for m in msgs[msg]] if known else [()] * len(top)
             dtype = {F32: np.float32, F64: np.float64}.get(f.type, np.int64)
             out[msg, f.name] = (np.array([x for xs in lists for x in xs], dtype),
                                 np.array([len(x) for x in lists], np.int64))
@@ -188,7 +205,7 @@ def classes_of(schema_data: bytes) -> dict:
             have = classes[msg].DESCRIPTOR.fields_by_name if msg in classes else {}
             for f in fields:
                 d = have.get(f.name)
-                if (msg in S.ADDED or f.type in S.ADDED) and d is None:
+                if d is None and (msg in S.ADDED or f.name in S.ADDED):
                     continue
                 if d is None or d.is_repeated != f.repeated or (d.type == d.TYPE_MESSAGE) != isinstance(f.type, str) \
                         or d.type in (d.TYPE_STRING, d.TYPE_BYTES, d.TYPE_GROUP):
@@ -211,8 +228,10 @@ def decode_batches(messages: list[tuple[int, bytes]], name: str, schema_data: by
     return _columns(flat, name)
 
 
-def _frame(flat: dict, msg: str, head: dict) -> dict:
-    return head | {f.column: flat[msg, f.name][0] != 0 if f.dtype == "bool" else flat[msg, f.name][0].astype(f.dtype)
+def _frame(flat: dict, msg: str, head: dict, **given: np.ndarray) -> dict:
+    """The frame columns of ``msg``'s fields in field order (``given``: columns already built)."""
+    return head | {f.column: given[f.column] if f.column in given else flat[msg, f.name][0] != 0
+                   if f.dtype == "bool" else flat[msg, f.name][0].astype(f.dtype)
                    for f in COLUMNS[msg] if f.name != "scores"}
 
 
@@ -228,6 +247,10 @@ def _columns(flat: dict, name: str) -> dict[str, Any]:
     msg_of_ep = np.repeat(np.arange(len(n_eps)), n_eps)
     if not count["Steps", "states"].any():  # recorded without steps (record=episodes)
         lens = np.zeros_like(lens)
+    n_float, n_small = count["Steps", REWARDS.name], count["Steps", SMALL_REWARDS.name]
+    count["Steps", REWARDS.name] = n_float + n_small  # per batch, its rewards are in one of the two
+    if ((n_float > 0) & (n_small > 0)).any():
+        raise bad("a batch has rewards in both reward columns")
     for msg, expected, why in (("Steps", np.bincount(msg_of_ep, lens, len(n_eps)), "step column {} does not have "
                                 "the episodes' step count"), ("Recognitions", count["Recognitions", "episode"],
                                 "recognition columns differ in length ({})"), ("UnsafeAdditions",
@@ -235,7 +258,7 @@ def _columns(flat: dict, name: str) -> dict[str, Any]:
                                ("Substitutions", count["Substitutions", "episode"],
                                 "substitution columns differ in length ({})")):
         for f in COLUMNS[msg]:
-            if f.name != "scores" and not np.array_equal(count[msg, f.name], expected):
+            if f.name not in ("scores", SMALL_REWARDS.name) and not np.array_equal(count[msg, f.name], expected):
                 raise bad(why.format(f.name))
     rec_m, un_k, ncat = count["Recognitions", "episode"], count["UnsafeAdditions", "episode"], flat["n_categories"]
     n_sc = count["Recognitions", "scores"]
@@ -244,8 +267,11 @@ def _columns(flat: dict, name: str) -> dict[str, Any]:
     ep_run = np.repeat(flat["run"], n_eps).astype(np.int32)
     ep_ep = flat["EpisodeBatch", "episode"][0].astype(np.int32)
     starts = np.repeat(np.cumsum(lens) - lens, lens)
+    small = np.repeat(n_small > 0, n_float + n_small)  # the steps whose rewards are in small_rewards
+    reward = np.empty(len(small), np.float32)
+    reward[small], reward[~small] = flat["Steps", SMALL_REWARDS.name][0], flat["Steps", REWARDS.name][0]
     steps = _frame(flat, "Steps", {"run": np.repeat(ep_run, lens), "episode": np.repeat(ep_ep, lens),
-                                   "step": (np.arange(len(starts)) - starts).astype(np.int32)})
+                                   "step": (np.arange(len(starts)) - starts).astype(np.int32)}, reward=reward)
     steps |= {flag: (steps["flags"] & bit) != 0 for flag, bit in S.FLAG_NAMES.items()}
     rec = _frame(flat, "Recognitions", {"run": np.repeat(flat["run"], rec_m).astype(np.int32)})
     rec["correct"] = rec["predicted"] == rec["true"]

@@ -56,6 +56,7 @@ def split_log_time(t: int) -> tuple[int, int, int]:
 _F = descriptor_pb2.FieldDescriptorProto
 I32, U32, F32, F64, BOOL = _F.TYPE_SFIXED32, _F.TYPE_FIXED32, _F.TYPE_FLOAT, _F.TYPE_DOUBLE, _F.TYPE_BOOL
 CODE = _F.TYPE_UINT32  # packed: a varint column, one byte a value below 128; scalar: a plain uint32
+SMALL = _F.TYPE_SINT32  # packed zigzag varints, written only when every value is in -64..63: one byte each
 
 
 class Field(NamedTuple):
@@ -80,7 +81,10 @@ MESSAGES: dict[str, list[Field]] = {
     "Steps": [  # one entry per executed step of the batch's episodes, concatenated
         Field("states", 1, CODE, "state", "int32"),  # cell row * width + col before the step
         Field("actions", 2, CODE, "action", "int8"),  # 0 N, 1 E, 2 S, 3 W
-        Field("rewards", 3, F32, "reward", "float32"), Field("flags", 4, CODE, "flags", "uint8")],  # FLAG_* bits
+        Field("rewards", 3, F32, "reward", "float32"), Field("flags", 4, CODE, "flags", "uint8"),  # FLAG_* bits
+        # format 5: a batch whose rewards are all whole numbers in -64..63 (the rules give -1, 0, 1) has
+        # them here, one byte each, instead of in ``rewards`` (4 bytes each: half of a step's raw bytes)
+        Field("small_rewards", 5, SMALL, "reward", "float32", key="rewards")],
     "Recognitions": [  # one entry per picture seen (section 3.2.1)
         Field("episode", 1, U32, "episode", "int32"), Field("step", 2, I32, "step", "int32"),
         Field("state", 3, I32, "state", "int32"), Field("action", 4, CODE, "action", "int8"),
@@ -115,9 +119,9 @@ MESSAGES: dict[str, list[Field]] = {
         Field("position", 6, _F.TYPE_INT32, "position", "int8", repeated=False),  # replaced shot 0..K-1
         Field("support_accuracy", 7, F64, "support_accuracy", "float64", repeated=False)],  # after it
 }
-#: What files of an older format may lack: these messages, and the EpisodeBatch fields that hold them.
-ADDED = {"Substitutions": "5"}
-WIRE_DTYPES = {I32: "<i4", U32: "<u4", F32: "<f4", F64: "<f8", BOOL: "u1", CODE: "u1"}  # packed payloads
+#: What files of an older format may lack (read as empty): messages and fields, by the format that added them.
+ADDED = {"Substitutions": "5", "substitutions": "5", "small_rewards": "5"}
+WIRE_DTYPES = {I32: "<i4", U32: "<u4", F32: "<f4", F64: "<f8", BOOL: "u1", CODE: "u1", SMALL: "u1"}  # payloads
 
 
 def _file(view: bool) -> descriptor_pb2.FileDescriptorProto:
