@@ -5,6 +5,7 @@ import os
 import re
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -12,6 +13,15 @@ from slurm_cluster import PARTITION, missing, one_node_cluster
 
 ROOT = Path(__file__).resolve().parents[1]
 METHODS = ("fewshot", "fewshot_dss")  # methods the recogniser override applies to (it is refused for others)
+
+
+def completed_log(path: Path, jobs: int, timeout: float = 60.0) -> str:
+    """slurmctld's log once it records ``jobs`` completions (a job's result can reach the launcher
+    before the scheduler logs its end)."""
+    end = time.monotonic() + timeout
+    while (log := path.read_text()).count("_job_complete") < 2 * jobs and time.monotonic() < end:
+        time.sleep(0.5)
+    return log
 
 
 @pytest.mark.skipif(missing() is not None, reason=str(missing()))
@@ -25,7 +35,7 @@ def test_a_smoke_sweep_runs_as_slurm_jobs(tmp_path):
              "hydra.launcher.cpus_per_task=1", "hydra.launcher.mem_gb=1", f"hydra.sweep.dir={sweep}"],
             cwd=ROOT, env={**env, "HYDRA_FULL_ERROR": "1"}, capture_output=True, text=True, timeout=300)
         assert res.returncode == 0, res.stderr[-3000:]
-        log = (tmp_path / "cluster" / "slurmctld.log").read_text()
+        log = completed_log(tmp_path / "cluster" / "slurmctld.log", len(METHODS))
     # every job went through the scheduler: submitit's per-task folders are named by SLURM job id and
     # array index, and slurmctld allocated each of them on the node
     jobs = sorted(p.name for p in (sweep / ".submitit").iterdir() if re.fullmatch(r"\d+_\d+", p.name))  # array tasks
