@@ -6,6 +6,10 @@ orientation_deg, picture_id, file``: ``file`` is relative to ``images_dir``; for
 basin, basket); for ``train`` and ``val`` it is a class index within the split; ``picture_id`` is
 the query-picture id (``category * 8 + instance * 4 + face``) on query rows and -1 elsewhere.
 
+Meta-training can instead read any folder-per-class tree (:func:`load_folder`: ``<dir>/<class>/<picture>``,
+such as miniImageNet in Ravi and Larochelle's split), one tree for the training classes and one for the
+validation classes (``data=folder`` of the meta_train stage).
+
 Pictures are resized once, at load time, to the model's input size and kept as uint8 arrays.
 """
 from __future__ import annotations
@@ -16,11 +20,15 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 from PIL import Image
+from tqdm.auto import tqdm
+
 from pipeline.errors import UserError
 
 MANIFEST = "manifest.csv"
 COLUMNS = ("split", "category", "class_name", "instance", "face", "orientation_deg", "picture_id", "file")
 SPLITS = ("query", "support", "train", "val")
+#: File endings :func:`load_folder` reads as pictures (any case); other files are left alone.
+PICTURE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".webp")
 
 
 class DataError(UserError):
@@ -108,6 +116,38 @@ def load_split(images_dir: str | Path, split: str, size: int, frame: pd.DataFram
         picture_ids=rows["picture_id"].to_numpy(dtype=np.int64),
         class_names=tuple(names),
         files=files,
+    )
+
+
+def load_folder(root: str | Path, size: int, *, progress: bool = False) -> PictureSet:
+    """Every picture of a folder-per-class tree ``root/<class>/<picture>``, resized to ``size`` x
+    ``size`` px (the aspect ratio is not kept; miniImageNet's pictures are square). Classes are the
+    sub-folders in name order (hidden ones skipped), a class's pictures the files with a
+    :data:`PICTURE_SUFFIXES` ending in name order, so the same tree gives the same set anywhere.
+    A missing folder, a tree without class folders, a class without pictures or a picture that
+    cannot be read raises :class:`DataError` naming it."""
+    root = Path(root)
+    if not root.is_dir():
+        raise DataError(f"{root}: no such folder (expected a folder-per-class tree: <dir>/<class>/<picture>)")
+    classes = sorted(p for p in root.iterdir() if p.is_dir() and not p.name.startswith("."))
+    if not classes:
+        raise DataError(f"{root}: no class folders (expected <dir>/<class>/<picture>, pictures ending in "
+                        f"{', '.join(PICTURE_SUFFIXES)})")
+    files: list[str] = []
+    labels: list[int] = []
+    for label, folder in enumerate(classes):
+        pictures = sorted(f.name for f in folder.iterdir() if f.is_file() and f.suffix.lower() in PICTURE_SUFFIXES)
+        if not pictures:
+            raise DataError(f"{folder}: class folder without pictures (files ending in {', '.join(PICTURE_SUFFIXES)})")
+        files += [f"{folder.name}/{name}" for name in pictures]
+        labels += [label] * len(pictures)
+    bar = tqdm(files, desc=f"load {root.name}", unit="picture", disable=not progress, mininterval=2.0)
+    return PictureSet(
+        images=np.stack([load_image(root / f, size) for f in bar]),
+        labels=np.asarray(labels, dtype=np.int64),
+        picture_ids=np.full(len(files), -1, dtype=np.int64),
+        class_names=tuple(p.name for p in classes),
+        files=tuple(files),
     )
 
 

@@ -38,6 +38,17 @@ def sample_episode(rng: np.random.Generator, by_class: list[np.ndarray], n_way: 
     return Episode(support=support, query=query.reshape(-1), labels=labels)
 
 
+def require_episodes(by_class: list[np.ndarray], class_names: tuple[str, ...], n_way: int, need: int, where: str) -> None:
+    """Refuse, before any training, a split that cannot give ``n_way``-way episodes of ``need``
+    pictures per class (:func:`sample_episode` would fail only when it draws a short class)."""
+    if len(by_class) < n_way:
+        raise DataError(f"{where}: {len(by_class)} classes; {n_way}-way episodes need at least {n_way}")
+    short = [f"{class_names[c]} ({len(m)})" for c, m in enumerate(by_class) if len(m) < need]
+    if short:
+        shown = ", ".join(short[:5]) + (f" and {len(short) - 5} more" if len(short) > 5 else "")
+        raise DataError(f"{where}: an episode needs {need} pictures of a class (k_shot + queries); too few in {shown}")
+
+
 def sample_episodes(seed: int, n: int, by_class: list[np.ndarray], n_way: int, k_shot: int, n_query: int) -> list[Episode]:
     """``n`` episodes from one seeded stream (the same list for the same arguments)."""
     rng = np.random.default_rng(seed)

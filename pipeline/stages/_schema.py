@@ -25,6 +25,7 @@ SUPPORT_MODES = ("restore", "carry")
 SUBSTITUTION_WAYS = (1, 2, 3, 4)
 VIEWERS = ("none", "web", "native")
 RECORD_LEVELS = ("steps", "episodes", "none")
+DATA_SOURCES = ("rendered", "folder")
 
 
 # ---------------------------------------------------------------- profile (conf/profile/*.yaml)
@@ -185,9 +186,24 @@ class RenderConfig:
 
 # ---------------------------------------------------------------- meta_train, accuracy
 @dataclass
+class DataConfig:
+    """Where meta-training's classes come from (``conf/data/``): ``rendered``, the render stage's
+    ``train`` and ``val`` splits in ``images_dir``; ``folder``, two folder-per-class trees
+    (:func:`pipeline.fewshot.data.load_folder`), such as miniImageNet's."""
+
+    source: str = setting(choices=DATA_SOURCES)
+    train_dir: Optional[str] = None
+    """``data=folder``: the training classes, ``<train_dir>/<class>/<picture>``."""
+    val_dir: Optional[str] = None
+    """``data=folder``: the validation classes (model selection and the reported accuracy)."""
+
+
+@dataclass
 class MetaTrainConfig:
     profile: Profile = field(default_factory=Profile)
+    data: DataConfig = field(default_factory=DataConfig)
     images_dir: str = setting(nonempty=True)
+    """``data=rendered``: the render stage's output, whose train and val splits are read."""
     checkpoint: str = setting(nonempty=True)
     metrics_file: str = setting(nonempty=True)
     history_file: str = setting(nonempty=True)
