@@ -365,7 +365,7 @@ def test_raw_view_decoding_equals_the_protobuf_runtime(tmp_path):
         for b in groups:
             w.episodes(**b)
     wide = [d for _, d in scan(tmp_path / "wide.mcap").messages["/episodes"]]
-    assert codec._flat_fast(wide) is None  # the fast path declines; the runtime reads the states back
+    assert codec._flat(wide) is None  # the fast path declines; the runtime reads the states back
     states = read_records(tmp_path / "wide.mcap").steps.query("run == 0 and episode in [5, 6, 7, 8, 9]")["state"]
     np.testing.assert_array_equal(states, groups[1]["states"])
     groups[1]["states"] = groups[1]["states"] - 70000
@@ -374,7 +374,7 @@ def test_raw_view_decoding_equals_the_protobuf_runtime(tmp_path):
             w.episodes(**b)
     msgs = scan(tmp_path / "v.mcap").messages["/episodes"]
     data = [d for _, d in msgs]
-    fast, slow = codec._flat_fast(data), codec._flat_runtime(data, {"EpisodeBatch": S.EpisodeBatch})
+    fast, slow = codec._flat(data), codec._flat(data, S.CLASSES)
     assert fast is not None and fast.keys() == slow.keys()  # the fast path handles all of these
     for k in fast:
         for a, b in zip(fast[k], slow[k]) if isinstance(k, tuple) else [(fast[k], slow[k])]:
@@ -400,9 +400,9 @@ def test_raw_view_decoding_equals_the_protobuf_runtime(tmp_path):
     long_code = S.EpisodeBatch.FromString(data[0])
     long_code.steps.flags[0] = 200  # a two-byte varint in a code column
     for odd in (split, unknown, long_code.SerializeToString()):
-        assert codec._flat_fast([odd]) is None
+        assert codec._flat([odd]) is None
         got = codec.decode_batches([(0, odd)], "v")
-        want = codec._columns(codec._flat_runtime([odd], {"EpisodeBatch": S.EpisodeBatch}), "v")
+        want = codec._columns(codec._flat([odd], S.CLASSES), "v")
         for k in want["steps"]:
             np.testing.assert_array_equal(got["steps"][k], want["steps"][k])
     np.testing.assert_array_equal(codec.decode_batches([(0, split)], "v")["steps"]["state"],
@@ -565,6 +565,6 @@ def test_rewards_are_stored_in_one_byte_when_whole_and_small_and_read_back_exact
         assert d == _encode_with_the_runtime(codec.check_batch(b))
     want = np.concatenate([b["rewards"] for b in groups])
     np.testing.assert_array_equal(read_records(tmp_path / "r.mcap").steps["reward"].to_numpy(), want)
-    slow = codec._columns(codec._flat_runtime(data, {"EpisodeBatch": S.EpisodeBatch}), "r")
+    slow = codec._columns(codec._flat(data, S.CLASSES), "r")
     np.testing.assert_array_equal(slow["steps"]["reward"], want)
     assert slow["steps"]["reward"].dtype == np.float32
