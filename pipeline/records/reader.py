@@ -294,7 +294,7 @@ def _message_counts(sc: Scan, closed: dict[str, str], n_subs: int) -> dict[str, 
             held[message_kind(sc.channels[cid].topic) if cid in sc.channels else None] += n
         return {k: (read[k], n) for k, n in held.items() if k and k != "episode batches"}
     for d in sc.damage:
-        held.update(d.held)
+        held.update({k: len(v) for k, v in d.held.items()})
     out = {k: (read[k], read[k] + n) for k, n in held.items() if k != "episode batches"}
     if str(closed.get("substitutions", "")).isdigit():
         out["substitutions"] = (n_subs, int(closed["substitutions"]))

@@ -1,17 +1,7 @@
-"""What survives of an MCAP record file, read through the mcap package.
-
-* A file whose footer and summary section are intact (the summary's CRC checked) is read with mcap's seeking
-  reader: messages through the chunk index (each chunk's CRC checked; with a time range, only the chunks that can
-  hold its messages), metadata through its index and, on a full read, the data section's CRC (the data-end
-  record's), which covers the bytes outside the chunks' data. If any of that fails, it is read as below.
-* Otherwise it is read front to back with ``StreamReader(emit_chunks=True)``, each chunk through
-  ``breakup_chunk(validate_crc=True)``. A damaged chunk is a :class:`Damage` (the message indexes after it say what
-  it held) and reading goes on. A record whose header is wrong stops the stream reader; a new one starts where the
-  summary's chunk index says that record ends or else at the next valid chunk (its CRC checked), metadata or
-  data-end record. A record running past the end of a file that no valid record follows is a truncation.
-
-Channel definitions lost with a damaged part come from a later copy or, in this writer's files, its fixed layout
-(:data:`WRITER_CHANNELS`). A file with nothing to read (empty, not MCAP) raises :class:`RecordsError`.
+"""What survives of an MCAP record file, read through the mcap package (docs/records.md "Damaged and truncated
+files"): with mcap's seeking reader when its summary is intact, else (or when that finds damage) front to back with
+``StreamReader(emit_chunks=True)`` and ``breakup_chunk(validate_crc=True)``, a new stream reader after each damaged
+record. Each damaged or missing part is a :class:`Damage`; a file with nothing to read raises :class:`RecordsError`.
 """
 from __future__ import annotations
 
@@ -35,8 +25,6 @@ from pipeline.errors import UserError
 from . import schema as S
 
 MAGIC = b"\x89MCAP0\r\n"
-#: The header's library string of files written by :class:`pipeline.records.RecordWriter`.
-LIBRARY = "pipeline.records/" + S.FORMAT_VERSION
 #: The writer registers these first, in this order, in every file (tested): channel id -> (topic,
 #: schema id, message class); used when every copy of a file's channel definitions is lost.
 WRITER_CHANNELS = {1: (S.TOPIC_EPISODES, 1, S.EpisodeBatch)}
@@ -65,8 +53,7 @@ class Damage:
     what: str  # a sentence naming the part, where it is and what is wrong with it
     span: tuple[int, int] | None = None  # log times of the messages it held, when known
     index: dict[int, list[int]] = field(default_factory=dict)  # a lost chunk's message index: channel -> times
-    held: dict[str, int] = field(default_factory=dict)  # message kind -> count (from ``index``)
-    batch_stamps: list[int] = field(default_factory=list)  # log times of its episode batches
+    held: dict[str, list[int]] = field(default_factory=dict)  # the same by message kind (:func:`message_kind`)
     lost: list = field(default_factory=list)  # (run, first, last) episode ranges, filled by the loss accounting
 
 
@@ -309,7 +296,7 @@ def _find_next(data: bytes, start: int, limit: int) -> int | None:
 def _settle(out: Scan, time_range) -> None:
     """After a walk: messages read before their channel's definition, filed or dropped; what damaged parts held."""
     missing = {m.channel_id for m in out.orphans} - set(out.channels)
-    used = sorted(missing & set(WRITER_CHANNELS)) if out.library == LIBRARY else []
+    used = sorted(missing & set(WRITER_CHANNELS)) if out.library == S.LIBRARY else []
     for cid in used:
         topic, sid, cls = WRITER_CHANNELS[cid]
         out.channels[cid] = Channel(id=cid, topic=topic, message_encoding="protobuf", schema_id=sid, metadata={})
@@ -317,7 +304,7 @@ def _settle(out: Scan, time_range) -> None:
                                            data=S.file_descriptor_set(cls)))
     if used:
         out.notes.append(f"the definitions of channels {', '.join(WRITER_CHANNELS[c][0] for c in used)} were lost "
-                         f"with the damaged part; taken from this writer's fixed channel layout ({LIBRARY})")
+                         f"with the damaged part; taken from this writer's fixed channel layout ({S.LIBRARY})")
     orphans, out.orphans = out.orphans, []
     for m in orphans:
         _file(out, m, time_range)
@@ -325,9 +312,7 @@ def _settle(out: Scan, time_range) -> None:
     for d in out.damage:
         for cid, times in d.index.items():
             topic = out.channels[cid].topic if cid in out.channels else None
-            kind = message_kind(topic) if topic else ("pictures" if out.library == LIBRARY and cid > 1 else
+            kind = message_kind(topic) if topic else ("pictures" if out.library == S.LIBRARY and cid > 1 else
                                                       "messages of channels whose definitions were lost")
-            if topic == S.TOPIC_EPISODES:
-                d.batch_stamps = sorted(times)
             if kind:
-                d.held[kind] = d.held.get(kind, 0) + len(times)
+                d.held.setdefault(kind, []).extend(times)
