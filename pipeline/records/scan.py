@@ -72,7 +72,6 @@ class Scan:
     summary: Summary | None = None  # the summary section, when intact
     complete: bool = False  # read through its intact summary, nothing damaged
     dropped: int = 0  # messages whose channel definition is lost everywhere
-    orphans: list[Message] = field(default_factory=list)  # messages read before their channel's definition
 
 
 def message_kind(topic: str) -> str | None:
@@ -227,15 +226,34 @@ def _walk(data: bytes, out: Scan, limit: int, time_range) -> None:
         if start not in visited:
             out.damage.append(Damage("chunk", f"chunk {number[start]}{of} at byte {start} was not reached (the "
                                               "records before it are damaged)", _SPAN(c)))
-    _settle(out, time_range)
+    for d in out.damage:  # what the damaged chunks held, by kind of message
+        for cid, times in d.index.items():
+            topic = out.channels[cid].topic if cid in out.channels else None
+            kind = message_kind(topic) if topic else ("pictures" if out.library == S.LIBRARY and cid > 1 else
+                                                      "messages of channels whose definitions were lost")
+            if kind:
+                d.held.setdefault(kind, []).extend(times)
+
+
+def _writer_channel(out: Scan, cid: int) -> Channel | None:
+    """Channel ``cid`` of this writer's fixed layout, for a file of its whose definition of it was lost."""
+    if out.library != S.LIBRARY or cid not in WRITER_CHANNELS:
+        return None
+    topic, sid, cls = WRITER_CHANNELS[cid]
+    out.channels[cid] = Channel(id=cid, topic=topic, message_encoding="protobuf", schema_id=sid, metadata={})
+    out.schemas.setdefault(sid, Schema(id=sid, name=cls.DESCRIPTOR.full_name, encoding="protobuf",
+                                       data=S.file_descriptor_set(cls)))
+    out.notes.append(f"the definition of channel {topic} was lost with the damaged part; taken from this writer's "
+                     f"fixed channel layout ({S.LIBRARY})")
+    return out.channels[cid]
 
 
 def _file(out: Scan, rec, time_range) -> str | None:
     """File one record (a chunk: its records, unless outside ``time_range``); returns why a chunk is damaged."""
     if isinstance(rec, Message):
-        ch = out.channels.get(rec.channel_id)
+        ch = out.channels.get(rec.channel_id) or _writer_channel(out, rec.channel_id)
         if ch is None:
-            out.orphans.append(rec)
+            out.dropped += 1
         elif time_range is None or time_range[0] <= rec.log_time < time_range[1] or ch.topic.startswith(_PICTURES):
             out.messages.setdefault(ch.topic, []).append((rec.log_time, rec.data))
     elif isinstance(rec, Chunk):
@@ -292,27 +310,3 @@ def _find_next(data: bytes, start: int, limit: int) -> int | None:
                 return p
     return None
 
-
-def _settle(out: Scan, time_range) -> None:
-    """After a walk: messages read before their channel's definition, filed or dropped; what damaged parts held."""
-    missing = {m.channel_id for m in out.orphans} - set(out.channels)
-    used = sorted(missing & set(WRITER_CHANNELS)) if out.library == S.LIBRARY else []
-    for cid in used:
-        topic, sid, cls = WRITER_CHANNELS[cid]
-        out.channels[cid] = Channel(id=cid, topic=topic, message_encoding="protobuf", schema_id=sid, metadata={})
-        out.schemas.setdefault(sid, Schema(id=sid, name=cls.DESCRIPTOR.full_name, encoding="protobuf",
-                                           data=S.file_descriptor_set(cls)))
-    if used:
-        out.notes.append(f"the definitions of channels {', '.join(WRITER_CHANNELS[c][0] for c in used)} were lost "
-                         f"with the damaged part; taken from this writer's fixed channel layout ({S.LIBRARY})")
-    orphans, out.orphans = out.orphans, []
-    for m in orphans:
-        _file(out, m, time_range)
-    out.dropped, out.orphans = len(out.orphans), []
-    for d in out.damage:
-        for cid, times in d.index.items():
-            topic = out.channels[cid].topic if cid in out.channels else None
-            kind = message_kind(topic) if topic else ("pictures" if out.library == S.LIBRARY and cid > 1 else
-                                                      "messages of channels whose definitions were lost")
-            if kind:
-                d.held.setdefault(kind, []).extend(times)
