@@ -159,9 +159,9 @@ def _flat(data: list[bytes], classes: dict | None = None) -> dict | None:
     out: dict = {"run": np.array([m.run for m in top], np.int64), "n_actions": np.array([m.n_actions for m in top]),
                  "n_categories": np.array([m.recognitions.n_categories for m in top], np.int64)}
     for msg, fields in COLUMNS.items():
+        have = msgs[msg][0].DESCRIPTOR.fields_by_name if msg in msgs and top else ()
         for f in fields:
-            known = msg in msgs and (not top or f.name in msgs[msg][0].DESCRIPTOR.fields_by_name)
-            raw = [getattr(m, f.name) for m in msgs[msg]] if known else [()] * len(top)
+            raw = [getattr(m, f.name) for m in msgs.get(msg, ())] if not top or f.name in have else [()] * len(top)
             if not view:
                 out[msg, f.name] = (np.array([x for xs in raw for x in xs], {F32: np.float32, F64: np.float64}
                                              .get(f.type, np.int64)), np.array([len(x) for x in raw], np.int64))
