@@ -179,7 +179,7 @@ def _read_file(path: Path, window, pictures: bool) -> dict[str, Any]:
     problems += sc.notes
     stats = sc.summary is not None and sc.summary.statistics is not None
     if pictures and not (meta.pictures or meta.support_pictures or stats) and any(
-            d.span is not None and d.span[0] == 0 and d.kind in ("chunk", "bytes", "truncated") and not d.index
+            d.span is not None and d.span[0] == 0 and d.kind in ("chunk", "bytes", "truncated") and not d.held
             for d in sc.damage):
         problems.append("no picture could be read: the file's pictures, if it had any, were in the damaged part "
                         "(they are stamped at time 0)")

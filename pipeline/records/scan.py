@@ -52,8 +52,7 @@ class Damage:
     kind: str  # "chunk", "bytes", "metadata", "summary", "decode", "data" (damage); "truncated" (ends early)
     what: str  # a sentence naming the part, where it is and what is wrong with it
     span: tuple[int, int] | None = None  # log times of the messages it held, when known
-    index: dict[int, list[int]] = field(default_factory=dict)  # a lost chunk's message index: channel -> times
-    held: dict[str, list[int]] = field(default_factory=dict)  # the same by message kind (:func:`message_kind`)
+    held: dict[str, list[int]] = field(default_factory=dict)  # a lost chunk's message index: kind -> log times
     lost: list = field(default_factory=list)  # (run, first, last) episode ranges, filled by the loss accounting
 
 
@@ -173,8 +172,8 @@ def _walk(data: bytes, out: Scan, limit: int, time_range) -> None:
                 if data[start] not in _DATA_RECORDS or (c and end - start != c.chunk_length):
                     raise ValueError("its record header disagrees with " + ("the chunk index" if c else "its contents"))
                 if isinstance(rec, MessageIndex):
-                    if lost is not None:  # what the damaged chunk before it held
-                        lost.index.setdefault(rec.channel_id, []).extend(t for t, _ in rec.records)
+                    if lost is not None and (kind := _kind(out, rec.channel_id)):  # what the damaged chunk held
+                        lost.held.setdefault(kind, []).extend(t for t, _ in rec.records)
                 elif isinstance(rec, DataEnd):
                     if data[start:start + 9] != _DATA_END_HEAD:
                         raise ValueError("its record header disagrees with its contents")
@@ -226,13 +225,13 @@ def _walk(data: bytes, out: Scan, limit: int, time_range) -> None:
         if start not in visited:
             out.damage.append(Damage("chunk", f"chunk {number[start]}{of} at byte {start} was not reached (the "
                                               "records before it are damaged)", _SPAN(c)))
-    for d in out.damage:  # what the damaged chunks held, by kind of message
-        for cid, times in d.index.items():
-            topic = out.channels[cid].topic if cid in out.channels else None
-            kind = message_kind(topic) if topic else ("pictures" if out.library == S.LIBRARY and cid > 1 else
-                                                      "messages of channels whose definitions were lost")
-            if kind:
-                d.held.setdefault(kind, []).extend(times)
+
+
+def _kind(out: Scan, cid: int) -> str | None:
+    """How the messages of channel ``cid`` are counted (:func:`message_kind`), its definition lost or not."""
+    ours = out.library == S.LIBRARY
+    topic = out.channels[cid].topic if cid in out.channels else WRITER_CHANNELS.get(cid, ("",))[0] if ours else ""
+    return message_kind(topic) if topic else "pictures" if ours else "messages of channels whose definitions were lost"
 
 
 def _writer_channel(out: Scan, cid: int) -> Channel | None:
