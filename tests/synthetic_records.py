@@ -54,7 +54,7 @@ def tiny_png(seed: int, size: int = 8) -> bytes:
 def episodes(layout: list[str], *, runs: int, episodes_per_run: int, seed: int = 0,
              min_steps: int = 20, max_steps: int = 200, n_categories: int = 5,
              scores: bool = True) -> Iterator[dict[str, Any]]:
-    """Yield one episode's fields (``split_batch``'s form, as ``RecordWriter.episode`` takes them) in
+    """Yield one episode's fields (``split_batch``'s form; :func:`make_batch` joins them into a sink batch) in
     run-major order, plus a ``_substitutions`` list of substitution keyword dicts (pass those to
     ``sink.substitution``)."""
     height, width = len(layout), len(layout[0])
@@ -118,7 +118,7 @@ def episodes(layout: list[str], *, runs: int, episodes_per_run: int, seed: int =
 
 def make_batch(eps: list[dict[str, Any]]) -> dict[str, Any]:
     """The sink batch (``pipeline/rl/sink.py``) of consecutive episodes ``eps`` of one run, given as
-    per-episode fields (the inverse of ``split_batch``)."""
+    per-episode fields (the inverse of ``split_batch``; a ``q_values`` table [n_states, n_actions] each, if any)."""
     def cat(key, sub=None):
         parts = [(e[sub] if sub else e).get(key, ()) for e in eps]
         return np.concatenate([np.asarray(p) for p in parts]) if parts else np.zeros(0)
@@ -134,11 +134,12 @@ def make_batch(eps: list[dict[str, Any]]) -> dict[str, Any]:
              "states": cat("states"), "actions": cat("actions"), "rewards": cat("rewards"), "flags": cat("flags"),
              "recognitions": rows("recognitions", ("step", "state", "action", "picture", "predicted", "true")),
              "unsafe_added": rows("unsafe_added", ("step", "state", "action", "source")),
-             "summary": {k: np.array([e["summary"][k] for e in eps])
-                         for k in ("collisions", "return_", "reached_goal", "prevented", "epsilon", "greedy_optimal")}}
+             "summary": {k: np.array([e["summary"][k] for e in eps]) for k in eps[0]["summary"] if k != "steps"}}
     scores = [e["recognitions"]["scores"] for e in eps if len(e["recognitions"].get("step", ()))]
     batch["recognitions"]["scores"] = (np.concatenate(scores).astype(np.float32) if scores
                                        else np.zeros((0, 0), np.float32))
+    if "q_values" in eps[0]:
+        batch["q_values"] = np.stack([e["q_values"] for e in eps])
     return batch
 
 

@@ -372,12 +372,12 @@ def test_a_folder_listing_into_a_reader_that_stops_early_ends_quietly(files, tmp
 def test_the_writer_layout_the_reader_falls_back_on(files):
     from mcap.reader import make_reader
 
-    from pipeline.records.scan import LIBRARY, WRITER_CHANNELS
+    from pipeline.records.scan import WRITER_CHANNELS
 
     with open(files["plain"][0], "rb") as f:
         reader = make_reader(f)
         summary, header = reader.get_summary(), reader.get_header()
-    assert header.library == LIBRARY
+    assert header.library == S.LIBRARY
     for cid, (topic, sid, cls) in WRITER_CHANNELS.items():
         ch = summary.channels[cid]
         assert (ch.topic, ch.schema_id, summary.schemas[sid].name) == (topic, sid, cls.DESCRIPTOR.full_name)

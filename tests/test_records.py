@@ -112,10 +112,10 @@ def test_q_values_and_missing_scores_round_trip(tmp_path):
            "picture": np.array([5, 6]), "predicted": np.array([1, 2]), "true": np.array([1, 3]),
            "scores": np.zeros((0, 0))}
     with RecordWriter(tmp_path / "q.mcap") as w:
-        w.episode(**_episode(0, 0, q_values=q, recognitions=rec,
-                             summary={"steps": 3, "collisions": 1, "return_": -1.0, "reached_goal": False,
-                                      "prevented": 1, "epsilon": 0.07, "greedy_optimal": True}))
-        w.episode(**_episode(0, 1))
+        w.episodes(**make_batch([_episode(0, 0, q_values=q, recognitions=rec,
+                                          summary={"steps": 3, "collisions": 1, "return_": -1.0, "reached_goal": False,
+                                                   "prevented": 1, "epsilon": 0.07, "greedy_optimal": True})]))
+        w.episodes(**make_batch([_episode(0, 1)]))
     r = read_records(tmp_path / "q.mcap")
     assert list(r.q_values) == [(str(tmp_path / "q.mcap"), 0, 0)]
     np.testing.assert_array_equal(r.q_values[(str(tmp_path / "q.mcap"), 0, 0)], q)
@@ -136,9 +136,8 @@ def test_batches_of_the_runner_protocol_round_trip(tmp_path):
             w.episodes(**batch)
     with RecordWriter(tmp_path / "e.mcap") as w:
         for batch, _ in groups:
-            for ep in split_batch(batch):  # the sink protocol's own per-episode view
-                ep["summary"]["steps"] = ep.pop("steps")
-                w.episode(**ep)
+            for ep in split_batch(batch):  # the sink protocol's own per-episode view, a batch of one each
+                w.episodes(**make_batch([ep]))
     a, b = read_records(tmp_path / "b.mcap"), read_records(tmp_path / "e.mcap")
     for key in ("steps", "episodes", "recognitions", "unsafe"):
         assert getattr(a, key).drop(columns="file").equals(getattr(b, key).drop(columns="file")), key
@@ -201,16 +200,16 @@ def test_bad_input_is_refused_with_a_message_naming_it(tmp_path):
         RecordWriter(tmp_path / "x.mcap", runs=[[{"cell": 1, "physical": 0, "category": 0, "instance": 0}]])
     with RecordWriter(tmp_path / "x.mcap") as w:
         with pytest.raises(TypeError, match="missing fields \\['summary'\\]"):
-            w.episode(**{k: v for k, v in _episode().items() if k != "summary"})
+            w.episodes(**{k: v for k, v in make_batch([_episode()]).items() if k != "summary"})
         with pytest.raises(ValueError, match="actions: length 2, expected 3"):
-            w.episode(**_episode(actions=np.zeros(2)))
+            w.episodes(**make_batch([_episode(actions=np.zeros(2))]))
         with pytest.raises(ValueError, match="must hold integers"):
-            w.episode(**_episode(actions=np.zeros(3)))
+            w.episodes(**make_batch([_episode(actions=np.zeros(3))]))
         with pytest.raises(ValueError, match="unknown \\['violations'\\]"):
-            w.episode(**_episode(summary=dict(_episode()["summary"], violations=1)))
-        w.episode(**_episode())
+            w.episodes(**make_batch([_episode(summary=dict(_episode()["summary"], violations=1))]))
+        w.episodes(**make_batch([_episode()]))
         with pytest.raises(ValueError, match="recorded once and in order"):
-            w.episode(**_episode())
+            w.episodes(**make_batch([_episode()]))
         batch = make_batch([_episode(1, 0), _episode(1, 2)])
         with pytest.raises(ValueError, match="consecutive"):
             w.episodes(**batch)
@@ -219,7 +218,7 @@ def test_bad_input_is_refused_with_a_message_naming_it(tmp_path):
 def test_an_exception_leaves_a_finished_partial_file(tmp_path):
     with pytest.raises(RuntimeError):
         with RecordWriter(tmp_path / "r.mcap", flush_every=1) as w:
-            w.episode(**_episode())
+            w.episodes(**make_batch([_episode()]))
             raise RuntimeError("trial crashed")
     assert not (tmp_path / "r.mcap").exists()
     with pytest.warns(RecordsWarning, match="closed after an error"):
@@ -366,7 +365,7 @@ def test_raw_view_decoding_equals_the_protobuf_runtime(tmp_path):
         for b in groups:
             w.episodes(**b)
     wide = [d for _, d in scan(tmp_path / "wide.mcap").messages["/episodes"]]
-    assert codec._flat_fast(wide) is None  # the fast path declines; the runtime reads the states back
+    assert codec._flat(wide) is None  # the fast path declines; the runtime reads the states back
     states = read_records(tmp_path / "wide.mcap").steps.query("run == 0 and episode in [5, 6, 7, 8, 9]")["state"]
     np.testing.assert_array_equal(states, groups[1]["states"])
     groups[1]["states"] = groups[1]["states"] - 70000
@@ -375,7 +374,7 @@ def test_raw_view_decoding_equals_the_protobuf_runtime(tmp_path):
             w.episodes(**b)
     msgs = scan(tmp_path / "v.mcap").messages["/episodes"]
     data = [d for _, d in msgs]
-    fast, slow = codec._flat_fast(data), codec._flat_runtime(data, {"EpisodeBatch": S.EpisodeBatch})
+    fast, slow = codec._flat(data), codec._flat(data, S.CLASSES)
     assert fast is not None and fast.keys() == slow.keys()  # the fast path handles all of these
     for k in fast:
         for a, b in zip(fast[k], slow[k]) if isinstance(k, tuple) else [(fast[k], slow[k])]:
@@ -401,9 +400,9 @@ def test_raw_view_decoding_equals_the_protobuf_runtime(tmp_path):
     long_code = S.EpisodeBatch.FromString(data[0])
     long_code.steps.flags[0] = 200  # a two-byte varint in a code column
     for odd in (split, unknown, long_code.SerializeToString()):
-        assert codec._flat_fast([odd]) is None
+        assert codec._flat([odd]) is None
         got = codec.decode_batches([(0, odd)], "v")
-        want = codec._columns(codec._flat_runtime([odd], {"EpisodeBatch": S.EpisodeBatch}), "v")
+        want = codec._columns(codec._flat([odd], S.CLASSES), "v")
         for k in want["steps"]:
             np.testing.assert_array_equal(got["steps"][k], want["steps"][k])
     np.testing.assert_array_equal(codec.decode_batches([(0, split)], "v")["steps"]["state"],
@@ -566,6 +565,6 @@ def test_rewards_are_stored_in_one_byte_when_whole_and_small_and_read_back_exact
         assert d == _encode_with_the_runtime(codec.check_batch(b))
     want = np.concatenate([b["rewards"] for b in groups])
     np.testing.assert_array_equal(read_records(tmp_path / "r.mcap").steps["reward"].to_numpy(), want)
-    slow = codec._columns(codec._flat_runtime(data, {"EpisodeBatch": S.EpisodeBatch}), "r")
+    slow = codec._columns(codec._flat(data, S.CLASSES), "r")
     np.testing.assert_array_equal(slow["steps"]["reward"], want)
     assert slow["steps"]["reward"].dtype == np.float32

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from synthetic_records import tiny_png, write_synthetic
+from synthetic_records import make_batch, tiny_png, write_synthetic
 
 from pipeline.records import FileMeta
 from pipeline.replay import ReplayError, build_replay, recording_name, replay_stem
@@ -90,11 +90,11 @@ def test_replay_shows_recorded_q_values(tmp_path):
     n = 4
     with RecordWriter(tmp_path / "q.mcap", maze={"layout": ["S.", ".G"]}) as w:
         for e in range(2):
-            w.episode(run=0, episode=e, states=np.array([0, 1, 3, 2])[:n], actions=np.array([1, 2, 3, 0]),
-                      rewards=np.zeros(n), flags=np.zeros(n, np.uint8), recognitions={}, unsafe_added={},
-                      summary={"steps": n, "collisions": 0, "return_": 0.0, "reached_goal": False,
-                               "prevented": 0, "epsilon": 0.1, "greedy_optimal": False},
-                      q_values=np.full((4, 4), e + 0.5))
+            w.episodes(**make_batch([dict(
+                run=0, episode=e, states=np.array([0, 1, 3, 2])[:n], actions=np.array([1, 2, 3, 0]),
+                rewards=np.zeros(n), flags=np.zeros(n, np.uint8), recognitions={}, unsafe_added={},
+                summary={"collisions": 0, "return_": 0.0, "reached_goal": False, "prevented": 0, "epsilon": 0.1,
+                         "greedy_optimal": False}, q_values=np.full((4, 4), e + 0.5))]))
     rows = _rows(build_replay(tmp_path / "q.mcap", 0, 1, out=tmp_path / "q.rrd"))
     assert rows["/q_values/max"] == 2 and "/derived/visits" not in rows
     image = _columns(tmp_path / "q.rrd", "/q_values/max")
@@ -143,10 +143,11 @@ def test_replay_draws_with_the_files_moves_and_names(tmp_path):
 
     def write(path, **maze):
         with RecordWriter(path, maze={"layout": ["S.", ".G"], **maze}) as w:
-            w.episode(run=0, episode=0, states=np.array([0, 1, 3, 2]), actions=np.array([1, 2, 3, 0]),
-                      rewards=np.zeros(4), flags=np.array([1, 0, 0, 8], np.uint8), recognitions={}, unsafe_added={},
-                      summary={"steps": 4, "collisions": 0, "return_": 0.0, "reached_goal": True, "prevented": 1,
-                               "epsilon": 0.1, "greedy_optimal": False})
+            w.episodes(**make_batch([dict(
+                run=0, episode=0, states=np.array([0, 1, 3, 2]), actions=np.array([1, 2, 3, 0]),
+                rewards=np.zeros(4), flags=np.array([1, 0, 0, 8], np.uint8), recognitions={}, unsafe_added={},
+                summary={"collisions": 0, "return_": 0.0, "reached_goal": True, "prevented": 1, "epsilon": 0.1,
+                         "greedy_optimal": False})]))
         return build_replay(path, 0, 0, out=path.with_suffix(".rrd"))
 
     own = write(tmp_path / "own.mcap", actions=["up", "right", "down", "left"],

@@ -10,7 +10,6 @@ from pathlib import Path
 
 from pipeline.errors import quiet_broken_pipe
 
-from .loss import expected_shape
 from .reader import RecordsError, RecordsWarning, find_record_files, read_records
 
 
@@ -39,7 +38,7 @@ def main(argv: list[str] | None = None) -> None:
             print("".join(f"warning: {w.message}\n" for w in caught if issubclass(w.category, RecordsWarning)), end="")
             eps, cfg = recs.episodes, meta.config or {}
             counts = [f"{n} {unit}" if exp in (None, n) else f"{n} of {exp} {unit}" for n, exp, unit in (
-                (eps.run.nunique(), expected_shape(meta.config, meta.obstacles, meta.closed)[0], "runs"),
+                (eps.run.nunique(), meta.expected_runs, "runs"),
                 (len(eps), meta.expected_episodes, "episodes"))]
             what = ", ".join(f"{k}={cfg[k]}" for k in ("experiment", "method", "maze", "seed")
                              if not isinstance(cfg.get(k, {}), dict))

@@ -1,23 +1,19 @@
-"""Episode batches (``pipeline/rl/sink.py``) to ``fsrl.records.EpisodeBatch`` bytes and back, all
-columns named by the one table :data:`.schema.MESSAGES`.
+"""Episode batches (``pipeline/rl/sink.py``) to ``fsrl.records.EpisodeBatch`` bytes and back, every column named
+by the one table :data:`.schema.MESSAGES`, both ways through the Protobuf runtime (docs/records.md "The writer").
 
-Both ways go through the Protobuf runtime with the raw-view classes (:data:`.schema.VIEWS`: every
-packed column declared ``bytes``, the same wire bytes): encoding sets ``field=array.tobytes()``
-(format 4 columns are raw little-endian numbers or one-byte codes; a batch with a code of 128 or
-more goes through the real classes) and serializes; decoding parses and reads each column with
-``np.frombuffer``; no Python object per element, no hand wire code. A view that does not
-re-serialize to its own length (unknown fields, a field split in two, another encoding) or a payload
-that is not whole elements is decoded by the real classes instead, so the fast path is never a
-second truth; a file whose schema record is not byte-identical to ours (an older format) is decoded
-by classes built from its own schema.
-Measured (format 4, the paper-scale 11x11 ``fewshot_dss`` trial with a table lookup: 191 batches,
-2.35 M steps, 1,691 substitutions; shared 2-core machine, best of 5, CPU): check 19-23 ms and
-encode 12 ms for the whole trial (about 14 ns a step); the whole writer 110 ms with zstd, 94 ms with
-lz4, 74 ms uncompressed (the trial itself 0.33-0.36 s). Format 3 had 4-byte states: zstd then
-compressed 10 rather than 7 bytes a step (44 against 33 ns a step).
+The raw views (:data:`.schema.VIEWS`: every packed column declared ``bytes``, the same wire bytes) let a column be
+set as ``array.tobytes()`` and read with ``np.frombuffer``: no Python object per element, no hand wire code. A batch
+with a code of 128 or more is encoded through the real classes; a message the views do not read exactly (it does
+not re-serialize to its own length, or a payload is not whole elements) is decoded through them, and so is a file
+whose schema record is not ours (classes built from its own). Same bytes, same columns either way (tested).
+Measured (the paper-scale 11x11 ``fewshot_dss`` trial, table lookup: 191 batches, 2.35 M steps; shared 2-core
+machine, CPU, best of 5): ``read_records`` of its file 0.21 s through the views, 0.77 s through the real classes,
+which is why the views are kept; of the writer's 123 ms, checking takes 34 ms and encoding 14 ms.
 """
 from __future__ import annotations
 
+import contextlib
+import functools
 from collections.abc import Mapping
 from typing import Any
 
@@ -28,8 +24,8 @@ from . import schema as S
 from .schema import BOOL, CODE, F32, F64, I32, MESSAGES, SMALL, VIEWS, WIRE_DTYPES, Field
 
 SUBS = {f.name: f.type for f in MESSAGES["EpisodeBatch"] if isinstance(f.type, str)}  # summary -> EpisodeSummaries
-BATCH = [m for m in MESSAGES if m != "Substitution"]
-COLUMNS = {m: [f for f in MESSAGES[m] if f.repeated and not isinstance(f.type, str)] for m in BATCH}
+COLUMNS = {m: [f for f in fs if f.repeated and not isinstance(f.type, str)] for m, fs in MESSAGES.items()
+           if m != "Substitution"}  # the messages of a batch
 OPTIONAL = frozenset({"q_values", "substitutions"})  # sink batch keys that may be left out
 BATCH_KEYS = frozenset({f.name for f in MESSAGES["EpisodeBatch"]} - {"n_actions"} - OPTIONAL
                        | {f.key or f.name for f in COLUMNS["Steps"]})
@@ -149,70 +145,53 @@ def encode_batch(b: Mapping[str, Any]) -> bytes:
     return _message("EpisodeBatch", b, S.CLASSES if b["wide"] else VIEWS).SerializeToString(deterministic=True)
 
 
-def _flat_fast(data: list[bytes]) -> dict | None:
-    """Columns of the messages through the raw views, or None when one is encoded otherwise."""
-    msgs = {"EpisodeBatch": [VIEWS["EpisodeBatch"].FromString(d) for d in data]}
-    for v, d in zip(msgs["EpisodeBatch"], data):
+def _flat(data: list[bytes], classes: dict | None = None) -> dict | None:
+    """Every column of the messages, concatenated, and its length in each: through the raw views (``classes``
+    None; None when a message is encoded otherwise) or through real message classes (ours, or a file's own)."""
+    view, cls = classes is None, (VIEWS if classes is None else classes)["EpisodeBatch"]
+    top = [cls.FromString(d) for d in data]
+    for v, d in zip(top, data) if view else ():
         v.DiscardUnknownFields()
         if v.ByteSize() != len(d):
             return None
-    msgs.update({sub: [getattr(v, field) for v in msgs["EpisodeBatch"]] for field, sub in SUBS.items()})
-    out: dict = {}
+    has = cls.DESCRIPTOR.fields_by_name  # an older file's batches may lack S.ADDED
+    msgs = {"EpisodeBatch": top} | {sub: [getattr(v, field) for v in top] for field, sub in SUBS.items() if field in has}
+    out: dict = {"run": np.array([m.run for m in top], np.int64), "n_actions": np.array([m.n_actions for m in top]),
+                 "n_categories": np.array([m.recognitions.n_categories for m in top], np.int64)}
     for msg, fields in COLUMNS.items():
+        have = msgs[msg][0].DESCRIPTOR.fields_by_name if msg in msgs and top else ()
         for f in fields:
-            raw = [getattr(m, f.name) for m in msgs[msg]]
-            size = np.dtype(WIRE_DTYPES[f.type]).itemsize
-            lens = np.fromiter(map(len, raw), np.int64, len(raw))
-            values = np.frombuffer(b"".join(raw), WIRE_DTYPES[f.type])
-            if (lens % size).any() or (size == 1 and len(values) and values.max() >= 128):
+            raw = [getattr(m, f.name) for m in msgs.get(msg, ())] if not top or f.name in have else [()] * len(top)
+            if not view:
+                out[msg, f.name] = (np.array([x for xs in raw for x in xs], {F32: np.float32, F64: np.float64}
+                                             .get(f.type, np.int64)), np.array([len(x) for x in raw], np.int64))
+                continue
+            wire, lens = _WIRE[f.type], np.fromiter(map(len, raw), np.int64, len(raw))
+            values = np.frombuffer(b"".join(raw), wire)
+            if (lens % wire.itemsize).any() or (wire.itemsize == 1 and len(values) and values.max() >= 128):
                 return None  # not whole elements, or varints of more than one byte
             if f.type == SMALL:  # zigzag back: 0, 1, 2, 3 -> 0, -1, 1, -2
                 values = (values >> 1).astype(np.int8) ^ -(values & 1).astype(np.int8)
-            out[msg, f.name] = (values, lens // size)
-    return out | _scalars(msgs["EpisodeBatch"])
+            out[msg, f.name] = (values, lens // wire.itemsize)
+    return out
 
 
-def _flat_runtime(data: list[bytes], classes: dict) -> dict:
-    """The same columns through real message classes (ours, or built from a file's own schema)."""
-    top = [classes["EpisodeBatch"].FromString(d) for d in data]
-    has = classes["EpisodeBatch"].DESCRIPTOR.fields_by_name  # an older file's batches may lack S.ADDED
-    msgs = {"EpisodeBatch": top} | {sub: [getattr(v, field) for v in top] for field, sub in SUBS.items() if field in has}
-    out: dict = {}
-    for msg, fields in COLUMNS.items():
-        for f in fields:
-            known = msg in msgs and (not top or f.name in msgs[msg][0].DESCRIPTOR.fields_by_name)
-            lists = [getattr(m, f.name) for m in msgs[msg]] if known else [()] * len(top)
-            dtype = {F32: np.float32, F64: np.float64}.get(f.type, np.int64)
-            out[msg, f.name] = (np.array([x for xs in lists for x in xs], dtype),
-                                np.array([len(x) for x in lists], np.int64))
-    return out | _scalars(top)
-
-
-def _scalars(top: list) -> dict:
-    return {"run": np.array([m.run for m in top], np.int64), "n_actions": np.array([m.n_actions for m in top]),
-            "n_categories": np.array([m.recognitions.n_categories for m in top], np.int64)}
-
-
-_foreign: dict[bytes, dict] = {}
-
-
+@functools.cache
 def classes_of(schema_data: bytes) -> dict:
     """Message classes built from a file's own schema record (a FileDescriptorSet), after checking
     that it has every field we read, of a numeric kind (else :class:`FormatError`)."""
-    if schema_data not in _foreign:
-        classes = S.message_classes(descriptor_pb2.FileDescriptorSet.FromString(schema_data).file)
-        for msg, fields in MESSAGES.items():
-            have = classes[msg].DESCRIPTOR.fields_by_name if msg in classes else {}
-            for f in fields:
-                d = have.get(f.name)
-                if d is None and (msg in S.ADDED or f.name in S.ADDED):
-                    continue
-                if d is None or d.is_repeated != f.repeated or (d.type == d.TYPE_MESSAGE) != isinstance(f.type, str) \
-                        or d.type in (d.TYPE_STRING, d.TYPE_BYTES, d.TYPE_GROUP):
-                    raise FormatError(f"its episode batches use another record schema (not format "
-                                      f"{S.FORMAT_VERSION}; {msg}.{f.name} differs): re-run the trials that wrote it")
-        _foreign[schema_data] = classes
-    return _foreign[schema_data]
+    classes = S.message_classes(descriptor_pb2.FileDescriptorSet.FromString(schema_data).file)
+    for msg, fields in MESSAGES.items():
+        have = classes[msg].DESCRIPTOR.fields_by_name if msg in classes else {}
+        for f in fields:
+            d = have.get(f.name)
+            if d is None and (msg in S.ADDED or f.name in S.ADDED):
+                continue
+            if d is None or d.is_repeated != f.repeated or (d.type == d.TYPE_MESSAGE) != isinstance(f.type, str) \
+                    or d.type in (d.TYPE_STRING, d.TYPE_BYTES, d.TYPE_GROUP):
+                raise FormatError(f"its episode batches use another record schema (not format "
+                                  f"{S.FORMAT_VERSION}; {msg}.{f.name} differs): re-run the trials that wrote it")
+    return classes
 
 
 def decode_batches(messages: list[tuple[int, bytes]], name: str, schema_data: bytes | None = None) -> dict:
@@ -222,9 +201,9 @@ def decode_batches(messages: list[tuple[int, bytes]], name: str, schema_data: by
     problem when the messages' arrays do not fit together, FormatError for an unreadable schema."""
     data = [d for _, d in messages]
     if schema_data is None or schema_data == OUR_SCHEMA:
-        flat = _flat_fast(data) or _flat_runtime(data, {"EpisodeBatch": S.EpisodeBatch})
+        flat = _flat(data) or _flat(data, S.CLASSES)
     else:
-        flat = _flat_runtime(data, classes_of(schema_data))
+        flat = _flat(data, classes_of(schema_data))
     return _columns(flat, name)
 
 
@@ -241,9 +220,6 @@ def _columns(flat: dict, name: str) -> dict[str, Any]:
 
     count = {k: v[1] for k, v in flat.items() if isinstance(k, tuple)}
     n_eps, lens = count["EpisodeBatch", "episode"], flat["EpisodeSummaries", "steps"][0].astype(np.int64)
-    for f in COLUMNS["EpisodeSummaries"]:
-        if not np.array_equal(count["EpisodeSummaries", f.name], n_eps):
-            raise bad(f"summary column {f.name} does not have one entry per episode")
     msg_of_ep = np.repeat(np.arange(len(n_eps)), n_eps)
     if not count["Steps", "states"].any():  # recorded without steps (record=episodes)
         lens = np.zeros_like(lens)
@@ -251,15 +227,12 @@ def _columns(flat: dict, name: str) -> dict[str, Any]:
     count["Steps", REWARDS.name] = n_float + n_small  # per batch, its rewards are in one of the two
     if ((n_float > 0) & (n_small > 0)).any():
         raise bad("a batch has rewards in both reward columns")
-    for msg, expected, why in (("Steps", np.bincount(msg_of_ep, lens, len(n_eps)), "step column {} does not have "
-                                "the episodes' step count"), ("Recognitions", count["Recognitions", "episode"],
-                                "recognition columns differ in length ({})"), ("UnsafeAdditions",
-                               count["UnsafeAdditions", "episode"], "unsafe-set columns differ in length ({})"),
-                               ("Substitutions", count["Substitutions", "episode"],
-                                "substitution columns differ in length ({})")):
+    rows = {"EpisodeSummaries": (n_eps, "episode"), "Steps": (np.bincount(msg_of_ep, lens, len(n_eps)), "step")} | {
+        m: (count[m, "episode"], "row") for m in ("Recognitions", "UnsafeAdditions", "Substitutions")}
+    for msg, (expected, per) in rows.items():
         for f in COLUMNS[msg]:
             if f.name not in ("scores", SMALL_REWARDS.name) and not np.array_equal(count[msg, f.name], expected):
-                raise bad(why.format(f.name))
+                raise bad(f"{msg}.{f.name} does not have one entry per {per}")
     rec_m, un_k, ncat = count["Recognitions", "episode"], count["UnsafeAdditions", "episode"], flat["n_categories"]
     n_sc = count["Recognitions", "scores"]
     if not np.array_equal(n_sc, np.where(n_sc > 0, rec_m * ncat, 0)):
@@ -314,12 +287,9 @@ def _columns(flat: dict, name: str) -> dict[str, Any]:
 
 def decode_substitutions(messages: list[tuple[int, bytes]]) -> tuple[dict[str, np.ndarray], int]:
     """Columns of ``Substitution`` messages (files of format 4 and older) and how many did not parse."""
-    fields, rows, bad = MESSAGES["Substitution"], [], 0
+    rows = []
     for _, data in messages:
-        try:
-            m = S.Substitution.FromString(data)
-        except Exception:  # passed its chunk's CRC (or had none) and still does not parse
-            bad += 1
-            continue
-        rows.append([getattr(m, f.name) for f in fields])
-    return {f.column: np.array([r[i] for r in rows], f.dtype) for i, f in enumerate(fields)}, bad
+        with contextlib.suppress(Exception):  # one that passed its chunk's CRC (or had none) and still does not parse
+            rows.append(S.Substitution.FromString(data))
+    return {f.column: np.array([getattr(m, f.name) for m in rows], f.dtype) for f in MESSAGES["Substitution"]}, \
+        len(messages) - len(rows)

@@ -90,7 +90,7 @@ def account(sc: Scan, read_runs: np.ndarray, read_eps: np.ndarray, *, runs: int 
     gaps = next((d for d in sc.damage if d.span is None and d.kind in ("chunk", "bytes")), None) or Damage(
         "gaps", "missing, with no damaged part found to explain it")
     # a missing range is split where a batch of a lost chunk starts (its message index records say)
-    stamp_owner = {t: d for d in sc.damage for t in d.batch_stamps}
+    stamp_owner = {t: d for d in sc.damage for t in d.held.get("episode batches", ())}
     stamps = np.array(sorted({r << 32 | e for r, e, _ in map(S.split_log_time, stamp_owner)}), np.int64)
     for r, lo, b in ranges(miss >> 32, miss & 0xFFFFFFFF):
         while lo <= b:

@@ -57,7 +57,8 @@ class FileMeta:
     problems: list[str] = field(default_factory=list)  # what the warning said, one sentence each
     partial: bool = False  # a ``.partial`` file: a killed or interrupted run
     damaged: bool = False  # some of its bytes are wrong (not only cut short)
-    expected_episodes: int | None = None  # what the metadata says it should hold (in the requested window)
+    expected_runs: int | None = None  # what the metadata says it should hold
+    expected_episodes: int | None = None  # the same, in the requested window
     lost: str = ""  # short: the runs and episodes lost or missing, for a one-line listing
     readable: bool = True  # False: not one record (metadata, message) could be read
 
@@ -179,7 +180,7 @@ def _read_file(path: Path, window, pictures: bool) -> dict[str, Any]:
     problems += sc.notes
     stats = sc.summary is not None and sc.summary.statistics is not None
     if pictures and not (meta.pictures or meta.support_pictures or stats) and any(
-            d.span is not None and d.span[0] == 0 and d.kind in ("chunk", "bytes", "truncated") and not d.index
+            d.span is not None and d.span[0] == 0 and d.kind in ("chunk", "bytes", "truncated") and not d.held
             for d in sc.damage):
         problems.append("no picture could be read: the file's pictures, if it had any, were in the damaged part "
                         "(they are stamped at time 0)")
@@ -187,7 +188,8 @@ def _read_file(path: Path, window, pictures: bool) -> dict[str, Any]:
         problems.append(f"{sc.dropped} messages referred to channels defined in lost parts and were dropped")
     if not sc.damage and (meta.partial or closed.get("complete") != "true"):
         problems.insert(0, _UNFINISHED[meta.partial, meta.closed is None])
-    meta.expected_episodes, meta.problems, meta.readable = expected, problems, bool(sc.metadata or sc.messages)
+    meta.expected_runs, meta.expected_episodes, meta.problems = runs, expected, problems
+    meta.readable = bool(sc.metadata or sc.messages)
     meta.damaged = any(d.kind in DAMAGE_KINDS for d in sc.damage)
     meta.complete = sc.complete and not meta.partial and not problems
     of = "" if expected is None else f" of {expected}"
@@ -294,7 +296,7 @@ def _message_counts(sc: Scan, closed: dict[str, str], n_subs: int) -> dict[str, 
             held[message_kind(sc.channels[cid].topic) if cid in sc.channels else None] += n
         return {k: (read[k], n) for k, n in held.items() if k and k != "episode batches"}
     for d in sc.damage:
-        held.update(d.held)
+        held.update({k: len(v) for k, v in d.held.items()})
     out = {k: (read[k], read[k] + n) for k, n in held.items() if k != "episode batches"}
     if str(closed.get("substitutions", "")).isdigit():
         out["substitutions"] = (n_subs, int(closed["substitutions"]))

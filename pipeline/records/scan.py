@@ -1,17 +1,7 @@
-"""What survives of an MCAP record file, read through the mcap package.
-
-* A file whose footer and summary section are intact (the summary's CRC checked) is read with mcap's seeking
-  reader: messages through the chunk index (each chunk's CRC checked; with a time range, only the chunks that can
-  hold its messages), metadata through its index and, on a full read, the data section's CRC (the data-end
-  record's), which covers the bytes outside the chunks' data. If any of that fails, it is read as below.
-* Otherwise it is read front to back with ``StreamReader(emit_chunks=True)``, each chunk through
-  ``breakup_chunk(validate_crc=True)``. A damaged chunk is a :class:`Damage` (the message indexes after it say what
-  it held) and reading goes on. A record whose header is wrong stops the stream reader; a new one starts where the
-  summary's chunk index says that record ends or else at the next valid chunk (its CRC checked), metadata or
-  data-end record. A record running past the end of a file that no valid record follows is a truncation.
-
-Channel definitions lost with a damaged part come from a later copy or, in this writer's files, its fixed layout
-(:data:`WRITER_CHANNELS`). A file with nothing to read (empty, not MCAP) raises :class:`RecordsError`.
+"""What survives of an MCAP record file, read through the mcap package (docs/records.md "Damaged and truncated
+files"): with mcap's seeking reader when its summary is intact, else (or when that finds damage) front to back with
+``StreamReader(emit_chunks=True)`` and ``breakup_chunk(validate_crc=True)``, a new stream reader after each damaged
+record. Each damaged or missing part is a :class:`Damage`; a file with nothing to read raises :class:`RecordsError`.
 """
 from __future__ import annotations
 
@@ -35,8 +25,6 @@ from pipeline.errors import UserError
 from . import schema as S
 
 MAGIC = b"\x89MCAP0\r\n"
-#: The header's library string of files written by :class:`pipeline.records.RecordWriter`.
-LIBRARY = "pipeline.records/" + S.FORMAT_VERSION
 #: The writer registers these first, in this order, in every file (tested): channel id -> (topic,
 #: schema id, message class); used when every copy of a file's channel definitions is lost.
 WRITER_CHANNELS = {1: (S.TOPIC_EPISODES, 1, S.EpisodeBatch)}
@@ -64,9 +52,7 @@ class Damage:
     kind: str  # "chunk", "bytes", "metadata", "summary", "decode", "data" (damage); "truncated" (ends early)
     what: str  # a sentence naming the part, where it is and what is wrong with it
     span: tuple[int, int] | None = None  # log times of the messages it held, when known
-    index: dict[int, list[int]] = field(default_factory=dict)  # a lost chunk's message index: channel -> times
-    held: dict[str, int] = field(default_factory=dict)  # message kind -> count (from ``index``)
-    batch_stamps: list[int] = field(default_factory=list)  # log times of its episode batches
+    held: dict[str, list[int]] = field(default_factory=dict)  # a lost chunk's message index: kind -> log times
     lost: list = field(default_factory=list)  # (run, first, last) episode ranges, filled by the loss accounting
 
 
@@ -85,7 +71,6 @@ class Scan:
     summary: Summary | None = None  # the summary section, when intact
     complete: bool = False  # read through its intact summary, nothing damaged
     dropped: int = 0  # messages whose channel definition is lost everywhere
-    orphans: list[Message] = field(default_factory=list)  # messages read before their channel's definition
 
 
 def message_kind(topic: str) -> str | None:
@@ -187,8 +172,8 @@ def _walk(data: bytes, out: Scan, limit: int, time_range) -> None:
                 if data[start] not in _DATA_RECORDS or (c and end - start != c.chunk_length):
                     raise ValueError("its record header disagrees with " + ("the chunk index" if c else "its contents"))
                 if isinstance(rec, MessageIndex):
-                    if lost is not None:  # what the damaged chunk before it held
-                        lost.index.setdefault(rec.channel_id, []).extend(t for t, _ in rec.records)
+                    if lost is not None and (kind := _kind(out, rec.channel_id)):  # what the damaged chunk held
+                        lost.held.setdefault(kind, []).extend(t for t, _ in rec.records)
                 elif isinstance(rec, DataEnd):
                     if data[start:start + 9] != _DATA_END_HEAD:
                         raise ValueError("its record header disagrees with its contents")
@@ -240,15 +225,34 @@ def _walk(data: bytes, out: Scan, limit: int, time_range) -> None:
         if start not in visited:
             out.damage.append(Damage("chunk", f"chunk {number[start]}{of} at byte {start} was not reached (the "
                                               "records before it are damaged)", _SPAN(c)))
-    _settle(out, time_range)
+
+
+def _kind(out: Scan, cid: int) -> str | None:
+    """How the messages of channel ``cid`` are counted (:func:`message_kind`), its definition lost or not."""
+    ours = out.library == S.LIBRARY
+    topic = out.channels[cid].topic if cid in out.channels else WRITER_CHANNELS.get(cid, ("",))[0] if ours else ""
+    return message_kind(topic) if topic else "pictures" if ours else "messages of channels whose definitions were lost"
+
+
+def _writer_channel(out: Scan, cid: int) -> Channel | None:
+    """Channel ``cid`` of this writer's fixed layout, for a file of its whose definition of it was lost."""
+    if out.library != S.LIBRARY or cid not in WRITER_CHANNELS:
+        return None
+    topic, sid, cls = WRITER_CHANNELS[cid]
+    out.channels[cid] = Channel(id=cid, topic=topic, message_encoding="protobuf", schema_id=sid, metadata={})
+    out.schemas.setdefault(sid, Schema(id=sid, name=cls.DESCRIPTOR.full_name, encoding="protobuf",
+                                       data=S.file_descriptor_set(cls)))
+    out.notes.append(f"the definition of channel {topic} was lost with the damaged part; taken from this writer's "
+                     f"fixed channel layout ({S.LIBRARY})")
+    return out.channels[cid]
 
 
 def _file(out: Scan, rec, time_range) -> str | None:
     """File one record (a chunk: its records, unless outside ``time_range``); returns why a chunk is damaged."""
     if isinstance(rec, Message):
-        ch = out.channels.get(rec.channel_id)
+        ch = out.channels.get(rec.channel_id) or _writer_channel(out, rec.channel_id)
         if ch is None:
-            out.orphans.append(rec)
+            out.dropped += 1
         elif time_range is None or time_range[0] <= rec.log_time < time_range[1] or ch.topic.startswith(_PICTURES):
             out.messages.setdefault(ch.topic, []).append((rec.log_time, rec.data))
     elif isinstance(rec, Chunk):
@@ -305,29 +309,3 @@ def _find_next(data: bytes, start: int, limit: int) -> int | None:
                 return p
     return None
 
-
-def _settle(out: Scan, time_range) -> None:
-    """After a walk: messages read before their channel's definition, filed or dropped; what damaged parts held."""
-    missing = {m.channel_id for m in out.orphans} - set(out.channels)
-    used = sorted(missing & set(WRITER_CHANNELS)) if out.library == LIBRARY else []
-    for cid in used:
-        topic, sid, cls = WRITER_CHANNELS[cid]
-        out.channels[cid] = Channel(id=cid, topic=topic, message_encoding="protobuf", schema_id=sid, metadata={})
-        out.schemas.setdefault(sid, Schema(id=sid, name=cls.DESCRIPTOR.full_name, encoding="protobuf",
-                                           data=S.file_descriptor_set(cls)))
-    if used:
-        out.notes.append(f"the definitions of channels {', '.join(WRITER_CHANNELS[c][0] for c in used)} were lost "
-                         f"with the damaged part; taken from this writer's fixed channel layout ({LIBRARY})")
-    orphans, out.orphans = out.orphans, []
-    for m in orphans:
-        _file(out, m, time_range)
-    out.dropped, out.orphans = len(out.orphans), []
-    for d in out.damage:
-        for cid, times in d.index.items():
-            topic = out.channels[cid].topic if cid in out.channels else None
-            kind = message_kind(topic) if topic else ("pictures" if out.library == LIBRARY and cid > 1 else
-                                                      "messages of channels whose definitions were lost")
-            if topic == S.TOPIC_EPISODES:
-                d.batch_stamps = sorted(times)
-            if kind:
-                d.held[kind] = d.held.get(kind, 0) + len(times)

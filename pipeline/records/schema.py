@@ -1,17 +1,7 @@
-"""The MCAP record schema (docs/records.md): Protobuf messages, topics,
-timestamps, and :data:`MESSAGES`, the one table of fields that the encoder, the decoder and the
-reader's frame columns derive from (:mod:`.codec`).
-
-A file: metadata records first, the pictures once (``foxglove.CompressedImage`` on
-``/pictures/<id>``, ``/support/<category>/<position>``), one :data:`EpisodeBatch` per sink batch on
-``/episodes`` (stamped at its first episode, step 0) holding its episodes' support-set changes too
-(format 5; files of format 4 and older have one :data:`Substitution` message each on ``/substitutions``).
-Format 4: packed integer columns are ``fixed32``/``sfixed32`` (the wire payload is the raw
-little-endian numbers), except the code columns (packed ``uint32`` varints: states, actions, flags,
-source), one byte a value when all of a batch's values are below 128 (every paper maze has at most
-121 cells), which the codec writes and reads as raw bytes. The maze record holds the layout and
-the caller's action names, moves and category names. Timestamps come from (run, episode, step),
-never the wall clock. Flag bits and sources mirror ``pipeline/rl/codes.py`` (a test checks).
+"""The MCAP record schema (docs/records.md "The schema"): topics, timestamps and :data:`MESSAGES`, the one
+table of fields (their order, numbers, wire types and frame columns) that the Protobuf descriptors, the encoder,
+the decoder and the reader's frames derive from (:mod:`.codec`). Flag bits and sources mirror
+``pipeline/rl/codes.py`` (a test checks); action names, moves and category names are the caller's (``maze``).
 """
 from __future__ import annotations
 
@@ -19,10 +9,12 @@ from typing import NamedTuple
 
 from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
 from foxglove_schemas_protobuf.CompressedImage_pb2 import CompressedImage
+from mcap_protobuf.schema import build_file_descriptor_set
 
 FORMAT_VERSION = "5"  # 5: substitutions in the batches (4: states as codes; 3: fixed-width packed columns;
 #                       2: varint columns; 1: one Episode each)
 PACKAGE = "fsrl.records"
+LIBRARY = "pipeline.records/" + FORMAT_VERSION  # the header's library string of this writer's files
 TOPIC_EPISODES, TOPIC_SUBSTITUTIONS = "/episodes", "/substitutions"
 TOPIC_PICTURES, TOPIC_SUPPORT = "/pictures", "/support"  # + "/<picture id>", + "/<category>/<position>"
 
@@ -80,7 +72,7 @@ MESSAGES: dict[str, list[Field]] = {
         Field("greedy_optimal", 7, BOOL, "greedy_optimal", "bool")],  # the greedy policy is optimal after it
     "Steps": [  # one entry per executed step of the batch's episodes, concatenated
         Field("states", 1, CODE, "state", "int32"),  # cell row * width + col before the step
-        Field("actions", 2, CODE, "action", "int8"),  # 0 N, 1 E, 2 S, 3 W
+        Field("actions", 2, CODE, "action", "int8"),  # action index (the maze record's actions, moves)
         Field("rewards", 3, F32, "reward", "float32"), Field("flags", 4, CODE, "flags", "uint8"),  # FLAG_* bits
         # format 5: a batch whose rewards are all whole numbers in -64..63 (the rules give -1, 0, 1) has
         # them here, one byte each, instead of in ``rewards`` (4 bytes each: half of a step's raw bytes)
@@ -146,39 +138,19 @@ def message_classes(files) -> dict:
     pool = descriptor_pool.DescriptorPool()
     for fd in files:
         pool.Add(fd)
-    out = {}
-    for name in MESSAGES:
-        try:
-            out[name] = message_factory.GetMessageClass(pool.FindMessageTypeByName(f"{PACKAGE}.{name}"))
-        except KeyError:
-            pass
-    return out
+    have = {m.name for fd in files if fd.package == PACKAGE for m in fd.message_type}
+    return {name: message_factory.GetMessageClass(pool.FindMessageTypeByName(f"{PACKAGE}.{name}"))
+            for name in MESSAGES if name in have}
 
 
 FILE_DESCRIPTOR_PROTO = _file(view=False)
 CLASSES = message_classes([FILE_DESCRIPTOR_PROTO])
 VIEWS = message_classes([_file(view=True)])
-EpisodeBatch, Substitution = CLASSES["EpisodeBatch"], CLASSES["Substitution"]
-EpisodeSummaries, Steps = CLASSES["EpisodeSummaries"], CLASSES["Steps"]
-Recognitions, UnsafeAdditions = CLASSES["Recognitions"], CLASSES["UnsafeAdditions"]
+EpisodeBatch, Substitution, Steps = CLASSES["EpisodeBatch"], CLASSES["Substitution"], CLASSES["Steps"]
 
 
 def file_descriptor_set(message_class) -> bytes:
-    """Serialized ``FileDescriptorSet`` of ``message_class`` and its dependencies: the MCAP schema
-    data for encoding ``protobuf`` (what Foxglove, Rerun and mcap-protobuf-support decode)."""
-    fds, seen = descriptor_pb2.FileDescriptorSet(), set()
+    """The MCAP schema data for encoding ``protobuf``: ``message_class``'s ``FileDescriptorSet`` (with its
+    dependencies, mcap-protobuf-support's own builder), what Foxglove, Rerun and mcap-protobuf decode."""
+    return build_file_descriptor_set(message_class).SerializeToString(deterministic=True)
 
-    def add(fd) -> None:
-        for dep in fd.dependencies:
-            if dep.name not in seen:
-                seen.add(dep.name)
-                add(dep)
-        fd.CopyToProto(fds.file.add())
-
-    add(message_class.DESCRIPTOR.file)
-    return fds.SerializeToString(deterministic=True)
-
-
-__all__ = ["CompressedImage", "EpisodeBatch", "FLAG_NAMES", "FORMAT_VERSION",
-           "MESSAGES", "SOURCE_NAMES", "Substitution", "TOPIC_EPISODES", "TOPIC_PICTURES", "TOPIC_SUBSTITUTIONS",
-           "TOPIC_SUPPORT", "file_descriptor_set", "log_time_ns", "split_log_time"]

@@ -1,16 +1,6 @@
-"""The MCAP record writer: an episode sink (``pipeline/rl/sink.py``) that records every episode of
-every run (docs/records.md; schema in :mod:`.schema`, encoding in :mod:`.codec`).
-
-    with RecordWriter(out / "records.mcap", metadata={"config": cfg, "seeds": seeds}, maze={"layout": rows},
-                      runs=assignments, pictures=query_pngs) as sink:
-        run_trials(..., sink=sink)     # calls sink.episodes(**batch) and sink.substitution(...)
-
-It writes ``<name>.mcap.partial`` and renames it to ``<name>.mcap`` when :meth:`RecordWriter.close`
-succeeds (if the ``with`` block raises, the finished file keeps its ``.partial`` name). Metadata
-records and pictures come first; each sink batch is one ``EpisodeBatch`` message, with the
-substitutions of its episodes (held until their batch comes: one message each cost more than the
-rest of the writer's per-substitution work, measured in benchmarks.records_overhead); a chunk is closed
-once ``flush_every`` episodes came in, so a killed run loses at most those. Same input, same bytes.
+"""The MCAP record writer, :class:`RecordWriter`: an episode sink (``pipeline/rl/sink.py``) that records every
+episode of every run, one ``EpisodeBatch`` message a sink batch (docs/records.md "The writer": the atomic finish,
+checksums, flushing, what is checked; schema in :mod:`.schema`, encoding in :mod:`.codec`). Same input, same bytes.
 """
 from __future__ import annotations
 
@@ -28,13 +18,11 @@ from mcap.writer import CompressionType, Writer
 from . import schema as S
 from .codec import check_batch, encode_batch
 
-LIBRARY = "pipeline.records/" + S.FORMAT_VERSION
 LAYOUT_CHARS = frozenset("SGX.")
 OBSTACLE_KEYS = ("cell", "physical", "category", "instance", "orientation")
 VERSION_PACKAGES = ("fewshot-safe-rl-pipeline", "numpy", "numba", "pandas", "torch", "mujoco", "mcap",
                     "mcap-protobuf-support", "protobuf", "foxglove-schemas-protobuf", "rerun-sdk",
                     "hydra-core", "omegaconf", "gymnasium")
-EPISODE_KEYS = {"run", "episode", "states", "actions", "rewards", "flags", "recognitions", "unsafe_added", "summary"}
 SUBSTITUTION_KEYS = tuple(f.name for f in S.MESSAGES["Substitutions"])  # of the substitution() call
 COMPRESSION = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
 
@@ -128,7 +116,7 @@ def _check_runs(runs: Sequence | Mapping) -> dict[str, list[dict[str, int]]]:
 def _metadata_records(metadata: dict[str, Any], maze, runs, level: str) -> list[tuple[str, dict[str, str]]]:
     import yaml
 
-    out = [("recording", {"format_version": S.FORMAT_VERSION, "library": LIBRARY, "record": level,
+    out = [("recording", {"format_version": S.FORMAT_VERSION, "library": S.LIBRARY, "record": level,
                           "time": "log_time_ns = run * 1e15 + episode * 1e9 + step * 1e6 (1 ms a step, 1 s an episode)",
                           "episodes_topic": S.TOPIC_EPISODES,
                           "pictures_topic": S.TOPIC_PICTURES + "/<picture id>"})]
@@ -152,7 +140,7 @@ def _metadata_records(metadata: dict[str, Any], maze, runs, level: str) -> list[
 
 class RecordWriter:
     """Writes one MCAP file of episode records; the episode sink of ``pipeline/rl/sink.py``
-    (:meth:`episodes`, :meth:`substitution`; :meth:`episode` records one episode as a batch of one).
+    (:meth:`episodes`, :meth:`substitution`).
 
     ``path`` ends in ``.mcap``; ``metadata``: ``config`` (dict, OmegaConf or YAML/JSON string),
     ``seeds``, ``versions`` (over the installed package versions), other JSON-able keys (``info``);
@@ -193,7 +181,7 @@ class RecordWriter:
         # enable_data_crcs: a flipped byte outside the chunks is detected too (docs/reliability.md)
         self._mcap = Writer(self._file, chunk_size=chunk_size, compression=COMPRESSION[compression],
                             enable_data_crcs=True)
-        self._mcap.start(profile="", library=LIBRARY)
+        self._mcap.start(profile="", library=S.LIBRARY)
         # schemas 1-2, then channel 1 /episodes: a reader falls back on this layout
         ids = [self._mcap.register_schema(name=cls.DESCRIPTOR.full_name, encoding="protobuf",
                                           data=S.file_descriptor_set(cls)) for cls in (S.EpisodeBatch, S.CompressedImage)]
@@ -233,25 +221,6 @@ class RecordWriter:
         self.n_episodes, self._since_flush = self.n_episodes + len(b["episode"]), self._since_flush + len(b["episode"])
         if self._since_flush >= self.flush_every:
             self.flush()
-
-    def episode(self, **fields: Any) -> None:
-        """Record one episode (``split_batch``'s per-episode fields; ``summary`` may hold ``steps``,
-        ``q_values`` is one [n_states, n_actions] table) as a batch of one."""
-        missing, unknown = EPISODE_KEYS - fields.keys(), fields.keys() - EPISODE_KEYS - {"steps", "q_values"}
-        if missing or unknown:
-            raise TypeError(f"episode record: missing fields {sorted(missing)}, unknown fields {sorted(unknown)} "
-                            "(see pipeline/rl/sink.py)")
-        ep, n, summary = int(fields["episode"]), len(fields["states"]), dict(fields["summary"])
-        for given in (summary.pop("steps", n), fields.get("steps", n)):
-            if int(given) != n:
-                raise ValueError(f"episode record (run {fields['run']}, episode {ep}): steps {given} but {n} states")
-        rows = [{**d, "episode": np.full(len(d["step"]), ep)} if len(d.get("step", ())) else dict(d or {})
-                for d in (fields["recognitions"], fields["unsafe_added"])]
-        q = fields.get("q_values")
-        self.episodes(**{k: fields[k] for k in ("run", "states", "actions", "rewards", "flags")}, episode=[ep],
-                      steps=[n], recognitions=rows[0], unsafe_added=rows[1],
-                      summary={k: np.asarray([v]) for k, v in summary.items()},
-                      **({} if q is None else {"q_values": np.asarray(q)[None]}))
 
     def substitution(self, *, run: int, episode: int, step: int, picture: int, category: int,
                      position: int, support_accuracy: float = float("nan")) -> None:
