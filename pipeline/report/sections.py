@@ -5,7 +5,8 @@ Kinds: ``default`` (a table of collisions per run with 95% bootstrap intervals, 
 95% bands, the support set's query accuracy), ``bars`` (the same with a bar chart), ``long_term``
 (the runs are consecutive experiments of one robot), ``by_maze`` (one row per group of cells,
 one column per maze, ours beside the paper's) and ``accuracy_curve`` (collisions against a
-controlled recogniser's accuracy: :mod:`pipeline.report.accuracy_curve`). A ``path`` block adds
+controlled recogniser's accuracy: :mod:`pipeline.report.accuracy_curve`) and ``generalisation``
+(the paper's claims over generated layouts: :mod:`pipeline.report.generalisation`). A ``path`` block adds
 a section with the learned path before the experiment's own. Tables and figures are named after
 the experiment's folder: ``tables/<folder>.md|csv``, ``figures/<folder>_collisions.png``,
 ``<folder>_learning_curves.png`` (its data ``tables/<folder>_learning_curves.csv``, long format:
@@ -355,8 +356,15 @@ def by_maze_kind(rep, exp: Experiment, paper: dict[str, PaperValue]) -> None:
             support_part(rep, exp, [(row, cells) for row, cells in on_maze if cells], maze)
 
 
+def generalisation_kind(rep, exp: Experiment, paper: dict[str, PaperValue]) -> None:
+    """:mod:`pipeline.report.generalisation` (imported here: it checks claims with
+    :mod:`pipeline.report.claims`, which imports this module)."""
+    from pipeline.report.generalisation import generalisation_section
+    generalisation_section(rep, exp)
+
+
 KINDS = {"default": default_kind, "bars": bars_kind, "long_term": long_term_kind, "by_maze": by_maze_kind,
-         "accuracy_curve": accuracy_curve_kind}
+         "accuracy_curve": accuracy_curve_kind, "generalisation": generalisation_kind}
 
 
 # ------------------------------------------------------------------------------------ path
