@@ -19,14 +19,14 @@ def test_expand_names_and_mazes_exactly():
     cells = expand([{"size": "5x5", "obstacles": 9, "count": 2, "seed": 3, "unique": True},
                     {"size": "7x7", "obstacles": 16, "count": 1, "seed": 0, "unique": False}], ["ssrl", "fewshot"])
     assert cells == {
-        "ssrl_5x5_L0": GeneratedCell("ssrl", 0, 0, "random:5x5:9:3:unique"),
-        "fewshot_5x5_L0": GeneratedCell("fewshot", 0, 0, "random:5x5:9:3:unique"),
-        "ssrl_5x5_L1": GeneratedCell("ssrl", 0, 1, "random:5x5:9:4:unique"),
-        "fewshot_5x5_L1": GeneratedCell("fewshot", 0, 1, "random:5x5:9:4:unique"),
+        "ssrl_5x5_L3": GeneratedCell("ssrl", 0, 0, "random:5x5:9:3:unique"),
+        "fewshot_5x5_L3": GeneratedCell("fewshot", 0, 0, "random:5x5:9:3:unique"),
+        "ssrl_5x5_L4": GeneratedCell("ssrl", 0, 1, "random:5x5:9:4:unique"),
+        "fewshot_5x5_L4": GeneratedCell("fewshot", 0, 1, "random:5x5:9:4:unique"),
         "ssrl_7x7_L0": GeneratedCell("ssrl", 1, 0, "random:7x7:16:0"),
         "fewshot_7x7_L0": GeneratedCell("fewshot", 1, 0, "random:7x7:16:0"),
     }
-    assert list(cells) == ["ssrl_5x5_L0", "fewshot_5x5_L0", "ssrl_5x5_L1", "fewshot_5x5_L1", "ssrl_7x7_L0",
+    assert list(cells) == ["ssrl_5x5_L3", "fewshot_5x5_L3", "ssrl_5x5_L4", "fewshot_5x5_L4", "ssrl_7x7_L0",
                            "fewshot_7x7_L0"]
 
 

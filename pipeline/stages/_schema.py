@@ -109,8 +109,8 @@ class LayoutSet:
 
 @dataclass
 class Layouts:
-    """Cell templates crossed with sets of generated layouts: cell ``<template>_<size>_L<k>`` is
-    the template on the ``k``-th layout of ``size``."""
+    """Cell templates crossed with sets of generated layouts: cell ``<template>_<size>_L<seed>`` is
+    the template on the layout of ``size`` with that seed."""
 
     sizes: List[LayoutSet] = field(default_factory=list)
     cells: Dict[str, Cell] = field(default_factory=dict)

@@ -6,7 +6,8 @@ The paper (section 4.2.2, Table 3) reports one layout per size: 5x5 with 9 obsta
 and 11x11 with 49. A layout set ``{size: 5x5, obstacles: 9, count: 100, seed: 0, unique: true}``
 stands for the layouts ``random:5x5:9:<seed + k>:unique`` for ``k = 0 .. count-1``
 (:mod:`pipeline.world.generate`); crossed with the templates ``{qlearning: {...}, ...}`` it gives
-the cells ``qlearning_5x5_L0 .. qlearning_5x5_L99``, each the template with that maze.
+the cells ``qlearning_5x5_L0 .. qlearning_5x5_L99``, each the template with that maze (``L`` and
+the layout's seed, so a layout keeps its cells' names whatever the set's ``count``).
 
 Pure functions on plain values: the trials stage expands the sets into its cells, and the report
 expands the recorded sets into the experiment's declared cells (the records keep the sets, not
@@ -59,9 +60,9 @@ def layout_mazes(size: str, obstacles: int, count: int, seed: int = 0, unique: b
     return specs
 
 
-def cell_name(template: str, size: str, layout: int) -> str:
-    """``<template>_<size>_L<k>``: the ``k``-th layout of ``size`` (0-based) under ``template``."""
-    return f"{template}_{size}_L{layout}"
+def cell_name(template: str, size: str, seed: int) -> str:
+    """``<template>_<size>_L<seed>``: the layout of ``size`` with that seed under ``template``."""
+    return f"{template}_{size}_L{seed}"
 
 
 def expand(sets: list[dict], templates: list[str]) -> dict[str, GeneratedCell]:
@@ -82,5 +83,5 @@ def expand(sets: list[dict], templates: list[str]) -> dict[str, GeneratedCell]:
         sizes[s["size"]] = i
         for k, maze in enumerate(mazes):
             for t in templates:
-                out[cell_name(t, s["size"], k)] = GeneratedCell(t, i, k, maze)
+                out[cell_name(t, s["size"], s.get("seed", 0) + k)] = GeneratedCell(t, i, k, maze)
     return out
