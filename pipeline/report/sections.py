@@ -39,7 +39,7 @@ from pipeline.report import figures as F
 from pipeline.report.accuracy_curve import accuracy_curve_kind
 from pipeline.report.experiments import Cell, Experiment
 from pipeline.report.names import settings
-from pipeline.report.spec import Row
+from pipeline.report.spec import PER_CELL_KINDS, Row
 from pipeline.report.stats import describe, fmt, mean_band
 
 COLLISIONS = "collisions (mean ± s.d. [95% CI])"
@@ -60,7 +60,8 @@ def section(rep, exp: Experiment, experiments: list[Experiment] = ()) -> list[st
     for note in exp.notes:
         text += f"\n{note}\n"
     rep.add(text)
-    KINDS[exp.spec.kind](rep, exp, paper_values(exp, experiments))
+    per_cell = exp.spec.kind in PER_CELL_KINDS  # no rows to put the paper's numbers beside
+    KINDS[exp.spec.kind](rep, exp, {} if per_cell else paper_values(exp, experiments))
     return missing
 
 
@@ -165,6 +166,8 @@ def paper_for(cells: list[Cell], experiments: list[Experiment]) -> PaperValue | 
     if len(keys) != 1:
         return None
     for other in experiments:
+        if not any(group.paper for group in other.spec.groups):
+            continue  # only groups carry the paper's numbers (and naming 2,100 rows is slow)
         source = (other.spec.title or other.name).split(":")[0]
         for group, group_cells in other.rows():
             for maze, value in group.paper.items():
