@@ -226,7 +226,7 @@ def accuracy_curves(panels: list[dict], path: Path, marker: float | None = None,
 def layout_boxes(per_size: dict[str, dict[str, np.ndarray]], path: Path):
     """One panel per size: a box per method of its values over layouts (mean collisions per run of
     each layout), log scale (zeros drawn at the axis' floor)."""
-    fig, axes = plt.subplots(1, len(per_size), figsize=(4.6 * len(per_size), 4.2), squeeze=False)
+    fig, axes = plt.subplots(1, len(per_size), figsize=(4.6 * len(per_size), 4.2), squeeze=False, layout="constrained")
     for ax, (size, boxes) in zip(axes[0], per_size.items()):
         labels = list(boxes)
         values = [np.asarray(boxes[k], dtype=float) for k in labels]
@@ -248,7 +248,7 @@ def feature_scatter(df, features: dict[str, str], path: Path, fit):
     gives one; log y."""
     sizes = list(dict.fromkeys(df["size"]))
     fig, axes = plt.subplots(len(sizes), len(features), figsize=(4.2 * len(features), 3.4 * len(sizes)),
-                             squeeze=False)
+                             squeeze=False, layout="constrained")
     colours = plt.get_cmap("tab10")
     for i, size in enumerate(sizes):
         on = df[df["size"] == size]
