@@ -78,4 +78,5 @@ def stop(pool: ProcessPoolExecutor) -> None:
             process.terminate()
     for process in processes:
         process.join(timeout=5)
+    pool.shutdown(wait=True)  # joins the pool's manager thread, which else fails at the interpreter's exit
 

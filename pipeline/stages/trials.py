@@ -446,8 +446,9 @@ def results(cfg: TrialsConfig, cells: list[CellRun], out: Path, progress: bool) 
         from pipeline.stages._workers import run_parallel
         try:
             yield from run_parallel(cells, folders, min(cfg.workers, len(cells)), cfg.threads)
-        except KeyboardInterrupt:
-            raise Interrupted(130, f"interrupted; the finished cells' records are under {out}") from None
+        except (KeyboardInterrupt, Interrupted) as exc:  # the workers are stopped: say where the records are
+            code = exc.code if isinstance(exc, Interrupted) else 130
+            raise Interrupted(code, f"interrupted; the finished cells' records are under {out}") from None
         return
     for i, (cell, folder) in enumerate(zip(cells, folders)):
         yield i, *run_cell(cell, folder, progress)
