@@ -1,6 +1,6 @@
 """The whole pipeline on the smoke profile, stage by stage through the real command line:
-render -> meta_train -> accuracy -> trials (fig8, fig9, fig10, table3, accuracy_curve, every episode
-recorded) -> report (twice: the same bytes) -> replay of one recorded episode."""
+render -> meta_train -> accuracy -> trials (fig8, fig9, fig10, table3, accuracy_curve, generalisation,
+every episode recorded) -> report (twice: the same bytes) -> replay of one recorded episode."""
 import hashlib
 import json
 import os
@@ -40,6 +40,9 @@ def smoke(tmp_path_factory):
         stage("trials", f"+experiment={exp}", f"out={runs}/{exp}", f"recogniser.checkpoint={models}/rn.pt",
               f"recogniser.images_dir={images}", "progress=false", f"metrics_file={d}/metrics/{exp}.json")
     stage("trials", "+experiment=accuracy_curve", f"out={runs}/accuracy_curve", "progress=false")  # no model
+    # 2 layouts per size x 7 methods; one process (two take longer to start than 42 tiny cells take)
+    stage("trials", "+experiment=generalisation", f"out={runs}/generalisation", f"recogniser.checkpoint={models}/rn.pt",
+          f"recogniser.images_dir={images}", "progress=false", "workers=1")
     report_args = [f"runs_dir={runs}", f"accuracy_dir={acc}", f"model_metrics={models}/metrics.json",
                    f"contact_dir={images}/contact_sheets"]
     stage("report", *report_args, f"out={d}/reports")
@@ -55,10 +58,14 @@ def test_every_experiment_is_recorded_and_reported(smoke):
     assert len(recs.meta.pictures) == 40  # the query pictures, stored once
     index = (d / "reports" / "index.md").read_text()
     for title in ("Table 1", "Table 2", "Figure 7", "Figure 8", "Figure 9", "Figure 10", "Table 3",
-                  "Beyond the paper: collisions against recognition accuracy"):
+                  "Beyond the paper: collisions against recognition accuracy",
+                  "Beyond the paper: do the claims generalise over generated layouts?"):
         assert title in index
     assert (d / "reports" / "figures" / "fig8_collisions.png").stat().st_size > 1000
     assert (d / "reports" / "figures" / "contact_query.png").exists()
+    claims = pd.read_csv(d / "reports" / "tables" / "generalisation_claims.csv")
+    assert set(claims["size"]) == {"5x5", "7x7", "11x11"} and set(claims["layouts"]) == {2}
+    assert (d / "reports" / "figures" / "generalisation_features.png").stat().st_size > 1000
 
 
 def test_report_is_rebuilt_byte_for_byte(smoke):

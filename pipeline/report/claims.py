@@ -163,6 +163,17 @@ def converged(what: str, cells: list[Cell], expect: str) -> Check:
 
 
 # ------------------------------------------------------------------------------------ the claims
+#: Table 3's rows, most collisions first: the order its numbers show on every maze.
+TABLE3_ORDER = ("sarsa", "constrained", "fewshot", "fewshot_dss")
+
+
+def order_checks(data: Data, arm_of, order=TABLE3_ORDER, where: str = "") -> list[Check]:
+    """Each method of ``order`` collides more than the next one: ``arm_of(method)`` gives its
+    :class:`Arm` (``where``, e.g. ``, 7x7``, ends each check's name)."""
+    arms = [arm_of(method) for method in order]
+    return [fewer(data, f"{more.name} − {less.name}{where}", more, less) for more, less in pairwise(arms)]
+
+
 def rl_claims(data: Data) -> list[Claim]:
     """Section 4.2.2: Figures 7-10 and Table 3."""
     mazes = ("5x5", "7x7", "11x11")
@@ -180,8 +191,7 @@ def rl_claims(data: Data) -> list[Claim]:
         return fewer(data, f"{more.name} − {less.name}{', ' + maze if maze else ''}", more, less)
 
     def table3_order() -> list[Check]:
-        order = ("sarsa", "constrained", "fewshot", "fewshot_dss")
-        return [pair(t3(a, m), t3(b, m), m) for m in mazes for a, b in pairwise(order)]
+        return [c for m in mazes for c in order_checks(data, lambda method: t3(method, m), where=f", {m}")]
 
     def gains() -> list[Check]:
         arms = {m: (t3("fewshot", m), t3("fewshot_dss", m)) for m in mazes}

@@ -18,6 +18,7 @@ from pipeline.records import read_records
 from pipeline.records.reader import RecordsWarning
 from pipeline.report.names import row_names
 from pipeline.report.spec import ReportSpec, Row
+from pipeline.world.layout_sets import expand
 
 
 @dataclass
@@ -121,6 +122,16 @@ class Experiment:
         return [(replace(row, label=name), cells) for (row, cells), name in zip(out, names)]
 
 
+def declared_cells(experiment: dict) -> set[str]:
+    """The cells a recorded experiment has: those listed by hand and those of its layout sets
+    (:func:`pipeline.world.layout_sets.expand`; the records keep the sets, not their cells)."""
+    names = set(experiment.get("cells") or {})
+    layouts = experiment.get("layouts")
+    if layouts:
+        names |= set(expand(layouts.get("sizes") or [], list(layouts.get("cells") or {})))
+    return names
+
+
 class ReportInputError(UserError):
     """Records the report cannot stand on: damaged, incomplete, or cells of different setups."""
 
@@ -173,7 +184,7 @@ def load_experiment(folder: Path) -> Experiment | None:
         experiment = (meta.config or {}).get("experiment") or {}
         if experiment:
             name = experiment.get("name", name)
-            declared |= set(experiment.get("cells") or {})
+            declared |= declared_cells(experiment)
             blocks[path.parent.name] = experiment.get("report")
         cells[path.parent.name] = Cell(folder.name, path.parent.name, info, list(meta.maze["layout"]),
                                        meta.obstacles, recs.episodes, recs.recognitions, recs.substitutions,

@@ -221,3 +221,51 @@ def accuracy_curves(panels: list[dict], path: Path, marker: float | None = None,
     fig.legend(legend.values(), legend.keys(), fontsize=8, loc="upper center", bbox_to_anchor=(0.5, 0.0),
                ncol=min(len(legend), 5), frameon=False)
     return save(fig, path)
+
+
+def layout_boxes(per_size: dict[str, dict[str, np.ndarray]], path: Path):
+    """One panel per size: a box per method of its values over layouts (mean collisions per run of
+    each layout), log scale (zeros drawn at the axis' floor)."""
+    fig, axes = plt.subplots(1, len(per_size), figsize=(4.6 * len(per_size), 4.2), squeeze=False, layout="constrained")
+    for ax, (size, boxes) in zip(axes[0], per_size.items()):
+        labels = list(boxes)
+        values = [np.asarray(boxes[k], dtype=float) for k in labels]
+        floor = min([v[v > 0].min() for v in values if (v > 0).any()] or [1.0]) / 2
+        ax.boxplot([np.maximum(v, floor) for v in values], widths=0.6, flierprops={"markersize": 3})
+        ax.set_yscale("log")
+        ax.set_xticks(range(1, len(labels) + 1), [textwrap.fill(k, 12) for k in labels], fontsize=7, rotation=45,
+                      ha="right")
+        ax.set_title(f"{size}: {max((v.size for v in values), default=0)} layouts")
+        ax.set_ylabel("mean collisions per run (log)")
+        ax.grid(axis="y", alpha=0.3)
+    fig.suptitle("Collisions over generated layouts")
+    return save(fig, path)
+
+
+def feature_scatter(df, features: dict[str, str], path: Path, fit):
+    """Rows: sizes, columns: layout features; points: mean collisions per run of each (layout,
+    method), one colour per method, with ``fit(x, y)``'s line (slope, intercept, ...) where it
+    gives one; log y."""
+    sizes = list(dict.fromkeys(df["size"]))
+    fig, axes = plt.subplots(len(sizes), len(features), figsize=(4.2 * len(features), 3.4 * len(sizes)),
+                             squeeze=False, layout="constrained")
+    colours = plt.get_cmap("tab10")
+    for i, size in enumerate(sizes):
+        on = df[df["size"] == size]
+        for j, (feature, xlabel) in enumerate(features.items()):
+            ax = axes[i][j]
+            for k, method in enumerate(dict.fromkeys(on["method"])):
+                m = on[on["method"] == method]
+                x, y = m[feature].to_numpy(float), m["collisions_mean"].to_numpy(float)
+                ax.scatter(x, np.maximum(y, 0.05), s=6, alpha=0.5, color=colours(k), label=m["label"].iloc[0])
+                line = fit(x, y)
+                if line is not None:
+                    xs = np.linspace(x.min(), x.max(), 20)
+                    ax.plot(xs, np.maximum(line[1] + line[0] * xs, 0.05), color=colours(k), lw=1.2)
+            ax.set_yscale("log")
+            ax.set_xlabel(xlabel, fontsize=8)
+            ax.set_title(size, fontsize=9)
+            if j == 0:
+                ax.set_ylabel("mean collisions per run (log)")
+    axes[0][0].legend(fontsize=6, markerscale=2)
+    return save(fig, path)

@@ -5,7 +5,8 @@ Kinds: ``default`` (a table of collisions per run with 95% bootstrap intervals, 
 95% bands, the support set's query accuracy), ``bars`` (the same with a bar chart), ``long_term``
 (the runs are consecutive experiments of one robot), ``by_maze`` (one row per group of cells,
 one column per maze, ours beside the paper's) and ``accuracy_curve`` (collisions against a
-controlled recogniser's accuracy: :mod:`pipeline.report.accuracy_curve`). A ``path`` block adds
+controlled recogniser's accuracy: :mod:`pipeline.report.accuracy_curve`) and ``generalisation``
+(the paper's claims over generated layouts: :mod:`pipeline.report.generalisation`). A ``path`` block adds
 a section with the learned path before the experiment's own. Tables and figures are named after
 the experiment's folder: ``tables/<folder>.md|csv``, ``figures/<folder>_collisions.png``,
 ``<folder>_learning_curves.png`` (its data ``tables/<folder>_learning_curves.csv``, long format:
@@ -38,7 +39,7 @@ from pipeline.report import figures as F
 from pipeline.report.accuracy_curve import accuracy_curve_kind
 from pipeline.report.experiments import Cell, Experiment
 from pipeline.report.names import settings
-from pipeline.report.spec import Row
+from pipeline.report.spec import PER_CELL_KINDS, Row
 from pipeline.report.stats import describe, fmt, mean_band
 
 COLLISIONS = "collisions (mean ± s.d. [95% CI])"
@@ -59,7 +60,8 @@ def section(rep, exp: Experiment, experiments: list[Experiment] = ()) -> list[st
     for note in exp.notes:
         text += f"\n{note}\n"
     rep.add(text)
-    KINDS[exp.spec.kind](rep, exp, paper_values(exp, experiments))
+    per_cell = exp.spec.kind in PER_CELL_KINDS  # no rows to put the paper's numbers beside
+    KINDS[exp.spec.kind](rep, exp, {} if per_cell else paper_values(exp, experiments))
     return missing
 
 
@@ -164,6 +166,8 @@ def paper_for(cells: list[Cell], experiments: list[Experiment]) -> PaperValue | 
     if len(keys) != 1:
         return None
     for other in experiments:
+        if not any(group.paper for group in other.spec.groups):
+            continue  # only groups carry the paper's numbers (and naming 2,100 rows is slow)
         source = (other.spec.title or other.name).split(":")[0]
         for group, group_cells in other.rows():
             for maze, value in group.paper.items():
@@ -355,8 +359,15 @@ def by_maze_kind(rep, exp: Experiment, paper: dict[str, PaperValue]) -> None:
             support_part(rep, exp, [(row, cells) for row, cells in on_maze if cells], maze)
 
 
+def generalisation_kind(rep, exp: Experiment, paper: dict[str, PaperValue]) -> None:
+    """:mod:`pipeline.report.generalisation` (imported here: it checks claims with
+    :mod:`pipeline.report.claims`, which imports this module)."""
+    from pipeline.report.generalisation import generalisation_section
+    generalisation_section(rep, exp)
+
+
 KINDS = {"default": default_kind, "bars": bars_kind, "long_term": long_term_kind, "by_maze": by_maze_kind,
-         "accuracy_curve": accuracy_curve_kind}
+         "accuracy_curve": accuracy_curve_kind, "generalisation": generalisation_kind}
 
 
 # ------------------------------------------------------------------------------------ path

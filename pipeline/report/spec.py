@@ -25,7 +25,12 @@ from typing import Any, Dict, Iterable, List, Optional
 #: of each). ``by_maze``: one row per group, one column per maze (ours and the paper's).
 #: ``accuracy_curve``: collisions against the recognition accuracy ``p`` of the cells' recogniser,
 #: per maze, the cells without a recogniser as reference lines, and the break-even accuracies.
-KINDS = ("default", "bars", "long_term", "by_maze", "accuracy_curve")
+#: ``generalisation``: cells over generated layouts (``experiment.layouts``): per size, collisions
+#: over layouts per method, the fraction of layouts where each of the paper's claims holds, and
+#: collisions against layout features (:mod:`pipeline.report.generalisation`).
+KINDS = ("default", "bars", "long_term", "by_maze", "accuracy_curve", "generalisation")
+#: Kinds that draw one point per cell (no pooled rows, no learning curves).
+PER_CELL_KINDS = ("accuracy_curve", "generalisation")
 
 
 @dataclass
@@ -116,11 +121,11 @@ class ReportSpec:
 
         for name in self.cells:
             need("cells", name)
-        if self.kind == "accuracy_curve":
+        if self.kind in PER_CELL_KINDS:
             if self.groups:
-                out.append(("groups", "the accuracy_curve kind pools no cells (one curve per method and maze); "
+                out.append(("groups", f"the {self.kind} kind pools no cells (one point per cell); "
                                       "give cells or nothing"))
-            out += [(key, "the accuracy_curve kind draws no learning curves or support-set accuracy over the run")
+            out += [(key, f"the {self.kind} kind draws no learning curves or support-set accuracy over the run")
                     for key in ("curves", "support_accuracy") if getattr(self, key) is not None]
         seen = set()
         for i, group in enumerate(self.groups):

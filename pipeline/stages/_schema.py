@@ -9,17 +9,19 @@ signature of its ``_target_`` (``pipeline.stages._recognisers``).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from typing import Any, Dict, List, Optional
 
 from hydra.core.config_store import ConfigStore
 from omegaconf import II, MISSING
 
+from pipeline.errors import ConfigError
 from pipeline.fewshot.accuracy_study import StudyConfig
 from pipeline.fewshot.settings import TrainConfig
 from pipeline.report.spec import ReportSpec
 from pipeline.rl.methods import MethodSpec
 from pipeline.schema import setting
+from pipeline.world.layout_sets import LayoutSetError, expand
 
 SUPPORT_MODES = ("restore", "carry")
 SUBSTITUTION_WAYS = (1, 2, 3, 4)
@@ -41,6 +43,11 @@ class RenderProfile:
 class TrialsProfile:
     runs: int = setting(ge=1)
     episodes: int = setting(ge=1)
+    layouts: int = setting(ge=1)
+    """Generated layouts per size of an experiment's layout sets (``conf/experiment/generalisation.yaml``
+    reads it as each set's ``count``)."""
+    layout_runs: int = setting(ge=1)
+    """Runs per cell of an experiment over generated layouts (``generalisation.yaml``'s ``runs``)."""
 
 
 @dataclass
@@ -87,11 +94,66 @@ class Cell:
 
 
 @dataclass
+class LayoutSet:
+    """``count`` generated layouts of one size (``pipeline/world/layout_sets.py``): the mazes
+    ``random:<size>:<obstacles>:<seed + k>[:unique]``, ``k = 0 .. count-1``."""
+
+    size: str = setting(nonempty=True)
+    """``<W>x<H>`` (W wide, H high)."""
+    obstacles: int = setting(ge=0)
+    count: int = setting(ge=1)
+    seed: int = setting(0, ge=0)
+    """The first layout's seed; layout ``k`` has seed ``seed + k``."""
+    unique: bool = True
+    """The paper's kind of layout: a single shortest path lined by obstacles (``:unique``)."""
+
+
+@dataclass
+class Layouts:
+    """Cell templates crossed with sets of generated layouts: cell ``<template>_<size>_L<seed>`` is
+    the template on the layout of ``size`` with that seed."""
+
+    sizes: List[LayoutSet] = field(default_factory=list)
+    cells: Dict[str, Cell] = field(default_factory=dict)
+    """Templates: cells without a maze (each generated cell gets its layout's)."""
+
+
+@dataclass
 class Experiment:
     """``conf/experiment/<name>.yaml``: the cells, and how the report presents them."""
 
     name: str = setting(nonempty=True)
     cells: Dict[str, Cell] = field(default_factory=dict)
+    layouts: Optional[Layouts] = None
+    """Cells over generated layouts (``experiment.layouts``), besides the ``cells`` listed by hand."""
+
+    def all_cells(self) -> Dict[str, Cell]:
+        """The cells listed by hand, then those of ``layouts`` (in set, layout, template order);
+        a set that cannot be met, a template that pins a maze or a name given twice is refused
+        (:class:`~pipeline.errors.ConfigError` naming the key)."""
+        if self.layouts is None:
+            return dict(self.cells)
+        for name, template in self.layouts.cells.items():
+            if template.maze is not None:
+                raise ConfigError(f"config key 'experiment.layouts.cells.{name}.maze': the layout sets give "
+                                  "each generated cell its maze; leave maze out of the template")
+        if not self.layouts.cells:
+            raise ConfigError("config key 'experiment.layouts.cells': no templates; name at least one "
+                              "(e.g. {ssrl: {method: ssrl}})")
+        if not self.layouts.sizes:
+            raise ConfigError("config key 'experiment.layouts.sizes': no layout sets; give at least one "
+                              "(e.g. {size: 5x5, obstacles: 9, count: 100})")
+        try:
+            generated = expand([asdict(s) for s in self.layouts.sizes], list(self.layouts.cells))
+        except LayoutSetError as exc:
+            raise ConfigError(f"config key 'experiment.layouts.sizes.{exc.key}': {exc}") from None
+        out = dict(self.cells)
+        for name, g in generated.items():
+            if name in out:
+                raise ConfigError(f"config key 'experiment.cells.{name}': the layout sets generate a cell of "
+                                  "that name; rename it")
+            out[name] = replace(self.layouts.cells[g.template], maze=g.maze)
+        return out
     report: Optional[ReportSpec] = None
     """How the report presents the experiment (``pipeline/report/spec.py``); none: the default section."""
 
@@ -132,7 +194,10 @@ class TrialsConfig:
     flush_every: int = setting(ge=1)
     progress: bool = MISSING
     threads: int = setting(ge=0)
-    """numba threads; 0 = all cores."""
+    """numba threads; 0 = all cores (divided among the ``workers``)."""
+    workers: int = setting(1, ge=1)
+    """Processes that run an experiment's cells side by side (each builds the recogniser once); the
+    results are the same bytes for any number."""
 
 
 # ---------------------------------------------------------------- render

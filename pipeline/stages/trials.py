@@ -12,17 +12,20 @@ removes a stage's outs before it runs it, and keeps them in its cache). Everythi
 """
 from __future__ import annotations
 
+import copy
+import json
 import os
 import shutil
 import time
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, Iterator
 
 import numba
 import yaml
 from hydra.core.override_parser.overrides_parser import OverridesParser
 from omegaconf import OmegaConf
+from tqdm import tqdm
 
 from pipeline.errors import ConfigError, Interrupted, UserError
 from pipeline.files import exclusive_folder, swap_in, write_json_atomic
@@ -74,13 +77,15 @@ def parse_overrides(overrides: list[str]) -> dict[str, Any]:
 
 
 def experiment_cells(cfg: TrialsConfig, overrides: list[str]) -> dict[str, TrialsConfig]:
-    """Every cell of ``cfg.experiment`` as a single-cell config. The command line applies to every
-    cell that does not pin the key; an override that no cell can take is refused."""
+    """Every cell of ``cfg.experiment`` (listed and generated: :meth:`Experiment.all_cells`) as a
+    single-cell config. The command line applies to every cell that does not pin the key; an
+    override that no cell can take is refused."""
     exp: Experiment = cfg.experiment
-    if not exp.cells:
+    declared = exp.all_cells()
+    if not declared:
         raise ConfigError(f"config key 'experiment.cells': experiment {exp.name!r} has no cells")
     given = parse_overrides(overrides)
-    methods = sorted({c.method for c in exp.cells.values()})
+    methods = sorted({c.method for c in declared.values()})
     if "method" in given:
         raise ConfigError(f"config key 'method': experiment {exp.name} chooses the method of each cell "
                           f"({', '.join(methods)}), so the override cannot apply; override a method field instead (method.alpha=...), "
@@ -89,41 +94,53 @@ def experiment_cells(cfg: TrialsConfig, overrides: list[str]) -> dict[str, Trial
     for key in [*CELL_KEYS, *method_over]:
         if key not in given and f"method.{key}" not in given:
             continue
-        pinned = [n for n, c in exp.cells.items()
+        pinned = [n for n, c in declared.items()
                   if (getattr(c, key) is not None if key in CELL_KEYS else key in c.params)]
-        if len(pinned) == len(exp.cells):
+        if len(pinned) == len(declared):
             full = key if key in CELL_KEYS else f"method.{key}"
             raise ConfigError(f"config key '{full}': every cell of experiment {exp.name} pins it "
                               f"(experiment.cells.*.{key if key in CELL_KEYS else 'params.' + key}); "
                               "the override cannot apply")
-    methods = {name: load_method(cell.method, {**method_over, **cell.params}, key=f"experiment.cells.{name}.method")
-               for name, cell in exp.cells.items()}
-    refuse_idle_recogniser_pins(exp, methods, given)
-    cells = {}
-    for name, cell in exp.cells.items():
+    loaded: dict[str, MethodSpec] = {}  # one load per (method, fields): 2,100 generated cells share seven
+
+    def method_of(name: str, cell) -> MethodSpec:
+        fields = {**method_over, **cell.params}
+        key = json.dumps([cell.method, fields], sort_keys=True, default=str)
+        if key not in loaded:
+            loaded[key] = load_method(cell.method, fields, key=f"experiment.cells.{name}.method")
+        return loaded[key]
+
+    methods = {name: method_of(name, cell) for name, cell in declared.items()}
+    refuse_idle_recogniser_pins(exp, declared, methods, given)
+    cells, checked = {}, set()
+    for name, cell in declared.items():
         cells[name] = replace(cfg, method=methods[name], recogniser={**cfg.recogniser, **cell.recogniser},
                               **{k: getattr(cell, k) if getattr(cell, k) is not None
                                  else getattr(cfg, k) for k in CELL_KEYS})
-        check(cells[name])
-    problems = exp.report.problems(exp.cells) if exp.report is not None else []
+        shape = json.dumps([cell.method, cell.params, cell.recogniser, cell.substitution, cell.support], default=str)
+        if shape not in checked:  # the ranges of a config that differs from one checked only by its maze
+            check(cells[name])
+            checked.add(shape)
+    problems = exp.report.problems(declared) if exp.report is not None else []
     if problems:
         key, problem = problems[0]
         raise ConfigError(f"config key 'experiment.report.{key}': {problem}")
     return cells
 
 
-def refuse_idle_recogniser_pins(exp: Experiment, methods: dict[str, MethodSpec], given: dict[str, Any]) -> None:
+def refuse_idle_recogniser_pins(exp: Experiment, declared: dict, methods: dict[str, MethodSpec],
+                                given: dict[str, Any]) -> None:
     """Recogniser arguments would change nothing where no recogniser runs: a cell that pins them
     for a method that sees no pictures is refused, and so is a command-line ``recogniser.<arg>``
     that every cell with a recogniser pins."""
-    for name, cell in exp.cells.items():
+    for name, cell in declared.items():
         if cell.recogniser and not methods[name].uses_recogniser:
             raise ConfigError(f"config key 'experiment.cells.{name}.recogniser': method {methods[name].name} "
                               "recognises no pictures, so the recogniser's arguments cannot apply")
-    seeing = [name for name in exp.cells if methods[name].uses_recogniser]
+    seeing = [name for name in declared if methods[name].uses_recogniser]
     for key in given:
         arg = key.removeprefix("recogniser.")
-        if key.startswith("recogniser.") and seeing and all(arg in exp.cells[n].recogniser for n in seeing):
+        if key.startswith("recogniser.") and seeing and all(arg in declared[n].recogniser for n in seeing):
             raise ConfigError(f"config key '{key}': every cell of experiment {exp.name} with a recogniser pins it "
                               f"(experiment.cells.*.recogniser.{arg}); the override cannot apply")
 
@@ -150,30 +167,70 @@ def refuse_inapplicable(configs: dict[str, TrialsConfig], given: dict[str, Any])
 
 
 def resolve_cells(cfg: TrialsConfig, overrides: list[str]) -> list[CellRun]:
-    """The cells to run, each with its layout loaded and its recogniser built."""
+    """The cells to run, each with its layout loaded and its recogniser built (once for all the
+    cells that ask for the same one: :func:`make_recogniser`)."""
     configs = {"": cfg} if cfg.experiment is None else experiment_cells(cfg, overrides)
     refuse_inapplicable(configs, parse_overrides(overrides))
+    declared = cfg.experiment.all_cells() if cfg.experiment is not None else {}
+    built: dict[str, Any] = {}
+    pictures: dict[str, tuple] = {}
     out = []
     for name, cell in configs.items():
         prefix = f"experiment.cells.{name}." if name else ""
         try:
             layout = load_layout(cell.maze)
         except UserError as exc:
-            raise ConfigError(f"config key '{prefix}maze': {exc}") from None
-        pins = name and cfg.experiment.cells[name].recogniser
-        out.append(CellRun(name, cell, layout, make_recogniser(cell, f"{prefix}recogniser" if pins else "recogniser"),
-                           *recorded_pictures(cell)))
+            where = generated_key(cfg.experiment, name) if name else None
+            raise ConfigError(f"config key '{where or prefix + 'maze'}': {exc}") from None
+        pins = name and declared[name].recogniser
+        recogniser = make_recogniser(cell, f"{prefix}recogniser" if pins else "recogniser", built)
+        shown = json.dumps([pictures_dir(cell) if cell.record != "none" else None], default=str)
+        if shown not in pictures:
+            pictures[shown] = recorded_pictures(cell)
+        out.append(CellRun(name, cell, layout, recogniser, *pictures[shown]))
     return out
 
 
-def make_recogniser(cfg: TrialsConfig, key: str = "recogniser"):
+def generated_key(exp: Experiment | None, name: str) -> str | None:
+    """``experiment.layouts.sizes.<i>`` for a cell its layout sets generate, else None."""
+    if exp is None or exp.layouts is None or name in exp.cells:
+        return None
+    for i, s in enumerate(exp.layouts.sizes):
+        if f"_{s.size}_L" in name:
+            return f"experiment.layouts.sizes.{i}"
+    return None
+
+
+def recogniser_key(cfg: TrialsConfig) -> str | None:
+    """What makes two cells' recognisers interchangeable: the recogniser's arguments and the
+    substitution way. None where a recogniser must not be shared: no recogniser, or a support set
+    carried over from run to run (it is state of the cell's own runs)."""
+    method = cfg.method
+    if not method.uses_recogniser or cfg.support == "carry":
+        return None
+    way = cfg.substitution if method.dynamic_support else 0
+    return json.dumps([cfg.recogniser, way], sort_keys=True, default=str)
+
+
+def make_recogniser(cfg: TrialsConfig, key: str = "recogniser", built: dict | None = None):
     """The cell's recogniser (``conf/recogniser/``), or None for methods that see no pictures;
-    ``key`` names the config key in an error (a cell's own when it pins recogniser arguments)."""
+    ``key`` names the config key in an error (a cell's own when it pins recogniser arguments).
+
+    ``built`` (:func:`recogniser_key` -> recogniser) shares one recogniser among cells: each run
+    restores its own support set from the original at its start (``start_run``), so a recogniser
+    that served other cells' runs gives the same answers (loading the Relation Network once instead
+    of once per cell: 600 times in the generalisation experiment)."""
     method = cfg.method
     if not method.uses_recogniser:
         return None
+    share = recogniser_key(cfg) if built is not None else None
+    if share is not None and share in built:
+        return built[share]
     way = cfg.substitution if method.dynamic_support else 0
-    return build_recogniser(cfg.recogniser, substitution_way=way, carry_over=cfg.support == "carry", key=key)
+    recogniser = build_recogniser(cfg.recogniser, substitution_way=way, carry_over=cfg.support == "carry", key=key)
+    if share is not None:
+        built[share] = recogniser
+    return recogniser
 
 
 def pictures_dir(cfg: TrialsConfig) -> str | None:
@@ -224,12 +281,28 @@ def query_pictures(images_dir: str) -> dict[int, bytes]:
     return {int(p): (Path(images_dir) / f).read_bytes() for p, f in zip(df["picture_id"], df["file"])}
 
 
+#: Recorded configs by everything but the maze (cells over generated layouts differ only there;
+#: building a structured config takes about 0.1 s, 2,100 times would take minutes).
+_RECORDED: dict[str, dict] = {}
+
+#: Keys that say how cells were run, not what: left out of the records, so the records of a cell
+#: are the same bytes whether it ran alone or beside others.
+NOT_RECORDED = ("workers",)
+
+
 def recorded_config(cell: CellRun) -> dict:
-    """The config embedded in the records and summaries: the cell's own, as it ran."""
-    return OmegaConf.to_container(OmegaConf.structured(cell.config), resolve=True)
+    """The config embedded in the records: the cell's own, as it ran (without :data:`NOT_RECORDED`)."""
+    rest = replace(cell.config, maze="")
+    key = repr(rest)
+    if key not in _RECORDED:
+        whole = OmegaConf.to_container(OmegaConf.structured(rest), resolve=True)
+        _RECORDED[key] = {k: v for k, v in whole.items() if k not in NOT_RECORDED}
+    return {k: (cell.config.maze if k == "maze" else copy.deepcopy(v)) for k, v in _RECORDED[key].items()}
 
 
-def run_cell(cell: CellRun, folder: Path) -> tuple[dict, float]:
+def run_cell(cell: CellRun, folder: Path, progress: bool | None = None) -> tuple[dict, float]:
+    """Run one cell into ``folder`` (records, ``summary.json``); its summary and trial seconds.
+    ``progress``: the runner's per-episode bar (default ``cfg.progress``)."""
     cfg, layout, method, name = cell.config, cell.layout, cell.method, cell.name
     runs, episodes, seed = cfg.runs, cfg.episodes, cfg.seed
     recogniser = cell.recogniser
@@ -252,7 +325,8 @@ def run_cell(cell: CellRun, folder: Path) -> tuple[dict, float]:
     t0 = time.perf_counter()
     try:
         result = run_trials(layout, method, runs, episodes, seed, recogniser=recogniser, sink=writer,
-                            progress=cfg.progress, shared_support=cfg.support == "carry")
+                            progress=cfg.progress if progress is None else progress,
+                            shared_support=cfg.support == "carry")
     except (KeyboardInterrupt, Interrupted) as exc:
         code = exc.code if isinstance(exc, Interrupted) else 130
         if writer is None:
@@ -352,17 +426,60 @@ def refuse_overwrite(cfg: TrialsConfig, out: Path) -> None:
                       "replace them, or choose another out")
 
 
+#: Above this many cells an experiment's progress is a bar (or a line per tenth), not a line per cell.
+COMPACT_AT = 30
+
+
+def cell_line(cfg: TrialsConfig, cell: CellRun, summary: dict, seconds: float) -> str:
+    c = summary["collisions"]
+    label = f"{cell.name}: " if cell.name else ""
+    return (f"{label}{cell.method.name} on {cell.layout.name}: collisions {c['mean']:.2f} +- {c['std']:.2f} over "
+            f"{cfg.runs} runs, converged runs {summary['converged_runs']} ({seconds:.1f} s)")
+
+
+def results(cfg: TrialsConfig, cells: list[CellRun], out: Path, progress: bool) -> Iterator[tuple[int, dict, float]]:
+    """``(index, summary, seconds)`` of every cell as it completes: one after another, or in
+    ``cfg.workers`` processes (:mod:`pipeline.stages._workers`, without per-episode bars);
+    ``progress``: each cell's per-episode bar."""
+    folders = [out / c.name if c.name else out for c in cells]
+    if cfg.workers > 1 and len(cells) > 1:
+        from pipeline.stages._workers import run_parallel
+        try:
+            yield from run_parallel(cells, folders, min(cfg.workers, len(cells)), cfg.threads)
+        except (KeyboardInterrupt, Interrupted) as exc:  # the workers are stopped: say where the records are
+            code = exc.code if isinstance(exc, Interrupted) else 130
+            raise Interrupted(code, f"interrupted; the finished cells' records are under {out}") from None
+        return
+    for i, (cell, folder) in enumerate(zip(cells, folders)):
+        yield i, *run_cell(cell, folder, progress)
+
+
 def run_cells(cfg: TrialsConfig, cells: list[CellRun], out: Path) -> dict:
-    """Every cell into ``out`` (the staging folder); the experiment's index and metrics last."""
-    summaries, timing = {}, {}
-    for cell in cells:
-        name = cell.name
-        summaries[name], timing[name] = run_cell(cell, out / name if name else out)
-        c = summaries[name]["collisions"]
-        label = f"{name}: " if name else ""
-        print(f"{label}{cell.method.name} on {cell.layout.name}: collisions {c['mean']:.2f} +- "
-              f"{c['std']:.2f} over {cfg.runs} runs, converged runs {summaries[name]['converged_runs']} "
-              f"({timing[name]:.1f} s)")
+    """Every cell into ``out`` (the staging folder); the experiment's index and metrics last, in
+    cell order whatever the order the cells finished in. Up to :data:`COMPACT_AT` cells, one line
+    each; more: a progress bar on a terminal (a line per tenth of the cells elsewhere) and a
+    closing line with the totals."""
+    by_index: dict[int, tuple[dict, float]] = {}
+    compact = len(cells) > COMPACT_AT
+    t0 = time.perf_counter()
+    bar = tqdm(total=len(cells), unit="cell", desc=cfg.experiment.name if cfg.experiment else "trials",
+               disable=None if (compact and cfg.progress) else True)
+    tenth = max(1, len(cells) // 10)
+    with bar:
+        for i, summary, seconds in results(cfg, cells, out, cfg.progress and not compact):
+            by_index[i] = (summary, seconds)
+            if not compact:
+                print(cell_line(cfg, cells[i], summary, seconds))
+            elif bar.disable and (len(by_index) % tenth == 0 or len(by_index) == len(cells)):
+                print(f"{len(by_index)}/{len(cells)} cells ({time.perf_counter() - t0:.0f} s)", flush=True)
+            bar.update()
+    summaries = {cells[i].name: by_index[i][0] for i in range(len(cells))}
+    timing = {cells[i].name: by_index[i][1] for i in range(len(cells))}
+    if compact:
+        steps = sum(r["steps"] for s in summaries.values() for r in s["runs"])
+        wall = time.perf_counter() - t0
+        print(f"{len(cells)} cells x {cfg.runs} runs x {cfg.episodes} episodes: {steps:,} agent steps in {wall:.1f} s "
+              f"({steps / max(wall, 1e-9):,.0f} steps/s, {cfg.workers} worker{'s' if cfg.workers > 1 else ''})")
     if cfg.timing_file:
         write_json_atomic(cfg.timing_file, {n: round(t, 3) for n, t in timing.items()})
     if "" in summaries:

@@ -1,0 +1,82 @@
+"""Running an experiment's cells side by side in worker processes (the trials key ``workers``).
+
+The cells of an experiment are independent: each has its own seed-derived runs and writes only
+its own folder, so running them in any order, in any process, gives the same bytes. The parent
+sends each worker the cell's config and layout (not its recogniser: a worker builds each
+recogniser it needs once, :func:`pipeline.stages.trials.make_recogniser`, and reads the recorded
+pictures once); it collects each cell's summary, and the stage writes the experiment's index and
+metrics in cell order, as with one process.
+
+Workers are started with ``spawn`` (torch's and numba's thread pools are not safe across
+``fork``); numba's compiled kernels come from its on-disk cache. Each worker uses ``threads``
+numba and torch threads (``threads=0``: the cores divided among the workers).
+"""
+from __future__ import annotations
+
+import multiprocessing
+import os
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from dataclasses import replace
+from pathlib import Path
+from typing import Iterator
+
+#: Per worker process: recognisers by :func:`~pipeline.stages.trials.recogniser_key`, pictures by folder.
+_BUILT: dict = {}
+_PICTURES: dict = {}
+
+
+def threads_per_worker(threads: int, workers: int) -> int:
+    """numba/torch threads of one worker: ``threads`` if given, else the cores shared out (at least 1)."""
+    return threads if threads > 0 else max(1, (os.cpu_count() or 1) // workers)
+
+
+def _start_worker(threads: int) -> None:
+    import numba
+    import torch
+    numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
+    torch.set_num_threads(threads)
+
+
+def _run_one(cell, folder: str) -> tuple[dict, float]:
+    """In a worker: give ``cell`` its recogniser and pictures (built once per process), run it."""
+    from pipeline.stages import trials
+    recogniser = trials.make_recogniser(cell.config, built=_BUILT)
+    shown = trials.pictures_dir(cell.config) if cell.config.record != "none" else None
+    if shown not in _PICTURES:
+        _PICTURES[shown] = trials.recorded_pictures(cell.config)
+    return trials.run_cell(replace(cell, recogniser=recogniser, pictures=_PICTURES[shown][0],
+                                   support=_PICTURES[shown][1]), Path(folder), progress=False)
+
+
+def run_parallel(cells: list, folders: list[Path], workers: int, threads: int) -> Iterator[tuple[int, dict, float]]:
+    """``(index, summary, seconds)`` of every cell as it completes, run in ``workers`` processes.
+    An error in a cell stops the others and is raised here; so is an interrupt."""
+    light = [replace(c, recogniser=None, pictures={}, support={}) for c in cells]
+    context = multiprocessing.get_context("spawn")
+    pool = ProcessPoolExecutor(workers, mp_context=context, initializer=_start_worker,
+                               initargs=(threads_per_worker(threads, workers),))
+    try:
+        pending = {pool.submit(_run_one, cell, str(folder)): i for i, (cell, folder) in enumerate(zip(light, folders))}
+        while pending:
+            done, _ = wait(pending, return_when=FIRST_COMPLETED)
+            for future in done:
+                i = pending.pop(future)
+                summary, seconds = future.result()
+                yield i, summary, seconds
+    except BaseException:
+        stop(pool)
+        raise
+    pool.shutdown()
+
+
+def stop(pool: ProcessPoolExecutor) -> None:
+    """Cancel the cells not started and end the workers this pool started."""
+    processes = list((getattr(pool, "_processes", None) or {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    for process in processes:
+        if process.is_alive():
+            process.terminate()
+    for process in processes:
+        process.join(timeout=5)
+    pool.shutdown(wait=True)  # joins the pool's manager thread, which else fails at the interpreter's exit
+
