@@ -8,7 +8,7 @@ from __future__ import annotations
 from typing import NamedTuple
 
 from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
-from foxglove_schemas_protobuf.CompressedImage_pb2 import CompressedImage
+from foxglove_schemas_protobuf.CompressedImage_pb2 import CompressedImage  # noqa: F401  (used as schema.CompressedImage)
 from mcap_protobuf.schema import build_file_descriptor_set
 
 FORMAT_VERSION = "5"  # 5: substitutions in the batches (4: states as codes; 3: fixed-width packed columns;
