@@ -101,7 +101,9 @@ def experiment_cells(cfg: TrialsConfig, overrides: list[str]) -> dict[str, Trial
     refuse_idle_recogniser_pins(exp, methods, given)
     cells = {}
     for name, cell in exp.cells.items():
-        cells[name] = replace(cfg, method=methods[name], recogniser={**cfg.recogniser, **cell.recogniser},
+        base = (recogniser_group(cell.recogniser_group, f"experiment.cells.{name}.recogniser_group")
+                if cell.recogniser_group else cfg.recogniser)
+        cells[name] = replace(cfg, method=methods[name], recogniser={**base, **cell.recogniser},
                               **{k: getattr(cell, k) if getattr(cell, k) is not None
                                  else getattr(cfg, k) for k in CELL_KEYS})
         check(cells[name])
@@ -112,20 +114,35 @@ def experiment_cells(cfg: TrialsConfig, overrides: list[str]) -> dict[str, Trial
     return cells
 
 
+def recogniser_group(name: str, key: str) -> dict[str, Any]:
+    """The recogniser config ``conf/recogniser/<name>.yaml`` that a cell chooses."""
+    folder = Path(CONF_DIR) / "recogniser"
+    path = folder / f"{name}.yaml"
+    if not path.is_file():
+        known = ", ".join(sorted(p.stem for p in folder.glob("*.yaml")))
+        raise ConfigError(f"config key '{key}': no recogniser {name!r} (conf/recogniser/: {known})")
+    return OmegaConf.to_container(OmegaConf.load(path), resolve=True)
+
+
 def refuse_idle_recogniser_pins(exp: Experiment, methods: dict[str, MethodSpec], given: dict[str, Any]) -> None:
     """Recogniser arguments would change nothing where no recogniser runs: a cell that pins them
-    for a method that sees no pictures is refused, and so is a command-line ``recogniser.<arg>``
-    that every cell with a recogniser pins."""
+    (or its own recogniser group) for a method that sees no pictures is refused, and so is a
+    command-line ``recogniser=<name>`` or ``recogniser.<arg>`` that no cell with a recogniser takes
+    (each pins the argument or runs its own recogniser group)."""
     for name, cell in exp.cells.items():
-        if cell.recogniser and not methods[name].uses_recogniser:
-            raise ConfigError(f"config key 'experiment.cells.{name}.recogniser': method {methods[name].name} "
-                              "recognises no pictures, so the recogniser's arguments cannot apply")
+        for field_name in ("recogniser", "recogniser_group"):
+            if getattr(cell, field_name) and not methods[name].uses_recogniser:
+                raise ConfigError(f"config key 'experiment.cells.{name}.{field_name}': method {methods[name].name} "
+                                  "recognises no pictures, so the recogniser's arguments cannot apply")
     seeing = [name for name in exp.cells if methods[name].uses_recogniser]
     for key in given:
-        arg = key.removeprefix("recogniser.")
-        if key.startswith("recogniser.") and seeing and all(arg in exp.cells[n].recogniser for n in seeing):
+        if key != "recogniser" and not key.startswith("recogniser."):
+            continue
+        arg = key.removeprefix("recogniser").removeprefix(".")
+        if seeing and all(exp.cells[n].recogniser_group or (arg and arg in exp.cells[n].recogniser) for n in seeing):
             raise ConfigError(f"config key '{key}': every cell of experiment {exp.name} with a recogniser pins it "
-                              f"(experiment.cells.*.recogniser.{arg}); the override cannot apply")
+                              f"(experiment.cells.*.recogniser.{arg or '<arg>'}) or runs its own "
+                              "(experiment.cells.*.recogniser_group); the override cannot apply")
 
 
 #: Command-line keys that only some methods read: (what uses it, test on the cell's method).
@@ -160,7 +177,7 @@ def resolve_cells(cfg: TrialsConfig, overrides: list[str]) -> list[CellRun]:
             layout = load_layout(cell.maze)
         except UserError as exc:
             raise ConfigError(f"config key '{prefix}maze': {exc}") from None
-        pins = name and cfg.experiment.cells[name].recogniser
+        pins = name and (cfg.experiment.cells[name].recogniser or cfg.experiment.cells[name].recogniser_group)
         out.append(CellRun(name, cell, layout, make_recogniser(cell, f"{prefix}recogniser" if pins else "recogniser"),
                            *recorded_pictures(cell)))
     return out
