@@ -50,6 +50,8 @@ def settings(info: dict) -> dict[str, str]:
         out["support"] = SUPPORT_NAMES.get(info.get("support"), f"support {info.get('support')}")
         kind = recogniser.get("kind")
         out["recogniser"] = f"{RECOGNISER_NAMES.get(kind, kind)} recogniser"
+    elif method.get("safety") == "fewshot":  # oracle, fixed_accuracy: they record no description
+        out["recogniser"] = "recogniser without a model"
     for key, value in sorted(method.items()):
         if key not in NAMED_FIELDS:
             out[key] = f"{key.replace('_', ' ')} {value}"
