@@ -46,6 +46,8 @@ class TrialsProfile:
 @dataclass
 class MetaTrainProfile:
     episodes: int = setting(ge=1)
+    protonet_episodes: int = setting(ge=1)
+    """Training episodes of the Prototypical Network (``model=protonet``): it levels off sooner."""
     val_every: int = setting(ge=1)
     val_episodes: int = setting(ge=1)
     eval_episodes: int = setting(ge=1)
