@@ -108,13 +108,15 @@ def test_methods_load_as_the_paper_defines_them():
 def test_experiment_overrides_apply_to_every_cell(tmp_path):
     index = run_stage("trials", ["+experiment=fig8", "method.alpha=0.5", "recogniser=oracle", f"out={tmp_path}",
                                  "runs=2", "episodes=5", *SMOKE])
-    assert set(index["cells"]) == {"qlearning", "shield", "ssrl", "fewshot", "fewshot_dss"}
+    assert set(index["cells"]) == {"qlearning", "shield", "ssrl", "fewshot", "fewshot_dss", "fewshot_protonet",
+                                   "fewshot_dss_protonet"}  # the protonet cells keep their own recogniser
     from pipeline.records import read_records
     for cell in index["cells"]:
         summary = json.loads((tmp_path / cell / "summary.json").read_text())
-        assert summary["method_spec"]["alpha"] == 0.5 and summary["method"] == cell
+        method = cell.removesuffix("_protonet")
+        assert summary["method_spec"]["alpha"] == 0.5 and summary["method"] == method
         config = read_records(tmp_path / cell / "records.mcap", pictures=False).meta.config
-        assert config["method"]["alpha"] == 0.5 and config["method"]["name"] == cell  # the config that ran
+        assert config["method"]["alpha"] == 0.5 and config["method"]["name"] == method  # the config that ran
         assert config["runs"] == 2 and config["maze"] == "5x5"
 
 
@@ -247,6 +249,16 @@ def test_a_cell_pins_recogniser_arguments_and_its_records_say_so(tmp_path):
      r"config key 'experiment.cells.a.recogniser.q': .*parameters of .*FixedAccuracyRecogniser: p, learn"),
     ({"a": {"method": "fewshot", "recogniser": {"p": 1.5}}}, [],
      r"config key 'experiment.cells.a.recogniser': p must lie in \[0, 1\], got 1.5"),
+    ({"s": {"method": "ssrl", "recogniser_group": "protonet"}}, [],
+     r"config key 'experiment.cells.s.recogniser_group': method ssrl recognises no pictures"),
+    ({"a": {"method": "fewshot", "recogniser_group": "nope"}, "b": {"method": "fewshot"}}, [],
+     r"config key 'experiment.cells.a.recogniser_group': no recogniser 'nope' \(conf/recogniser/: fixed_accuracy, "
+     r"oracle, protonet, relation_net\)"),
+    ({"a": {"method": "fewshot", "recogniser_group": "oracle"}, "s": {"method": "ssrl"}}, ["recogniser.p=0.4"],
+     r"config key 'recogniser(.p)?': every cell of experiment fig8 with a recogniser pins it .* or runs its own"),
+    ({"a": {"method": "fewshot", "recogniser_group": "protonet", "recogniser": {"relation_padding": 1}},
+      "b": {"method": "fewshot"}}, [],
+     r"config key 'experiment.cells.a.recogniser.relation_padding'"),
 ])
 def test_recogniser_pins_that_cannot_apply_are_refused(cells, args, message):
     from pipeline.stages._schema import Cell
@@ -258,6 +270,19 @@ def test_recogniser_pins_that_cannot_apply_are_refused(cells, args, message):
     cfg.experiment.report = None
     with pytest.raises(ConfigError, match=message):
         resolve_cells(cfg, args)
+
+
+def test_a_cell_can_run_its_own_recogniser_group():
+    """fig8's protonet cells run conf/recogniser/protonet.yaml whatever the top level chooses; their
+    own pins (from the experiment file or the command line) apply over it."""
+    args = ["+experiment=fig8", "recogniser=oracle", "+experiment.cells.fewshot_dss_protonet.recogniser.checkpoint=x.pt"]
+    cells = experiment_cells(load_config("trials", args), args)
+    proto = "pipeline.fewshot.recogniser.ProtoRecogniser.from_files"
+    assert cells["fewshot_protonet"].recogniser == {"_target_": proto, "checkpoint": "datasets/models/protonet.pt",
+                                                    "images_dir": "datasets/images", "input_size": 48}
+    assert cells["fewshot_dss_protonet"].recogniser["checkpoint"] == "x.pt"
+    assert cells["fewshot_dss"].recogniser == {"_target_": "pipeline.rl.oracle.OracleRecogniser"}
+    assert cells["fewshot_dss_protonet"].method.dynamic_support and not cells["fewshot_protonet"].method.dynamic_support
 
 
 def test_accuracy_curve_pins_each_cells_accuracy():

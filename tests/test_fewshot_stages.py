@@ -61,3 +61,44 @@ def test_config_errors_name_the_key(tmp_path):
         run_stage("accuracy", ["study.repeats=0"])
     with pytest.raises(ConfigError, match=r"config key 'train.lr_schedule': must be one of constant, cosine, step"):
         run_stage("meta_train", ["train.lr_schedule=linear"])
+
+
+def test_protonet_meta_train_accuracy_and_report_tables(tmp_path):
+    """model=protonet trains a Prototypical Network into its own files; the accuracy study runs it
+    with recogniser=protonet; the report's Tables 1-2 show it beside the Relation Network."""
+    from pipeline.report.build import Report
+    from pipeline.report.accuracy import accuracy_tables
+    images = tmp_path / "images"
+    write_synthetic_dataset(images, n_train=6, n_val=5, per_class=10, seed=2)
+    shrink = [s for s in SHRINK if not s.startswith("train.relation_padding")]
+    assert load_config("meta_train", ["model=protonet"]).checkpoint == "datasets/models/protonet.pt"
+    with pytest.raises(ConfigError, match=r"config key 'train.relation_padding': the Prototypical Network has no"):
+        run_stage("meta_train", ["model=protonet", "train.relation_padding=0", f"images_dir={images}"] + shrink)
+    with pytest.raises(ConfigError, match=r"config key 'train.relation_padding'"):
+        run_stage("meta_train", ["model=protonet", "train.relation_padding=1", f"images_dir={images}"] + shrink)
+    dirs = {}
+    for model, extra in (("relation_net", ["train.relation_padding=1"]), ("protonet", [])):
+        m = tmp_path / model
+        run_stage("meta_train", [f"model={model}", f"images_dir={images}", f"checkpoint={m}/net.pt",
+                                 f"metrics_file={m}/metrics.json", f"history_file={m}/h.csv"] + shrink + extra)
+        assert json.loads((m / "train_info.json").read_text())["model"] == model
+        args = [f"recogniser={model}", f"recogniser.images_dir={images}", f"recogniser.checkpoint={m}/net.pt",
+                "recogniser.input_size=24", f"out_dir={m}/acc", "study.repeats=2", "progress=false"]
+        data = run_stage("accuracy", args + (["recogniser.relation_padding=1"] if model == "relation_net" else []))
+        scores = pd.read_csv(m / "acc" / "baseline.csv").filter(like="score")
+        assert data["config"]["recogniser"]["_target_"].endswith(("RelationRecogniser.from_files", "ProtoRecogniser.from_files"))
+        assert ((scores >= 0) & (scores <= 1)).all().all()
+        dirs[model] = m
+    with pytest.raises(ConfigError, match=r"holds a Relation Network \(train.model=relation_net\), not a Prototypical"):
+        run_stage("accuracy", ["recogniser=protonet", f"recogniser.images_dir={images}",
+                               f"recogniser.checkpoint={dirs['relation_net']}/net.pt", "progress=false"])
+    rep = Report(tmp_path / "report")
+    accuracy_tables(rep, dirs["relation_net"] / "acc", dirs["relation_net"] / "metrics.json",
+                    {"Prototypical Network": (dirs["protonet"] / "acc", dirs["protonet"] / "metrics.json")})
+    text = "\n".join(rep.sections)
+    assert "Prototypical Network, 5-way 5-shot validation accuracy" in text
+    assert "ours, Prototypical Network" in text
+    t2 = pd.read_csv(tmp_path / "report" / "tables" / "table2.csv")
+    assert "Prototypical Network [95% CI]" in t2.columns and t2["Prototypical Network [95% CI]"].str.contains("%").all()
+    t1 = pd.read_csv(tmp_path / "report" / "tables" / "table1_with_same.csv")
+    assert "overall, Prototypical Network [95% CI]" in t1.columns

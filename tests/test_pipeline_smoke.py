@@ -1,6 +1,7 @@
 """The whole pipeline on the smoke profile, stage by stage through the real command line:
-render -> meta_train -> accuracy -> trials (fig8, fig9, fig10, table3, accuracy_curve, generalisation,
-every episode recorded) -> report (twice: the same bytes) -> replay of one recorded episode."""
+render -> meta_train (Relation Network, Prototypical Network) -> accuracy (both) -> trials (fig8, fig9, fig10,
+table3, accuracy_curve, generalisation, every episode recorded) -> report (twice: the same bytes) -> replay of
+one recorded episode."""
 import hashlib
 import json
 import os
@@ -35,15 +36,23 @@ def smoke(tmp_path_factory):
     stage("render", f"out_dir={images}", f"figures_dir={images}/contact_sheets")
     stage("meta_train", f"images_dir={images}", f"checkpoint={models}/rn.pt", f"metrics_file={models}/metrics.json",
           f"history_file={models}/history.csv")
+    stage("meta_train", "model=protonet", f"images_dir={images}", f"checkpoint={models}/pn.pt",
+          f"metrics_file={models}/protonet/metrics.json", f"history_file={models}/protonet/history.csv")
     stage("accuracy", f"recogniser.images_dir={images}", f"recogniser.checkpoint={models}/rn.pt", f"out_dir={acc}")
+    stage("accuracy", "recogniser=protonet", f"recogniser.images_dir={images}", f"recogniser.checkpoint={models}/pn.pt",
+          f"out_dir={d}/accuracy_protonet")
+    protonet_cells = [f"+experiment.cells.{c}.recogniser.{k}={v}" for c in ("fewshot_protonet", "fewshot_dss_protonet")
+                      for k, v in (("checkpoint", f"{models}/pn.pt"), ("images_dir", images))]
     for exp in ("fig8", "fig9", "fig10", "table3"):
         stage("trials", f"+experiment={exp}", f"out={runs}/{exp}", f"recogniser.checkpoint={models}/rn.pt",
-              f"recogniser.images_dir={images}", "progress=false", f"metrics_file={d}/metrics/{exp}.json")
+              f"recogniser.images_dir={images}", "progress=false", f"metrics_file={d}/metrics/{exp}.json",
+              *(protonet_cells if exp == "fig8" else []))
     stage("trials", "+experiment=accuracy_curve", f"out={runs}/accuracy_curve", "progress=false")  # no model
     # 2 layouts per size x 7 methods; one process (two take longer to start than 42 tiny cells take)
     stage("trials", "+experiment=generalisation", f"out={runs}/generalisation", f"recogniser.checkpoint={models}/rn.pt",
           f"recogniser.images_dir={images}", "progress=false", "workers=1")
     report_args = [f"runs_dir={runs}", f"accuracy_dir={acc}", f"model_metrics={models}/metrics.json",
+                   f"protonet_accuracy_dir={d}/accuracy_protonet", f"protonet_metrics={models}/protonet/metrics.json",
                    f"contact_dir={images}/contact_sheets"]
     stage("report", *report_args, f"out={d}/reports")
     return d, report_args
@@ -61,6 +70,8 @@ def test_every_experiment_is_recorded_and_reported(smoke):
                   "Beyond the paper: collisions against recognition accuracy",
                   "Beyond the paper: do the claims generalise over generated layouts?"):
         assert title in index
+    assert "ours, Prototypical Network" in index and "Prototypical Network recogniser" in index
+    assert len(read_records(d / "runs" / "fig8" / "fewshot_dss_protonet" / "records.mcap").episodes) == 3 * 20
     assert (d / "reports" / "figures" / "fig8_collisions.png").stat().st_size > 1000
     assert (d / "reports" / "figures" / "contact_query.png").exists()
     claims = pd.read_csv(d / "reports" / "tables" / "generalisation_claims.csv")

@@ -103,6 +103,8 @@ class RelationModule(nn.Module):
 class RelationNetwork(nn.Module):
     """f_varphi + g_phi with K-shot class features summed (Sung et al., section 3.3)."""
 
+    kind = "relation_net"
+
     def __init__(self, config: ModelConfig | None = None) -> None:
         super().__init__()
         self.config = config or ModelConfig()
@@ -120,6 +122,16 @@ class RelationNetwork(nn.Module):
         b = query_features.unsqueeze(1).expand(-1, n_class, -1, -1, -1)
         pairs = torch.cat([a, b], dim=2).flatten(0, 1)
         return self.relation(pairs).view(n_query, n_class)
+
+    def scores(self, class_features: torch.Tensor, query_features: torch.Tensor) -> torch.Tensor:
+        """The episode's scores (Q, C) as the training loop and evaluation ask every network:
+        here the relation scores."""
+        return self.relation_scores(class_features, query_features)
+
+    @staticmethod
+    def loss(scores: torch.Tensor, labels: torch.Tensor) -> torch.Tensor:
+        """Sung et al.'s objective: mean squared error between relation scores and one-hot targets."""
+        return nn.functional.mse_loss(scores, torch.eye(scores.shape[1])[labels])
 
     def forward(self, support: torch.Tensor, query: torch.Tensor) -> torch.Tensor:
         """``support``: (C, K, 3, H, W); ``query``: (Q, 3, H, W) -> relation scores (Q, C)."""

@@ -2,7 +2,13 @@
 dynamic support set of section 3.3). It implements the trial runner's ``Recogniser`` protocol
 (``pipeline/rl/recogniser.py``) structurally, without importing ``pipeline.rl``.
 
-Cost model. Every picture (the 40 query pictures and the original support pictures) is embedded
+:class:`SupportSetRecogniser` owns what both few-shot methods share: the runs, their support sets
+(:mod:`.support_set`, substitution ways 1-4, carry-over), the (pictures x categories) table and its
+per-category invalidation, loading from files. A subclass says how a category's support members
+become its class state and how that state scores every picture: :class:`RelationRecogniser`
+(below) and :class:`ProtoRecogniser` (a prototype, the mean embedding; Prototypical Networks).
+
+Cost model of the Relation Network. Every picture (the 40 query pictures and the original support pictures) is embedded
 once by f_varphi. g_phi's first convolution is linear in the concatenated pair, so it splits into a
 class half and a query half (:meth:`RelationModule.first_conv_halves`); the class half of a summed
 class feature map is the sum of its members' halves plus the bias. Both halves are computed once per
@@ -11,6 +17,11 @@ score table; a substitution in category ``c`` re-sums ``c``'s K halves and inval
 only, which is recomputed (the rest of g_phi on 40 pairs) the next time a score is asked for.
 The columns are always computed for all pictures in one fixed-size batch, so a score does not depend
 on which picture was asked for first. Scores agree with the plain forward pass to float rounding.
+
+Cost model of the Prototypical Network: every picture is embedded once; a category's state is
+its prototype (the mean of its K members' embeddings), and a substitution re-averages that one
+prototype and recomputes its column of negative squared distances. Its scores are the softmax of
+a row (a probability per category, in [0, 1]).
 
 Each run owns its support set. ``start_run`` restores the original support set, or, with
 ``carry_over=True`` (long-term autonomy, paper Figure 10), keeps the run's current one and only reseeds
@@ -27,6 +38,8 @@ import torch
 from .checkpoint import file_sha256, load_checkpoint
 from .data import DataError, PictureSet, load_split, read_manifest, to_tensor
 from .model import ModelConfig, RelationNetwork
+from .protonet import PrototypicalNetwork, negative_squared_distances
+from .settings import ProtoConfig
 from .support_set import SupportSet
 from .training import embed_all
 
@@ -34,22 +47,24 @@ from .training import embed_all
 @dataclass
 class _Run:
     support: SupportSet
-    class_half: torch.Tensor  # (C, 64, h, h): first-conv class half (with bias) of every category
-    table: np.ndarray  # (P, C) relation scores
+    state: torch.Tensor  # (C, ...): every category's class state (class half, prototype)
+    table: np.ndarray  # (P, C) raw scores: relation scores, or logits
     valid: np.ndarray  # (C,) bool: column c of ``table`` is current
 
 
-class RelationRecogniser:
-    """Relation Network recogniser over a dynamic C-way K-shot support set.
+class SupportSetRecogniser:
+    """A few-shot recogniser over a dynamic C-way K-shot support set; subclasses score.
 
     ``query_images``: (P, 3, H, W) normalised, row ``p`` = query picture id ``p``;
     ``query_categories``: (P,) true categories; ``support_images``: (C*K, 3, H, W), class ``c`` in
     rows ``c*K .. c*K+K-1`` (position order). ``substitution_way``: 0 static, 1-4 as in section 3.3.
     """
 
+    kind = ""
+
     def __init__(
         self,
-        network: RelationNetwork,
+        network: RelationNetwork | PrototypicalNetwork,
         query_images: torch.Tensor,
         query_categories: np.ndarray,
         support_images: torch.Tensor,
@@ -77,32 +92,43 @@ class RelationRecogniser:
         with torch.no_grad():
             query_f = embed_all(network, query_images, channels_last=False)
             support_f = embed_all(network, support_images, channels_last=False)
-            # class halves of every query picture and original support picture, and query halves
-            q_class, self._query_half = network.relation.first_conv_halves(query_f, query_f)
-            s_class, _ = network.relation.first_conv_halves(support_f, support_f[:1])
-            self._bias = network.relation.first_conv_bias().detach().clone()
-            self._class_part = {int(p): q_class[p] for p in range(self.n_pictures)}
-            for j in range(len(support_f)):
-                self._class_part[-(j + 1)] = s_class[j]
+            query_parts, support_parts = self._prepare(query_f, support_f)
+        # the part each support member contributes to its category's state: query picture p -> p,
+        # original support picture j -> -(j + 1) (the member codes of support_set.py)
+        self._part = {int(p): query_parts[p] for p in range(self.n_pictures)}
+        for j in range(len(support_parts)):
+            self._part[-(j + 1)] = support_parts[j]
         self._runs: dict[int, _Run] = {}
         template = SupportSet(n_way, k_shot, 0, 0)
-        self._original_half = torch.stack([self._class_half(template.members[c]) for c in range(n_way)])
-        self._original_table = np.stack([self._column(self._original_half[c]) for c in range(n_way)], axis=1)
+        self._original_state = torch.stack([self._class_state(template.members[c]) for c in range(n_way)])
+        self._original_table = np.stack([self._column(self._original_state[c]) for c in range(n_way)], axis=1)
+
+    # -- what a subclass provides ------------------------------------------------------------
+    def _prepare(self, query_f: torch.Tensor, support_f: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """From the eval-mode embeddings, each query and support picture's part of a class state
+        (and whatever the scoring keeps about the query pictures)."""
+        raise NotImplementedError
+
+    def _class_state(self, members: np.ndarray) -> torch.Tensor:
+        """A category's state from its K members' parts."""
+        raise NotImplementedError
+
+    def _column(self, state: torch.Tensor) -> np.ndarray:
+        """Raw scores (P,) of every query picture against one category's state, all in one batch."""
+        raise NotImplementedError
+
+    def _scores(self, table: np.ndarray) -> np.ndarray:
+        """The reported per-category scores of rows of the raw table (identity by default)."""
+        return table
 
     # -- construction from files -------------------------------------------------------------
     @classmethod
-    def from_files(cls, checkpoint: str | Path, images_dir: str | Path, input_size: int | None = None,
-                   relation_padding: int | None = None, *, substitution_way: int = 1,
-                   carry_over: bool = False) -> "RelationRecogniser":
-        """Load a trained checkpoint and the query/support pictures of ``images_dir``'s manifest,
-        resized to the checkpoint's input size and normalised with its statistics. ``input_size``
-        and ``relation_padding``, when given, are the model shape the config expects: a checkpoint
-        of another shape is refused (:class:`CheckpointError`)."""
-        expected = None
-        if input_size is not None or relation_padding is not None:
-            expected = ModelConfig(input_size if input_size is not None else 84,
-                                   relation_padding if relation_padding is not None else 0)
-        network, payload = load_checkpoint(checkpoint, expected)
+    def _from_files(cls, checkpoint, images_dir, expected, *, substitution_way: int, carry_over: bool):
+        """Load a ``cls.kind`` checkpoint and the query/support pictures of ``images_dir``'s
+        manifest, resized to the checkpoint's input size and normalised with its statistics.
+        ``expected``, when given, is the model shape the config expects: a checkpoint of another
+        shape or kind is refused (:class:`CheckpointError`)."""
+        network, payload = load_checkpoint(checkpoint, expected, kind=cls.kind)
         size = network.config.input_size
         frame = read_manifest(images_dir)
         query = load_split(images_dir, "query", size, frame)
@@ -127,7 +153,7 @@ class RelationRecogniser:
 
     def describe(self) -> dict:
         """What the records keep about this recogniser: the checkpoint's path, sha256 and shape."""
-        return {"kind": "relation_net", "checkpoint": getattr(self, "checkpoint_file", None),
+        return {"kind": self.kind, "checkpoint": getattr(self, "checkpoint_file", None),
                 "substitution_way": self.substitution_way, "carry_over": self.carry_over}
 
     @staticmethod
@@ -150,7 +176,7 @@ class RelationRecogniser:
             return
         self._runs[run] = _Run(
             support=SupportSet(self.n_way, self.k_shot, self.substitution_way, seed),
-            class_half=self._original_half.clone(),
+            state=self._original_state.clone(),
             table=self._original_table.copy(),
             valid=np.ones(self.n_way, dtype=bool),
         )
@@ -160,11 +186,11 @@ class RelationRecogniser:
         return self._table(run).argmax(axis=1)
 
     def scores(self, run: int, picture_ids: np.ndarray) -> np.ndarray:
-        """Relation scores (len(picture_ids), C) under run ``run``'s support set."""
+        """Scores (len(picture_ids), C) in [0, 1] under run ``run``'s support set."""
         ids = np.asarray(picture_ids, dtype=np.int64)
         if ids.size and (ids.min() < 0 or ids.max() >= self.n_pictures):
             raise ValueError(f"picture ids must lie in 0..{self.n_pictures - 1}, got {ids.tolist()}")
-        return self._table(run)[ids]
+        return self._scores(self._table(run)[ids])
 
     def learn_from_collision(self, run: int, picture_id: int, true_category: int) -> int:
         """Substitute query picture ``picture_id`` into ``true_category`` at the position the
@@ -205,21 +231,80 @@ class RelationRecogniser:
         if self.query_categories[picture_id] != category:
             raise ValueError(f"picture {picture_id} shows category {self.query_categories[picture_id]}, not {category}")
 
-    def _class_half(self, members: np.ndarray) -> torch.Tensor:
-        return self._bias + torch.stack([self._class_part[int(m)] for m in members]).sum(0)
-
-    @torch.no_grad()
-    def _column(self, class_half: torch.Tensor) -> np.ndarray:
-        h = class_half.unsqueeze(0) + self._query_half
-        return self.network.relation.after_first_conv(h).numpy()
-
     def _refresh(self, state: _Run, category: int) -> None:
-        state.class_half[category] = self._class_half(state.support.members[category])
+        state.state[category] = self._class_state(state.support.members[category])
         state.valid[category] = False
 
     def _table(self, run: int) -> np.ndarray:
         state = self._run(run)
         for c in np.flatnonzero(~state.valid):
-            state.table[:, c] = self._column(state.class_half[c])
+            state.table[:, c] = self._column(state.state[c])
             state.valid[c] = True
         return state.table
+
+
+class RelationRecogniser(SupportSetRecogniser):
+    """Relation Network recogniser (paper section 3.2.1, eq. 2): a category's state is the class
+    half of g_phi's first convolution (with its bias) of the summed K feature maps; its column is
+    the rest of g_phi on every picture's query half. Scores are relation scores in [0, 1]."""
+
+    kind = "relation_net"
+
+    @classmethod
+    def from_files(cls, checkpoint: str | Path, images_dir: str | Path, input_size: int | None = None,
+                   relation_padding: int | None = None, *, substitution_way: int = 1,
+                   carry_over: bool = False) -> "RelationRecogniser":
+        """Load a trained Relation Network checkpoint and the pictures of ``images_dir`` (see
+        :meth:`SupportSetRecogniser._from_files`). ``input_size`` and ``relation_padding``, when
+        given, are the model shape the config expects."""
+        expected = None
+        if input_size is not None or relation_padding is not None:
+            expected = ModelConfig(input_size if input_size is not None else 84,
+                                   relation_padding if relation_padding is not None else 0)
+        return cls._from_files(checkpoint, images_dir, expected, substitution_way=substitution_way, carry_over=carry_over)
+
+    def _prepare(self, query_f, support_f):
+        relation = self.network.relation
+        q_class, self._query_half = relation.first_conv_halves(query_f, query_f)
+        s_class, _ = relation.first_conv_halves(support_f, support_f[:1])
+        self._bias = relation.first_conv_bias().detach().clone()
+        return q_class, s_class
+
+    def _class_state(self, members: np.ndarray) -> torch.Tensor:
+        return self._bias + torch.stack([self._part[int(m)] for m in members]).sum(0)
+
+    @torch.no_grad()
+    def _column(self, state: torch.Tensor) -> np.ndarray:
+        h = state.unsqueeze(0) + self._query_half
+        return self.network.relation.after_first_conv(h).numpy()
+
+
+class ProtoRecogniser(SupportSetRecogniser):
+    """Prototypical Network recogniser (Snell et al. 2017, eqs. 1-2): a category's state is its
+    prototype, the mean of its K members' embeddings; its column holds every picture's negative
+    squared distance to it; a picture's scores are the softmax of its row, p(category | picture)."""
+
+    kind = "protonet"
+
+    @classmethod
+    def from_files(cls, checkpoint: str | Path, images_dir: str | Path, input_size: int | None = None, *,
+                   substitution_way: int = 1, carry_over: bool = False) -> "ProtoRecogniser":
+        """Load a trained Prototypical Network checkpoint and the pictures of ``images_dir`` (see
+        :meth:`SupportSetRecogniser._from_files`). ``input_size``, when given, is the input side
+        the config expects."""
+        expected = ProtoConfig(input_size) if input_size is not None else None
+        return cls._from_files(checkpoint, images_dir, expected, substitution_way=substitution_way, carry_over=carry_over)
+
+    def _prepare(self, query_f, support_f):
+        self._queries = query_f.flatten(1)
+        return self._queries, support_f.flatten(1)
+
+    def _class_state(self, members: np.ndarray) -> torch.Tensor:
+        return torch.stack([self._part[int(m)] for m in members]).mean(0)
+
+    @torch.no_grad()
+    def _column(self, state: torch.Tensor) -> np.ndarray:
+        return negative_squared_distances(state.unsqueeze(0), self._queries)[:, 0].numpy()
+
+    def _scores(self, table: np.ndarray) -> np.ndarray:
+        return torch.softmax(torch.from_numpy(table), dim=1).numpy()

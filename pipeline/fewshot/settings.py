@@ -1,12 +1,14 @@
-"""The few-shot module's settings as plain dataclasses (no torch import): the network's shape
-(:class:`ModelConfig`, with the feature-map sizes it implies) and the meta-training
-hyperparameters (:class:`TrainConfig`). The stage schemas (``pipeline/stages/_schema.py``) type
+"""The few-shot module's settings as plain dataclasses (no torch import): the networks' shapes
+(:class:`ModelConfig` for the Relation Network, with the feature-map sizes it implies;
+:class:`ProtoConfig` for the Prototypical Network) and the meta-training hyperparameters
+(:class:`TrainConfig`, whose ``model`` chooses between them). The stage schemas (``pipeline/stages/_schema.py``) type
 ``conf/meta_train.yaml`` with them, so checking a config never loads torch.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+from pipeline.errors import ConfigError
 from pipeline.schema import check, setting
 
 CHANNELS = 64
@@ -51,17 +53,41 @@ def feature_shapes(input_size: int, relation_padding: int = 0) -> dict[str, int]
 
 
 
+@dataclass(frozen=True)
+class ProtoConfig:
+    """Shape of the Prototypical Network: only the input side (the embedding is the Relation
+    Network's Conv-4 f_varphi, flattened; :mod:`.protonet`)."""
+
+    input_size: int = 84
+    """Square input side in pixels (pictures are resized to it)."""
+
+    def __post_init__(self) -> None:
+        feature_shapes(self.input_size, 1)  # raises below Conv-4's minimum
+
+    @property
+    def embedding_dim(self) -> int:
+        """Length of a flattened embedding: 64 x s x s (6400 at 48 px)."""
+        s = feature_shapes(self.input_size, 1)["embedding"]
+        return CHANNELS * s * s
+
+
 LR_SCHEDULES = ("constant", "cosine", "step")
+#: The few-shot networks ``train.model`` chooses from (and the ``kind`` a checkpoint names).
+MODELS = ("relation_net", "protonet")
 
 
 @dataclass
 class TrainConfig:
     """Meta-training hyperparameters (every field is a key of ``conf/meta_train.yaml``'s ``train``)."""
 
+    model: str = setting("relation_net", choices=MODELS)
+    """``relation_net`` (Sung et al. 2018, MSE on relation scores) or ``protonet`` (Snell et al.
+    2017, cross-entropy on negative squared distances to the class prototypes)."""
     input_size: int = setting(48, ge=10)
     """Square input side in pixels; pictures are resized to it (see :mod:`.model` for map sizes)."""
     relation_padding: int = setting(0, choices=(0, 1))
-    """Padding of g_phi's convolutions (0 as in Sung et al.; 1 needed below 46 px)."""
+    """Padding of g_phi's convolutions (0 as in Sung et al.; 1 needed below 46 px); relation_net
+    only: ``protonet`` has no g_phi and refuses any value but 0."""
     n_way: int = setting(5, ge=2)
     """Classes per episode (C)."""
     k_shot: int = setting(5, ge=1)
@@ -99,8 +125,13 @@ class TrainConfig:
 
     def __post_init__(self) -> None:
         check(self, "train.")
-        ModelConfig(self.input_size, self.relation_padding)
+        if self.model == "protonet" and self.relation_padding != 0:
+            raise ConfigError(f"config key 'train.relation_padding': {self.relation_padding} means nothing to the "
+                              "Prototypical Network (it has no relation module g_phi); leave it out (0) with train.model=protonet")
+        self.network_config()
 
-    @property
-    def model(self) -> ModelConfig:
+    def network_config(self) -> ModelConfig | ProtoConfig:
+        """The shape of the network ``model`` names."""
+        if self.model == "protonet":
+            return ProtoConfig(self.input_size)
         return ModelConfig(self.input_size, self.relation_padding)

@@ -1,6 +1,8 @@
 """Episodic meta-training of the Relation Network (Sung et al. 2018, section 3; the paper's
 section 3.2.1): C-way K-shot episodes from the training classes, MSE between relation scores and
-one-hot targets, Adam.
+one-hot targets, Adam. ``train.model=protonet`` trains a Prototypical Network (Snell et al. 2017,
+:mod:`.protonet`) in the same loop, on the same episodes, with its own loss (cross-entropy of the
+negative squared distances to the prototypes).
 
 Model selection uses the *validation classes* only (a fixed, seeded list of validation episodes,
 evaluated every ``val_every`` training episodes); the obstacle query and support pictures are never
@@ -24,13 +26,16 @@ from typing import Any
 
 import numpy as np
 import torch
-from torch import nn
 from tqdm.auto import tqdm
 
 from .data import PictureSet, channel_stats, to_tensor
 from .episodes import Episode, mean_and_ci95, sample_episode, sample_episodes
 from .model import RelationNetwork
-from .settings import LR_SCHEDULES, ModelConfig, TrainConfig  # noqa: F401  (re-exported)
+from .protonet import PrototypicalNetwork
+from .settings import LR_SCHEDULES, ModelConfig, ProtoConfig, TrainConfig  # noqa: F401  (re-exported)
+
+#: A few-shot network: ``kind``, ``embedding``, ``class_features``, ``scores``, ``loss``.
+Network = RelationNetwork | PrototypicalNetwork
 
 log = logging.getLogger(__name__)
 
@@ -38,7 +43,7 @@ log = logging.getLogger(__name__)
 class TrainResult:
     """The selected network (in eval mode) and everything measured while training it."""
 
-    network: RelationNetwork
+    network: Network
     normalisation: dict[str, list[float]]
     metrics: dict[str, Any]
     history: list[dict[str, float]] = field(default_factory=list)
@@ -58,7 +63,7 @@ def _format(x: torch.Tensor, channels_last: bool) -> torch.Tensor:
 
 
 @torch.no_grad()
-def embed_all(network: RelationNetwork, images: torch.Tensor, channels_last: bool = True, batch: int = 256) -> torch.Tensor:
+def embed_all(network: Network, images: torch.Tensor, channels_last: bool = True, batch: int = 256) -> torch.Tensor:
     """f_varphi of every picture, in eval mode, in fixed-size batches (N, 64, s, s)."""
     network.eval()
     out = [network.embedding(_format(images[i : i + batch], channels_last)) for i in range(0, len(images), batch)]
@@ -66,15 +71,21 @@ def embed_all(network: RelationNetwork, images: torch.Tensor, channels_last: boo
 
 
 @torch.no_grad()
-def evaluate(network: RelationNetwork, features: torch.Tensor, episodes: list[Episode]) -> np.ndarray:
+def evaluate(network: Network, features: torch.Tensor, episodes: list[Episode]) -> np.ndarray:
     """Accuracy of every episode from precomputed eval-mode embeddings ``features``."""
     network.eval()
     acc = np.empty(len(episodes))
     for i, ep in enumerate(episodes):
         class_f = network.class_features(features[torch.from_numpy(ep.support)])
-        scores = network.relation_scores(class_f, features[torch.from_numpy(ep.query)])
+        scores = network.scores(class_f, features[torch.from_numpy(ep.query)])
         acc[i] = float((scores.argmax(1).numpy() == ep.labels).mean())
     return acc
+
+
+def build_network(config: TrainConfig) -> Network:
+    """A freshly initialised network of the kind ``config.model`` names."""
+    shape = config.network_config()
+    return PrototypicalNetwork(shape) if config.model == "protonet" else RelationNetwork(shape)
 
 
 def meta_train(train: PictureSet, val: PictureSet, config: TrainConfig, progress: bool = True) -> TrainResult:
@@ -87,13 +98,12 @@ def meta_train(train: PictureSet, val: PictureSet, config: TrainConfig, progress
     by_train, by_val = train.by_class(), val.by_class()
     select_eps = sample_episodes(config.seed + 1, config.val_episodes, by_val, config.n_way, config.k_shot, config.eval_queries)
 
-    network = RelationNetwork(config.model)
+    network = build_network(config)
     if config.channels_last:
         network = network.to(memory_format=torch.channels_last)
     optimiser = torch.optim.Adam(network.parameters(), lr=config.lr)
     scheduler = torch.optim.lr_scheduler.LambdaLR(optimiser, _lr_lambda(config))
-    loss_fn = nn.MSELoss()
-    one_hot = torch.eye(config.n_way)[torch.from_numpy(np.repeat(np.arange(config.n_way), config.n_query))]
+    labels = torch.from_numpy(np.repeat(np.arange(config.n_way), config.n_query))
 
     best = {"val_accuracy": -1.0, "episode": 0, "state": None}
     history: list[dict[str, float]] = []
@@ -115,7 +125,7 @@ def meta_train(train: PictureSet, val: PictureSet, config: TrainConfig, progress
         n_support = config.n_way * config.k_shot
         support = images[:n_support].unflatten(0, (config.n_way, config.k_shot))
         scores = network(support, images[n_support:])
-        loss = loss_fn(scores, one_hot)
+        loss = network.loss(scores, labels)
         optimiser.zero_grad(set_to_none=True)
         loss.backward()
         optimiser.step()
@@ -159,6 +169,7 @@ def meta_train(train: PictureSet, val: PictureSet, config: TrainConfig, progress
         "n_train_classes": train.n_classes,
         "n_val_classes": val.n_classes,
         "torch_threads": torch.get_num_threads(),
+        "model": config.model,
     }
     network = network.to(memory_format=torch.contiguous_format)
     return TrainResult(network=network, normalisation={"mean": mean, "std": std}, metrics=metrics, history=history)

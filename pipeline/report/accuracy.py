@@ -1,6 +1,8 @@
 """Tables 1 and 2 (paper section 4.2.1) and the model's validation accuracy, from the accuracy
 study's data files (``baseline.csv``, ``table1.csv``, ``table2.csv``, ``summary.json``) and the
-meta-training metrics. The paper's numbers come in those files' ``paper_*`` columns.
+meta-training metrics. The paper's numbers come in those files' ``paper_*`` columns. The Relation
+Network (the paper's recogniser) fills the tables; other few-shot methods studied the same way
+(the Prototypical Network: ``accuracy_protonet``) are shown beside it, row by row.
 
 Intervals: the study's random unit is a draw (which query pictures replace which support pictures;
 ``repeats`` draws per substituted category, independent), and its files keep sums over draws, not
@@ -120,20 +122,39 @@ def intervals_note(study: Study) -> str:
             "(each draw's accuracy on a category lies in [0, 1]); the original support set involves no draw.")
 
 
-def accuracy_tables(rep, accuracy_dir: Path, model_metrics: Path) -> None:
-    if model_metrics.exists():
-        m = json.loads(model_metrics.read_text())
-        rep.add("## The recogniser\n\n"
-                f"Relation Network, 5-way 5-shot validation accuracy on held-out procedural classes: "
-                f"**{100 * m['val_accuracy']:.2f}% ± {100 * m['val_ci95']:.2f}%** (95% interval, "
-                f"{m['val_episodes']} episodes; model selected on validation classes only).\n")
+#: The paper's recogniser, whose study fills Tables 1 and 2.
+MAIN = "Relation Network"
+
+
+def accuracy_tables(rep, accuracy_dir: Path, model_metrics: Path,
+                    others: dict[str, tuple[Path, Path]] | None = None) -> None:
+    """The recogniser's validation accuracy and Tables 1-2 of the Relation Network's study
+    (``accuracy_dir``, ``model_metrics``); ``others`` maps another method's name to its study folder
+    and metrics file, shown beside the Relation Network (missing files: said, not shown)."""
+    others = others or {}
+    lines = []
+    for name, path in [(MAIN, model_metrics), *((n, m) for n, (_, m) in others.items())]:
+        if path.exists():
+            m = json.loads(path.read_text())
+            lines.append(f"{name}, 5-way 5-shot validation accuracy on held-out procedural classes: "
+                         f"**{100 * m['val_accuracy']:.2f}% ± {100 * m['val_ci95']:.2f}%** (95% interval, "
+                         f"{m['val_episodes']} episodes; model selected on validation classes only).")
+    if lines:
+        rep.add("## The recogniser\n\n" + "\n\n".join(lines) + "\n")
     if not (accuracy_dir / "table2.csv").exists():
         rep.add(f"Accuracy study: no data under `{accuracy_dir}`.\n")
         return
     study = Study(accuracy_dir)
+    beside = {}
+    for name, (folder, _) in others.items():
+        if (folder / "table2.csv").exists():
+            beside[name] = Study(folder)
+        else:
+            rep.add(f"{name}: no accuracy study under `{folder}` (its trained model and `accuracy` run), not shown.\n")
     names, base = study.names, study.baseline
-    rows = [{"": "ours", **{n: f"{c}/{t}" for n, c, t in zip(names, base["correct"], base["total"])},
-             "overall": f"{100 * base['accuracy']:.1f}%"}]
+    rows = [{"": f"ours, {name}", **{n: f"{c}/{t}" for n, c, t in zip(names, b["correct"], b["total"])},
+             "overall": f"{100 * b['accuracy']:.1f}%"}
+            for name, b in [(MAIN, base), *((n, s.baseline) for n, s in beside.items())]]
     paper = (base.get("paper") or {}).get("correct")
     if paper:
         rows.append({"": "paper", **{n: f"{c}/{t}" for n, c, t in zip(names, paper, base["total"])},
@@ -142,22 +163,28 @@ def accuracy_tables(rep, accuracy_dir: Path, model_metrics: Path) -> None:
     rep.table("table1_no_substitution", pd.DataFrame(rows),
               "Original support set (no substitution), correct per category (no random draw: no interval).")
     for variant, title in (("with_same", "one substitution"), ("no_same", "one substitution, no same picture")):
-        rep.table(f"table1_{variant}", table1(study, variant),
-                  f"Table 1, {title}: correct/tested per category; {intervals_note(study)}")
-    with_same, no_same = study.mean("with_same"), study.mean("no_same")
+        rep.table(f"table1_{variant}", table1(study, variant, beside),
+                  f"Table 1, {title}: correct/tested per category ({MAIN}"
+                  + "".join(f"; the {n}'s overall accuracy beside it" for n in beside)
+                  + f"); {intervals_note(study)}")
     summary = study.summary["table1"]
-    rep.add(f"Mean accuracy after one substitution: ours {percent(with_same.value, with_same)} (no same picture "
-            f"{percent(no_same.value, no_same)}); paper {percent(summary['paper_mean'])} "
+    means = []
+    for name, s in [(MAIN, study), *beside.items()]:
+        with_same, no_same = s.mean("with_same"), s.mean("no_same")
+        means.append(f"ours, {name} {percent(with_same.value, with_same)} (no same picture {percent(no_same.value, no_same)})")
+    rep.add(f"Mean accuracy after one substitution: {'; '.join(means)}; paper {percent(summary['paper_mean'])} "
             f"({percent(summary['paper_mean_no_same'])}); [95% CI] over the draws of the {len(names)} categories.\n")
     rep.add("## Table 2: accuracy against the number of substitutions\n")
-    rep.table("table2", table2(study), f"Mean accuracy over the {study.pictures} query pictures (ours and the "
-                                       f"paper's); {intervals_note(study)}")
-    table2_figure(rep, study)
+    rep.table("table2", table2(study, beside), f"Mean accuracy over the {study.pictures} query pictures (ours, "
+                                               f"{MAIN}{''.join(', ' + n for n in beside)}, and the paper's); "
+                                               f"{intervals_note(study)}")
+    table2_figure(rep, study, beside)
 
 
-def table1(study: Study, variant: str) -> pd.DataFrame:
+def table1(study: Study, variant: str, beside: dict[str, Study] | None = None) -> pd.DataFrame:
     """Table 1 (one substitution) as correct/tested per substituted and tested category, ours
-    (with each row's accuracy and interval) beside the paper's."""
+    (with each row's accuracy and interval) beside the paper's; each study of ``beside`` adds its
+    row's overall accuracy."""
     names = study.names
     out = []
     for s in range(len(names)):
@@ -166,6 +193,9 @@ def table1(study: Study, variant: str) -> pd.DataFrame:
                                             zip(d["tested_category"], d["correct"], d["total"])}}
         row = study.row(variant, s)
         line["overall, ours [95% CI]"] = percent(row.value, row)
+        for name, other in (beside or {}).items():
+            r = other.row(variant, s)
+            line[f"overall, {name} [95% CI]"] = percent(r.value, r)
         if d["paper_correct"].notna().all():
             line.update({f"{names[int(t)]} (paper)": f"{int(c)}/{int(n)}"
                          for t, c, n in zip(d["tested_category"], d["paper_correct"], d["paper_total"])})
@@ -174,23 +204,32 @@ def table1(study: Study, variant: str) -> pd.DataFrame:
     return pd.DataFrame(out)
 
 
-def table2(study: Study) -> pd.DataFrame:
+def table2(study: Study, beside: dict[str, Study] | None = None) -> pd.DataFrame:
     show = study.table2.reset_index()
     for variant, column in VARIANTS.items():
         show[column] = [percent(v, study.substitutions(int(n), variant)) for n, v in zip(show["substitution_number"],
                                                                                         show[column])]
         show["paper_" + column] = show["paper_" + column].map(percent)
-    return show.rename(columns=TABLE2_HEADERS)
+    show = show.rename(columns=TABLE2_HEADERS)
+    for name, other in (beside or {}).items():
+        for variant, column in VARIANTS.items():
+            label = TABLE2_HEADERS[column].replace("ours", name)
+            show[label] = [percent(other.substitutions(int(n), variant).value, other.substitutions(int(n), variant))
+                           if n in other.table2.index else "" for n in show["substitutions"]]
+    return show
 
 
-def table2_figure(rep, study: Study) -> None:
+def table2_figure(rep, study: Study, beside: dict[str, Study] | None = None) -> None:
     fig, ax = plt.subplots(figsize=(5.5, 3.4))
     n = study.table2.index.to_numpy()
     for (variant, column), style, label in zip(VARIANTS.items(), ("o-", "o--"), ("ours", "ours, no same picture")):
-        estimates = [study.substitutions(int(k), variant) for k in n]
-        values = np.array([100 * e.value for e in estimates])
-        err = np.array([[100 * (e.value - e.ci()[0]), 100 * (e.ci()[1] - e.value)] for e in estimates]).T
-        ax.errorbar(n, values, yerr=err, fmt=style, capsize=3, label=f"{label} (95% CI)")
+        for who, s, marker in [(MAIN, study, "o"), *((name, other, "^") for name, other in (beside or {}).items())]:
+            k = s.table2.index.to_numpy()
+            estimates = [s.substitutions(int(i), variant) for i in k]
+            values = np.array([100 * e.value for e in estimates])
+            err = np.array([[100 * (e.value - e.ci()[0]), 100 * (e.ci()[1] - e.value)] for e in estimates]).T
+            name = label if not beside else label.replace("ours", f"ours, {who}")
+            ax.errorbar(k, values, yerr=err, fmt=marker + style[1:], capsize=3, label=f"{name} (95% CI)")
         paper = study.table2.get("paper_" + column)
         if paper is not None and paper.notna().any():
             ax.plot(n, 100 * paper, "s" + style[1:], color="red", alpha=0.6, label=label.replace("ours", "paper"))

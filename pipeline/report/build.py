@@ -18,7 +18,7 @@ import os
 import shutil
 import threading
 from contextlib import contextmanager
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import pandas as pd
@@ -39,6 +39,8 @@ class Inputs:
     out: Path
     experiments_dir: Path | None = None  # the experiment files (conf/experiment/): which are missing
     allow_missing: bool = False          # build without missing experiments/cells, saying so at the top
+    beside: dict[str, tuple[Path, Path]] = field(default_factory=dict)
+    """Other few-shot methods for Tables 1-2: name -> (accuracy study folder, metrics file)."""
 
 
 class Report:
@@ -70,9 +72,10 @@ class Report:
         return path
 
 
-def accuracy_section(rep: Report, accuracy_dir: Path, model_metrics: Path) -> None:
+def accuracy_section(rep: Report, accuracy_dir: Path, model_metrics: Path,
+                     beside: dict[str, tuple[Path, Path]] | None = None) -> None:
     from pipeline.report.accuracy import accuracy_tables
-    accuracy_tables(rep, accuracy_dir, model_metrics)
+    accuracy_tables(rep, accuracy_dir, model_metrics, beside)
 
 
 def contact_sheets(rep: Report, contact_dir: Path) -> None:
@@ -144,7 +147,7 @@ def _build_parts(inputs: Inputs, bar: tqdm) -> Path:
     bar.set_postfix_str("claims")
     claims_section(rep, experiments, inputs.accuracy_dir)
     bar.set_postfix_str("accuracy")
-    accuracy_section(rep, inputs.accuracy_dir, inputs.model_metrics)
+    accuracy_section(rep, inputs.accuracy_dir, inputs.model_metrics, inputs.beside)
     bar.update()
     not_shown = []
     for exp in experiments:

@@ -122,7 +122,8 @@ class Data:
     def cells(self, experiment: str, method: str, maze: str | None = None, ways=None, support=None) -> list[Cell]:
         exp = self.by_name.get(experiment)
         found = [c for c in (exp.cells.values() if exp else ()) if c.method == method and maze in (None, c.maze)
-                 and (ways is None or c.info.get("substitution") in ways) and support in (None, c.info.get("support"))]
+                 and (ways is None or c.info.get("substitution") in ways) and support in (None, c.info.get("support"))
+                 and (c.info.get("recogniser") or {}).get("kind") not in BESIDE_THE_PAPER]
         if not found:
             where = ", ".join(str(x) for x in (method, maze, support) if x)
             raise Missing(f"no records of {experiment} ({where})")
@@ -160,6 +161,11 @@ def converged(what: str, cells: list[Cell], expect: str) -> Check:
     runs = [e for c in cells for e in c.converged_episode()]
     share = sum(e is not None for e in runs) / len(runs)
     return Check(what, share, *wilson_ci(share, len(runs)), expect, "share of runs (%)", f"{len(runs)} runs")
+
+
+#: Recognisers the paper did not use: their cells (fig8's Prototypical Network cells) are shown
+#: beside the paper's in the sections, not pooled into the claims about its Relation Network.
+BESIDE_THE_PAPER = ("protonet",)
 
 
 # ------------------------------------------------------------------------------------ the claims

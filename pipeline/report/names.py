@@ -14,6 +14,9 @@ SAFETY_NAMES = {"shield": "Shield", "ssrl": "SSRL"}
 #: Words for the values of trial settings that are not numbers.
 SUPPORT_NAMES = {"restore": "support set restored", "carry": "support set carried over"}
 
+#: Words for the recognisers (``describe()["kind"]`` in the records).
+RECOGNISER_NAMES = {"relation_net": "Relation Network", "protonet": "Prototypical Network"}
+
 #: Fields of the method that its name says (the rest show as ``alpha 0.05`` where rows differ).
 NAMED_FIELDS = ("name", "learner", "safety", "constrained", "dynamic_support")
 
@@ -45,7 +48,10 @@ def settings(info: dict) -> dict[str, str]:
     recogniser = info.get("recogniser") or {}
     if recogniser:
         out["support"] = SUPPORT_NAMES.get(info.get("support"), f"support {info.get('support')}")
-        out["recogniser"] = f"{recogniser.get('kind')} recogniser"
+        kind = recogniser.get("kind")
+        out["recogniser"] = f"{RECOGNISER_NAMES.get(kind, kind)} recogniser"
+    elif method.get("safety") == "fewshot":  # oracle, fixed_accuracy: they record no description
+        out["recogniser"] = "recogniser without a model"
     for key, value in sorted(method.items()):
         if key not in NAMED_FIELDS:
             out[key] = f"{key.replace('_', ' ')} {value}"

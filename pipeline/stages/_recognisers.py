@@ -35,7 +35,7 @@ def _config_type(hint: Any) -> Any:
 def _target(node: dict, key: str) -> Callable:
     target = node.get("_target_")
     if not target:
-        raise ConfigError(f"config key '{key}._target_': missing; choose a recogniser: {key}=relation_net|oracle|fixed_accuracy")
+        raise ConfigError(f"config key '{key}._target_': missing; choose a recogniser: {key}=relation_net|protonet|oracle|fixed_accuracy")
     try:
         return get_method(str(target))
     except Exception as exc:  # hydra raises ImportError/ValueError/InstantiationException variants

@@ -53,6 +53,8 @@ class TrialsProfile:
 @dataclass
 class MetaTrainProfile:
     episodes: int = setting(ge=1)
+    protonet_episodes: int = setting(ge=1)
+    """Training episodes of the Prototypical Network (``model=protonet``): it levels off sooner."""
     val_every: int = setting(ge=1)
     val_episodes: int = setting(ge=1)
     eval_episodes: int = setting(ge=1)
@@ -91,6 +93,9 @@ class Cell:
     """Recogniser arguments this cell pins (``{p: 0.3}``) over the top level's recogniser
     (``recogniser=<name>``, ``recogniser.<arg>=``), checked against that recogniser's parameters;
     only for methods that recognise pictures. The command line does not change them."""
+    recogniser_group: Optional[str] = None
+    """A recogniser of ``conf/recogniser/`` (``protonet``) this cell runs instead of the top level's;
+    the top level's recogniser arguments do not reach it, its own ``recogniser`` pins do."""
 
 
 @dataclass
@@ -313,6 +318,10 @@ class ReportConfig:
     runs_dir: str = setting(nonempty=True)
     accuracy_dir: str = setting(nonempty=True)
     model_metrics: str = setting(nonempty=True)
+    protonet_accuracy_dir: str = setting(nonempty=True)
+    """The Prototypical Network's accuracy study, shown beside the Relation Network's (Tables 1-2)."""
+    protonet_metrics: str = setting(nonempty=True)
+    """The Prototypical Network's validation metrics (meta_train model=protonet)."""
     contact_dir: str = setting(nonempty=True)
     out: str = setting(nonempty=True)
     allow_missing: bool = MISSING

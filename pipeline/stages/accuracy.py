@@ -2,7 +2,7 @@
 
 On the rendered query and support pictures with the meta-trained checkpoint (docs/fewshot.md).
 
-    python -m pipeline accuracy [recogniser=relation_net|oracle|fixed_accuracy] [recogniser.checkpoint=...] [study.repeats=...]
+    python -m pipeline accuracy [recogniser=relation_net|protonet|oracle|fixed_accuracy] [recogniser.checkpoint=...] [study.repeats=...]
 
 Writes ``out_dir``/baseline.csv, table1.csv, table2.csv and summary.json for the report stage.
 """

@@ -1,9 +1,11 @@
-"""Stage ``meta_train``: episodic meta-training of the Relation Network, checkpoint chosen on held-out classes.
+"""Stage ``meta_train``: episodic meta-training of the Relation Network (or, with
+``train.model=protonet``, of a Prototypical Network), checkpoint chosen on held-out classes.
 
 Episodic meta-training on the rendered training classes, checkpoint selection on the validation
 classes (paper section 3.2.1; docs/fewshot.md).
 
     python -m pipeline meta_train [images_dir=...] [train.episodes=...]
+    python -m pipeline meta_train train.model=protonet checkpoint=datasets/models/protonet.pt ...   # dvc.yaml's meta_train_protonet
     python -m pipeline meta_train data=folder data.train_dir=DIR data.val_dir=DIR   # any folder-per-class trees
 
 Writes ``checkpoint`` (weights + config + the metrics below), ``metrics_file`` (validation accuracy over 600
@@ -69,8 +71,19 @@ def picture_sets(cfg: MetaTrainConfig, overrides: list[str]) -> tuple[PictureSet
     return train, val, source
 
 
+def refuse_idle_keys(cfg: MetaTrainConfig, overrides: list[str]) -> None:
+    """``train.relation_padding`` shapes g_phi, which a Prototypical Network does not have: given
+    on the command line with ``train.model=protonet`` it is refused (any value but 0 is refused by
+    :class:`~pipeline.fewshot.settings.TrainConfig` itself)."""
+    given = {o.lstrip("+~").split("=")[0] for o in overrides}
+    if cfg.train.model == "protonet" and "train.relation_padding" in given:
+        raise ConfigError("config key 'train.relation_padding': the Prototypical Network has no relation module "
+                          "g_phi, so the key cannot apply with train.model=protonet; leave it out")
+
+
 def run(cfg: MetaTrainConfig, overrides: list[str] = ()) -> dict:
     config = cfg.train
+    refuse_idle_keys(cfg, list(overrides))
     torch.set_num_threads(cfg.threads)
     train, val, source = picture_sets(cfg, list(overrides))
     result = meta_train(train, val, config, progress=cfg.progress)

@@ -16,7 +16,8 @@ def run(cfg: ReportConfig, overrides: list[str] = ()) -> Path:
     if Path(cfg.out).resolve() == Path.cwd().resolve():
         raise ConfigError("config key 'out': must not be the working folder (it is rebuilt)")
     inputs = Inputs(Path(cfg.runs_dir), Path(cfg.accuracy_dir), Path(cfg.model_metrics), Path(cfg.contact_dir),
-                    Path(cfg.out), experiments_dir=Path(CONF_DIR) / "experiment", allow_missing=cfg.allow_missing)
+                    Path(cfg.out), experiments_dir=Path(CONF_DIR) / "experiment", allow_missing=cfg.allow_missing,
+                    beside={"Prototypical Network": (Path(cfg.protonet_accuracy_dir), Path(cfg.protonet_metrics))})
     try:
         index = build_report(inputs)
     except FileNotFoundError as exc:

@@ -112,12 +112,17 @@ def experiment_cells(cfg: TrialsConfig, overrides: list[str]) -> dict[str, Trial
 
     methods = {name: method_of(name, cell) for name, cell in declared.items()}
     refuse_idle_recogniser_pins(exp, declared, methods, given)
-    cells, checked = {}, set()
+    cells, checked, groups = {}, set(), {}
     for name, cell in declared.items():
-        cells[name] = replace(cfg, method=methods[name], recogniser={**cfg.recogniser, **cell.recogniser},
+        group = cell.recogniser_group
+        if group and group not in groups:
+            groups[group] = recogniser_group(group, f"experiment.cells.{name}.recogniser_group")
+        base = groups[group] if group else cfg.recogniser
+        cells[name] = replace(cfg, method=methods[name], recogniser={**base, **cell.recogniser},
                               **{k: getattr(cell, k) if getattr(cell, k) is not None
                                  else getattr(cfg, k) for k in CELL_KEYS})
-        shape = json.dumps([cell.method, cell.params, cell.recogniser, cell.substitution, cell.support], default=str)
+        shape = json.dumps([cell.method, cell.params, cell.recogniser, cell.recogniser_group, cell.substitution,
+                            cell.support], default=str)
         if shape not in checked:  # the ranges of a config that differs from one checked only by its maze
             check(cells[name])
             checked.add(shape)
@@ -128,21 +133,36 @@ def experiment_cells(cfg: TrialsConfig, overrides: list[str]) -> dict[str, Trial
     return cells
 
 
+def recogniser_group(name: str, key: str) -> dict[str, Any]:
+    """The recogniser config ``conf/recogniser/<name>.yaml`` that a cell chooses."""
+    folder = Path(CONF_DIR) / "recogniser"
+    path = folder / f"{name}.yaml"
+    if not path.is_file():
+        known = ", ".join(sorted(p.stem for p in folder.glob("*.yaml")))
+        raise ConfigError(f"config key '{key}': no recogniser {name!r} (conf/recogniser/: {known})")
+    return OmegaConf.to_container(OmegaConf.load(path), resolve=True)
+
+
 def refuse_idle_recogniser_pins(exp: Experiment, declared: dict, methods: dict[str, MethodSpec],
                                 given: dict[str, Any]) -> None:
     """Recogniser arguments would change nothing where no recogniser runs: a cell that pins them
-    for a method that sees no pictures is refused, and so is a command-line ``recogniser.<arg>``
-    that every cell with a recogniser pins."""
+    (or its own recogniser group) for a method that sees no pictures is refused, and so is a
+    command-line ``recogniser=<name>`` or ``recogniser.<arg>`` that no cell with a recogniser takes
+    (each pins the argument or runs its own recogniser group)."""
     for name, cell in declared.items():
-        if cell.recogniser and not methods[name].uses_recogniser:
-            raise ConfigError(f"config key 'experiment.cells.{name}.recogniser': method {methods[name].name} "
-                              "recognises no pictures, so the recogniser's arguments cannot apply")
+        for field_name in ("recogniser", "recogniser_group"):
+            if getattr(cell, field_name) and not methods[name].uses_recogniser:
+                raise ConfigError(f"config key 'experiment.cells.{name}.{field_name}': method {methods[name].name} "
+                                  "recognises no pictures, so the recogniser's arguments cannot apply")
     seeing = [name for name in declared if methods[name].uses_recogniser]
     for key in given:
-        arg = key.removeprefix("recogniser.")
-        if key.startswith("recogniser.") and seeing and all(arg in declared[n].recogniser for n in seeing):
+        if key != "recogniser" and not key.startswith("recogniser."):
+            continue
+        arg = key.removeprefix("recogniser").removeprefix(".")
+        if seeing and all(declared[n].recogniser_group or (arg and arg in declared[n].recogniser) for n in seeing):
             raise ConfigError(f"config key '{key}': every cell of experiment {exp.name} with a recogniser pins it "
-                              f"(experiment.cells.*.recogniser.{arg}); the override cannot apply")
+                              f"(experiment.cells.*.recogniser.{arg or '<arg>'}) or runs its own "
+                              "(experiment.cells.*.recogniser_group); the override cannot apply")
 
 
 #: Command-line keys that only some methods read: (what uses it, test on the cell's method).
@@ -182,7 +202,7 @@ def resolve_cells(cfg: TrialsConfig, overrides: list[str]) -> list[CellRun]:
         except UserError as exc:
             where = generated_key(cfg.experiment, name) if name else None
             raise ConfigError(f"config key '{where or prefix + 'maze'}': {exc}") from None
-        pins = name and declared[name].recogniser
+        pins = name and (declared[name].recogniser or declared[name].recogniser_group)
         recogniser = make_recogniser(cell, f"{prefix}recogniser" if pins else "recogniser", built)
         shown = json.dumps([pictures_dir(cell) if cell.record != "none" else None], default=str)
         if shown not in pictures:
