@@ -1,8 +1,9 @@
-"""Stage ``meta_train``: episodic meta-training of the Relation Network (or, with
-``train.model=protonet``, of a Prototypical Network), checkpoint chosen on held-out classes.
+"""Stage ``meta_train``: episodic meta-training of a few-shot recogniser, checkpoint chosen on held-out classes.
 
-Episodic meta-training on the rendered training classes, checkpoint selection on the validation
-classes (paper section 3.2.1; docs/fewshot.md).
+The Relation Network (``model=relation_net``, the default) or a Prototypical Network
+(``model=protonet``), trained episodically on the training classes (the rendered ones, or your own
+with ``data=folder``), checkpoint selected on the validation classes (paper section 3.2.1;
+docs/fewshot.md).
 
     python -m pipeline meta_train [images_dir=...] [train.episodes=...]
     python -m pipeline meta_train train.model=protonet checkpoint=datasets/models/protonet.pt ...   # dvc.yaml's meta_train_protonet
