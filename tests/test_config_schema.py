@@ -20,6 +20,7 @@ from pipeline.rl.oracle import TRUE_CATEGORY
 from pipeline.stages._common import load_config, run_stage
 from pipeline.stages._schema import SCHEMAS
 from pipeline.stages.trials import experiment_cells
+from fakes import FIG8_WITHOUT_MODELS
 
 ROOT = Path(__file__).resolve().parents[1]
 SMOKE = ["profile=smoke", "progress=false"]
@@ -107,7 +108,7 @@ def test_methods_load_as_the_paper_defines_them():
 
 def test_experiment_overrides_apply_to_every_cell(tmp_path):
     index = run_stage("trials", ["+experiment=fig8", "method.alpha=0.5", "recogniser=oracle", f"out={tmp_path}",
-                                 "runs=2", "episodes=5", *SMOKE])
+                                 "runs=2", "episodes=5", *SMOKE, *FIG8_WITHOUT_MODELS])
     assert set(index["cells"]) == {"qlearning", "shield", "ssrl", "fewshot", "fewshot_dss", "fewshot_protonet",
                                    "fewshot_dss_protonet"}  # the protonet cells keep their own recogniser
     from pipeline.records import read_records

@@ -12,6 +12,7 @@ import time
 from pathlib import Path
 
 import pytest
+from fakes import FIG8_WITHOUT_MODELS
 
 ROOT = Path(__file__).resolve().parents[1]
 FAST = ["runs=2", "episodes=4", "progress=false"]
@@ -272,7 +273,8 @@ def recorded(tmp_path_factory):
     """fig8 and fig9 recorded at a tiny scale, and a report built from them."""
     d = tmp_path_factory.mktemp("report")
     for exp in ("fig8", "fig9"):
-        out = cli("trials", f"+experiment={exp}", "recogniser=oracle", f"out={d}/runs/{exp}", *FAST)
+        out = cli("trials", f"+experiment={exp}", "recogniser=oracle", f"out={d}/runs/{exp}", *FAST,
+                  *(FIG8_WITHOUT_MODELS if exp == "fig8" else []))
         assert out.returncode == 0, out.stderr
     out = cli("report", f"runs_dir={d}/runs", f"accuracy_dir={d}/none", f"out={d}/reports", "allow_missing=true")
     assert out.returncode == 0, out.stderr
@@ -322,7 +324,7 @@ def test_report_refuses_cells_of_different_setups(recorded, tmp_path):
     runs = tmp_path / "runs"
     shutil.copytree(recorded / "runs", runs)
     other = tmp_path / "other"
-    assert cli("trials", "+experiment=fig8", "recogniser=oracle", "seed=7", f"out={other}", *FAST).returncode == 0
+    assert cli("trials", "+experiment=fig8", "recogniser=oracle", "seed=7", f"out={other}", *FAST, *FIG8_WITHOUT_MODELS).returncode == 0
     shutil.rmtree(runs / "fig8" / "shield")
     shutil.copytree(other / "shield", runs / "fig8" / "shield")
     before = digest(recorded / "reports")

@@ -16,6 +16,7 @@ from pipeline.stages._common import load_config, run_stage
 from pipeline.stages.trials import resolve_cells
 from pipeline.world.generate import UNIQUE_DRAWS, generate_layout, lining, parse_spec, shortest_path_cells
 from pipeline.world.maze import MazeError, bfs_distances, count_shortest_paths, load_layout, shortest_path_length
+from fakes import FIG8_WITHOUT_MODELS
 
 ROOT = Path(__file__).resolve().parents[1]
 SPECS = ["random:5x5:9:1", "random:7x7:16:3", "random:11x11:49:7", "random:9x4:12:0", "random:3x8:0:5",
@@ -86,11 +87,11 @@ def test_impossible_specs_are_refused(spec, problem):
 
 
 def test_an_experiment_cell_takes_a_generated_maze():
-    args = ["+experiment=fig8", "maze=random:6x6:10:4", "recogniser=oracle", "profile=smoke"]
+    args = ["+experiment=fig8", "maze=random:6x6:10:4", "recogniser=oracle", "profile=smoke", *FIG8_WITHOUT_MODELS]
     cells = resolve_cells(load_config("trials", args), args)
     assert {c.layout.rows for c in cells} == {load_layout("random:6x6:10:4").rows}
     with pytest.raises(ConfigError, match=r"^config key '.*maze': maze 'random:6x6:40:4': too many"):
-        bad = ["+experiment=fig8", "maze=random:6x6:40:4", "recogniser=oracle"]
+        bad = ["+experiment=fig8", "maze=random:6x6:40:4", "recogniser=oracle", *FIG8_WITHOUT_MODELS]
         resolve_cells(load_config("trials", bad), bad)
 
 

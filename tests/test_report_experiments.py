@@ -14,6 +14,7 @@ from pipeline.errors import ConfigError
 from pipeline.report.spec import ReportSpec
 from pipeline.report.stats import mean_band, t_quantile_975
 from pipeline.stages._common import load_config, run_stage
+from fakes import FIG8_WITHOUT_MODELS
 
 #: A new experiment file that holds only cells (no report block).
 CELLS_ONLY = """\
@@ -40,7 +41,7 @@ def built(tmp_path_factory):
     runs = d / "runs"
     # a config folder of one's own on Hydra's search path: +experiment=mine finds conf/experiment/mine.yaml
     trials("mine", runs / "mine", f"hydra.searchpath=[file://{conf}]")
-    trials("fig8", runs / "fig8", "recogniser=oracle")
+    trials("fig8", runs / "fig8", "recogniser=oracle", *FIG8_WITHOUT_MODELS)
     trials("table3", runs / "table3", "recogniser=oracle")
     run_stage("report", [f"runs_dir={runs}", f"accuracy_dir={d}/no_accuracy", f"out={d}/reports", "allow_missing=true"])
     return d, (d / "reports" / "index.md").read_text()
