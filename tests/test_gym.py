@@ -203,10 +203,10 @@ def test_recognisers_by_name_and_as_objects():
 
 
 def test_recogniser_errors_say_what_to_pass():
-    with pytest.raises(ValueError, match=r"unknown recogniser 'relnet'; expected one of fixed_accuracy, oracle, relation_net"):
+    with pytest.raises(ValueError, match=r"unknown recogniser 'relnet'; expected one of fixed_accuracy, oracle, protonet, relation_net"):
         gym.make("SafeNav-5x5-v0", method="fewshot", recogniser="relnet")
     with pytest.raises(ValueError, match=r"'fewshot' reasons with pictures and needs a recogniser: pass recogniser=<name>.*"
-                                         r"fixed_accuracy, oracle, relation_net.*recogniser='oracle'"):
+                                         r"fixed_accuracy, oracle, protonet, relation_net.*recogniser='oracle'"):
         gym.make("SafeNav-5x5-v0", method="fewshot")
     with pytest.raises(TypeError, match="not the name 'oracle'.*gymnasium.make"):
         SafeNavigationEnv("5x5", "fewshot", recogniser="oracle")
