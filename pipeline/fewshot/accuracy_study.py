@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pipeline.fewshot.colour import HUE_SHIFTS
 from pipeline.schema import setting
 
 # The paper's figures (Tables 1 and 2), for the report to put beside ours.
@@ -40,7 +41,8 @@ class StudyConfig:
     """Repetitions per substituted category (the paper: 100, giving x/800)."""
     seed: int = setting(0, ge=0)
     """Seeds the random choice of pictures and positions."""
-
+    hue_shifts: list[float] = setting(default_factory=lambda: list(HUE_SHIFTS))
+    """The colour test's hue rotations of the query pictures, degrees (:mod:`.colour`); [] skips it."""
 
 
 @dataclass

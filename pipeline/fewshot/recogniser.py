@@ -36,6 +36,7 @@ import numpy as np
 import torch
 
 from .checkpoint import file_sha256, load_checkpoint
+from .colour import hue_rotate
 from .data import DataError, PictureSet, load_split, read_manifest, to_tensor
 from .model import ModelConfig, RelationNetwork
 from .protonet import PrototypicalNetwork, negative_squared_distances
@@ -123,17 +124,20 @@ class SupportSetRecogniser:
 
     # -- construction from files -------------------------------------------------------------
     @classmethod
-    def _from_files(cls, checkpoint, images_dir, expected, *, substitution_way: int, carry_over: bool):
+    def _from_files(cls, checkpoint, images_dir, expected, query_hue_shift: float, *, substitution_way: int,
+                    carry_over: bool):
         """Load a ``cls.kind`` checkpoint and the query/support pictures of ``images_dir``'s
         manifest, resized to the checkpoint's input size and normalised with its statistics.
         ``expected``, when given, is the model shape the config expects: a checkpoint of another
-        shape or kind is refused (:class:`CheckpointError`)."""
+        shape or kind is refused (:class:`CheckpointError`). ``query_hue_shift`` (degrees) turns the
+        hue of the query pictures only (:mod:`.colour`, the colour test); 0 leaves them as rendered."""
         network, payload = load_checkpoint(checkpoint, expected, kind=cls.kind)
         size = network.config.input_size
         frame = read_manifest(images_dir)
         query = load_split(images_dir, "query", size, frame)
         support = load_split(images_dir, "support", size, frame)
         q_images, q_cats, s_images, n_way, k_shot = cls._arrange(query, support, images_dir)
+        q_images = hue_rotate(q_images, query_hue_shift)
         norm = payload["normalisation"]
         recogniser = cls(
             network,
@@ -149,12 +153,17 @@ class SupportSetRecogniser:
         recogniser.checkpoint = {k: payload[k] for k in ("model", "config", "metrics", "normalisation")}
         recogniser.checkpoint_file = {"path": str(checkpoint), "sha256": file_sha256(checkpoint),
                                       "model": dict(payload["model"])}
+        recogniser.query_hue_shift = float(query_hue_shift)
         return recogniser
 
     def describe(self) -> dict:
-        """What the records keep about this recogniser: the checkpoint's path, sha256 and shape."""
-        return {"kind": self.kind, "checkpoint": getattr(self, "checkpoint_file", None),
-                "substitution_way": self.substitution_way, "carry_over": self.carry_over}
+        """What the records keep about this recogniser: the checkpoint's path, sha256 and shape (and
+        the query pictures' hue shift, when they are turned)."""
+        out = {"kind": self.kind, "checkpoint": getattr(self, "checkpoint_file", None),
+               "substitution_way": self.substitution_way, "carry_over": self.carry_over}
+        if getattr(self, "query_hue_shift", 0.0):
+            out["query_hue_shift"] = self.query_hue_shift
+        return out
 
     @staticmethod
     def _arrange(query: PictureSet, support: PictureSet, images_dir) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, int]:
@@ -252,16 +261,17 @@ class RelationRecogniser(SupportSetRecogniser):
 
     @classmethod
     def from_files(cls, checkpoint: str | Path, images_dir: str | Path, input_size: int | None = None,
-                   relation_padding: int | None = None, *, substitution_way: int = 1,
+                   relation_padding: int | None = None, query_hue_shift: float = 0.0, *, substitution_way: int = 1,
                    carry_over: bool = False) -> "RelationRecogniser":
         """Load a trained Relation Network checkpoint and the pictures of ``images_dir`` (see
         :meth:`SupportSetRecogniser._from_files`). ``input_size`` and ``relation_padding``, when
-        given, are the model shape the config expects."""
+        given, are the model shape the config expects; ``query_hue_shift`` turns the query pictures' hue."""
         expected = None
         if input_size is not None or relation_padding is not None:
             expected = ModelConfig(input_size if input_size is not None else 84,
                                    relation_padding if relation_padding is not None else 0)
-        return cls._from_files(checkpoint, images_dir, expected, substitution_way=substitution_way, carry_over=carry_over)
+        return cls._from_files(checkpoint, images_dir, expected, query_hue_shift,
+                               substitution_way=substitution_way, carry_over=carry_over)
 
     def _prepare(self, query_f, support_f):
         relation = self.network.relation
@@ -287,13 +297,15 @@ class ProtoRecogniser(SupportSetRecogniser):
     kind = "protonet"
 
     @classmethod
-    def from_files(cls, checkpoint: str | Path, images_dir: str | Path, input_size: int | None = None, *,
-                   substitution_way: int = 1, carry_over: bool = False) -> "ProtoRecogniser":
+    def from_files(cls, checkpoint: str | Path, images_dir: str | Path, input_size: int | None = None,
+                   query_hue_shift: float = 0.0, *, substitution_way: int = 1,
+                   carry_over: bool = False) -> "ProtoRecogniser":
         """Load a trained Prototypical Network checkpoint and the pictures of ``images_dir`` (see
         :meth:`SupportSetRecogniser._from_files`). ``input_size``, when given, is the input side
-        the config expects."""
+        the config expects; ``query_hue_shift`` turns the query pictures' hue."""
         expected = ProtoConfig(input_size) if input_size is not None else None
-        return cls._from_files(checkpoint, images_dir, expected, substitution_way=substitution_way, carry_over=carry_over)
+        return cls._from_files(checkpoint, images_dir, expected, query_hue_shift,
+                               substitution_way=substitution_way, carry_over=carry_over)
 
     def _prepare(self, query_f, support_f):
         self._queries = query_f.flatten(1)

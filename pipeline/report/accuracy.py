@@ -23,7 +23,7 @@ import numpy as np
 import pandas as pd
 
 from pipeline.report import figures as F
-from pipeline.report.stats import bounded_sd, normal_ci
+from pipeline.report.stats import bootstrap_ci, bounded_sd, normal_ci, wilson_ci
 
 #: Table 2's columns (the accuracy study's ``table2.csv``) as the report prints them.
 TABLE2_HEADERS = {"substitution_number": "substitutions", "mean_accuracy": "ours [95% CI]",
@@ -132,15 +132,19 @@ def accuracy_tables(rep, accuracy_dir: Path, model_metrics: Path,
     (``accuracy_dir``, ``model_metrics``); ``others`` maps another method's name to its study folder
     and metrics file, shown beside the Relation Network (missing files: said, not shown)."""
     others = others or {}
-    lines = []
-    for name, path in [(MAIN, model_metrics), *((n, m) for n, (_, m) in others.items())]:
-        if path.exists():
-            m = json.loads(path.read_text())
-            lines.append(f"{name}, 5-way 5-shot validation accuracy on held-out procedural classes: "
-                         f"**{100 * m['val_accuracy']:.2f}% ± {100 * m['val_ci95']:.2f}%** (95% interval, "
-                         f"{m['val_episodes']} episodes; model selected on validation classes only).")
-    if lines:
-        rep.add("## The recogniser\n\n" + "\n\n".join(lines) + "\n")
+    rows = []
+    for name, (metrics, folder) in [(MAIN, (model_metrics, accuracy_dir)), *((n, (m, f)) for n, (f, m) in others.items())]:
+        if metrics.exists() or (folder / "summary.json").exists():
+            rows.append(recogniser_row(name, metrics, folder))
+    if rows:
+        rep.add("## The recogniser\n")
+        rep.table("recogniser", pd.DataFrame(rows),
+                  "Validation: 5-way 5-shot accuracy on held-out procedural families, mean over the episodes "
+                  "with its 95% interval (the model is selected on validation classes only). Query pictures: the "
+                  "40 pictures the robot takes, against the original support set, with a Wilson 95% interval. "
+                  "Colour test: every query picture's hue turned by each of the study's hue shifts (the support "
+                  "set as rendered; `pipeline/fewshot/colour.py`), correct over pictures x shifts; its interval "
+                  "and the drop's (paired, in points) are bootstrap 95% intervals over the 40 pictures.")
     if not (accuracy_dir / "table2.csv").exists():
         rep.add(f"Accuracy study: no data under `{accuracy_dir}`.\n")
         return
@@ -179,6 +183,38 @@ def accuracy_tables(rep, accuracy_dir: Path, model_metrics: Path,
                                                f"{MAIN}{''.join(', ' + n for n in beside)}, and the paper's); "
                                                f"{intervals_note(study)}")
     table2_figure(rep, study, beside)
+
+
+def recogniser_row(name: str, metrics: Path, accuracy_dir: Path) -> dict:
+    """One row of the recogniser table: validation accuracy, query accuracy and the colour test
+    (blank where a file is missing or the study ran without the colour test)."""
+    row = {"recogniser": name, "validation [95%]": "", "query pictures [95%]": "",
+           "hue-turned query pictures [95%]": "", "drop, points [95%]": ""}
+    if metrics.exists():
+        m = json.loads(metrics.read_text())
+        row["validation [95%]"] = (f"{100 * m['val_accuracy']:.2f}% ± {100 * m['val_ci95']:.2f} "
+                                   f"({m['val_episodes']} episodes)")
+    path = accuracy_dir / "summary.json"
+    if not path.is_file():
+        return row
+    summary = json.loads(path.read_text())
+    correct, total = int(sum(summary["baseline"]["correct"])), int(sum(summary["baseline"]["total"]))
+    lo, hi = wilson_ci(correct / total, total)
+    row["query pictures [95%]"] = f"{correct}/{total} = {100 * correct / total:.1f}% [{100 * lo:.1f}, {100 * hi:.1f}]"
+    colour = summary.get("colour_test")
+    if not colour or not colour["shifts_deg"]:
+        return row
+    cats = np.asarray(colour["categories"])
+    turned = np.asarray(colour["predictions_per_shift"])  # (shifts, pictures)
+    original = (np.asarray(colour["predictions_original"]) == cats).astype(float)
+    per_picture = (turned == cats).mean(axis=0)
+    n = turned.size
+    lo, hi = bootstrap_ci(per_picture)
+    row["hue-turned query pictures [95%]"] = (f"{int((turned == cats).sum())}/{n} = {100 * per_picture.mean():.1f}% "
+                                              f"[{100 * lo:.1f}, {100 * hi:.1f}]")
+    lo, hi = bootstrap_ci(original - per_picture)
+    row["drop, points [95%]"] = f"{100 * (original - per_picture).mean():.1f} [{100 * lo:.1f}, {100 * hi:.1f}]"
+    return row
 
 
 def table1(study: Study, variant: str, beside: dict[str, Study] | None = None) -> pd.DataFrame:

@@ -4,10 +4,12 @@ On the rendered query and support pictures with the meta-trained checkpoint (doc
 
     python -m pipeline accuracy [recogniser=relation_net|protonet|oracle|fixed_accuracy] [recogniser.checkpoint=...] [study.repeats=...]
 
-Writes ``out_dir``/baseline.csv, table1.csv, table2.csv and summary.json for the report stage.
+Writes ``out_dir``/baseline.csv, table1.csv, table2.csv and summary.json (with the colour test:
+the query pictures hue-turned by each of ``study.hue_shifts``, ``pipeline.fewshot.colour``) for the report stage.
 """
 from __future__ import annotations
 
+import inspect
 import time
 from dataclasses import asdict
 from pathlib import Path
@@ -15,13 +17,34 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from pipeline.errors import ConfigError
 from pipeline.fewshot.accuracy_study import run_study
+from pipeline.fewshot.colour import colour_test
 from pipeline.fewshot.study_tables import baseline_frame, summary, table1_frame, table2_frame
 from pipeline.files import write_json_atomic
 from pipeline.stages._common import stage_main
-from pipeline.stages._recognisers import build_recogniser
+from pipeline.stages._recognisers import build_recogniser, recogniser_arguments
 from pipeline.stages._schema import AccuracyConfig
 from pipeline.world.pictures import CATEGORIES, N_PICTURES, picture_category
+
+
+def _colour_test(cfg: AccuracyConfig, overrides: list[str], baseline: np.ndarray, categories: np.ndarray) -> dict | None:
+    """The colour test (``pipeline.fewshot.colour``) for a recogniser that reads pictures (its
+    target takes ``query_hue_shift``); None for the others, which refuse ``study.hue_shifts``."""
+    shifts = list(cfg.study.hue_shifts)
+    target, _ = recogniser_arguments(cfg.recogniser)
+    if "query_hue_shift" not in inspect.signature(target).parameters:
+        if shifts and any(o.lstrip("+~").startswith("study.hue_shifts") for o in overrides):
+            raise ConfigError(f"config key 'study.hue_shifts': the colour test turns query pictures, and "
+                              f"{cfg.recogniser['_target_']} reads none; use recogniser=relation_net|protonet")
+        return None
+    base = float(cfg.recogniser.get("query_hue_shift", 0.0))
+    shifted = {}
+    for shift in shifts:
+        rec = build_recogniser({**cfg.recogniser, "query_hue_shift": base + shift}, substitution_way=0, carry_over=False)
+        rec.start_run(0, cfg.study.seed)
+        shifted[shift] = rec.predictions(0)
+    return colour_test(baseline, shifted, categories)
 
 
 def run(cfg: AccuracyConfig, overrides: list[str] = ()) -> dict:
@@ -38,6 +61,7 @@ def run(cfg: AccuracyConfig, overrides: list[str] = ()) -> dict:
     table1_frame(result, config.repeats).to_csv(out / "table1.csv", index=False)
     table2_frame(result).to_csv(out / "table2.csv", index=False)
     data = summary(result, names)
+    data["colour_test"] = _colour_test(cfg, list(overrides), result.baseline_predictions, categories)
     data["config"] = {"recogniser": dict(cfg.recogniser), **asdict(config)}
     if hasattr(recogniser, "checkpoint"):
         data["checkpoint_metrics"] = recogniser.checkpoint["metrics"]
@@ -47,6 +71,11 @@ def run(cfg: AccuracyConfig, overrides: list[str] = ()) -> dict:
         f"({100 * result.baseline_accuracy:.1f}%; paper 42.5%); per category "
         + ", ".join(f"{n} {c}/{t}" for n, c, t in zip(names, result.baseline_correct, result.per_category_total))
     )
+    colour = data["colour_test"]
+    if colour and colour["shifts_deg"]:
+        n = colour["pictures"] * len(colour["shifts_deg"])
+        print(f"colour test, hue-turned query pictures: {sum(colour['correct_per_shift'])}/{n} "
+              f"({100 * sum(colour['correct_per_shift']) / n:.1f}%) against {colour['correct_original']}/{colour['pictures']}")
     for n, (w, ns) in sorted(result.table2.items()):
         print(f"  {n} substitution(s): {100 * w:.2f}%  (no same picture {100 * ns:.2f}%)")
     print(f"accuracy study in {time.perf_counter() - start:.1f} s")

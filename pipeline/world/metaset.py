@@ -1,19 +1,30 @@
-"""Meta-training classes: procedurally generated object *archetypes* from a seeded grammar.
+"""Meta-training classes: procedural object *families* (categories of varied instances).
 
 The paper meta-trains its Relation Network on miniImageNet's 64 training classes (section 3.2.1,
-Ravi and Larochelle's split). We have no photographs, so each class here is an archetype drawn
-from a small shape grammar: an optional ring of legs, a vertical stack of 1-4 *tiers* (box,
-cylinder, sphere, ellipsoid, capsule, cone, torus, bowl, disc, each with its own proportions),
-optional radial arms or a side handle, and a 2-3 colour palette with finishes. Tables, lamps,
-bottles, mugs, stools, cone stacks, totems and trees all fall out of it. Classes are kept
-distinct: no two archetypes share the same *signature* (tier kinds, leg count, arm count).
-An instance of a class jitters every proportion (about +-15%) and, per picture, the colours.
+Ravi and Larochelle's split), where a class is a category: many different objects that share a
+kind of shape. We have no photographs, so each class here is a family drawn from a small shape
+grammar. A family fixes the *structure*: a vertical stack of 1-4 tiers, each allowing one or two
+part kinds (box, cylinder, sphere, ellipsoid, capsule, cone, torus, bowl, disc), the legs
+(none, a pedestal, or a ring of legs), radial arms and a side handle, with typical proportions.
+Every instance of a family then draws its own:
+
+* proportions: an overall scale in [0.8, 1.25] and every width and height by a further factor
+  in [0.7, 1.4];
+* part kinds and counts: a tier's kind among the family's alternatives, an optional tier present
+  or not, the number of legs and of arms from the family's range;
+* colours and materials: a palette of 2-3 colours of any hue, and a finish (matte, plastic,
+  metal, speckle, stripes, weave) per tier.
+
+So colour says nothing about the class and recognising a class means recognising a shape kind,
+which is what the query task asks (two instances per category; the support set shows other
+instances). No two families share a *signature* (allowed tier kinds, leg style, arms, handle).
 
 The grammar never uses the obstacle builders of ``obstacle_models.py``, so none of the five
 query categories (chair, kettle, carton, basin, basket) is a meta-training class.
 """
 from __future__ import annotations
 
+import colorsys
 from dataclasses import dataclass
 
 import numpy as np
@@ -23,169 +34,212 @@ from pipeline.world.shapes import ObjectModel, Part, frustum, quat_from_axis_ang
 
 TIER_KINDS = ("box", "cylinder", "sphere", "ellipsoid", "capsule", "cone", "torus", "bowl", "disc")
 FINISH_CHOICES = ("matte", "plastic", "metal", "speckle", "stripes", "weave")
+FINISH_WEIGHTS = (0.3, 0.3, 0.15, 0.1, 0.1, 0.05)
+LEG_STYLES = ("none", "pedestal", "ring")
+SCALE = (0.8, 1.25)        # an instance's overall scale
+PROPORTION = (0.7, 1.4)    # an instance's factor on every width and height
+OPTIONAL_TIER_P = 0.4      # an optional tier is left out of this share of instances
+ALTERNATIVES = {           # a tier's second kind, if it has one: a part of similar bulk
+    "box": ("cylinder", "disc"), "cylinder": ("box", "capsule", "cone"), "sphere": ("ellipsoid",),
+    "ellipsoid": ("sphere", "capsule"), "capsule": ("cylinder", "ellipsoid"), "cone": ("cylinder", "bowl"),
+    "torus": ("disc",), "bowl": ("cone", "sphere"), "disc": ("torus", "box"),
+}
 
 
 @dataclass(frozen=True)
-class Tier:
-    kind: str
-    width: float   # half-width (radius) in metres
-    height: float  # full height in metres
-    slot: int
-    finish: str
-    taper: float = 1.0  # top/bottom radius ratio (cones), depth ratio (boxes)
+class TierSpec:
+    """One tier of a family: the part kinds it may take and its typical size."""
+
+    kinds: tuple[str, ...]
+    width: float    # typical half-width (radius) in metres
+    height: float   # typical full height in metres (spheres: 2 x width; tori: tube diameter)
+    taper: float    # top/bottom radius ratio (cones), depth ratio (boxes)
+    optional: bool  # some instances leave it out (never every tier of an instance)
 
 
 @dataclass(frozen=True)
-class Archetype:
-    """One meta-training class."""
+class Family:
+    """One meta-training class: the structure its instances share and the ranges they vary in."""
 
     name: str
-    tiers: tuple[Tier, ...]
-    legs: int           # 0 = none
+    tiers: tuple[TierSpec, ...]
+    leg_style: str               # LEG_STYLES
+    leg_counts: tuple[int, ...]  # ring: the counts an instance may have
     leg_height: float
     leg_spread: float
-    arms: int           # 0 = none
+    arm_counts: tuple[int, ...]  # (0,) = no arms
     arm_length: float
     arm_tier: int
     handle: bool
-    palette_hsv: tuple[tuple[float, float, float], ...]
+    n_colours: int
 
     def signature(self) -> tuple:
-        return (tuple(t.kind for t in self.tiers), self.legs, self.arms, self.handle)
+        return (tuple(t.kinds for t in self.tiers), self.leg_style, self.arm_counts != (0,), self.handle)
 
 
-def _tier(rng: np.random.Generator, slot: int) -> Tier:
-    kind = str(rng.choice(TIER_KINDS))
+def _tier_size(rng: np.random.Generator, kind: str) -> tuple[float, float]:
     width = float(rng.uniform(0.06, 0.28))
-    height = {"disc": rng.uniform(0.015, 0.04), "torus": 0.0, "sphere": 0.0}.get(kind, rng.uniform(0.05, 0.4))
+    if kind == "disc":
+        return width, float(rng.uniform(0.015, 0.04))
     if kind == "sphere":
-        height = 2 * width
+        return width, 2 * width
     if kind == "torus":
-        height = width * rng.uniform(0.25, 0.5)
-    return Tier(kind, width, float(height), slot, str(rng.choice(FINISH_CHOICES, p=[.3, .3, .15, .1, .1, .05])),
-                float(rng.uniform(0.2, 1.0) if kind in ("cone", "box") else 1.0))
+        return width, width * float(rng.uniform(0.25, 0.5))
+    return width, float(rng.uniform(0.05, 0.4))
 
 
-def make_archetype(rng: np.random.Generator, index: int) -> Archetype:
+def _tier_spec(rng: np.random.Generator, optional: bool) -> TierSpec:
+    first = str(rng.choice(TIER_KINDS))
+    kinds = (first,)
+    if rng.random() < 0.4:  # a second kind of similar bulk: round <-> square, cone <-> cylinder ...
+        second = str(rng.choice(ALTERNATIVES[first]))
+        kinds = tuple(sorted((first, second)))
+    width, height = _tier_size(rng, first)
+    taper = float(rng.uniform(0.2, 1.0))
+    return TierSpec(kinds, width, height, taper, optional)
+
+
+def make_family(rng: np.random.Generator, index: int) -> Family:
     n_tiers = int(rng.choice([1, 2, 3, 4], p=[0.2, 0.35, 0.3, 0.15]))
-    n_colours = int(rng.integers(2, 4))
-    first = int(rng.integers(0, n_colours))  # neighbouring tiers get different colours
-    tiers = tuple(_tier(rng, (first + k) % n_colours) for k in range(n_tiers))
-    legs = int(rng.choice([0, 0, 0, 0, 1, 3, 4, 5]))
-    arms = int(rng.choice([0, 0, 0, 0, 0, 2, 3, 4, 6]))
+    tiers = tuple(_tier_spec(rng, optional=n_tiers > 1 and k > 0 and rng.random() < 0.3) for k in range(n_tiers))
+    leg_style = str(rng.choice(LEG_STYLES, p=[0.5, 0.15, 0.35]))
+    low = int(rng.integers(3, 6))
+    leg_counts = {"none": (0,), "pedestal": (1,), "ring": tuple(range(low, low + int(rng.integers(1, 3))))}[leg_style]
+    arm_counts = (0,)
+    if rng.random() < 0.35:
+        low = int(rng.integers(2, 6))
+        arm_counts = tuple(range(low, low + int(rng.integers(1, 4))))
     handle = bool(rng.random() < 0.15)
-    base_h = rng.uniform(0, 1)
-    palette = []
-    for k in range(n_colours):  # spread hues so that a class has a recognisable colour pattern
-        palette.append((float((base_h + k * rng.uniform(0.15, 0.5)) % 1.0), float(rng.uniform(0.3, 0.95)),
-                        float(rng.uniform(0.35, 0.95))))
-    kinds = "-".join(t.kind for t in tiers)
-    extra = (f"+{legs}legs" if legs else "") + (f"+{arms}arms" if arms else "") + ("+handle" if handle else "")
-    return Archetype(f"a{index:03d}_{kinds}{extra}", tiers, legs, float(rng.uniform(0.1, 0.45)),
-                     float(rng.uniform(0.4, 1.0)), arms, float(rng.uniform(0.08, 0.25)),
-                     int(rng.integers(0, n_tiers)), handle, tuple(palette))
+    kinds = "-".join("|".join(t.kinds) + ("?" if t.optional else "") for t in tiers)
+    extra = {"none": "", "pedestal": "+pedestal", "ring": "+legs"}[leg_style] + ("+arms" if arm_counts != (0,) else "")
+    extra += "+handle" if handle else ""
+    return Family(f"f{index:03d}_{kinds}{extra}", tiers, leg_style, leg_counts, float(rng.uniform(0.1, 0.45)),
+                  float(rng.uniform(0.4, 1.0)), arm_counts, float(rng.uniform(0.08, 0.25)),
+                  int(rng.integers(0, n_tiers)), handle, int(rng.integers(2, 4)))
 
 
-def make_archetypes(n: int, seed: int) -> list[Archetype]:
-    """``n`` archetypes with pairwise different signatures, deterministic in ``seed``."""
+def make_families(n: int, seed: int) -> list[Family]:
+    """``n`` families with pairwise different signatures, deterministic in ``seed``."""
     if n < 0:
         raise ValueError(f"number of classes must be >= 0, got {n}")
-    rng = np.random.default_rng(np.random.SeedSequence([int(seed), 2]))
-    out: list[Archetype] = []
+    rng = np.random.default_rng(np.random.SeedSequence([int(seed), 3]))
+    out: list[Family] = []
     seen: set[tuple] = set()
     tries = 0
     while len(out) < n:
         tries += 1
         if tries > 200 * (n + 1):
-            raise RuntimeError(f"the grammar could not produce {n} distinct archetypes")
-        a = make_archetype(rng, len(out))
-        if a.signature() in seen:
+            raise RuntimeError(f"the grammar could not produce {n} distinct families")
+        f = make_family(rng, len(out))
+        if f.signature() in seen:
             continue
-        seen.add(a.signature())
-        out.append(a)
+        seen.add(f.signature())
+        out.append(f)
     return out
 
 
-def _tier_part(t: Tier, z: float, j: float) -> tuple[list[Part], float]:
-    """Parts of tier ``t`` standing at height ``z`` with proportions jittered by ``j`` factors."""
-    w, h = t.width * j, t.height * j
-    if t.kind == "box":
-        return [Part("box", (w, w * t.taper, h / 2), (0.0, 0.0, z + h / 2), slot=t.slot, finish=t.finish)], h
-    if t.kind == "cylinder":
-        return [Part("cylinder", (w, h / 2), (0.0, 0.0, z + h / 2), slot=t.slot, finish=t.finish)], h
-    if t.kind == "disc":
-        return [Part("cylinder", (w * 1.3, h / 2), (0.0, 0.0, z + h / 2), slot=t.slot, finish=t.finish)], h
-    if t.kind == "sphere":
-        return [Part("sphere", (w,), (0.0, 0.0, z + w), slot=t.slot, finish=t.finish)], 2 * w
-    if t.kind == "ellipsoid":
-        return [Part("ellipsoid", (w, w * 0.7, h / 2), (0.0, 0.0, z + h / 2), slot=t.slot, finish=t.finish)], h
-    if t.kind == "capsule":
+def _tier_part(kind: str, w: float, h: float, taper: float, z: float, slot: int, finish: str) -> tuple[Part, float]:
+    """The part of one tier of kind ``kind`` (half-width ``w``, height ``h``) standing at height ``z``."""
+    if kind == "box":
+        return Part("box", (w, w * taper, h / 2), (0.0, 0.0, z + h / 2), slot=slot, finish=finish), h
+    if kind == "cylinder":
+        return Part("cylinder", (w, h / 2), (0.0, 0.0, z + h / 2), slot=slot, finish=finish), h
+    if kind == "disc":
+        h = min(h, 0.05)
+        return Part("cylinder", (w * 1.3, h / 2), (0.0, 0.0, z + h / 2), slot=slot, finish=finish), h
+    if kind == "sphere":
+        return Part("sphere", (w,), (0.0, 0.0, z + w), slot=slot, finish=finish), 2 * w
+    if kind == "ellipsoid":
+        return Part("ellipsoid", (w, w * 0.7, h / 2), (0.0, 0.0, z + h / 2), slot=slot, finish=finish), h
+    if kind == "capsule":
         r = min(w, h / 2) * 0.8
         half = max(h / 2 - r, 0.005)
-        return [Part("capsule", (r, half), (0.0, 0.0, z + r + half), slot=t.slot, finish=t.finish)], 2 * (r + half)
-    if t.kind == "cone":
-        return [Part("mesh", (), (0.0, 0.0, z), slot=t.slot, finish=t.finish,
-                     mesh=frustum(w, w * t.taper * 0.5, h, 24))], h
-    if t.kind == "torus":
-        tube = h / 2
+        return Part("capsule", (r, half), (0.0, 0.0, z + r + half), slot=slot, finish=finish), 2 * (r + half)
+    if kind == "cone":
+        return Part("mesh", (), (0.0, 0.0, z), slot=slot, finish=finish, mesh=frustum(w, w * taper * 0.5, h, 24)), h
+    if kind == "torus":
+        tube = min(h, w * 0.5) / 2
         ring = tube_arc(w, tube, 0, 360, segments=32)
-        return [Part("mesh", (), (0.0, 0.0, z + tube), quat_from_axis_angle((1.0, 0.0, 0.0), np.pi / 2),
-                     slot=t.slot, finish=t.finish, mesh=ring)], h
-    assert t.kind == "bowl"
+        return Part("mesh", (), (0.0, 0.0, z + tube), quat_from_axis_angle((1.0, 0.0, 0.0), np.pi / 2),
+                    slot=slot, finish=finish, mesh=ring), 2 * tube
+    assert kind == "bowl"
     m = vessel([(w * 0.5, 0.0), (w * 0.9, h * 0.6), (w, h)], 0.01, 28)
-    return [Part("mesh", (), (0.0, 0.0, z), slot=t.slot, finish=t.finish, mesh=m)], h
+    return Part("mesh", (), (0.0, 0.0, z), slot=slot, finish=finish, mesh=m), h
 
 
-def build_meta_instance(arch: Archetype, rng: np.random.Generator) -> ObjectModel:
-    """One instance of ``arch``: every proportion jittered by a factor in [0.85, 1.15]."""
-    def jit() -> float:
-        return float(rng.uniform(0.85, 1.15))
+def _palette(rng: np.random.Generator, n: int) -> tuple[tuple[float, float, float], ...]:
+    """An instance's colours: any hue; neighbouring slots apart in hue so the parts stay distinct."""
+    h0 = rng.uniform(0, 1)
+    return tuple(hsv(h0 + k * rng.uniform(0.15, 0.5), rng.uniform(0.15, 0.95), rng.uniform(0.3, 0.95))
+                 for k in range(n))
 
+
+def build_meta_instance(fam: Family, rng: np.random.Generator) -> ObjectModel:
+    """One instance of ``fam`` (module docstring: what varies between instances)."""
+    def vary() -> float:
+        return float(rng.uniform(*PROPORTION))
+
+    scale = float(rng.uniform(*SCALE))
+    palette = _palette(rng, fam.n_colours)
+    present = [not t.optional or rng.random() >= OPTIONAL_TIER_P for t in fam.tiers]
+    first_slot = int(rng.integers(0, fam.n_colours))
     parts: list[Part] = []
     z = 0.0
-    top_w = arch.tiers[0].width
-    if arch.legs:
-        lh = arch.leg_height * jit()
-        spread = arch.leg_spread * top_w * jit()
-        leg_slot = arch.tiers[0].slot
-        if arch.legs == 1:  # a pedestal
-            parts.append(rod((0, 0, 0), (0, 0, lh), 0.02 * jit(), slot=leg_slot, finish="metal"))
-            parts.append(Part("cylinder", (max(top_w * 0.7, 0.05), 0.01), (0.0, 0.0, 0.01), slot=leg_slot, finish="metal"))
+    top_w = fam.tiers[0].width * scale
+    if fam.leg_style != "none":
+        lh = fam.leg_height * scale * vary()
+        if fam.leg_style == "pedestal":
+            parts.append(rod((0, 0, 0), (0, 0, lh), 0.02 * vary(), slot=first_slot, finish="metal"))
+            parts.append(Part("cylinder", (max(top_w * 0.7 * vary(), 0.05), 0.01), (0.0, 0.0, 0.01),
+                              slot=first_slot, finish="metal"))
         else:
-            for k in range(arch.legs):
-                a = 2 * np.pi * k / arch.legs + np.pi / arch.legs
+            n_legs = int(rng.choice(fam.leg_counts))
+            spread = fam.leg_spread * top_w * vary()
+            finish = str(rng.choice(FINISH_CHOICES[:3]))
+            for k in range(n_legs):
+                a = 2 * np.pi * k / n_legs + np.pi / n_legs
                 x, y = spread * np.cos(a), spread * np.sin(a)
-                parts.append(rod((x * 1.15, y * 1.15, 0), (x, y, lh), 0.015 * jit(), slot=leg_slot, finish="matte"))
+                parts.append(rod((x * 1.15, y * 1.15, 0), (x, y, lh), 0.015 * vary(), slot=first_slot, finish=finish))
         z = lh
     tier_z = []
-    for t in arch.tiers:
-        ps, h = _tier_part(t, z, jit())
-        tier_z.append((z, h, t))
-        parts += ps
+    for k, (t, here) in enumerate(zip(fam.tiers, present)):
+        if not here:
+            continue
+        kind = str(rng.choice(t.kinds))
+        w = t.width * scale * vary()
+        h = 2 * w if kind == "sphere" else t.height * scale * vary()
+        taper = float(np.clip(t.taper * vary(), 0.15, 1.0))
+        slot = (first_slot + k) % fam.n_colours
+        part, h = _tier_part(kind, w, h, taper, z, slot, str(rng.choice(FINISH_CHOICES, p=FINISH_WEIGHTS)))
+        tier_z.append((z, h, w, slot, k))
+        parts.append(part)
         z += h
-    if arch.arms:
-        z0, h, t = tier_z[arch.arm_tier]
+    arms = int(rng.choice(fam.arm_counts))
+    if arms:
+        z0, h, w, slot, _ = min(tier_z, key=lambda e: abs(e[4] - fam.arm_tier))
         zc = z0 + h * 0.6
-        L = arch.arm_length * jit()
-        slot = (t.slot + 1) % len(arch.palette_hsv)
-        for k in range(arch.arms):
-            a = 2 * np.pi * k / arch.arms
-            r0 = t.width * 0.8
+        length = fam.arm_length * scale * vary()
+        slot = (slot + 1) % fam.n_colours
+        for k in range(arms):
+            a = 2 * np.pi * k / arms
+            r0 = w * 0.8
             p0 = (r0 * np.cos(a), r0 * np.sin(a), zc)
-            p1 = ((r0 + L) * np.cos(a), (r0 + L) * np.sin(a), zc + L * 0.3)
+            p1 = ((r0 + length) * np.cos(a), (r0 + length) * np.sin(a), zc + length * 0.3)
             parts.append(rod(p0, p1, 0.012, kind="capsule", slot=slot, finish="plastic"))
             parts.append(Part("sphere", (0.025,), p1, slot=slot, finish="plastic"))
-    if arch.handle:
-        z0, h, t = tier_z[0]
+    if fam.handle:
+        z0, h, w, slot, _ = tier_z[0]
         hr = max(h * 0.35, 0.04)
-        arc = tube_arc(hr, 0.012, -90, 90)
-        parts.append(Part("mesh", (), (t.width, 0.0, z0 + h / 2), slot=(t.slot + 1) % len(arch.palette_hsv),
-                          finish="plastic", mesh=arc))
-    palette = tuple(hsv(*c) for c in arch.palette_hsv)
-    return ObjectModel(arch.name, tuple(parts), palette)
+        parts.append(Part("mesh", (), (w, 0.0, z0 + h / 2), slot=(slot + 1) % fam.n_colours,
+                          finish="plastic", mesh=tube_arc(hr, 0.012, -90, 90)))
+    return ObjectModel(fam.name, tuple(parts), palette)
 
 
-def jitter_palette(arch: Archetype, rng: np.random.Generator) -> tuple[tuple[float, float, float], ...]:
-    """Per-picture colours: the class palette with small hue, saturation and value jitter."""
-    return tuple(hsv(h + rng.normal(0, 0.025), s * rng.uniform(0.8, 1.15), v * rng.uniform(0.75, 1.15))
-                 for h, s, v in arch.palette_hsv)
+def jitter_palette(palette: tuple[tuple[float, float, float], ...], rng: np.random.Generator
+                   ) -> tuple[tuple[float, float, float], ...]:
+    """Per-picture colours: an instance's palette with small hue, saturation and value jitter."""
+    out = []
+    for rgb in palette:
+        h, s, v = colorsys.rgb_to_hsv(*rgb)
+        out.append(hsv(h + rng.normal(0, 0.025), s * rng.uniform(0.8, 1.15), v * rng.uniform(0.75, 1.15)))
+    return tuple(out)

@@ -7,8 +7,9 @@
 * support (Figure 6 right): per category ``support_per_category`` OTHER geometric instances
   (instance ids 2, 3, ...), one catalogue picture each: studio backdrop, bright light, raised
   camera, a three-quarter front view, object framed to fill the picture.
-* train / val: meta-training archetypes (``metaset.py``), ``per_class`` pictures per class from
-  ``ceil(per_class / views_per_instance)`` instances, random view, colour, light, background.
+* train / val: meta-training families (``metaset.py``), ``per_class`` pictures per class from
+  ``ceil(per_class / views_per_instance)`` instances, random view, light, background and a
+  little per-picture colour jitter.
 
 Every random draw comes from a ``SeedSequence`` keyed by (seed, purpose, indices), so a picture
 does not depend on which worker renders it or in which order.
@@ -21,7 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pipeline.world.camera import CameraPose, framing_distance, robot_camera
-from pipeline.world.metaset import Archetype, build_meta_instance, jitter_palette, make_archetypes
+from pipeline.world.metaset import Family, build_meta_instance, jitter_palette, make_families
 from pipeline.world.obstacle_models import build_obstacle, category_index, hsv, obstacle_seed
 from pipeline.world.pictures import CATEGORIES, INSTANCES_PER_CATEGORY, N_FACES, picture_id
 from pipeline.world.renderer import Background, Lighting, Shot
@@ -126,11 +127,11 @@ def support_batch(cfg: PlanConfig) -> tuple[Batch, list[dict]]:
     return batch, rows
 
 
-def meta_batch(cfg: PlanConfig, split: str, index: int, arch: Archetype) -> tuple[Batch, list[dict]]:
-    """One meta-training class: ``per_class`` studio pictures of jittered instances."""
+def meta_batch(cfg: PlanConfig, split: str, index: int, fam: Family) -> tuple[Batch, list[dict]]:
+    """One meta-training class: ``per_class`` studio pictures of instances of ``fam``."""
     sid = SPLITS.index(split)
     n_inst = math.ceil(cfg.per_class / cfg.views_per_instance)
-    objs = [build_meta_instance(arch, _rng(cfg.seed, 5, sid, index, i)) for i in range(n_inst)]
+    objs = [build_meta_instance(fam, _rng(cfg.seed, 5, sid, index, i)) for i in range(n_inst)]
     batch, rows = Batch(f"{split}{index:03d}", "studio", objs), []
     for k in range(cfg.per_class):
         i = k // cfg.views_per_instance
@@ -151,10 +152,10 @@ def meta_batch(cfg: PlanConfig, split: str, index: int, arch: Archetype) -> tupl
                          str(r.choice(BACKGROUND_MATERIALS)),
                          hsv(r.uniform(0, 1), r.uniform(0, 0.6), r.uniform(0.2, 0.95)),
                          str(r.choice(BACKGROUND_MATERIALS)))
-        batch.shots.append(Shot(i, yaw, jitter_palette(arch, r), cam, light, bgr))
+        batch.shots.append(Shot(i, yaw, jitter_palette(objs[i].palette, r), cam, light, bgr))
         f = f"{split}/c{index:03d}/p{k:03d}.png"
         batch.files.append(f)
-        rows.append(_row(split, index, arch.name, i, -1, -yaw % 360, -1, f))
+        rows.append(_row(split, index, fam.name, i, -1, -yaw % 360, -1, f))
     return batch, rows
 
 
@@ -173,11 +174,11 @@ def make_plan(cfg: PlanConfig) -> tuple[list[Batch], list[dict]]:
         b, r = make(cfg)
         batches.append(b)
         rows += r
-    archs = make_archetypes(cfg.n_train_classes + cfg.n_val_classes, cfg.seed)
+    families = make_families(cfg.n_train_classes + cfg.n_val_classes, cfg.seed)
     for split, lo, hi in (("train", 0, cfg.n_train_classes),
                           ("val", cfg.n_train_classes, cfg.n_train_classes + cfg.n_val_classes)):
-        for idx, arch in enumerate(archs[lo:hi]):
-            b, r = meta_batch(cfg, split, idx, arch)
+        for idx, fam in enumerate(families[lo:hi]):
+            b, r = meta_batch(cfg, split, idx, fam)
             batches.append(b)
             rows += r
     return batches, rows
