@@ -2,6 +2,7 @@
 configs, shrunk), and their config errors."""
 import json
 
+import numpy as np
 import pandas as pd
 import pytest
 from pipeline.errors import ConfigError
@@ -48,6 +49,16 @@ def test_meta_train_then_accuracy(tmp_path):
     base = pd.read_csv(out / "baseline.csv")
     assert len(base) == 40 and data["baseline"]["accuracy"] == pytest.approx(base.correct.mean())
     assert t2.mean_accuracy[0] == pytest.approx(base.correct.mean())
+    colour = json.loads((out / "summary.json").read_text())["colour_test"]  # the default hue shifts
+    assert colour["shifts_deg"] == [60.0, 120.0, 180.0, 240.0, 300.0] and colour["pictures"] == 40
+    assert colour["correct_original"] == base.correct.sum() and colour["predictions_original"] == base.predicted.tolist()
+    assert [sum(np.equal(p, colour["categories"])) for p in colour["predictions_per_shift"]] == colour["correct_per_shift"]
+    one = run_stage("accuracy", [f"recogniser.images_dir={images}", f"recogniser.checkpoint={tmp_path}/m/rn.pt",
+                                 "recogniser.input_size=24", "recogniser.relation_padding=1", f"out_dir={tmp_path}/acc1",
+                                 "study.repeats=1", "study.hue_shifts=[180]", "progress=false"])
+    assert one["colour_test"]["shifts_deg"] == [180.0]
+    assert one["colour_test"]["predictions_per_shift"] == [colour["predictions_per_shift"][2]]
+    assert one["config"]["hue_shifts"] == [180.0]
 
 
 def test_config_errors_name_the_key(tmp_path):
@@ -59,6 +70,12 @@ def test_config_errors_name_the_key(tmp_path):
         run_stage("accuracy", ["+extra=1"])
     with pytest.raises(ConfigError, match=r"config key 'study.repeats': must be >= 1; got 0"):
         run_stage("accuracy", ["study.repeats=0"])
+    with pytest.raises(ConfigError, match=r"config key 'study.hue_shifts': the colour test turns query pictures"):
+        run_stage("accuracy", ["recogniser=oracle", "study.hue_shifts=[90]", f"out_dir={tmp_path}/o"])
+    with pytest.raises(ConfigError, match=r"config key 'study.hue_shifts\[0\]'.*could not be converted to Float"):
+        run_stage("accuracy", ["study.hue_shifts=[red]"])
+    with pytest.raises(ConfigError, match=r"config key 'recogniser': query_hue_shift must be a finite number"):
+        run_stage("accuracy", ["recogniser.query_hue_shift=nan", f"out_dir={tmp_path}/o"])
     with pytest.raises(ConfigError, match=r"config key 'train.lr_schedule': must be one of constant, cosine, step"):
         run_stage("meta_train", ["train.lr_schedule=linear"])
 
@@ -96,7 +113,12 @@ def test_protonet_meta_train_accuracy_and_report_tables(tmp_path):
     accuracy_tables(rep, dirs["relation_net"] / "acc", dirs["relation_net"] / "metrics.json",
                     {"Prototypical Network": (dirs["protonet"] / "acc", dirs["protonet"] / "metrics.json")})
     text = "\n".join(rep.sections)
-    assert "Prototypical Network, 5-way 5-shot validation accuracy" in text
+    assert "## The recogniser" in text
+    table = pd.read_csv(tmp_path / "report" / "tables" / "recogniser.csv")
+    assert table.recogniser.tolist() == ["Relation Network", "Prototypical Network"]
+    assert table["query pictures [95%]"].str.match(r"\d+/40 = ").all()
+    assert table["hue-turned query pictures [95%]"].str.match(r"\d+/200 = ").all()
+    assert table["drop, points [95%]"].str.contains(r"\[").all()
     assert "ours, Prototypical Network" in text
     t2 = pd.read_csv(tmp_path / "report" / "tables" / "table2.csv")
     assert "Prototypical Network [95% CI]" in t2.columns and t2["Prototypical Network [95% CI]"].str.contains("%").all()

@@ -1,6 +1,7 @@
 """Render stage: determinism, counts, split disjointness, query faces, bad input, atomic writes."""
 from __future__ import annotations
 
+import colorsys
 import csv
 import hashlib
 from pathlib import Path
@@ -12,7 +13,7 @@ from pipeline.errors import ConfigError
 from pipeline.files import write_atomic
 from pipeline.stages._common import load_config
 from pipeline.world.camera import side_azimuth
-from pipeline.world.metaset import make_archetypes
+from pipeline.world.metaset import build_meta_instance, make_families
 from pipeline.world.obstacle_models import build_obstacle, category_index
 from pipeline.world.pictures import CATEGORIES, N_PICTURES, picture_id
 from pipeline.world.render_plan import MANIFEST_COLUMNS, PlanConfig, make_plan
@@ -106,12 +107,31 @@ def test_seed_changes_pictures(rendered, tmp_path):
     assert (tmp_path / f).read_bytes() != (rendered[0] / "images" / f).read_bytes()
 
 
-def test_archetypes_distinct_and_seeded():
-    a = make_archetypes(80, seed=0)
+def test_families_distinct_and_seeded():
+    a = make_families(80, seed=0)
     assert len({x.signature() for x in a}) == 80
     assert len({x.name for x in a}) == 80
-    assert [x.name for x in a] == [x.name for x in make_archetypes(80, seed=0)]
-    assert [x.name for x in a] != [x.name for x in make_archetypes(80, seed=1)]
+    assert [x.name for x in a] == [x.name for x in make_families(80, seed=0)]
+    assert [x.name for x in a] != [x.name for x in make_families(80, seed=1)]
+
+
+def test_family_instances_vary_in_colour_parts_and_proportions():
+    """A class is a category: its instances differ in colours, finishes, part kinds and counts and
+    proportions, so that colour alone does not name the class."""
+    families = make_families(80, seed=0)
+    for fam in families:
+        insts = [build_meta_instance(fam, np.random.default_rng(k)) for k in range(12)]
+        assert all(o.name == fam.name for o in insts)
+        assert len({o.palette for o in insts}) == 12
+        assert len({round(o.extent()[0], 4) for o in insts}) >= 10
+        if len(fam.leg_counts) > 1 or len(fam.arm_counts) > 1 or any(t.optional for t in fam.tiers):
+            assert len({len(o.parts) for o in insts}) > 1, fam.name
+        if any(len(t.kinds) > 1 for t in fam.tiers):
+            assert len({tuple(p.kind for p in o.parts) for o in insts}
+                       | {tuple(p.mesh is None for p in o.parts) for o in insts}) > 1, fam.name
+    hues = [colorsys.rgb_to_hsv(*build_meta_instance(families[0], np.random.default_rng(k)).palette[0])[0]
+            for k in range(200)]
+    assert np.histogram(hues, bins=6, range=(0, 1))[0].min() >= 15  # any hue, about evenly
 
 
 def test_obstacle_instances_vary():

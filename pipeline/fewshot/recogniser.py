@@ -131,6 +131,8 @@ class SupportSetRecogniser:
         ``expected``, when given, is the model shape the config expects: a checkpoint of another
         shape or kind is refused (:class:`CheckpointError`). ``query_hue_shift`` (degrees) turns the
         hue of the query pictures only (:mod:`.colour`, the colour test); 0 leaves them as rendered."""
+        if not np.isfinite(query_hue_shift):
+            raise ValueError(f"query_hue_shift must be a finite number of degrees, got {query_hue_shift!r}")
         network, payload = load_checkpoint(checkpoint, expected, kind=cls.kind)
         size = network.config.input_size
         frame = read_manifest(images_dir)

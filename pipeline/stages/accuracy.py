@@ -28,9 +28,10 @@ from pipeline.stages._schema import AccuracyConfig
 from pipeline.world.pictures import CATEGORIES, N_PICTURES, picture_category
 
 
-def _colour_test(cfg: AccuracyConfig, overrides: list[str], baseline: np.ndarray, categories: np.ndarray) -> dict | None:
-    """The colour test (``pipeline.fewshot.colour``) for a recogniser that reads pictures (its
-    target takes ``query_hue_shift``); None for the others, which refuse ``study.hue_shifts``."""
+def _hue_turned_predictions(cfg: AccuracyConfig, overrides: list[str]) -> dict[float, np.ndarray] | None:
+    """The colour test's predictions (``pipeline.fewshot.colour``), per hue shift, for a recogniser
+    that reads pictures (its target takes ``query_hue_shift``); None for the others, which refuse
+    ``study.hue_shifts`` (before the study runs)."""
     shifts = list(cfg.study.hue_shifts)
     target, _ = recogniser_arguments(cfg.recogniser)
     if "query_hue_shift" not in inspect.signature(target).parameters:
@@ -44,7 +45,7 @@ def _colour_test(cfg: AccuracyConfig, overrides: list[str], baseline: np.ndarray
         rec = build_recogniser({**cfg.recogniser, "query_hue_shift": base + shift}, substitution_way=0, carry_over=False)
         rec.start_run(0, cfg.study.seed)
         shifted[shift] = rec.predictions(0)
-    return colour_test(baseline, shifted, categories)
+    return shifted
 
 
 def run(cfg: AccuracyConfig, overrides: list[str] = ()) -> dict:
@@ -52,6 +53,7 @@ def run(cfg: AccuracyConfig, overrides: list[str] = ()) -> dict:
     torch.set_num_threads(cfg.threads)
     start = time.perf_counter()
     recogniser = build_recogniser(cfg.recogniser, substitution_way=0, carry_over=False)
+    turned = _hue_turned_predictions(cfg, list(overrides))
     names = list(CATEGORIES)
     categories = np.array([picture_category(p) for p in range(N_PICTURES)])
     result = run_study(recogniser, categories, config, progress=cfg.progress)
@@ -61,7 +63,7 @@ def run(cfg: AccuracyConfig, overrides: list[str] = ()) -> dict:
     table1_frame(result, config.repeats).to_csv(out / "table1.csv", index=False)
     table2_frame(result).to_csv(out / "table2.csv", index=False)
     data = summary(result, names)
-    data["colour_test"] = _colour_test(cfg, list(overrides), result.baseline_predictions, categories)
+    data["colour_test"] = None if turned is None else colour_test(result.baseline_predictions, turned, categories)
     data["config"] = {"recogniser": dict(cfg.recogniser), **asdict(config)}
     if hasattr(recogniser, "checkpoint"):
         data["checkpoint_metrics"] = recogniser.checkpoint["metrics"]
