@@ -9,7 +9,7 @@ part kinds (box, cylinder, sphere, ellipsoid, capsule, cone, torus, bowl, disc),
 Every instance of a family then draws its own:
 
 * proportions: an overall scale in [0.8, 1.25] and every width and height by a further factor
-  in [0.7, 1.4];
+  in [0.65, 1.5];
 * part kinds and counts: a tier's kind among the family's alternatives, an optional tier present
   or not, the number of legs and of arms from the family's range;
 * colours and materials: a palette of 2-3 colours of any hue, and a finish (matte, plastic,
@@ -37,8 +37,9 @@ FINISH_CHOICES = ("matte", "plastic", "metal", "speckle", "stripes", "weave")
 FINISH_WEIGHTS = (0.3, 0.3, 0.15, 0.1, 0.1, 0.05)
 LEG_STYLES = ("none", "pedestal", "ring")
 SCALE = (0.8, 1.25)        # an instance's overall scale
-PROPORTION = (0.7, 1.4)    # an instance's factor on every width and height
+PROPORTION = (0.65, 1.5)   # an instance's factor on every width and height
 OPTIONAL_TIER_P = 0.4      # an optional tier is left out of this share of instances
+SECOND_KIND_P = 0.55       # share of a family's tiers that allow a second part kind
 ALTERNATIVES = {           # a tier's second kind, if it has one: a part of similar bulk
     "box": ("cylinder", "disc"), "cylinder": ("box", "capsule", "cone"), "sphere": ("ellipsoid",),
     "ellipsoid": ("sphere", "capsule"), "capsule": ("cylinder", "ellipsoid"), "cone": ("cylinder", "bowl"),
@@ -91,7 +92,7 @@ def _tier_size(rng: np.random.Generator, kind: str) -> tuple[float, float]:
 def _tier_spec(rng: np.random.Generator, optional: bool) -> TierSpec:
     first = str(rng.choice(TIER_KINDS))
     kinds = (first,)
-    if rng.random() < 0.4:  # a second kind of similar bulk: round <-> square, cone <-> cylinder ...
+    if rng.random() < SECOND_KIND_P:  # a second kind of similar bulk: round <-> square, cone <-> cylinder ...
         second = str(rng.choice(ALTERNATIVES[first]))
         kinds = tuple(sorted((first, second)))
     width, height = _tier_size(rng, first)
