@@ -280,7 +280,8 @@ def test_a_cell_can_run_its_own_recogniser_group():
     cells = experiment_cells(load_config("trials", args), args)
     proto = "pipeline.fewshot.recogniser.ProtoRecogniser.from_files"
     assert cells["fewshot_protonet"].recogniser == {"_target_": proto, "checkpoint": "datasets/models/protonet.pt",
-                                                    "images_dir": "datasets/images", "input_size": 48}
+                                                    "images_dir": "datasets/images", "input_size": 48,
+                                                    "query_hue_shift": 0.0}
     assert cells["fewshot_dss_protonet"].recogniser["checkpoint"] == "x.pt"
     assert cells["fewshot_dss"].recogniser == {"_target_": "pipeline.rl.oracle.OracleRecogniser"}
     assert cells["fewshot_dss_protonet"].method.dynamic_support and not cells["fewshot_protonet"].method.dynamic_support
