@@ -166,3 +166,13 @@ def test_band_is_a_t_interval():
     half = 12.7062 * np.sqrt(2) / np.sqrt(2)  # t(1) * s.d. / sqrt(n)
     np.testing.assert_allclose(lo, [1.0 - half, 1.0, 2.0])
     np.testing.assert_allclose(hi, [1.0 + half, 1.0, 2.0])
+
+
+def test_start_accuracy_note_names_each_recogniser_when_they_differ():
+    from pipeline.report.sections import start_accuracy_note
+    same = {"Few-shot": [0.55, 0.55], "Few-shot + DSS": [0.55]}
+    assert start_accuracy_note(same) == "; at the start of a run the support set recognises 55.0% of the query pictures"
+    mixed = {"Few-shot, Relation Network": [0.55], "Few-shot, Prototypical Network": [0.375], "Shield": []}
+    assert start_accuracy_note(mixed) == ("; at the start of a run the support set recognises 55.0% (Few-shot, "
+                                          "Relation Network), 37.5% (Few-shot, Prototypical Network) of the query pictures")
+    assert start_accuracy_note({"Shield": []}) == ""

@@ -256,10 +256,22 @@ def support_part(rep, exp: Experiment, rows: list[tuple[Row, list[Cell]]], maze:
     name = f"{exp.folder}_support_accuracy{'' if maze is None else '_' + safe(maze)}.png"
     title = f"Query accuracy of the run's support set over the run{where}"
     scales = F.curves(series, title, rep.out / "figures" / name, ylabel="query accuracy of the support set")
-    starts = [s for _, cells in rows for c in cells if (s := c.start_accuracy()) is not None]
+    starts = {row.label: [s for c in cells if (s := c.start_accuracy()) is not None] for row, cells in rows}
     rep.figure(f"figures/{name}", f"{title}: mean over run seeds at the end of each episode, 95% t band"
-                                  f"{' (' + scales + ')' if scales else ''}; at the start of a run the support set "
-                                  f"recognises {100 * np.mean(starts):.1f}% of the query pictures.")
+                                  f"{' (' + scales + ')' if scales else ''}{start_accuracy_note(starts)}.")
+
+
+def start_accuracy_note(starts: dict[str, list[float]]) -> str:
+    """What the rows' original support sets recognise at the start of a run: one figure when the
+    rows agree (one recogniser), else one per row (rows with other recognisers differ); "" without any."""
+    means = {label: float(np.mean(v)) for label, v in starts.items() if v}
+    shown = {f"{100 * m:.1f}%" for m in means.values()}
+    if not means:
+        return ""
+    if len(shown) == 1:
+        return f"; at the start of a run the support set recognises {shown.pop()} of the query pictures"
+    return ("; at the start of a run the support set recognises "
+            + ", ".join(f"{100 * m:.1f}% ({label})" for label, m in means.items()) + " of the query pictures")
 
 
 # ------------------------------------------------------------------------------------ kinds
