@@ -192,6 +192,8 @@ def test_the_batch_encoder_matches_protobuf_byte_for_byte():
 
 
 def test_bad_input_is_refused_with_a_message_naming_it(tmp_path):
+    from pipeline.records.codec import check_batch
+
     with pytest.raises(ValueError, match="end in .mcap"):
         RecordWriter(tmp_path / "x.bin")
     with pytest.raises(ValueError, match="unknown cell characters"):
@@ -205,6 +207,16 @@ def test_bad_input_is_refused_with_a_message_naming_it(tmp_path):
             w.episodes(**make_batch([_episode(actions=np.zeros(2))]))
         with pytest.raises(ValueError, match="must hold integers"):
             w.episodes(**make_batch([_episode(actions=np.zeros(3))]))
+        for key, bad, why in (("states", np.array([0, -1, 2]), "states: values -1..2 outside 0..4294967295"),
+                              ("actions", np.array([0, 1, 2**32], np.int64), "actions: values 0..4294967296 outside"),
+                              ("states", np.array([0, 1, 2], ">i4"), None)):  # a non-native dtype is checked, kept
+            if why is None:
+                check_batch(make_batch([_episode(**{key: bad})]))
+                continue
+            with pytest.raises(ValueError, match=why):
+                w.episodes(**make_batch([_episode(**{key: bad})]))
+        with pytest.raises(ValueError, match="episode: values -3..-3 outside 0..2147483647"):
+            w.episodes(**make_batch([_episode(episode=-3)]))
         with pytest.raises(ValueError, match="unknown \\['violations'\\]"):
             w.episodes(**make_batch([_episode(summary=dict(_episode()["summary"], violations=1))]))
         w.episodes(**make_batch([_episode()]))
@@ -356,16 +368,48 @@ def test_rerun_mcap_convert_yields_the_pictures(tmp_path):
     assert "/pictures/39" in paths
 
 
+def _runtime_flat(data: list[bytes]) -> dict:
+    """The reference decoder: every column of ``EpisodeBatch`` messages read through the real classes'
+    repeated fields (what any Protobuf library reads), in the codec's ``_flat`` layout."""
+    from pipeline.records.codec import COLUMNS, SUBS
+
+    top = [S.EpisodeBatch.FromString(d) for d in data]
+    msgs = {"EpisodeBatch": top} | {sub: [getattr(v, field) for v in top] for field, sub in SUBS.items()}
+    out = {"run": np.array([m.run for m in top], np.int64), "n_actions": np.array([m.n_actions for m in top]),
+           "n_categories": np.array([m.recognitions.n_categories for m in top], np.int64)}
+    for msg, fields in COLUMNS.items():
+        for f in fields:
+            raw = [list(getattr(m, f.name)) for m in msgs[msg]]
+            out[msg, f.name] = (np.array([x for xs in raw for x in xs], {S.F32: np.float32, S.F64: np.float64}
+                                         .get(f.type, np.int64)), np.array([len(x) for x in raw], np.int64))
+    return out
+
+
 def test_raw_view_decoding_equals_the_protobuf_runtime(tmp_path):
     from pipeline.records import codec
     from pipeline.records.scan import scan
+
+    def same(data):
+        fast, slow = codec._flat(data), _runtime_flat(data)
+        assert fast.keys() == slow.keys()
+        for k in fast:
+            for a, b in zip(fast[k], slow[k]) if isinstance(k, tuple) else [(fast[k], slow[k])]:
+                np.testing.assert_array_equal(a, b, err_msg=str(k))
+        cols, ref = codec._columns(fast, "v"), codec._columns(slow, "v")
+        for key in ("steps", "recognitions", "unsafe", "episodes"):
+            assert cols[key].keys() == ref[key].keys()
+            for k in cols[key]:
+                np.testing.assert_array_equal(cols[key][k], ref[key][k], err_msg=k)
+                assert cols[key][k].dtype == ref[key][k].dtype, k
+        return cols
 
     groups = _odd_batches(4, 20)
     with RecordWriter(tmp_path / "wide.mcap") as w:  # states of 128 or more: varints of several bytes
         for b in groups:
             w.episodes(**b)
     wide = [d for _, d in scan(tmp_path / "wide.mcap").messages["/episodes"]]
-    assert codec._flat(wide) is None  # the fast path declines; the runtime reads the states back
+    assert max(S.EpisodeBatch.FromString(d).steps.states[0] for d in wide) >= 70000
+    same(wide)
     states = read_records(tmp_path / "wide.mcap").steps.query("run == 0 and episode in [5, 6, 7, 8, 9]")["state"]
     np.testing.assert_array_equal(states, groups[1]["states"])
     groups[1]["states"] = groups[1]["states"] - 70000
@@ -374,24 +418,13 @@ def test_raw_view_decoding_equals_the_protobuf_runtime(tmp_path):
             w.episodes(**b)
     msgs = scan(tmp_path / "v.mcap").messages["/episodes"]
     data = [d for _, d in msgs]
-    fast, slow = codec._flat(data), codec._flat(data, S.CLASSES)
-    assert fast is not None and fast.keys() == slow.keys()  # the fast path handles all of these
-    for k in fast:
-        for a, b in zip(fast[k], slow[k]) if isinstance(k, tuple) else [(fast[k], slow[k])]:
-            np.testing.assert_array_equal(a, b, err_msg=str(k))
-    cols, ref = codec._columns(fast, "v"), codec._columns(slow, "v")
-    for key in ("steps", "recognitions", "unsafe", "episodes"):
-        assert cols[key].keys() == ref[key].keys()
-        for k in cols[key]:
-            np.testing.assert_array_equal(cols[key][k], ref[key][k], err_msg=k)
-            assert cols[key][k].dtype == ref[key][k].dtype, k
+    cols = same(data)
     assert cols["q_values"].keys() == {("v", 1, e) for e in range(5, 10)}  # group 5: run 1, episodes 5-9
     np.testing.assert_array_equal(cols["q_values"][("v", 1, 6)], groups[5]["q_values"][1])
     assert np.isnan(cols["recognitions"]["score_0"]).sum() > 0  # group 3: no scores
-    # other valid encodings of the same values: the fast path declines, the runtime decodes them
+    # other valid encodings of the same values: re-serialized by the real classes, then read the same
     one = S.EpisodeBatch.FromString(data[0])
     states = one.steps.states
-    split = one.SerializeToString(deterministic=True)
     tail = S.EpisodeBatch(steps=S.Steps(states=states[len(states) // 2:]))
     one.steps.ClearField("states")
     one.steps.states.extend(states[:len(states) // 2])
@@ -400,13 +433,30 @@ def test_raw_view_decoding_equals_the_protobuf_runtime(tmp_path):
     long_code = S.EpisodeBatch.FromString(data[0])
     long_code.steps.flags[0] = 200  # a two-byte varint in a code column
     for odd in (split, unknown, long_code.SerializeToString()):
-        assert codec._flat([odd]) is None
-        got = codec.decode_batches([(0, odd)], "v")
-        want = codec._columns(codec._flat([odd], S.CLASSES), "v")
-        for k in want["steps"]:
-            np.testing.assert_array_equal(got["steps"][k], want["steps"][k])
+        same([odd])
     np.testing.assert_array_equal(codec.decode_batches([(0, split)], "v")["steps"]["state"],
                                   np.asarray(states, np.int32))
+
+
+def test_code_columns_of_every_size_read_back_exactly():
+    """Code columns with varints of one to five bytes, in several messages, read as the runtime reads them
+    (with the count a message); a payload cut inside a value is refused."""
+    from pipeline.records import codec
+
+    rng = np.random.default_rng(0)
+    values = np.concatenate([[0, 127, 128, 16383, 16384, 2**21, 2**28 - 1, 2**28, 2**32 - 1],
+                             rng.integers(0, 2**32, 500) >> rng.integers(0, 32, 500)])
+    parts = [values[:7], values[7:7], values[7:], values[:3] % 128]
+    data = [S.EpisodeBatch(run=1, steps=S.Steps(states=v.tolist(), actions=(v % 4).tolist())).SerializeToString()
+            for v in parts]
+    got, want = codec._flat(data), _runtime_flat(data)
+    for k in (("Steps", "states"), ("Steps", "actions")):
+        np.testing.assert_array_equal(got[k][0], want[k][0])
+        assert got[k][1].tolist() == [len(v) for v in parts]
+    cut = codec.VIEWS["EpisodeBatch"](steps=codec.VIEWS["Steps"](states=codec._payload("Steps", codec.COLUMNS["Steps"][0],
+                                                                                        np.array([300]))[:1]))
+    with pytest.raises(ValueError, match="whole value"):
+        codec._flat([cut.SerializeToString()])
 
 
 def _format_2_classes():
@@ -565,6 +615,6 @@ def test_rewards_are_stored_in_one_byte_when_whole_and_small_and_read_back_exact
         assert d == _encode_with_the_runtime(codec.check_batch(b))
     want = np.concatenate([b["rewards"] for b in groups])
     np.testing.assert_array_equal(read_records(tmp_path / "r.mcap").steps["reward"].to_numpy(), want)
-    slow = codec._columns(codec._flat(data, S.CLASSES), "r")
+    slow = codec._columns(_runtime_flat(data), "r")
     np.testing.assert_array_equal(slow["steps"]["reward"], want)
     assert slow["steps"]["reward"].dtype == np.float32

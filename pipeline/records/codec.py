@@ -1,14 +1,17 @@
 """Episode batches (``pipeline/rl/sink.py``) to ``fsrl.records.EpisodeBatch`` bytes and back, every column named
 by the one table :data:`.schema.MESSAGES`, both ways through the Protobuf runtime (docs/records.md "The writer").
 
-The raw views (:data:`.schema.VIEWS`: every packed column declared ``bytes``, the same wire bytes) let a column be
-set as ``array.tobytes()`` and read with ``np.frombuffer``: no Python object per element, no hand wire code. A batch
-with a code of 128 or more is encoded through the real classes; a message the views do not read exactly (it does
-not re-serialize to its own length, or a payload is not whole elements) is decoded through them, and so is a file
-whose schema record is not ours (classes built from its own). Same bytes, same columns either way (tested).
-Measured (the paper-scale 11x11 ``fewshot_dss`` trial, table lookup: 191 batches, 2.35 M steps; shared 2-core
-machine, CPU, best of 5): ``read_records`` of its file 0.21 s through the views, 0.77 s through the real classes,
-which is why the views are kept; of the writer's 123 ms, checking takes 34 ms and encoding 14 ms.
+Both ways go through the raw views (``schema.message_classes(..., view=True)``: every packed column declared
+``bytes``, the same wire bytes): a column is set as ``array.tobytes()`` and read with ``np.frombuffer``, no Python
+object per element, no hand-written wire code. A code column with a value of 128 or more (a maze of more than 128
+cells: varints of several bytes) is written and read by the real classes, that column alone. A file whose schema
+record is not ours (formats 2-4) is read through views of its own schema, each column by its own wire type. A
+message the views do not read exactly (an unknown field, a column split in two) is re-serialized by the real
+classes first. Same bytes, same columns as the runtime (tested).
+Measured (this 2-core machine, CPU, best of 5): ``read_records`` of the paper-scale 11x11 ``fewshot_dss`` trial's
+file (table lookup, 2.35 M steps) 0.21 s through the views, 0.77 s through the real classes, which is why the views
+are kept. For varints of several bytes the runtime is the faster: a million 2-byte values encode in 86 ms and
+decode in 13 ms through it, in 106 and 52 ms through vectorised numpy, which is why there is none.
 """
 from __future__ import annotations
 
@@ -21,7 +24,7 @@ import numpy as np
 from google.protobuf import descriptor_pb2
 
 from . import schema as S
-from .schema import BOOL, CODE, F32, F64, I32, MESSAGES, SMALL, VIEWS, WIRE_DTYPES, Field
+from .schema import BOOL, CODE, F32, F64, MESSAGES, SMALL, Field
 
 SUBS = {f.name: f.type for f in MESSAGES["EpisodeBatch"] if isinstance(f.type, str)}  # summary -> EpisodeSummaries
 COLUMNS = {m: [f for f in fs if f.repeated and not isinstance(f.type, str)] for m, fs in MESSAGES.items()
@@ -30,7 +33,12 @@ OPTIONAL = frozenset({"q_values", "substitutions"})  # sink batch keys that may 
 BATCH_KEYS = frozenset({f.name for f in MESSAGES["EpisodeBatch"]} - {"n_actions"} - OPTIONAL
                        | {f.key or f.name for f in COLUMNS["Steps"]})
 REWARDS, SMALL_REWARDS = (f for f in COLUMNS["Steps"] if f.column == "reward")  # one of the two per batch
-_RANGE = {S.I32: (-2**31, 2**31), S.U32: (0, 2**31), CODE: (0, 2**32), BOOL: (0, 2**63)}
+_RANGE = {S.I32: (-2**31, 2**31), S.U32: (0, 2**31), CODE: (0, 2**32)}  # of the integer fields' values
+_LIMITS = {np.dtype(t): (int(np.iinfo(t).min), int(np.iinfo(t).max)) for t in np.typecodes["AllInteger"]}
+_T = descriptor_pb2.FieldDescriptorProto
+#: Fixed-width wire types -> little-endian dtype; every other number type is a varint.
+FIXED = {_T.TYPE_FLOAT: "<f4", _T.TYPE_DOUBLE: "<f8", _T.TYPE_FIXED32: "<u4", _T.TYPE_SFIXED32: "<i4",
+         _T.TYPE_FIXED64: "<u8", _T.TYPE_SFIXED64: "<i8"}
 OUR_SCHEMA = S.file_descriptor_set(S.EpisodeBatch)
 
 
@@ -38,61 +46,54 @@ class FormatError(ValueError):
     """A file's episode batches use a schema this reader cannot decode."""
 
 
-_WIRE = {k: np.dtype(v) for k, v in WIRE_DTYPES.items()}
-
-
-def _column(a: Any, f: Field, n: int | None, where: str, wide: list) -> np.ndarray:
-    """``a`` checked (1-D, length ``n``, integers or booleans in the field's range for integer
-    fields) as its wire dtype; a code column with a value of 128 or more stays as it is and is
-    named in ``wide`` (the batch then goes through the real classes)."""
-    a, wire = np.asarray(a), _WIRE[f.type]
+def _column(a: Any, f: Field, n: int | None, where: str) -> np.ndarray:
+    """``a`` checked (1-D, length ``n``, integers or booleans in the field's range for integer fields) as the
+    field's payload dtype (code columns: any integer dtype, for :func:`varints`); a range is checked only where
+    the dtype allows values outside it."""
+    a = np.asarray(a)
     if a.ndim != 1 or (n is not None and len(a) != n):
         raise ValueError(f"{where}: " + (f"length {len(a)}, expected {n}" if a.ndim == 1
                                          else f"expected a 1-D array, got shape {a.shape}"))
     if f.type in (F32, F64):
-        return a.astype(wire, copy=False)
+        return a.astype(FIXED[f.type], copy=False)
     if a.dtype.kind not in "biu":
         raise ValueError(f"{where}: integer fields must hold integers or booleans, got {a.dtype}")
     if f.type == BOOL:
-        return (a != 0).view(wire)
-    if f.type == I32 and a.dtype.itemsize <= 4 and a.dtype != np.uint32 or not len(a):
-        return a.astype(wire, copy=False)  # fits whatever its values
-    (lo, hi), (low, high) = _RANGE[f.type], (int(a.min()), int(a.max()))
-    if low < lo or high >= hi:
-        raise ValueError(f"{where}: values {low}..{high} outside {lo}..{hi - 1}")
-    if f.type == CODE and high >= 128:
-        wide.append(where)
-        return a
-    return a.astype(wire, copy=False)
+        return (a != 0).view(np.uint8)
+    a = a.view(np.uint8) if a.dtype.kind == "b" else a
+    (lo, hi), (low, high) = _RANGE[f.type], _LIMITS.get(a.dtype, (-2**64, 2**64))  # of the dtype
+    if len(a) and (low < lo and int(a.min()) < lo or high >= hi and int(a.max()) >= hi):
+        raise ValueError(f"{where}: values {int(a.min())}..{int(a.max())} outside {lo}..{hi - 1}")
+    return a if f.type == CODE else a.astype(FIXED[f.type], copy=False)
 
 
 def check_batch(batch: Mapping[str, Any], *, with_steps: bool = True) -> dict[str, Any]:
     """Check a sink batch at the boundary and return ``run``, ``episode`` and ``cols`` (message ->
-    field -> wire array) and ``scalars`` (message -> field -> int). Raises TypeError / ValueError
+    field -> payload array) and ``scalars`` (message -> field -> int). Raises TypeError / ValueError
     naming the bad field (missing or unknown fields, lengths, dtypes, ranges, episode ids).
     ``with_steps=False`` (``record=episodes``): the step columns are left out, whatever the batch holds."""
     missing, unknown = BATCH_KEYS - batch.keys(), batch.keys() - BATCH_KEYS - OPTIONAL
     if missing or unknown:
         raise TypeError(f"episode batch: missing fields {sorted(missing)}, unknown fields {sorted(unknown)} "
                         "(see pipeline/rl/sink.py)")
-    run, wide = int(batch["run"]), []
+    run = int(batch["run"])
     where = f"episode batch of run {run}"
     summary, keys = batch["summary"], [f.name for f in COLUMNS["EpisodeSummaries"][1:]]
     if set(keys) != summary.keys():
         raise ValueError(f"{where}.summary: missing {sorted(set(keys) - summary.keys())}, unknown "
                          f"{sorted(summary.keys() - set(keys))}; expected {keys}")
-    ep = _column(batch["episode"], COLUMNS["EpisodeBatch"][0], None, f"{where}.episode", wide)
-    steps = _column(batch["steps"], COLUMNS["EpisodeSummaries"][0], len(ep), f"{where}.steps", wide)
+    ep = _column(batch["episode"], COLUMNS["EpisodeBatch"][0], None, f"{where}.episode")
+    steps = _column(batch["steps"], COLUMNS["EpisodeSummaries"][0], len(ep), f"{where}.steps")
     e, t = len(ep), int(steps.sum())
     if e and (int(ep[-1]) - int(ep[0]) != e - 1 or (np.diff(ep.astype(np.int64)) != 1).any()):
         raise ValueError(f"{where}: episode ids must be consecutive, got {ep.tolist()}")
     cols = {"EpisodeBatch": {"episode": ep}, "EpisodeSummaries": {"steps": steps}}
-    cols["EpisodeSummaries"] |= {f.name: _column(summary[f.name], f, e, f"{where}.summary.{f.name}", wide)
+    cols["EpisodeSummaries"] |= {f.name: _column(summary[f.name], f, e, f"{where}.summary.{f.name}")
                                  for f in COLUMNS["EpisodeSummaries"][1:]}
-    cols["Steps"] = {f.name: _column(batch[f.name], f, t, f"{where}.{f.name}", wide)
+    cols["Steps"] = {f.name: _column(batch[f.name], f, t, f"{where}.{f.name}")
                      for f in COLUMNS["Steps"] if with_steps and f.column != "reward"}
     if with_steps:
-        r = _column(batch["rewards"], REWARDS, t, f"{where}.rewards", wide)
+        r = _column(batch["rewards"], REWARDS, t, f"{where}.rewards")
         with np.errstate(invalid="ignore"):  # NaN, inf, huge: not whole and small, the floats keep them
             small = r.astype(np.int8)
         whole = not len(r) or (small == r).all() and -64 <= int(small.min()) and int(small.max()) <= 63
@@ -104,7 +105,7 @@ def check_batch(batch: Mapping[str, Any], *, with_steps: bool = True) -> dict[st
         names = [f.key or f.name for f in COLUMNS[msg] if f.name != "scores"]
         if n and set(names) - d.keys():
             raise ValueError(f"{where}.{sub}: missing columns {[k for k in names if k not in d]}; expected {names}")
-        cols[msg] = {f.name: _column(d[f.key or f.name], f, n, f"{where}.{sub}.{f.key or f.name}", wide)
+        cols[msg] = {f.name: _column(d[f.key or f.name], f, n, f"{where}.{sub}.{f.key or f.name}")
                      for f in COLUMNS[msg] if n and f.name != "scores"}
         if n and e and not ep[0] <= cols[msg]["episode"].min() <= cols[msg]["episode"].max() <= ep[-1]:
             raise ValueError(f"{where}.{sub}.episode: values outside the batch's episodes {ep[0]}..{ep[-1]}")
@@ -118,69 +119,41 @@ def check_batch(batch: Mapping[str, Any], *, with_steps: bool = True) -> dict[st
         if q.ndim != 3 or q.shape[0] != e:
             raise ValueError(f"{where}.q_values: expected shape ({e}, n_states, n_actions), got {q.shape}")
         cols["EpisodeBatch"]["q_values"], scalars["EpisodeBatch"]["n_actions"] = q.ravel(), q.shape[2]
-    return {"run": run, "episode": ep, "cols": cols, "scalars": scalars, "wide": bool(wide)}
+    return {"run": run, "episode": ep, "cols": cols, "scalars": scalars}
 
 
-def _message(msg: str, b: Mapping[str, Any], classes: dict):
-    raw = classes is VIEWS
-    kw = {k: (_zigzag(a) if k == SMALL_REWARDS.name else a).tobytes() if raw else a.tolist()
-          for k, a in b["cols"].get(msg, {}).items() if len(a)}
+def _payload(msg: str, f: Field, a: np.ndarray) -> bytes:
+    if f.type == CODE and len(a) and int(a.max()) >= 128:  # varints of several bytes: the runtime writes them
+        return getattr(VIEWS[msg].FromString(S.CLASSES[msg](**{f.name: a.tolist()}).SerializeToString()), f.name)
+    if f.type == CODE:  # values below 128 are their own varint byte
+        return a.astype(np.uint8).tobytes()
+    if f.type == SMALL:  # Protobuf's sint32 zigzag of values in -64..63, one byte each: 0, -1, 1, -2 -> 0, 1, 2, 3
+        return ((a.astype(np.int16) << 1) ^ (a.astype(np.int16) >> 15)).astype(np.uint8).tobytes()
+    return a.tobytes()
+
+
+def _message(msg: str, b: Mapping[str, Any]):
+    kw = {f.name: _payload(msg, f, b["cols"][msg][f.name]) for f in COLUMNS[msg] if len(b["cols"].get(msg, {}).get(f.name, ()))}
     kw.update({k: v for k, v in b["scalars"].get(msg, {}).items() if v})
     for field, sub in (SUBS.items() if msg == "EpisodeBatch" else ()):
-        if (v := _message(sub, b, classes)) is not None:
+        if (v := _message(sub, b)) is not None:
             kw[field] = v
-    return classes[msg](**kw) if kw else None
-
-
-def _zigzag(a: np.ndarray) -> np.ndarray:
-    """Protobuf's sint32 encoding of values in -64..63, one byte each: 0, -1, 1, -2 -> 0, 1, 2, 3."""
-    a = a.astype(np.int16)
-    return ((a << 1) ^ (a >> 15)).astype(np.uint8)
+    return VIEWS[msg](**kw) if kw else None
 
 
 def encode_batch(b: Mapping[str, Any]) -> bytes:
-    """The ``EpisodeBatch`` bytes of a checked batch (:func:`check_batch`): through the raw views,
-    or, when a code column has values of 128 or more (a maze of more than 128 cells), through the
-    real classes (a few times slower); the same bytes either way (tested)."""
-    return _message("EpisodeBatch", b, S.CLASSES if b["wide"] else VIEWS).SerializeToString(deterministic=True)
-
-
-def _flat(data: list[bytes], classes: dict | None = None) -> dict | None:
-    """Every column of the messages, concatenated, and its length in each: through the raw views (``classes``
-    None; None when a message is encoded otherwise) or through real message classes (ours, or a file's own)."""
-    view, cls = classes is None, (VIEWS if classes is None else classes)["EpisodeBatch"]
-    top = [cls.FromString(d) for d in data]
-    for v, d in zip(top, data) if view else ():
-        v.DiscardUnknownFields()
-        if v.ByteSize() != len(d):
-            return None
-    has = cls.DESCRIPTOR.fields_by_name  # an older file's batches may lack S.ADDED
-    msgs = {"EpisodeBatch": top} | {sub: [getattr(v, field) for v in top] for field, sub in SUBS.items() if field in has}
-    out: dict = {"run": np.array([m.run for m in top], np.int64), "n_actions": np.array([m.n_actions for m in top]),
-                 "n_categories": np.array([m.recognitions.n_categories for m in top], np.int64)}
-    for msg, fields in COLUMNS.items():
-        have = msgs[msg][0].DESCRIPTOR.fields_by_name if msg in msgs and top else ()
-        for f in fields:
-            raw = [getattr(m, f.name) for m in msgs.get(msg, ())] if not top or f.name in have else [()] * len(top)
-            if not view:
-                out[msg, f.name] = (np.array([x for xs in raw for x in xs], {F32: np.float32, F64: np.float64}
-                                             .get(f.type, np.int64)), np.array([len(x) for x in raw], np.int64))
-                continue
-            wire, lens = _WIRE[f.type], np.fromiter(map(len, raw), np.int64, len(raw))
-            values = np.frombuffer(b"".join(raw), wire)
-            if (lens % wire.itemsize).any() or (wire.itemsize == 1 and len(values) and values.max() >= 128):
-                return None  # not whole elements, or varints of more than one byte
-            if f.type == SMALL:  # zigzag back: 0, 1, 2, 3 -> 0, -1, 1, -2
-                values = (values >> 1).astype(np.int8) ^ -(values & 1).astype(np.int8)
-            out[msg, f.name] = (values, lens // wire.itemsize)
-    return out
+    """The ``EpisodeBatch`` bytes of a checked batch (:func:`check_batch`), through the raw views: the bytes the
+    real class filled through the runtime serializes (tested)."""
+    return _message("EpisodeBatch", b).SerializeToString(deterministic=True)
 
 
 @functools.cache
-def classes_of(schema_data: bytes) -> dict:
-    """Message classes built from a file's own schema record (a FileDescriptorSet), after checking
-    that it has every field we read, of a numeric kind (else :class:`FormatError`)."""
-    classes = S.message_classes(descriptor_pb2.FileDescriptorSet.FromString(schema_data).file)
+def codecs_of(schema_data: bytes | None) -> tuple[dict, dict, dict]:
+    """(real classes, raw views, (message, field) -> wire type) of a file's schema record (a FileDescriptorSet;
+    None: ours), after checking that it has every field we read, of a number kind (else :class:`FormatError`)."""
+    files = [S.FILE_DESCRIPTOR_PROTO] if schema_data in (None, OUR_SCHEMA) else \
+        descriptor_pb2.FileDescriptorSet.FromString(schema_data).file
+    classes, types = S.message_classes(files), {}
     for msg, fields in MESSAGES.items():
         have = classes[msg].DESCRIPTOR.fields_by_name if msg in classes else {}
         for f in fields:
@@ -191,7 +164,61 @@ def classes_of(schema_data: bytes) -> dict:
                     or d.type in (d.TYPE_STRING, d.TYPE_BYTES, d.TYPE_GROUP):
                 raise FormatError(f"its episode batches use another record schema (not format "
                                   f"{S.FORMAT_VERSION}; {msg}.{f.name} differs): re-run the trials that wrote it")
-    return classes
+            types[msg, f.name] = d.type
+    return classes, S.message_classes(files, view=True), types
+
+
+VIEWS = codecs_of(None)[1]
+
+
+def _values(raw: list[bytes], wire: int, column) -> tuple[np.ndarray, np.ndarray]:
+    """A column's values over messages (``raw``: its payload in each) and how many each holds, by wire type;
+    ``column(payload)``: the values of a payload through the runtime (varints of several bytes)."""
+    lens, b = np.fromiter(map(len, raw), np.int64, len(raw)), b"".join(raw)
+    if wire in FIXED:
+        size = np.dtype(FIXED[wire]).itemsize
+        if (lens % size).any():
+            raise ValueError("a fixed-width column is not whole elements")
+        return np.frombuffer(b, FIXED[wire]), lens // size
+    values = np.frombuffer(b, np.uint8)
+    if (values >= 128).any():  # the runtime reads them (measured: 13 ms a million values; numpy took 52)
+        if (values[np.cumsum(lens)[lens > 0] - 1] >= 128).any():
+            raise ValueError("a varint column does not end with a whole value")
+        ends = np.r_[0, np.cumsum(values < 128)][np.r_[0, np.cumsum(lens)]]
+        return np.array(column(b)), np.diff(ends)
+    if wire in (_T.TYPE_SINT32, _T.TYPE_SINT64):  # zigzag back: 0, 1, 2, 3 -> 0, -1, 1, -2
+        return (values >> 1).astype(np.int8) ^ -(values & 1).astype(np.int8), lens
+    return values, lens
+
+
+def _flat(data: list[bytes], schema_data: bytes | None = None) -> dict:
+    """Every column of the messages, concatenated, and its length in each, through the raw views of the file's
+    schema (``schema_data``; None: ours). A message the views do not read exactly is re-serialized by the real
+    classes first (canonical: one packed run a column, no unknown fields)."""
+    classes, views, types = codecs_of(schema_data)
+    top = []
+    for d in data:
+        v = views["EpisodeBatch"].FromString(d)
+        v.DiscardUnknownFields()
+        if v.ByteSize() != len(d):
+            m = classes["EpisodeBatch"].FromString(d)
+            m.DiscardUnknownFields()
+            v = views["EpisodeBatch"].FromString(m.SerializeToString(deterministic=True))
+        top.append(v)
+    has = views["EpisodeBatch"].DESCRIPTOR.fields_by_name  # an older file's batches may lack S.ADDED
+    msgs = {"EpisodeBatch": top} | {sub: [getattr(v, field) for v in top] for field, sub in SUBS.items() if field in has}
+    out: dict = {"run": np.array([m.run for m in top], np.int64), "n_actions": np.array([m.n_actions for m in top]),
+                 "n_categories": np.array([m.recognitions.n_categories for m in top], np.int64)}
+    for msg, fields in COLUMNS.items():
+        for f in fields:
+            if (msg, f.name) in types:
+                def column(payload, msg=msg, name=f.name):
+                    return getattr(classes[msg].FromString(views[msg](**{name: payload}).SerializeToString()), name)
+
+                out[msg, f.name] = _values([getattr(m, f.name) for m in msgs[msg]], types[msg, f.name], column)
+            else:
+                out[msg, f.name] = np.zeros(0, np.uint8), np.zeros(len(top), np.int64)
+    return out
 
 
 def decode_batches(messages: list[tuple[int, bytes]], name: str, schema_data: bytes | None = None) -> dict:
@@ -199,12 +226,7 @@ def decode_batches(messages: list[tuple[int, bytes]], name: str, schema_data: by
     ((name, run, episode) -> table) and ``batch_sizes`` of ``(log time, EpisodeBatch bytes)``
     messages; ``schema_data``: the file's schema record (None: ours). Raises ValueError naming the
     problem when the messages' arrays do not fit together, FormatError for an unreadable schema."""
-    data = [d for _, d in messages]
-    if schema_data is None or schema_data == OUR_SCHEMA:
-        flat = _flat(data) or _flat(data, S.CLASSES)
-    else:
-        flat = _flat(data, classes_of(schema_data))
-    return _columns(flat, name)
+    return _columns(_flat([d for _, d in messages], schema_data), name)
 
 
 def _frame(flat: dict, msg: str, head: dict, **given: np.ndarray) -> dict:

@@ -140,8 +140,7 @@ def _read_indexed(data: bytes, path: Path, reader, end: int, time_range) -> Scan
         _file(out, rec, None)
     if data[end - 13:end - 4] != _DATA_END_HEAD:
         raise TypeError("no data-end record before the summary")
-    rec = next(StreamReader(io.BytesIO(data[end - 13:end]), skip_magic=True).records)
-    _data_end(data, out, rec, end - 13, time_range)
+    _data_end(data, out, int.from_bytes(data[end - 4:end], "little"), end - 13, time_range)
     out.complete = not out.damage
     return out
 
@@ -177,7 +176,7 @@ def _walk(data: bytes, out: Scan, limit: int, time_range) -> None:
                 elif isinstance(rec, DataEnd):
                     if data[start:start + 9] != _DATA_END_HEAD:
                         raise ValueError("its record header disagrees with its contents")
-                    _data_end(data, out, rec, start, time_range)
+                    _data_end(data, out, rec.data_section_crc, start, time_range)
                     break
                 elif not isinstance(rec, Chunk):
                     lost = None
@@ -278,9 +277,8 @@ def _file(out: Scan, rec, time_range) -> str | None:
     return None
 
 
-def _data_end(data: bytes, out: Scan, rec: DataEnd, start: int, time_range) -> None:
-    """The data section's CRC (on a full read of a file with no other damage), and a lost summary."""
-    crc = rec.data_section_crc
+def _data_end(data: bytes, out: Scan, crc: int, start: int, time_range) -> None:
+    """The data section's CRC, ``crc`` (on a full read of a file with no other damage), and a lost summary."""
     if crc and time_range is None and not out.damage and zlib.crc32(memoryview(data)[:start]) != crc:
         out.damage.append(Damage("data", "the data section's CRC does not match: a byte outside the chunks' data is "
                                          "damaged (a record header, a metadata record or a message index); every "

@@ -113,39 +113,42 @@ MESSAGES: dict[str, list[Field]] = {
 }
 #: What files of an older format may lack (read as empty): messages and fields, by the format that added them.
 ADDED = {"Substitutions": "5", "substitutions": "5", "small_rewards": "5"}
-WIRE_DTYPES = {I32: "<i4", U32: "<u4", F32: "<f4", F64: "<f8", BOOL: "u1", CODE: "u1", SMALL: "u1"}  # payloads
 
 
-def _file(view: bool) -> descriptor_pb2.FileDescriptorProto:
-    """The schema; with ``view``, every packed column declared ``bytes`` instead (same number, same
-    wire type and framing, so the same bytes): the raw-view classes of :mod:`.codec`."""
+def _file() -> descriptor_pb2.FileDescriptorProto:
+    """The schema of :data:`MESSAGES` (proto3: every repeated number column packed)."""
     fdp = descriptor_pb2.FileDescriptorProto(name="fsrl/records.proto", package=PACKAGE, syntax="proto3")
     for name, fields in MESSAGES.items():
         msg = fdp.message_type.add(name=name)
         for f in fields:
             sub = isinstance(f.type, str)
-            ftype = _F.TYPE_MESSAGE if sub else _F.TYPE_BYTES if view and f.repeated else f.type
-            d = msg.field.add(name=f.name, number=f.number, type=ftype,
-                              label=_F.LABEL_REPEATED if f.repeated and not view else _F.LABEL_OPTIONAL)
+            d = msg.field.add(name=f.name, number=f.number, type=_F.TYPE_MESSAGE if sub else f.type,
+                              label=_F.LABEL_REPEATED if f.repeated else _F.LABEL_OPTIONAL)
             if sub:
                 d.type_name = f".{PACKAGE}.{f.type}"
     return fdp
 
 
-def message_classes(files) -> dict:
-    """Message name -> class of the records package of ``files`` (FileDescriptorProtos: ours, the
-    raw views, or those of a file's own schema record); names the files lack are left out."""
+def message_classes(files, *, view: bool = False) -> dict:
+    """Message name -> class of the records package of ``files`` (FileDescriptorProtos: ours or those of a
+    file's own schema record); names the files lack are left out. ``view``: the raw views, every repeated
+    number column declared ``bytes`` instead (same number, same wire type and framing as a packed column,
+    so the same bytes): a column is then set as ``array.tobytes()`` and read with ``np.frombuffer``."""
     pool = descriptor_pool.DescriptorPool()
     for fd in files:
+        if view:
+            fd = descriptor_pb2.FileDescriptorProto.FromString(fd.SerializeToString())
+            for d in (d for m in fd.message_type for d in m.field):
+                if d.label == _F.LABEL_REPEATED and d.type != _F.TYPE_MESSAGE:
+                    d.type, d.label = _F.TYPE_BYTES, _F.LABEL_OPTIONAL
         pool.Add(fd)
     have = {m.name for fd in files if fd.package == PACKAGE for m in fd.message_type}
     return {name: message_factory.GetMessageClass(pool.FindMessageTypeByName(f"{PACKAGE}.{name}"))
             for name in MESSAGES if name in have}
 
 
-FILE_DESCRIPTOR_PROTO = _file(view=False)
+FILE_DESCRIPTOR_PROTO = _file()
 CLASSES = message_classes([FILE_DESCRIPTOR_PROTO])
-VIEWS = message_classes([_file(view=True)])
 EpisodeBatch, Substitution, Steps = CLASSES["EpisodeBatch"], CLASSES["Substitution"], CLASSES["Steps"]
 
 
