@@ -384,10 +384,9 @@ def test_the_writer_layout_the_reader_falls_back_on(files):
 
 
 def test_ranges_and_their_descriptions():
-    from pipeline.records.loss import describe, ranges
+    from pipeline.records.loss import describe
 
-    rg = ranges(np.array([1, 1, 1, 2, 2, 3, 3]), np.array([40, 41, 42, 0, 1, 0, 1]))
-    assert rg == [(1, 40, 42), (2, 0, 1), (3, 0, 1)]
+    rg = [(1, 40, 41), (1, 42, 42), (2, 0, 1), (3, 0, 1)]  # adjacent ranges of a run are joined
     assert describe(rg, 2) == "run 1 episodes 40-42, runs 2-3 (all 2 episodes each) (7 episodes)"
     assert describe([(0, 5, 5)], None) == "run 0 episode 5"
     assert describe([(r, 60, 99) for r in range(100)], 100) == "runs 0-99 episodes 60-99 each (4000 episodes)"
@@ -431,3 +430,29 @@ def test_a_damaged_data_end_length_is_reported(files, tmp_path, length):
     r, msgs = read_warned(bad)
     assert not r.meta.complete and len(msgs) == 1 and str(bad) in msgs[0]
     assert len(r.episodes) == len(full.episodes)
+
+
+def test_what_a_killed_long_run_lost_is_worked_out_in_ranges():
+    """The loss accounting of a killed 100 x 200,000 trial (every run stopped at episode 1,300) and of a damaged
+    file with gaps, window and unknown shape: missing ranges per run, not one entry per expected episode."""
+    from pipeline.records.loss import account
+    from pipeline.records.scan import Damage, Scan
+
+    runs, eps = np.repeat(np.arange(100), 1300), np.tile(np.arange(1300), 100)
+    expected, sentences, head = account(Scan(Path("x.mcap")), runs, eps, runs=100, per_run=200_000, unfinished=True)
+    assert expected == 20_000_000
+    assert sentences == ["not recorded (the trials stopped before them): runs 0-99 episodes 1300-199999 each "
+                         "(19870000 episodes)"]
+    assert head == "missing runs 0-99 episodes 1300-199999 each (19870000 episodes)"
+    keep = ~((runs == 3) & (eps >= 40) & (eps < 60)) & (eps < 100)  # run 3 lost 40-59; 100 episodes a run
+    sc = Scan(Path("y.mcap"), damage=[Damage("chunk", "chunk 2 damaged", (S.log_time_ns(3, 40), S.log_time_ns(3, 59)))])
+    expected, sentences, _ = account(sc, runs[keep], eps[keep], runs=100, per_run=100, unfinished=False)
+    assert (expected, sentences) == (10_000, ["chunk 2 damaged: lost run 3 episodes 40-59"])
+    window = (S.log_time_ns(3, 0), S.log_time_ns(4, 0))
+    sc = Scan(Path("y.mcap"), damage=[Damage("chunk", "chunk 2 damaged", (S.log_time_ns(3, 40), S.log_time_ns(3, 59)))])
+    inside = keep & (runs == 3)
+    assert account(sc, runs[inside], eps[inside], runs=100, per_run=100, unfinished=False, window=window)[:2] == (
+        100, ["chunk 2 damaged: lost run 3 episodes 40-59"])
+    sc = Scan(Path("y.mcap"), damage=[Damage("chunk", "chunk 2 damaged", (S.log_time_ns(3, 40), S.log_time_ns(3, 59)))])
+    assert account(sc, runs[keep], eps[keep], runs=None, per_run=None, unfinished=False)[:2] == (
+        None, ["chunk 2 damaged: lost run 3 episodes 40-59"])
