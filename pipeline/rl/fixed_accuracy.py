@@ -16,6 +16,9 @@ from pipeline.rl.oracle import TRUE_CATEGORY
 from pipeline.world.pictures import N_CATEGORIES, N_PICTURES
 
 
+_ONE_HOT = np.eye(N_CATEGORIES, dtype=np.float32)  # category -> its scores (a row per call is a copy)
+
+
 class FixedAccuracyRecogniser:
     """``conf/recogniser/fixed_accuracy.yaml``: ``p`` in [0, 1], ``learn`` true/false."""
 
@@ -39,10 +42,7 @@ class FixedAccuracyRecogniser:
 
     def scores(self, run: int, picture_ids: np.ndarray) -> np.ndarray:
         """One-hot on the predicted category (this model has no relation scores)."""
-        ids = np.asarray(picture_ids, dtype=np.int64)
-        out = np.zeros((len(ids), N_CATEGORIES), dtype=np.float32)
-        out[np.arange(len(ids)), self._pred[run][ids]] = 1.0
-        return out
+        return _ONE_HOT[self._pred[run][np.asarray(picture_ids, dtype=np.int64)]]
 
     def learn_from_collision(self, run: int, picture_id: int, true_category: int) -> int:
         """The picture joins the support set of its category: from now on it is recognised. There

@@ -30,6 +30,10 @@ from pipeline.world.pictures import N_PICTURES, picture_category
 PICTURE_CATEGORY = np.array([picture_category(p) for p in range(N_PICTURES)], dtype=np.int8)
 from pipeline.world.placement import Placement, picture_table, random_placement
 
+#: Steps a run's trace holds (10 bytes a step): a run's episodes go to the sink when it is full and at the end
+#: of the trial, so a paper-scale 11x11 run (about 23,500 steps) is one batch (the recording costs per batch).
+TRACE_CAPACITY = 32768
+
 
 @dataclass(frozen=True)
 class RunWorld:
@@ -158,7 +162,7 @@ def _emit(sink, r, run_id, first_ep, last_ep, results, trace, recognitions, addi
 def run_trials(layout: Layout, method: MethodSpec, runs: int, episodes: int, seed: int = 0, *,
                recogniser: Recogniser | None = None, sink: EpisodeSink | None = None,
                run_offset: int = 0, progress: bool = True, chunk_episodes: int = 100,
-               trace_capacity: int = 32768, shared_support: bool = False) -> TrialResult:
+               trace_capacity: int = TRACE_CAPACITY, shared_support: bool = False) -> TrialResult:
     """Run ``runs`` independent runs (ids ``run_offset ..``) of ``episodes`` episodes each.
 
     Run ``r`` draws its obstacle placement, its agent's random stream and its recogniser seed from
@@ -231,6 +235,7 @@ def run_trials(layout: Layout, method: MethodSpec, runs: int, episodes: int, see
             scores["table"][r, lo:hi], scores["done"][r] = got, hi
 
     def emit(r: int) -> None:
+        score_pending(r)
         done = int(state.episode[r])
         _emit(sink, r, run_offset + r, emitted[r], done, results, trace, recognitions, additions, scores, cursors)
         emitted[r] = done
@@ -242,9 +247,9 @@ def run_trials(layout: Layout, method: MethodSpec, runs: int, episodes: int, see
             again = []
             for r in pending:
                 r = int(r)
-                score_pending(r)
                 why = int(status[r])  # numpy compares its ints with an IntEnum member slowly (~8 us)
                 if why == Status.substitute:
+                    score_pending(r)  # the recognitions so far, under the support set they were made with
                     ep, step = int(substitution.episode[r]), int(substitution.step[r])
                     pic, cat = int(substitution.picture[r]), int(substitution.category[r])
                     position = recogniser.learn_from_collision(slot(r), pic, cat)
@@ -271,11 +276,9 @@ def run_trials(layout: Layout, method: MethodSpec, runs: int, episodes: int, see
                 before = int(state.episode[group].sum())
                 advance(group, limit)
                 bar.update(int(state.episode[group].sum()) - before)
-                if record:  # hand finished episodes over in batches of at least half the trace
-                    last = limit == episodes or not trace_steps
+                if record and (limit == episodes or not trace_steps):  # else when the trace is full (flush)
                     for r in group:
-                        if last or 2 * int(trace.length[r]) >= trace.states.shape[1]:
-                            emit(int(r))
+                        emit(int(r))
     except Exception:
         raise
     except BaseException:  # Ctrl-C or SIGTERM: every finished episode goes to the sink first

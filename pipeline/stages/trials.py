@@ -31,7 +31,7 @@ from pipeline.errors import ConfigError, Interrupted, UserError
 from pipeline.files import exclusive_folder, swap_in, write_json_atomic
 from pipeline.rl.methods import MethodSpec, load_method
 from pipeline.rl.rng import run_seeds
-from pipeline.rl.runner import make_run_world, run_trials
+from pipeline.rl.runner import TRACE_CAPACITY, make_run_world, run_trials
 from pipeline.schema import check
 from pipeline.stages._common import CONF_DIR, one_line, stage_main
 from pipeline.stages._recognisers import build_recogniser
@@ -370,8 +370,8 @@ def run_cell(cell: CellRun, folder: Path, progress: bool | None = None) -> tuple
 def memory_estimate(cfg: TrialsConfig, layout: Layout) -> int:
     """Bytes the runner's arrays take for one cell (``pipeline.rl.runner.run_trials``): per-episode
     results (22 bytes a run-episode), Q and A_d (36 bytes a run-cell-action), the step trace when
-    recording steps (10 bytes x 32768 steps a run) and the per-run summaries."""
-    per_run = cfg.episodes * 22 + layout.n_cells * 4 * 9 + (32768 * 10 if cfg.record == "steps" else 0) + 2048
+    recording steps (10 bytes x ``TRACE_CAPACITY`` steps a run) and the per-run summaries."""
+    per_run = cfg.episodes * 22 + layout.n_cells * 4 * 9 + (TRACE_CAPACITY * 10 if cfg.record == "steps" else 0) + 2048
     return cfg.runs * per_run
 
 
