@@ -133,7 +133,8 @@ def _payload(msg: str, f: Field, a: np.ndarray) -> bytes:
 
 
 def _message(msg: str, b: Mapping[str, Any]):
-    kw = {f.name: _payload(msg, f, b["cols"][msg][f.name]) for f in COLUMNS[msg] if len(b["cols"].get(msg, {}).get(f.name, ()))}
+    cols = b["cols"].get(msg, {})
+    kw = {f.name: _payload(msg, f, cols[f.name]) for f in COLUMNS[msg] if len(cols.get(f.name, ()))}
     kw.update({k: v for k, v in b["scalars"].get(msg, {}).items() if v})
     for field, sub in (SUBS.items() if msg == "EpisodeBatch" else ()):
         if (v := _message(sub, b)) is not None:
