@@ -20,6 +20,10 @@ per-repeat ratios, which a slow spell of the shared host disturbs least), in CPU
 (``time.process_time``; numba and torch on one thread) and in wall seconds. Goals (README "Measured"): at
 most 40% with the table lookup, at most 15% with the Relation Network.
 
+After the table-lookup trial, the codec's choices (``bench_codec``): decoding that trial's file through the raw
+views against the real classes, and a million 2-byte varints through the runtime (what the codec does) against
+vectorised numpy (a reference kept here).
+
 3. ``read_records(folder)`` of each paper experiment folder under ``--runs-dir`` (fig8, fig9,
    fig10, table3) into DataFrames: fastest and median of ``--read-repeats``, steps/s, bytes on disk.
 4. Bytes per recorded step of the trial files (with and without the embedded query pictures).
@@ -156,6 +160,68 @@ def bench_read(folder: Path, repeats: int) -> dict:
             "cpu": cpu, "wall": wall, "steps_per_s_cpu": n["steps"] / cpu["best"]}
 
 
+def _best(fn, repeats: int) -> float:
+    times = []
+    for _ in range(repeats):
+        gc.collect()
+        times.append(_timed(fn)[0])
+    return min(times)
+
+
+def _numpy_varints(a):
+    """Protobuf varints, vectorised in numpy: the reference the codec does not use (the runtime is faster)."""
+    import numpy as np
+
+    a = a.astype(np.uint64)
+    size = 1 + sum((a >> np.uint64(7 * k)) > 0 for k in range(1, 10))
+    pos, out = np.cumsum(size) - size, np.empty(int(size.sum()), np.uint8)
+    for k in range(int(size.max())):
+        on = size > k
+        out[pos[on] + k] = (a[on] >> np.uint64(7 * k)) & np.uint64(0x7F) | (size[on] > k + 1).astype(np.uint64) << 7
+    return out.tobytes()
+
+
+def _numpy_unvarints(raw: bytes):
+    import numpy as np
+
+    b = np.frombuffer(raw, np.uint8)
+    ends = np.flatnonzero(b < 128)
+    starts = np.r_[0, ends[:-1] + 1]
+    shift = (7 * (np.arange(len(b)) - np.repeat(starts, ends - starts + 1))).astype(np.uint64)
+    return np.add.reduceat((b & 0x7F).astype(np.uint64) << shift, starts)
+
+
+def bench_codec(path: Path, repeats: int) -> dict:
+    """What keeps the codec's choices, in CPU ms (best of ``repeats``): decoding the trial file's episode batches
+    through the raw views (``codec._flat``) against the real classes (each repeated field to ``np.array``), and
+    a million 2-byte varints (the states of a maze of up to 16,384 cells) through the runtime's real class (what
+    the codec does) against vectorised numpy (:func:`_numpy_varints`, kept here as the reference)."""
+    import numpy as np
+
+    from pipeline.records import codec, schema as S
+    from pipeline.records.scan import scan
+
+    data = [d for _, d in scan(path).messages[S.TOPIC_EPISODES]]
+
+    def runtime():
+        top = [S.EpisodeBatch.FromString(d) for d in data]
+        msgs = {"EpisodeBatch": top} | {sub: [getattr(m, f) for m in top] for f, sub in codec.SUBS.items()}
+        return {(msg, f.name): np.concatenate([np.array(getattr(m, f.name)) for m in msgs[msg]])
+                for msg, fields in codec.COLUMNS.items() for f in fields}
+
+    states = np.random.default_rng(0).integers(128, 16384, 1_000_000)
+    raw = _numpy_varints(states)
+    assert raw == codec.VIEWS["Steps"].FromString(S.Steps(states=states.tolist()).SerializeToString()).states
+    assert np.array_equal(_numpy_unvarints(raw), states)
+    message = codec.VIEWS["Steps"](states=raw).SerializeToString()  # a Steps message holding them
+    ms = {"decode_views": _best(lambda: codec._flat(data), repeats), "decode_runtime": _best(runtime, repeats),
+          "varints_write_runtime": _best(lambda: codec._payload("Steps", codec.COLUMNS["Steps"][0], states), repeats),
+          "varints_write_numpy": _best(lambda: _numpy_varints(states), repeats),
+          "varints_read_runtime": _best(lambda: np.array(S.Steps.FromString(message).states), repeats),
+          "varints_read_numpy": _best(lambda: _numpy_unvarints(raw), repeats)}
+    return {"messages": len(data), "raw_bytes": sum(map(len, data)), "ms": {k: 1e3 * v for k, v in ms.items()}}
+
+
 def _pct(x: float) -> str:
     return f"{100 * x:+.0f}%"
 
@@ -246,6 +312,14 @@ def main() -> None:
             t = bench_trial(name, layout, method, rec, args.runs, args.episodes, repeats, Path(tmp), pictures)
             out["trials"][name] = t
             print_trial(t, GOALS[name])
+            if name == "table":
+                c = out["codec"] = bench_codec(Path(tmp) / "table.mcap", max(args.read_repeats, 3))
+                m = c["ms"]
+                print(f"  codec, CPU ms (best of {max(args.read_repeats, 3)}): decoding the file's {c['messages']} batches "
+                      f"({c['raw_bytes'] / 1e6:.1f} MB) {m['decode_views']:.0f} through the raw views, "
+                      f"{m['decode_runtime']:.0f} through the real classes; a million 2-byte varints written in "
+                      f"{m['varints_write_runtime']:.0f} / read in {m['varints_read_runtime']:.0f} through the runtime, "
+                      f"{m['varints_write_numpy']:.0f} / {m['varints_read_numpy']:.0f} in vectorised numpy")
 
     runs_dir = Path(args.runs_dir)
     print(f"read_records(folder) into DataFrames, {args.read_repeats} reads each ({runs_dir})")

@@ -8,10 +8,11 @@ cells: varints of several bytes) is written and read by the real classes, that c
 record is not ours (formats 2-4) is read through views of its own schema, each column by its own wire type. A
 message the views do not read exactly (an unknown field, a column split in two) is re-serialized by the real
 classes first. Same bytes, same columns as the runtime (tested).
-Measured (this 2-core machine, CPU, best of 5): ``read_records`` of the paper-scale 11x11 ``fewshot_dss`` trial's
-file (table lookup, 2.35 M steps) 0.21 s through the views, 0.77 s through the real classes, which is why the views
-are kept. For varints of several bytes the runtime is the faster: a million 2-byte values encode in 86 ms and
-decode in 13 ms through it, in 106 and 52 ms through vectorised numpy, which is why there is none.
+Measured (``benchmarks.records_overhead``, this 2-core machine, CPU, best of 5): the paper-scale 11x11
+``fewshot_dss`` trial's 102 batches (table lookup, 2.35 M steps, 11.6 MB) decode in 12 ms through the views and
+134 ms through the real classes (``read_records`` of its file 0.21 s against 0.77 s), which is why the views are
+kept. For varints of several bytes the runtime is as fast to write and faster to read: a million 2-byte values in
+77-86 ms and 12-13 ms through it, in 75-106 and 37-52 ms through vectorised numpy, which is why there is none.
 """
 from __future__ import annotations
 
