@@ -21,6 +21,8 @@ import pytest
 from synthetic_records import write_synthetic
 from test_replay import _rows, web_replay
 
+pytestmark = pytest.mark.slow  # 50 s, most of it the viewer's WASM loading: `make test-slow` runs it
+
 CHROMIUM = Path(os.environ.get("CHROMIUM") or shutil.which("chromium") or "/usr/bin/chromium")
 CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run", "--disable-background-networking",
                  "--disable-component-update", "--disable-sync"]
