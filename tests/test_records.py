@@ -459,75 +459,6 @@ def test_code_columns_of_every_size_read_back_exactly():
         codec._flat([cut.SerializeToString()])
 
 
-def _format_2_classes():
-    """The format-2 schema: the same messages with varint integer columns (int32 / uint32)."""
-    from google.protobuf import descriptor_pb2
-
-    fdp = descriptor_pb2.FileDescriptorProto()
-    fdp.CopyFrom(S.FILE_DESCRIPTOR_PROTO)
-    F = descriptor_pb2.FieldDescriptorProto
-    for m in fdp.message_type:
-        for f in m.field:
-            f.type = {F.TYPE_SFIXED32: F.TYPE_INT32, F.TYPE_FIXED32: F.TYPE_UINT32}.get(f.type, f.type)
-    fds = descriptor_pb2.FileDescriptorSet()
-    fds.file.append(fdp)
-    return S.message_classes([fdp]), fds.SerializeToString(deterministic=True)
-
-
-def test_an_older_format_file_is_decoded_with_its_own_schema_not_misread(tmp_path):
-    """A format-2 file (varint columns, its own schema record) reads like the same batches written
-    now; a file whose schema lacks a column we read is refused in one line."""
-    from mcap.writer import Writer
-
-    from pipeline.records.codec import SUBS, check_batch
-
-    groups = _odd_batches(3, 20)
-    with RecordWriter(tmp_path / "new.mcap") as w:
-        for b in groups:
-            w.episodes(**b)
-    classes, schema = _format_2_classes()
-
-    def write_old(path, schema_data, cls):
-        with open(path, "wb") as f:
-            mw = Writer(f)
-            mw.start(profile="", library="pipeline.records/2")
-            sid = mw.register_schema(name="fsrl.records.EpisodeBatch", encoding="protobuf", data=schema_data)
-            ch = mw.register_channel(S.TOPIC_EPISODES, "protobuf", sid)
-            mw.add_metadata("recording", {"format_version": "2"})
-            for b in groups:
-                c = check_batch(b)
-                msg = cls(run=c["run"], n_actions=c["scalars"]["EpisodeBatch"]["n_actions"])
-                for name, cols in c["cols"].items():  # the same values through the format-2 classes
-                    sub = msg if name == "EpisodeBatch" else getattr(msg, {m: f for f, m in SUBS.items()}[name])
-                    for k, a in cols.items():
-                        if len(a):
-                            getattr(sub, k).extend(a.tolist())
-                msg.recognitions.n_categories = c["scalars"]["Recognitions"]["n_categories"]
-                t = S.log_time_ns(c["run"], int(c["episode"][0]))
-                mw.add_message(ch, log_time=t, publish_time=t, data=msg.SerializeToString())
-            mw.add_metadata("closed", {"complete": "true", "episodes": str(sum(len(b["episode"]) for b in groups)),
-                                       "substitutions": "0"})
-            mw.finish()
-
-    write_old(tmp_path / "old.mcap", schema, classes["EpisodeBatch"])
-    new, old = read_records(tmp_path / "new.mcap"), read_records(tmp_path / "old.mcap")
-    assert len(old.steps) > 1000
-    for key in ("steps", "episodes", "recognitions", "unsafe"):
-        assert getattr(old, key).drop(columns="file").equals(getattr(new, key).drop(columns="file")), key
-    assert len(old.q_values) == 5
-    # a schema without a column we read: refused, not misread
-    from google.protobuf import descriptor_pb2
-
-    fds = descriptor_pb2.FileDescriptorSet.FromString(schema)
-    steps = next(m for m in fds.file[0].message_type if m.name == "Steps")
-    del steps.field[3]  # flags
-    write_old(tmp_path / "other.mcap", fds.SerializeToString(), classes["EpisodeBatch"])
-    from pipeline.records import RecordsError
-
-    with pytest.raises(RecordsError, match="other.mcap: .*Steps.flags differs.*re-run the trials that wrote it"):
-        read_records(tmp_path / "other.mcap")
-
-
 def test_the_info_command_lists_runs_and_warns_about_truncation(tmp_path, capsys):
     from pipeline.records.__main__ import main
 
@@ -562,18 +493,19 @@ def test_the_file_is_self_describing_for_generic_protobuf_readers(tmp_path):
     assert list(eps[0].substitutions.category) == [s["category"] for s in subs]
 
 
-def test_a_file_of_record_format_4_reads_as_it_was_written(tmp_path):
-    """tests/data/format4.mcap was written by the format-4 writer (one /substitutions message per
-    substitution) from ``write_synthetic(runs=2, episodes_per_run=5, pictures=False)``: it reads into
-    the same frames as the same episodes written today (substitutions inside the batches)."""
-    import pandas as pd
+def test_a_file_of_an_older_record_format_is_refused_in_one_line():
+    """tests/data/format4.mcap was written by the format-4 writer: its episode batches have another schema
+    record, so reading it is refused, naming its format, not misread; so is a schema record of another kind."""
+    from pipeline.records import RecordsError
+    from pipeline.records.codec import OUR_SCHEMA, FormatError, check_schema
 
-    old = read_records(Path(__file__).parent / "data" / "format4.mcap")
-    write_synthetic(tmp_path / "new.mcap", runs=2, episodes_per_run=5, pictures=False)
-    new = read_records(tmp_path / "new.mcap")
-    assert old.meta.versions and old.meta.complete and len(old.substitutions) == 36
-    for frame in ("episodes", "steps", "recognitions", "unsafe", "substitutions"):
-        pd.testing.assert_frame_equal(getattr(old, frame).drop(columns="file"), getattr(new, frame).drop(columns="file"))
+    with pytest.raises(RecordsError, match=r"format4\.mcap: its episode batches use record format 4; this reader "
+                                           r"reads format 5: re-run the trials that wrote it"):
+        read_records(Path(__file__).parent / "data" / "format4.mcap")
+    check_schema(None, None)  # lost: this writer's is assumed
+    check_schema(OUR_SCHEMA, S.LIBRARY)
+    with pytest.raises(FormatError, match="use another record schema; this reader reads format 5"):
+        check_schema(b"\x0a\x03abc", "someone else/1")
 
 
 def test_record_level_episodes_keeps_everything_but_the_steps(tmp_path):

@@ -4,10 +4,9 @@ by the one table :data:`.schema.MESSAGES`, both ways through the Protobuf runtim
 Both ways go through the raw views (``schema.message_classes(..., view=True)``: every packed column declared
 ``bytes``, the same wire bytes): a column is set as ``array.tobytes()`` and read with ``np.frombuffer``, no Python
 object per element, no hand-written wire code. A code column with a value of 128 or more (a maze of more than 128
-cells: varints of several bytes) is written and read by the real classes, that column alone. A file whose schema
-record is not ours (formats 2-4) is read through views of its own schema, each column by its own wire type. A
-message the views do not read exactly (an unknown field, a column split in two) is re-serialized by the real
-classes first. Same bytes, same columns as the runtime (tested).
+cells: varints of several bytes) is written and read by the real classes, that column alone. A message the views
+do not read exactly (an unknown field, a column split in two) is re-serialized by the real classes first. Same
+bytes, same columns as the runtime (tested). A file of another record format is refused (:func:`check_schema`).
 Measured (``benchmarks.records_overhead``, this 2-core machine, CPU, best of 5): the paper-scale 11x11
 ``fewshot_dss`` trial's 102 batches (table lookup, 2.35 M steps, 11.6 MB) decode in 12 ms through the views and
 134 ms through the real classes (``read_records`` of its file 0.21 s against 0.77 s), which is why the views are
@@ -16,8 +15,6 @@ kept. For varints of several bytes the runtime is as fast to write and faster to
 """
 from __future__ import annotations
 
-import contextlib
-import functools
 from collections.abc import Mapping
 from typing import Any
 
@@ -25,7 +22,7 @@ import numpy as np
 from google.protobuf import descriptor_pb2
 
 from . import schema as S
-from .schema import BOOL, CODE, F32, F64, MESSAGES, SMALL, Field
+from .schema import BOOL, CODE, F32, F64, I32, MESSAGES, SMALL, U32, Field
 
 SUBS = {f.name: f.type for f in MESSAGES["EpisodeBatch"] if isinstance(f.type, str)}  # summary -> EpisodeSummaries
 COLUMNS = {m: [f for f in fs if f.repeated and not isinstance(f.type, str)] for m, fs in MESSAGES.items()
@@ -36,15 +33,9 @@ BATCH_KEYS = frozenset({f.name for f in MESSAGES["EpisodeBatch"]} - {"n_actions"
 REWARDS, SMALL_REWARDS = (f for f in COLUMNS["Steps"] if f.column == "reward")  # one of the two per batch
 _RANGE = {S.I32: (-2**31, 2**31), S.U32: (0, 2**31), CODE: (0, 2**32)}  # of the integer fields' values
 _LIMITS = {np.dtype(t): (int(np.iinfo(t).min), int(np.iinfo(t).max)) for t in np.typecodes["AllInteger"]}
-_T = descriptor_pb2.FieldDescriptorProto
-#: Fixed-width wire types -> little-endian dtype; every other number type is a varint.
-FIXED = {_T.TYPE_FLOAT: "<f4", _T.TYPE_DOUBLE: "<f8", _T.TYPE_FIXED32: "<u4", _T.TYPE_SFIXED32: "<i4",
-         _T.TYPE_FIXED64: "<u8", _T.TYPE_SFIXED64: "<i8"}
+FIXED = {F32: "<f4", F64: "<f8", U32: "<u4", I32: "<i4"}  # fixed-width fields -> little-endian dtype; others varints
 OUR_SCHEMA = S.file_descriptor_set(S.EpisodeBatch)
-
-
-class FormatError(ValueError):
-    """A file's episode batches use a schema this reader cannot decode."""
+VIEWS = S.message_classes(view=True)
 
 
 def _column(a: Any, f: Field, n: int | None, where: str) -> np.ndarray:
@@ -149,86 +140,76 @@ def encode_batch(b: Mapping[str, Any]) -> bytes:
     return _message("EpisodeBatch", b).SerializeToString(deterministic=True)
 
 
-@functools.cache
-def codecs_of(schema_data: bytes | None) -> tuple[dict, dict, dict]:
-    """(real classes, raw views, (message, field) -> wire type) of a file's schema record (a FileDescriptorSet;
-    None: ours), after checking that it has every field we read, of a number kind (else :class:`FormatError`)."""
-    files = [S.FILE_DESCRIPTOR_PROTO] if schema_data in (None, OUR_SCHEMA) else \
-        descriptor_pb2.FileDescriptorSet.FromString(schema_data).file
-    classes, types = S.message_classes(files), {}
-    for msg, fields in MESSAGES.items():
-        have = classes[msg].DESCRIPTOR.fields_by_name if msg in classes else {}
-        for f in fields:
-            d = have.get(f.name)
-            if d is None and (msg in S.ADDED or f.name in S.ADDED):
-                continue
-            if d is None or d.is_repeated != f.repeated or (d.type == d.TYPE_MESSAGE) != isinstance(f.type, str) \
-                    or d.type in (d.TYPE_STRING, d.TYPE_BYTES, d.TYPE_GROUP):
-                raise FormatError(f"its episode batches use another record schema (not format "
-                                  f"{S.FORMAT_VERSION}; {msg}.{f.name} differs): re-run the trials that wrote it")
-            types[msg, f.name] = d.type
-    return classes, S.message_classes(files, view=True), types
+class FormatError(ValueError):
+    """A file's episode batches use a schema this reader cannot decode."""
 
 
-VIEWS = codecs_of(None)[1]
+def check_schema(schema_data: bytes | None, library: str | None) -> None:
+    """Refuse (:class:`FormatError`) episode batches of a schema record that is not this format's (``None``: lost,
+    this writer's assumed); ``library``: the file header's, which names the format that wrote it."""
+    if schema_data in (None, OUR_SCHEMA):
+        return
+    try:
+        if S.FILE_DESCRIPTOR_PROTO in descriptor_pb2.FileDescriptorSet.FromString(schema_data).file:
+            return
+    except Exception:  # not a FileDescriptorSet: not ours either
+        pass
+    written = f"record format {library.rsplit('/', 1)[1]}" if (library or "").startswith("pipeline.records/") else \
+        "another record schema"
+    raise FormatError(f"its episode batches use {written}; this reader reads format {S.FORMAT_VERSION}: re-run the "
+                      "trials that wrote it (or read it with the commit of the pipeline that wrote it)")
 
 
-def _values(raw: list[bytes], wire: int, column) -> tuple[np.ndarray, np.ndarray]:
-    """A column's values over messages (``raw``: its payload in each) and how many each holds, by wire type;
-    ``column(payload)``: the values of a payload through the runtime (varints of several bytes)."""
+def _values(raw: list[bytes], f: Field, column) -> tuple[np.ndarray, np.ndarray]:
+    """A column's values over messages (``raw``: its payload in each) and how many each holds, by the field's wire
+    type; ``column(payload)``: the values of a payload through the runtime (varints of several bytes)."""
     lens, b = np.fromiter(map(len, raw), np.int64, len(raw)), b"".join(raw)
-    if wire in FIXED:
-        size = np.dtype(FIXED[wire]).itemsize
+    if f.type in FIXED:
+        size = np.dtype(FIXED[f.type]).itemsize
         if (lens % size).any():
             raise ValueError("a fixed-width column is not whole elements")
-        return np.frombuffer(b, FIXED[wire]), lens // size
+        return np.frombuffer(b, FIXED[f.type]), lens // size
     values = np.frombuffer(b, np.uint8)
     if (values >= 128).any():  # the runtime reads them (measured: 13 ms a million values; numpy took 52)
         if (values[np.cumsum(lens)[lens > 0] - 1] >= 128).any():
             raise ValueError("a varint column does not end with a whole value")
         ends = np.r_[0, np.cumsum(values < 128)][np.r_[0, np.cumsum(lens)]]
         return np.array(column(b)), np.diff(ends)
-    if wire in (_T.TYPE_SINT32, _T.TYPE_SINT64):  # zigzag back: 0, 1, 2, 3 -> 0, -1, 1, -2
+    if f.type == SMALL:  # zigzag back: 0, 1, 2, 3 -> 0, -1, 1, -2
         return (values >> 1).astype(np.int8) ^ -(values & 1).astype(np.int8), lens
     return values, lens
 
 
-def _flat(data: list[bytes], schema_data: bytes | None = None) -> dict:
-    """Every column of the messages, concatenated, and its length in each, through the raw views of the file's
-    schema (``schema_data``; None: ours). A message the views do not read exactly is re-serialized by the real
-    classes first (canonical: one packed run a column, no unknown fields)."""
-    classes, views, types = codecs_of(schema_data)
+def _flat(data: list[bytes]) -> dict:
+    """Every column of the messages, concatenated, and its length in each, through the raw views. A message the
+    views do not read exactly is re-serialized by the real classes first (canonical: one packed run a column, no
+    unknown fields)."""
     top = []
     for d in data:
-        v = views["EpisodeBatch"].FromString(d)
+        v = VIEWS["EpisodeBatch"].FromString(d)
         v.DiscardUnknownFields()
         if v.ByteSize() != len(d):
-            m = classes["EpisodeBatch"].FromString(d)
+            m = S.EpisodeBatch.FromString(d)
             m.DiscardUnknownFields()
-            v = views["EpisodeBatch"].FromString(m.SerializeToString(deterministic=True))
+            v = VIEWS["EpisodeBatch"].FromString(m.SerializeToString(deterministic=True))
         top.append(v)
-    has = views["EpisodeBatch"].DESCRIPTOR.fields_by_name  # an older file's batches may lack S.ADDED
-    msgs = {"EpisodeBatch": top} | {sub: [getattr(v, field) for v in top] for field, sub in SUBS.items() if field in has}
+    msgs = {"EpisodeBatch": top} | {sub: [getattr(v, field) for v in top] for field, sub in SUBS.items()}
     out: dict = {"run": np.array([m.run for m in top], np.int64), "n_actions": np.array([m.n_actions for m in top]),
                  "n_categories": np.array([m.recognitions.n_categories for m in top], np.int64)}
     for msg, fields in COLUMNS.items():
         for f in fields:
-            if (msg, f.name) in types:
-                def column(payload, msg=msg, name=f.name):
-                    return getattr(classes[msg].FromString(views[msg](**{name: payload}).SerializeToString()), name)
+            def column(payload, msg=msg, name=f.name):
+                return getattr(S.CLASSES[msg].FromString(VIEWS[msg](**{name: payload}).SerializeToString()), name)
 
-                out[msg, f.name] = _values([getattr(m, f.name) for m in msgs[msg]], types[msg, f.name], column)
-            else:
-                out[msg, f.name] = np.zeros(0, np.uint8), np.zeros(len(top), np.int64)
+            out[msg, f.name] = _values([getattr(m, f.name) for m in msgs[msg]], f, column)
     return out
 
 
-def decode_batches(messages: list[tuple[int, bytes]], name: str, schema_data: bytes | None = None) -> dict:
+def decode_batches(messages: list[tuple[int, bytes]], name: str) -> dict:
     """The frames' columns (``steps``, ``recognitions``, ``unsafe``, ``episodes``), ``q_values``
     ((name, run, episode) -> table) and ``batch_sizes`` of ``(log time, EpisodeBatch bytes)``
-    messages; ``schema_data``: the file's schema record (None: ours). Raises ValueError naming the
-    problem when the messages' arrays do not fit together, FormatError for an unreadable schema."""
-    return _columns(_flat([d for _, d in messages], schema_data), name)
+    messages. Raises ValueError naming the problem when the messages' arrays do not fit together."""
+    return _columns(_flat([d for _, d in messages]), name)
 
 
 def _frame(flat: dict, msg: str, head: dict, **given: np.ndarray) -> dict:
@@ -307,13 +288,3 @@ def _columns(flat: dict, name: str) -> dict[str, Any]:
         q_values |= {(name, int(ep_run[row[i] + j]), int(ep_ep[row[i] + j])): tables[j] for j in range(e)}
     return {"steps": steps, "recognitions": rec, "unsafe": unsafe, "substitutions": subs, "episodes": episodes,
             "q_values": q_values, "batch_sizes": n_eps}
-
-
-def decode_substitutions(messages: list[tuple[int, bytes]]) -> tuple[dict[str, np.ndarray], int]:
-    """Columns of ``Substitution`` messages (files of format 4 and older) and how many did not parse."""
-    rows = []
-    for _, data in messages:
-        with contextlib.suppress(Exception):  # one that passed its chunk's CRC (or had none) and still does not parse
-            rows.append(S.Substitution.FromString(data))
-    return {f.column: np.array([getattr(m, f.name) for m in rows], f.dtype) for f in MESSAGES["Substitution"]}, \
-        len(messages) - len(rows)

@@ -17,7 +17,7 @@ import numpy as np
 import pandas as pd
 
 from . import schema as S
-from .codec import FormatError, decode_batches, decode_substitutions
+from .codec import FormatError, check_schema, decode_batches
 from .loss import DAMAGE_KINDS, account, expected_shape
 from .scan import Damage, RecordsError, Scan, message_kind, scan
 
@@ -140,7 +140,7 @@ def read_records(path: str | Path | Iterable[str | Path], *, run: int | None = N
     if not parts:
         raise RecordsError(f"{folder}: no readable record file: " + "; ".join(bad))
     frames, files = {}, [str(p["meta"].path) for p in parts]
-    for key in _FRAMES:  # one file after another; a column some files lack (older formats, fewer scores) is NaN
+    for key in _FRAMES:  # one file after another; a column some files lack (fewer scores) is NaN
         cols, sizes = [p[key] for p in parts], [len(p[key]["run"]) for p in parts]
         # copy=False: the arrays are new, each becomes its own block (copying them into 2-D blocks took 0.8 s of
         # the 4 s read of table3's 33 M steps)
@@ -209,7 +209,7 @@ def _read_file(path: Path, window, pictures: bool) -> dict[str, Any]:
 
 
 def _decode(sc: Scan) -> dict[str, Any]:
-    """The episode batches and substitutions of a file of ours (else RecordsError); what does not decode is damage."""
+    """The episode batches of a file of ours, of this format (else RecordsError); what does not decode is damage."""
     episodes = [ch for ch in sc.channels.values() if ch.topic == S.TOPIC_EPISODES]
     if sc.metadata or sc.messages:  # else our magic bytes and nothing after them that can be read: a cut copy
         if not ((sc.library or "").startswith("pipeline.records/") or "recording" in sc.metadata or episodes):
@@ -218,41 +218,33 @@ def _decode(sc: Scan) -> dict[str, Any]:
             raise RecordsError(f"{sc.path}: not a record file of this pipeline: an MCAP file written "
                                f"{f'by {sc.library!r}' if sc.library else 'by another program'}{held}, "
                                f"without the 'recording' metadata or an {S.TOPIC_EPISODES} channel")
-        for got in (getattr(sc.schemas.get(ch.schema_id), "name", "?") for ch in episodes):
-            if got != S.EpisodeBatch.DESCRIPTOR.full_name:
-                raise RecordsError(f"{sc.path}: its {S.TOPIC_EPISODES} channel holds {got} messages; this reader "
-                                   f"reads {S.EpisodeBatch.DESCRIPTOR.full_name} (record format {S.FORMAT_VERSION}): "
-                                   "re-run the trials that wrote it")
-    msgs = sc.messages.get(S.TOPIC_EPISODES, [])
-    schema = next((sc.schemas[c.schema_id].data for c in episodes if c.schema_id in sc.schemas), None)
-    try:
-        dec = decode_batches(msgs, str(sc.path), schema)
+    try:  # the schema record of the episodes channel (lost: this writer's, scan.WRITER_CHANNELS)
+        check_schema(next((sc.schemas[c.schema_id].data for c in episodes if c.schema_id in sc.schemas), None),
+                     sc.library)
     except FormatError as e:
         raise RecordsError(f"{sc.path}: {e}") from None
+    msgs = sc.messages.get(S.TOPIC_EPISODES, [])
+    try:
+        return decode_batches(msgs, str(sc.path))
     except Exception:  # a message that passed its chunk's CRC but does not parse: keep the rest
         good = []
-        for t, data in msgs:
-            try:
-                decode_batches([(t, data)], str(sc.path), schema)
-            except Exception as e:
-                run, ep, _ = S.split_log_time(t)
-                sc.damage.append(Damage("decode", f"the episode batch message stamped run {run} episode {ep} did "
-                                                  f"not decode ({type(e).__name__}: {e})", (t, t)))
-            else:
-                good.append((t, data))
-        dec = decode_batches(good, str(sc.path), schema)
-    old, bad = decode_substitutions(sc.messages.get(S.TOPIC_SUBSTITUTIONS, []))  # files of format 4 and older
-    dec["substitutions"] = {k: np.concatenate([v, old[k]]) for k, v in dec["substitutions"].items()}
-    if bad:
-        sc.damage.append(Damage("decode", f"{bad} substitution messages did not decode"))
-    return dec
+    for t, data in msgs:
+        try:
+            decode_batches([(t, data)], str(sc.path))
+        except Exception as e:
+            run, ep, _ = S.split_log_time(t)
+            sc.damage.append(Damage("decode", f"the episode batch message stamped run {run} episode {ep} did not "
+                                              f"decode ({type(e).__name__}: {e})", (t, t)))
+        else:
+            good.append((t, data))
+    return decode_batches(good, str(sc.path))
 
 
 def _maze(mz: dict[str, str]) -> dict[str, Any]:
     out = {"layout": mz["layout"].split("\n"), "width": int(mz["width"]), "height": int(mz["height"]),
            "categories": json.loads(mz["categories"]) if "categories" in mz else None,
-           "actions": mz["actions"].split(",") if "actions" in mz else None,  # names; older files: N,E,S,W
-           "moves": [tuple(m) for m in json.loads(mz["moves"])] if "moves" in mz else None}  # older files: none
+           "actions": mz["actions"].split(",") if "actions" in mz else None,  # names, when given
+           "moves": [tuple(m) for m in json.loads(mz["moves"])] if "moves" in mz else None}  # when given
     out.update(json.loads(mz["extra"]) if "extra" in mz else {})
     return out
 

@@ -74,8 +74,8 @@ class Scan:
 
 
 def message_kind(topic: str) -> str | None:
-    """How a lost message is counted: episode batches, substitutions, pictures, support pictures."""
-    return {S.TOPIC_EPISODES: "episode batches", S.TOPIC_SUBSTITUTIONS: "substitutions"}.get(topic) or (
+    """How a lost message is counted: episode batches, pictures, support pictures."""
+    return "episode batches" if topic == S.TOPIC_EPISODES else (
         "pictures" if topic.startswith(S.TOPIC_PICTURES + "/") else
         "support pictures" if topic.startswith(S.TOPIC_SUPPORT + "/") else None)
 

@@ -15,7 +15,7 @@ FORMAT_VERSION = "5"  # 5: substitutions in the batches (4: states as codes; 3: 
 #                       2: varint columns; 1: one Episode each)
 PACKAGE = "fsrl.records"
 LIBRARY = "pipeline.records/" + FORMAT_VERSION  # the header's library string of this writer's files
-TOPIC_EPISODES, TOPIC_SUBSTITUTIONS = "/episodes", "/substitutions"
+TOPIC_EPISODES = "/episodes"
 TOPIC_PICTURES, TOPIC_SUPPORT = "/pictures", "/support"  # + "/<picture id>", + "/<category>/<position>"
 
 FLAG_NAMES = {"reselected": 1, "collided": 2, "recovered": 4, "goal": 8, "truncated": 16}
@@ -102,7 +102,7 @@ MESSAGES: dict[str, list[Field]] = {
         Field("n_actions", 7, CODE, repeated=False),  # columns of q_values; 0 when absent
         Field("q_values", 8, F32, "q_values", "float32"),  # optional Q tables [E, n_states, n_actions]
         Field("substitutions", 9, "Substitutions", repeated=False)],  # format 5
-    "Substitution": [  # format 4 and older: one message on /substitutions per support-set change
+    "Substitution": [  # format 4's message on /substitutions: no longer written, but part of format 5's schema
         Field("run", 1, CODE, "run", "int32", repeated=False),
         Field("episode", 2, CODE, "episode", "int32", repeated=False),
         Field("step", 3, CODE, "step", "int32", repeated=False),
@@ -111,8 +111,6 @@ MESSAGES: dict[str, list[Field]] = {
         Field("position", 6, _F.TYPE_INT32, "position", "int8", repeated=False),  # replaced shot 0..K-1
         Field("support_accuracy", 7, F64, "support_accuracy", "float64", repeated=False)],  # after it
 }
-#: What files of an older format may lack (read as empty): messages and fields, by the format that added them.
-ADDED = {"Substitutions": "5", "substitutions": "5", "small_rewards": "5"}
 
 
 def _file() -> descriptor_pb2.FileDescriptorProto:
@@ -129,27 +127,24 @@ def _file() -> descriptor_pb2.FileDescriptorProto:
     return fdp
 
 
-def message_classes(files, *, view: bool = False) -> dict:
-    """Message name -> class of the records package of ``files`` (FileDescriptorProtos: ours or those of a
-    file's own schema record); names the files lack are left out. ``view``: the raw views, every repeated
-    number column declared ``bytes`` instead (same number, same wire type and framing as a packed column,
-    so the same bytes): a column is then set as ``array.tobytes()`` and read with ``np.frombuffer``."""
-    pool = descriptor_pool.DescriptorPool()
-    for fd in files:
-        if view:
-            fd = descriptor_pb2.FileDescriptorProto.FromString(fd.SerializeToString())
-            for d in (d for m in fd.message_type for d in m.field):
-                if d.label == _F.LABEL_REPEATED and d.type != _F.TYPE_MESSAGE:
-                    d.type, d.label = _F.TYPE_BYTES, _F.LABEL_OPTIONAL
-        pool.Add(fd)
-    have = {m.name for fd in files if fd.package == PACKAGE for m in fd.message_type}
-    return {name: message_factory.GetMessageClass(pool.FindMessageTypeByName(f"{PACKAGE}.{name}"))
-            for name in MESSAGES if name in have}
-
-
 FILE_DESCRIPTOR_PROTO = _file()
-CLASSES = message_classes([FILE_DESCRIPTOR_PROTO])
-EpisodeBatch, Substitution, Steps = CLASSES["EpisodeBatch"], CLASSES["Substitution"], CLASSES["Steps"]
+
+
+def message_classes(*, view: bool = False) -> dict:
+    """Message name -> class of :data:`MESSAGES`. ``view``: the raw views, every repeated number column declared
+    ``bytes`` instead (same number, same wire type and framing as a packed column, so the same bytes): a column
+    is then set as ``array.tobytes()`` and read with ``np.frombuffer``."""
+    fd = descriptor_pb2.FileDescriptorProto.FromString(FILE_DESCRIPTOR_PROTO.SerializeToString())
+    for d in (d for m in fd.message_type for d in m.field) if view else ():
+        if d.label == _F.LABEL_REPEATED and d.type != _F.TYPE_MESSAGE:
+            d.type, d.label = _F.TYPE_BYTES, _F.LABEL_OPTIONAL
+    pool = descriptor_pool.DescriptorPool()
+    pool.Add(fd)
+    return {name: message_factory.GetMessageClass(pool.FindMessageTypeByName(f"{PACKAGE}.{name}")) for name in MESSAGES}
+
+
+CLASSES = message_classes()
+EpisodeBatch, Steps = CLASSES["EpisodeBatch"], CLASSES["Steps"]
 
 
 def file_descriptor_set(message_class) -> bytes:
