@@ -18,7 +18,9 @@ The three are alternated within every repeat (the order rotates from repeat to r
 recorded / unrecorded - 1, fastest vs fastest and median vs median (and "paired": the median of the
 per-repeat ratios, which a slow spell of the shared host disturbs least), in CPU seconds of this process
 (``time.process_time``; numba and torch on one thread) and in wall seconds. Goals (README "Measured"): at
-most 40% with the table lookup, at most 15% with the Relation Network.
+most 40% with the table lookup, at most 15% with the Relation Network. Beside the differences, the CPU time
+spent inside the writer (construction, its calls, ``close``) is timed directly, and given as a share of
+the unrecorded trial's median: the difference of two trials' totals carries the shared host's noise twice.
 
 After the table-lookup trial, the codec's choices (``bench_codec``): decoding that trial's file through the raw
 views against the real classes, and a million 2-byte varints through the runtime (what the codec does) against
@@ -50,6 +52,24 @@ from pathlib import Path
 GOALS = {"table": 0.40, "relation_net": 0.15}
 EXPERIMENTS = ("fig8", "fig9", "fig10", "table3")
 VARIANTS = ("no_sink", "drop_sink", "mcap")
+
+
+class TimedSink:
+    """Passes every call on to ``sink`` and adds up the CPU time spent inside it: the writer's own cost,
+    measured directly (the difference of two trials' totals carries the shared host's noise twice)."""
+
+    def __init__(self, sink):
+        self.sink, self.cpu, self.records_steps = sink, 0.0, sink.records_steps
+
+    def episodes(self, **batch) -> None:
+        t = time.process_time()
+        self.sink.episodes(**batch)
+        self.cpu += time.process_time() - t
+
+    def substitution(self, **fields) -> None:
+        t = time.process_time()
+        self.sink.substitution(**fields)
+        self.cpu += time.process_time() - t
 
 
 class DropSink:
@@ -106,11 +126,18 @@ def bench_trial(name, layout, method, recogniser, runs, episodes, repeats, folde
     def trial(sink):
         return run_trials(layout, method, runs, episodes, seed, recogniser=recogniser, sink=sink, progress=False)
 
+    inside = []  # CPU s inside the writer (construction, its calls, close) of each recorded trial
+
     def recorded():
-        writer = RecordWriter(path, metadata=metadata, maze=maze, runs=placements, pictures=pictures, flush_every=500)
+        t = time.process_time()
+        writer = TimedSink(RecordWriter(path, metadata=metadata, maze=maze, runs=placements, pictures=pictures,
+                                        flush_every=500))
+        writer.cpu += time.process_time() - t
         result = trial(writer)
-        writer.close()
-        return result, writer
+        t = time.process_time()
+        writer.sink.close()
+        inside.append(writer.cpu + time.process_time() - t)
+        return result, writer.sink
 
     run = {"no_sink": lambda: (trial(None), None), "drop_sink": lambda: (trial(DropSink()), None), "mcap": recorded}
     raw = {v: {"cpu": [], "wall": []} for v in VARIANTS}
@@ -133,6 +160,7 @@ def bench_trial(name, layout, method, recogniser, runs, episodes, repeats, folde
     pic_bytes = sum(len(b) for b in pictures.values())
     return {"recogniser": name, "steps": n_steps, "times": times,
             "overhead": _overhead(times, "mcap"), "emitting_overhead": _overhead(times, "drop_sink"),
+            "writer_cpu": _stats(inside), "writer_share": statistics.median(inside) / times["no_sink"]["cpu"]["median"],
             "episodes_recorded": writer.n_episodes, "substitutions_recorded": writer.n_substitutions,
             "file_bytes": size, "picture_bytes": pic_bytes,
             "bytes_per_step": size / n_steps, "bytes_per_step_without_pictures": (size - pic_bytes) / n_steps}
@@ -241,6 +269,9 @@ def print_trial(t: dict, goal: float) -> None:
     worst = max(o["cpu"]["best"], o["cpu"]["median"])
     print(f"    goal: recording <= {goal:.0%}: {'met' if worst <= goal else 'NOT met'} on CPU time "
           f"(best {_pct(o['cpu']['best'])}, median {_pct(o['cpu']['median'])}; paired {_pct(o['cpu']['paired'])})")
+    w = t["writer_cpu"]
+    print(f"    inside the writer (construction, its calls, close; CPU, timed directly): best {1e3 * w['best']:.0f} ms, "
+          f"median {1e3 * w['median']:.0f} ms = {_pct(t['writer_share'])} of the unrecorded trial's median")
     print(f"    {t['bytes_per_step']:.3f} bytes per recorded step ({t['bytes_per_step_without_pictures']:.3f} "
           f"without the {t['picture_bytes']:,} bytes of query pictures); file {t['file_bytes']:,} bytes")
 
