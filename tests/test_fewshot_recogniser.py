@@ -116,3 +116,19 @@ def test_fewshot_imports_neither_rl_nor_world():
             names = [a.name for a in node.names] if isinstance(node, ast.Import) else [node.module or ""] if isinstance(node, ast.ImportFrom) else []
             for name in names:
                 assert not name.startswith(("pipeline.rl", "pipeline.world", "pipeline.records", "pipeline.stages")), f"{path.name} imports {name}"
+
+
+def test_a_recogniser_that_does_not_score_cannot_be_built():
+    """The base class's scoring steps are abstract: a subclass that leaves one out fails at construction,
+    naming it, not at its first score."""
+    from pipeline.fewshot.recogniser import SupportSetRecogniser
+
+    class NoColumn(SupportSetRecogniser):
+        def _prepare(self, query_f, support_f):
+            return query_f, support_f
+
+        def _class_state(self, members):
+            return torch.zeros(1)
+
+    with pytest.raises(TypeError, match="abstract method.*_column"):
+        NoColumn(None, torch.zeros(0), np.zeros(0), torch.zeros(0))

@@ -29,6 +29,7 @@ its substitution stream.
 """
 from __future__ import annotations
 
+import abc
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -53,7 +54,7 @@ class _Run:
     valid: np.ndarray  # (C,) bool: column c of ``table`` is current
 
 
-class SupportSetRecogniser:
+class SupportSetRecogniser(abc.ABC):
     """A few-shot recogniser over a dynamic C-way K-shot support set; subclasses score.
 
     ``query_images``: (P, 3, H, W) normalised, row ``p`` = query picture id ``p``;
@@ -105,18 +106,18 @@ class SupportSetRecogniser:
         self._original_table = np.stack([self._column(self._original_state[c]) for c in range(n_way)], axis=1)
 
     # -- what a subclass provides ------------------------------------------------------------
+    @abc.abstractmethod
     def _prepare(self, query_f: torch.Tensor, support_f: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """From the eval-mode embeddings, each query and support picture's part of a class state
         (and whatever the scoring keeps about the query pictures)."""
-        raise NotImplementedError
 
+    @abc.abstractmethod
     def _class_state(self, members: np.ndarray) -> torch.Tensor:
         """A category's state from its K members' parts."""
-        raise NotImplementedError
 
+    @abc.abstractmethod
     def _column(self, state: torch.Tensor) -> np.ndarray:
         """Raw scores (P,) of every query picture against one category's state, all in one batch."""
-        raise NotImplementedError
 
     def _scores(self, table: np.ndarray) -> np.ndarray:
         """The reported per-category scores of rows of the raw table (identity by default)."""
