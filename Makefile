@@ -10,13 +10,20 @@ LOCK := requirements.lock
 PIP_VERSION := 26.3
 PIP_TOOLS_VERSION := 7.6.2
 
-.PHONY: setup test test-slow repro bench clean-venv lock
+.PHONY: setup lint test test-slow repro bench clean-venv lock
 
 $(STAMP): $(LOCK) pyproject.toml scripts/setup.sh
 	PIP_VERSION=$(PIP_VERSION) PY=$(PY) bash scripts/setup.sh
 	touch $(STAMP)
 
 setup: $(STAMP)
+
+# The formatter and the linter (rules in pyproject.toml), then the layers contract (.importlinter).
+LINT_PATHS := pipeline tests benchmarks scripts
+lint: $(STAMP)
+	$(BIN)/ruff format --check $(LINT_PATHS)
+	$(BIN)/ruff check $(LINT_PATHS)
+	$(BIN)/lint-imports
 
 test: $(STAMP)
 	MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/python -m pytest -q

@@ -9,6 +9,7 @@ experiment's wall time (process start to end, numba compile and model loading in
 cell's trial time.
 Writes reports/benchmarks/experiments.json.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -22,17 +23,30 @@ EXPERIMENTS = ("fig8", "fig9", "fig10", "table3")
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     ap.add_argument("--out", default="/tmp/bench-experiments")
-    ap.add_argument("--no-record", action="store_true", help="run without MCAP records (to see their cost)")
+    ap.add_argument(
+        "--no-record", action="store_true", help="run without MCAP records (to see their cost)"
+    )
     ap.add_argument("--json", default="reports/benchmarks/experiments.json")
     args = ap.parse_args()
     rows, total = [], 0.0
     for exp in EXPERIMENTS:
         t0 = time.perf_counter()
-        cmd = [sys.executable, "-m", "pipeline", "trials", f"+experiment={exp}", "progress=false",
-               f"out={args.out}/{exp}", "overwrite=true", f"record={'none' if args.no_record else 'steps'}",
-               f"timing_file={args.out}/{exp}-timing.json"]
+        cmd = [
+            sys.executable,
+            "-m",
+            "pipeline",
+            "trials",
+            f"+experiment={exp}",
+            "progress=false",
+            f"out={args.out}/{exp}",
+            "overwrite=true",
+            f"record={'none' if args.no_record else 'steps'}",
+            f"timing_file={args.out}/{exp}-timing.json",
+        ]
         out = subprocess.run(cmd, capture_output=True, text=True)
         wall = time.perf_counter() - t0
         if out.returncode != 0:
@@ -40,11 +54,21 @@ def main() -> None:
         total += wall
         cells = json.loads((Path(args.out) / f"{exp}-timing.json").read_text())
         rows.append({"experiment": exp, "wall_seconds": round(wall, 2), "cells": cells})
-        print(f"{exp:<8} {wall:7.1f} s wall   " + "  ".join(f"{n} {s:.1f}s" for n, s in rows[-1]["cells"].items()))
-    print(f"total    {total:7.1f} s (goal: at most 300 s){'' if not args.no_record else ' without records'}")
+        print(
+            f"{exp:<8} {wall:7.1f} s wall   "
+            + "  ".join(f"{n} {s:.1f}s" for n, s in rows[-1]["cells"].items())
+        )
+    print(
+        f"total    {total:7.1f} s (goal: at most 300 s){'' if not args.no_record else ' without records'}"
+    )
     Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.json).write_text(json.dumps({"record": not args.no_record, "total_seconds": round(total, 2),
-                                           "experiments": rows}, indent=2) + "\n")
+    Path(args.json).write_text(
+        json.dumps(
+            {"record": not args.no_record, "total_seconds": round(total, 2), "experiments": rows},
+            indent=2,
+        )
+        + "\n"
+    )
 
 
 if __name__ == "__main__":

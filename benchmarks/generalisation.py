@@ -10,6 +10,7 @@ the sum of the cells' trial times (what a cluster would share out). ``--layouts 
 per size instead of 100; the figures for 100 are then extrapolated from the per-cell times and
 labelled as such. Writes reports/benchmarks/generalisation.json.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -24,39 +25,69 @@ PAPER_LAYOUTS = 100
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--layouts", type=int, default=PAPER_LAYOUTS, help="layouts per size (paper scale: 100)")
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    ap.add_argument(
+        "--layouts", type=int, default=PAPER_LAYOUTS, help="layouts per size (paper scale: 100)"
+    )
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--out", default="/tmp/bench-generalisation")
     ap.add_argument("--json", default="reports/benchmarks/generalisation.json")
     args = ap.parse_args()
     timing = Path(args.out + "-timing.json")
-    cmd = [sys.executable, "-m", "pipeline", "trials", "+experiment=generalisation", "progress=false",
-           f"out={args.out}", "overwrite=true", f"workers={args.workers}", f"timing_file={timing}",
-           f"profile.trials.layouts={args.layouts}"]
+    cmd = [
+        sys.executable,
+        "-m",
+        "pipeline",
+        "trials",
+        "+experiment=generalisation",
+        "progress=false",
+        f"out={args.out}",
+        "overwrite=true",
+        f"workers={args.workers}",
+        f"timing_file={timing}",
+        f"profile.trials.layouts={args.layouts}",
+    ]
     t0 = time.perf_counter()
     out = subprocess.run(cmd, capture_output=True, text=True)
     wall = time.perf_counter() - t0
     if out.returncode != 0:
         sys.exit(f"generalisation failed:\n{out.stderr[-2000:]}")
     cells = json.loads(timing.read_text())
-    steps = sum(sum(r["steps"] for r in json.loads((Path(args.out) / c / "summary.json").read_text())["runs"])
-                for c in cells)
+    steps = sum(
+        sum(
+            r["steps"]
+            for r in json.loads((Path(args.out) / c / "summary.json").read_text())["runs"]
+        )
+        for c in cells
+    )
     trial_seconds = sum(cells.values())
     scale = PAPER_LAYOUTS / args.layouts
-    result = {"layouts_per_size": args.layouts, "workers": args.workers, "cores": os.cpu_count(),
-              "cells": len(cells), "wall_seconds": round(wall, 1), "agent_steps": steps,
-              "steps_per_second": round(steps / wall), "sum_of_cell_trial_seconds": round(trial_seconds, 1),
-              "mean_cell_seconds": round(trial_seconds / len(cells), 3),
-              "slowest_cell_seconds": round(max(cells.values()), 2),
-              "load_average_after": os.getloadavg()[0]}
-    print(f"{len(cells)} cells ({args.layouts} layouts per size), {args.workers} workers: {wall:.1f} s wall, "
-          f"{steps:,} agent steps, {steps / wall:,.0f} steps/s; cells' trials {trial_seconds:.1f} s in all "
-          f"(mean {trial_seconds / len(cells):.3f} s, slowest {max(cells.values()):.2f} s)")
+    result = {
+        "layouts_per_size": args.layouts,
+        "workers": args.workers,
+        "cores": os.cpu_count(),
+        "cells": len(cells),
+        "wall_seconds": round(wall, 1),
+        "agent_steps": steps,
+        "steps_per_second": round(steps / wall),
+        "sum_of_cell_trial_seconds": round(trial_seconds, 1),
+        "mean_cell_seconds": round(trial_seconds / len(cells), 3),
+        "slowest_cell_seconds": round(max(cells.values()), 2),
+        "load_average_after": os.getloadavg()[0],
+    }
+    print(
+        f"{len(cells)} cells ({args.layouts} layouts per size), {args.workers} workers: {wall:.1f} s wall, "
+        f"{steps:,} agent steps, {steps / wall:,.0f} steps/s; cells' trials {trial_seconds:.1f} s in all "
+        f"(mean {trial_seconds / len(cells):.3f} s, slowest {max(cells.values()):.2f} s)"
+    )
     if scale != 1:
         result["extrapolated_to_100_layouts_seconds"] = round(wall * scale, 1)
-        print(f"EXTRAPOLATED to {PAPER_LAYOUTS} layouts per size (x{scale:g} the cells): about {wall * scale:.0f} s "
-              "wall (goal: 600 s)")
+        print(
+            f"EXTRAPOLATED to {PAPER_LAYOUTS} layouts per size (x{scale:g} the cells): about {wall * scale:.0f} s "
+            "wall (goal: 600 s)"
+        )
     else:
         print(f"goal: at most 600 s: {'met' if wall <= 600 else 'not met'}")
     Path(args.json).parent.mkdir(parents=True, exist_ok=True)

@@ -34,11 +34,14 @@ Prints a table and writes reports/benchmarks/records_overhead.json. ``--quick``:
 x 50 episodes, one repeat, only the smallest experiment folder: a smoke check, not a measurement.
 A missing checkpoint or runs folder skips that part (recorded as null in the JSON).
 """
+
 from __future__ import annotations
 
 import os
 
-os.environ.setdefault("NUMBA_NUM_THREADS", "1")  # before numba is imported: stable, comparable figures
+os.environ.setdefault(
+    "NUMBA_NUM_THREADS", "1"
+)  # before numba is imported: stable, comparable figures
 
 import argparse
 import gc
@@ -100,13 +103,27 @@ def _overhead(times: dict, num: str, den: str = "no_sink") -> dict:
     out = {}
     for clock in ("cpu", "wall"):
         o = {k: times[num][clock][k] / times[den][clock][k] - 1 for k in ("best", "median")}
-        o["paired"] = statistics.median(a / b for a, b in zip(times[num][clock]["all"], times[den][clock]["all"])) - 1
+        o["paired"] = (
+            statistics.median(
+                a / b for a, b in zip(times[num][clock]["all"], times[den][clock]["all"])
+            )
+            - 1
+        )
         out[clock] = o
     return out
 
 
-def bench_trial(name, layout, method, recogniser, runs, episodes, repeats, folder: Path,
-                pictures: dict[int, bytes]) -> dict:
+def bench_trial(
+    name,
+    layout,
+    method,
+    recogniser,
+    runs,
+    episodes,
+    repeats,
+    folder: Path,
+    pictures: dict[int, bytes],
+) -> dict:
     from pipeline.records import RecordWriter
     from pipeline.rl.rng import run_seeds
     from pipeline.rl.runner import make_run_world, run_trials
@@ -115,24 +132,47 @@ def bench_trial(name, layout, method, recogniser, runs, episodes, repeats, folde
 
     seed = 0
     geometry = build_geometry(layout)
-    placements = [make_run_world(geometry, seed, r).placement.as_records(layout.obstacles) for r in range(runs)]
-    metadata = {"config": {"benchmark": "records_overhead", "maze": layout.name, "method": method.name,
-                           "substitution": 1, "runs": runs, "episodes": episodes, "seed": seed, "flush_every": 500,
-                           "recogniser": name},
-                "seeds": {"seed": seed, "runs": {r: asdict(run_seeds(seed, r)) for r in range(runs)}},
-                "info": {"cell": name, "method": method.as_dict(), "maze": layout.name}}
+    placements = [
+        make_run_world(geometry, seed, r).placement.as_records(layout.obstacles)
+        for r in range(runs)
+    ]
+    metadata = {
+        "config": {
+            "benchmark": "records_overhead",
+            "maze": layout.name,
+            "method": method.name,
+            "substitution": 1,
+            "runs": runs,
+            "episodes": episodes,
+            "seed": seed,
+            "flush_every": 500,
+            "recogniser": name,
+        },
+        "seeds": {"seed": seed, "runs": {r: asdict(run_seeds(seed, r)) for r in range(runs)}},
+        "info": {"cell": name, "method": method.as_dict(), "maze": layout.name},
+    }
     maze = {"layout": list(layout.rows), "name": layout.name, "categories": list(CATEGORIES)}
     path = folder / f"{name}.mcap"
 
     def trial(sink):
-        return run_trials(layout, method, runs, episodes, seed, recogniser=recogniser, sink=sink, progress=False)
+        return run_trials(
+            layout, method, runs, episodes, seed, recogniser=recogniser, sink=sink, progress=False
+        )
 
     inside = []  # CPU s inside the writer (construction, its calls, close) of each recorded trial
 
     def recorded():
         t = time.process_time()
-        writer = TimedSink(RecordWriter(path, metadata=metadata, maze=maze, runs=placements, pictures=pictures,
-                                        flush_every=500))
+        writer = TimedSink(
+            RecordWriter(
+                path,
+                metadata=metadata,
+                maze=maze,
+                runs=placements,
+                pictures=pictures,
+                flush_every=500,
+            )
+        )
         writer.cpu += time.process_time() - t
         result = trial(writer)
         t = time.process_time()
@@ -140,12 +180,16 @@ def bench_trial(name, layout, method, recogniser, runs, episodes, repeats, folde
         inside.append(writer.cpu + time.process_time() - t)
         return result, writer.sink
 
-    run = {"no_sink": lambda: (trial(None), None), "drop_sink": lambda: (trial(DropSink()), None), "mcap": recorded}
+    run = {
+        "no_sink": lambda: (trial(None), None),
+        "drop_sink": lambda: (trial(DropSink()), None),
+        "mcap": recorded,
+    }
     raw = {v: {"cpu": [], "wall": []} for v in VARIANTS}
     steps = set()
     writer = None
     for i in range(repeats):
-        order = VARIANTS[i % 3:] + VARIANTS[:i % 3]
+        order = VARIANTS[i % 3 :] + VARIANTS[: i % 3]
         for v in order:
             gc.collect()
             cpu, wall, (result, w) = _timed(run[v])
@@ -154,17 +198,28 @@ def bench_trial(name, layout, method, recogniser, runs, episodes, repeats, folde
             steps.add(int(result.steps.sum()))
             writer = w or writer
     if len(steps) != 1:
-        raise SystemExit(f"{name}: the trial's outcome differs between variants/repeats ({sorted(steps)} steps)")
+        raise SystemExit(
+            f"{name}: the trial's outcome differs between variants/repeats ({sorted(steps)} steps)"
+        )
     n_steps = steps.pop()
     times = {v: {clock: _stats(raw[v][clock]) for clock in ("cpu", "wall")} for v in VARIANTS}
     size = path.stat().st_size
     pic_bytes = sum(len(b) for b in pictures.values())
-    return {"recogniser": name, "steps": n_steps, "times": times,
-            "overhead": _overhead(times, "mcap"), "emitting_overhead": _overhead(times, "drop_sink"),
-            "writer_cpu": _stats(inside), "writer_share": statistics.median(inside) / times["no_sink"]["cpu"]["median"],
-            "episodes_recorded": writer.n_episodes, "substitutions_recorded": writer.n_substitutions,
-            "file_bytes": size, "picture_bytes": pic_bytes,
-            "bytes_per_step": size / n_steps, "bytes_per_step_without_pictures": (size - pic_bytes) / n_steps}
+    return {
+        "recogniser": name,
+        "steps": n_steps,
+        "times": times,
+        "overhead": _overhead(times, "mcap"),
+        "emitting_overhead": _overhead(times, "drop_sink"),
+        "writer_cpu": _stats(inside),
+        "writer_share": statistics.median(inside) / times["no_sink"]["cpu"]["median"],
+        "episodes_recorded": writer.n_episodes,
+        "substitutions_recorded": writer.n_substitutions,
+        "file_bytes": size,
+        "picture_bytes": pic_bytes,
+        "bytes_per_step": size / n_steps,
+        "bytes_per_step_without_pictures": (size - pic_bytes) / n_steps,
+    }
 
 
 def bench_read(folder: Path, repeats: int) -> dict:
@@ -179,14 +234,24 @@ def bench_read(folder: Path, repeats: int) -> dict:
         cpu, wall, recs = _timed(lambda: read_records(folder))
         raw["cpu"].append(cpu)
         raw["wall"].append(wall)
-        n = {"files": len(recs.files), "steps": len(recs.steps), "episodes": len(recs.episodes),
-             "recognitions": len(recs.recognitions), "substitutions": len(recs.substitutions)}
+        n = {
+            "files": len(recs.files),
+            "steps": len(recs.steps),
+            "episodes": len(recs.episodes),
+            "recognitions": len(recs.recognitions),
+            "substitutions": len(recs.substitutions),
+        }
         del recs
     gc.collect()
     cpu, wall = _stats(raw["cpu"]), _stats(raw["wall"])
-    return {**n, "record_bytes": sum(p.stat().st_size for p in files),
-            "folder_bytes": sum(p.stat().st_size for p in folder.rglob("*") if p.is_file()),
-            "cpu": cpu, "wall": wall, "steps_per_s_cpu": n["steps"] / cpu["best"]}
+    return {
+        **n,
+        "record_bytes": sum(p.stat().st_size for p in files),
+        "folder_bytes": sum(p.stat().st_size for p in folder.rglob("*") if p.is_file()),
+        "cpu": cpu,
+        "wall": wall,
+        "steps_per_s_cpu": n["steps"] / cpu["best"],
+    }
 
 
 def _best(fn, repeats: int) -> float:
@@ -206,7 +271,9 @@ def _numpy_varints(a):
     pos, out = np.cumsum(size) - size, np.empty(int(size.sum()), np.uint8)
     for k in range(int(size.max())):
         on = size > k
-        out[pos[on] + k] = (a[on] >> np.uint64(7 * k)) & np.uint64(0x7F) | (size[on] > k + 1).astype(np.uint64) << 7
+        out[pos[on] + k] = (a[on] >> np.uint64(7 * k)) & np.uint64(0x7F) | (
+            size[on] > k + 1
+        ).astype(np.uint64) << 7
     return out.tobytes()
 
 
@@ -227,28 +294,50 @@ def bench_codec(path: Path, repeats: int) -> dict:
     the codec does) against vectorised numpy (:func:`_numpy_varints`, kept here as the reference)."""
     import numpy as np
 
-    from pipeline.records import codec, schema as S
+    from pipeline.records import codec
+    from pipeline.records import schema as S
     from pipeline.records.scan import scan
 
     data = [d for _, d in scan(path).messages[S.TOPIC_EPISODES]]
 
     def runtime():
         top = [S.EpisodeBatch.FromString(d) for d in data]
-        msgs = {"EpisodeBatch": top} | {sub: [getattr(m, f) for m in top] for f, sub in codec.SUBS.items()}
-        return {(msg, f.name): np.concatenate([np.array(getattr(m, f.name)) for m in msgs[msg]])
-                for msg, fields in codec.COLUMNS.items() for f in fields}
+        msgs = {"EpisodeBatch": top} | {
+            sub: [getattr(m, f) for m in top] for f, sub in codec.SUBS.items()
+        }
+        return {
+            (msg, f.name): np.concatenate([np.array(getattr(m, f.name)) for m in msgs[msg]])
+            for msg, fields in codec.COLUMNS.items()
+            for f in fields
+        }
 
     states = np.random.default_rng(0).integers(128, 16384, 1_000_000)
     raw = _numpy_varints(states)
-    assert raw == codec.VIEWS["Steps"].FromString(S.Steps(states=states.tolist()).SerializeToString()).states
+    assert (
+        raw
+        == codec.VIEWS["Steps"]
+        .FromString(S.Steps(states=states.tolist()).SerializeToString())
+        .states
+    )
     assert np.array_equal(_numpy_unvarints(raw), states)
     message = codec.VIEWS["Steps"](states=raw).SerializeToString()  # a Steps message holding them
-    ms = {"decode_views": _best(lambda: codec._flat(data), repeats), "decode_runtime": _best(runtime, repeats),
-          "varints_write_runtime": _best(lambda: codec._payload("Steps", codec.COLUMNS["Steps"][0], states), repeats),
-          "varints_write_numpy": _best(lambda: _numpy_varints(states), repeats),
-          "varints_read_runtime": _best(lambda: np.array(S.Steps.FromString(message).states), repeats),
-          "varints_read_numpy": _best(lambda: _numpy_unvarints(raw), repeats)}
-    return {"messages": len(data), "raw_bytes": sum(map(len, data)), "ms": {k: 1e3 * v for k, v in ms.items()}}
+    ms = {
+        "decode_views": _best(lambda: codec._flat(data), repeats),
+        "decode_runtime": _best(runtime, repeats),
+        "varints_write_runtime": _best(
+            lambda: codec._payload("Steps", codec.COLUMNS["Steps"][0], states), repeats
+        ),
+        "varints_write_numpy": _best(lambda: _numpy_varints(states), repeats),
+        "varints_read_runtime": _best(
+            lambda: np.array(S.Steps.FromString(message).states), repeats
+        ),
+        "varints_read_numpy": _best(lambda: _numpy_unvarints(raw), repeats),
+    }
+    return {
+        "messages": len(data),
+        "raw_bytes": sum(map(len, data)),
+        "ms": {k: 1e3 * v for k, v in ms.items()},
+    }
 
 
 def _pct(x: float) -> str:
@@ -257,46 +346,94 @@ def _pct(x: float) -> str:
 
 def print_trial(t: dict, goal: float) -> None:
     tm = t["times"]
-    print(f"  {t['recogniser']}: {t['steps']:,} steps, {t['substitutions_recorded']:,} substitutions")
-    print(f"    {'':24} {'CPU best':>9} {'CPU med':>9} {'wall best':>10} {'wall med':>9} {'CPU paired':>11}")
-    for v, label in (("no_sink", "no sink"), ("drop_sink", "dropping sink"), ("mcap", "MCAP RecordWriter")):
-        print(f"    {label:24} {tm[v]['cpu']['best']:8.3f}s {tm[v]['cpu']['median']:8.3f}s "
-              f"{tm[v]['wall']['best']:9.3f}s {tm[v]['wall']['median']:8.3f}s")
-    for key, label in (("emitting_overhead", "emitting (dropping sink)"), ("overhead", "recording (MCAP)")):
+    print(
+        f"  {t['recogniser']}: {t['steps']:,} steps, {t['substitutions_recorded']:,} substitutions"
+    )
+    print(
+        f"    {'':24} {'CPU best':>9} {'CPU med':>9} {'wall best':>10} {'wall med':>9} {'CPU paired':>11}"
+    )
+    for v, label in (
+        ("no_sink", "no sink"),
+        ("drop_sink", "dropping sink"),
+        ("mcap", "MCAP RecordWriter"),
+    ):
+        print(
+            f"    {label:24} {tm[v]['cpu']['best']:8.3f}s {tm[v]['cpu']['median']:8.3f}s "
+            f"{tm[v]['wall']['best']:9.3f}s {tm[v]['wall']['median']:8.3f}s"
+        )
+    for key, label in (
+        ("emitting_overhead", "emitting (dropping sink)"),
+        ("overhead", "recording (MCAP)"),
+    ):
         o = t[key]
-        print(f"    {label:24} {_pct(o['cpu']['best']):>9} {_pct(o['cpu']['median']):>9} "
-              f"{_pct(o['wall']['best']):>10} {_pct(o['wall']['median']):>9} {_pct(o['cpu']['paired']):>11}")
+        print(
+            f"    {label:24} {_pct(o['cpu']['best']):>9} {_pct(o['cpu']['median']):>9} "
+            f"{_pct(o['wall']['best']):>10} {_pct(o['wall']['median']):>9} {_pct(o['cpu']['paired']):>11}"
+        )
     o = t["overhead"]
     worst = max(o["cpu"]["best"], o["cpu"]["median"])
-    print(f"    goal: recording <= {goal:.0%}: {'met' if worst <= goal else 'NOT met'} on CPU time "
-          f"(best {_pct(o['cpu']['best'])}, median {_pct(o['cpu']['median'])}; paired {_pct(o['cpu']['paired'])})")
+    print(
+        f"    goal: recording <= {goal:.0%}: {'met' if worst <= goal else 'NOT met'} on CPU time "
+        f"(best {_pct(o['cpu']['best'])}, median {_pct(o['cpu']['median'])}; paired {_pct(o['cpu']['paired'])})"
+    )
     w = t["writer_cpu"]
-    print(f"    inside the writer (construction, its calls, close; CPU, timed directly): best {1e3 * w['best']:.0f} ms, "
-          f"median {1e3 * w['median']:.0f} ms = {_pct(t['writer_share'])} of the unrecorded trial's median")
-    print(f"    {t['bytes_per_step']:.3f} bytes per recorded step ({t['bytes_per_step_without_pictures']:.3f} "
-          f"without the {t['picture_bytes']:,} bytes of query pictures); file {t['file_bytes']:,} bytes")
+    print(
+        f"    inside the writer (construction, its calls, close; CPU, timed directly): best {1e3 * w['best']:.0f} ms, "
+        f"median {1e3 * w['median']:.0f} ms = {_pct(t['writer_share'])} of the unrecorded trial's median"
+    )
+    print(
+        f"    {t['bytes_per_step']:.3f} bytes per recorded step ({t['bytes_per_step_without_pictures']:.3f} "
+        f"without the {t['picture_bytes']:,} bytes of query pictures); file {t['file_bytes']:,} bytes"
+    )
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--repeats", type=int, default=9, help="alternating repeats of each trial variant")
-    ap.add_argument("--table-repeats", type=int, default=25,
-                    help="alternating repeats of the table-lookup trial (0.3-0.7 s each: more repeats steady it)")
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    ap.add_argument(
+        "--repeats", type=int, default=9, help="alternating repeats of each trial variant"
+    )
+    ap.add_argument(
+        "--table-repeats",
+        type=int,
+        default=25,
+        help="alternating repeats of the table-lookup trial (0.3-0.7 s each: more repeats steady it)",
+    )
     ap.add_argument("--read-repeats", type=int, default=3, help="reads of each experiment folder")
     ap.add_argument("--runs", type=int, default=100)
     ap.add_argument("--episodes", type=int, default=500)
     ap.add_argument("--maze", default="11x11")
-    ap.add_argument("--p", type=float, default=0.55,
-                    help="accuracy of the table-lookup recogniser (the Relation Network's measured 55.0%%)")
+    ap.add_argument(
+        "--p",
+        type=float,
+        default=0.55,
+        help="accuracy of the table-lookup recogniser (the Relation Network's measured 55.0%%)",
+    )
     ap.add_argument("--checkpoint", default="datasets/models/relation_net.pt")
     ap.add_argument("--images-dir", default="datasets/images")
     ap.add_argument("--runs-dir", default="datasets/runs")
-    ap.add_argument("--experiments", nargs="*", default=None, help=f"folders under --runs-dir (default: {' '.join(EXPERIMENTS)})")
-    ap.add_argument("--quick", action="store_true", help="smoke check: 10 runs x 50 episodes, one repeat, one folder")
+    ap.add_argument(
+        "--experiments",
+        nargs="*",
+        default=None,
+        help=f"folders under --runs-dir (default: {' '.join(EXPERIMENTS)})",
+    )
+    ap.add_argument(
+        "--quick",
+        action="store_true",
+        help="smoke check: 10 runs x 50 episodes, one repeat, one folder",
+    )
     ap.add_argument("--json", default="reports/benchmarks/records_overhead.json")
     args = ap.parse_args()
     if args.quick:
-        args.runs, args.episodes, args.repeats, args.table_repeats, args.read_repeats = 10, 50, 1, 1, 1
+        args.runs, args.episodes, args.repeats, args.table_repeats, args.read_repeats = (
+            10,
+            50,
+            1,
+            1,
+            1,
+        )
         if args.experiments is None:
             args.experiments = ["fig10"]
     experiments = args.experiments if args.experiments is not None else list(EXPERIMENTS)
@@ -320,43 +457,65 @@ def main() -> None:
     rn_skipped = None
     if Path(args.checkpoint).exists() and Path(args.images_dir).exists():
         from pipeline.fewshot.recogniser import RelationRecogniser
+
         rn = RelationRecogniser.from_files(args.checkpoint, args.images_dir, substitution_way=1)
         recognisers.append(("relation_net", rn, query_pictures(args.images_dir)))
     else:
         rn_skipped = f"no {args.checkpoint} or {args.images_dir}"
         print(f"(Relation Network skipped: {rn_skipped})")
 
-    out = {"maze": layout.name, "method": "fewshot_dss", "substitution": 1, "runs": args.runs,
-           "episodes": args.episodes, "repeats": {"table": args.table_repeats, "relation_net": args.repeats}, "read_repeats": args.read_repeats,
-           "table_p": args.p, "goals": GOALS, "threads": {"numba": numba.get_num_threads(), "torch": torch.get_num_threads()},
-           "trials": {}, "read": {}, "skipped": {}}
+    out = {
+        "maze": layout.name,
+        "method": "fewshot_dss",
+        "substitution": 1,
+        "runs": args.runs,
+        "episodes": args.episodes,
+        "repeats": {"table": args.table_repeats, "relation_net": args.repeats},
+        "read_repeats": args.read_repeats,
+        "table_p": args.p,
+        "goals": GOALS,
+        "threads": {"numba": numba.get_num_threads(), "torch": torch.get_num_threads()},
+        "trials": {},
+        "read": {},
+        "skipped": {},
+    }
     if rn_skipped:
         out["skipped"]["relation_net"] = rn_skipped
     with tempfile.TemporaryDirectory() as tmp:
-        for name, rec, _ in recognisers:  # compile the kernel, warm the recogniser and the writer
+        for _name, rec, _ in recognisers:  # compile the kernel, warm the recogniser and the writer
             run_trials(layout, method, 2, 10, recogniser=rec, progress=False)
-            with RecordWriter(Path(tmp) / "warm.mcap", maze={"layout": list(layout.rows)}, flush_every=500) as w:
+            with RecordWriter(
+                Path(tmp) / "warm.mcap", maze={"layout": list(layout.rows)}, flush_every=500
+            ) as w:
                 run_trials(layout, method, 2, 10, recogniser=rec, progress=False, sink=w)
-        print(f"{layout.name} fewshot_dss (substitution way 1), {args.runs} runs x {args.episodes} episodes, "
-              f"alternating repeats ({args.table_repeats} table lookup, {args.repeats} Relation Network); CPU s of this process (numba, torch: 1 thread) and wall s")
+        print(
+            f"{layout.name} fewshot_dss (substitution way 1), {args.runs} runs x {args.episodes} episodes, "
+            f"alternating repeats ({args.table_repeats} table lookup, {args.repeats} Relation Network); CPU s of this process (numba, torch: 1 thread) and wall s"
+        )
         for name, rec, pictures in recognisers:
             repeats = args.table_repeats if name == "table" else args.repeats
-            t = bench_trial(name, layout, method, rec, args.runs, args.episodes, repeats, Path(tmp), pictures)
+            t = bench_trial(
+                name, layout, method, rec, args.runs, args.episodes, repeats, Path(tmp), pictures
+            )
             out["trials"][name] = t
             print_trial(t, GOALS[name])
             if name == "table":
                 c = out["codec"] = bench_codec(Path(tmp) / "table.mcap", max(args.read_repeats, 3))
                 m = c["ms"]
-                print(f"  codec, CPU ms (best of {max(args.read_repeats, 3)}): decoding the file's {c['messages']} batches "
-                      f"({c['raw_bytes'] / 1e6:.1f} MB) {m['decode_views']:.0f} through the raw views, "
-                      f"{m['decode_runtime']:.0f} through the real classes; a million 2-byte varints written in "
-                      f"{m['varints_write_runtime']:.0f} / read in {m['varints_read_runtime']:.0f} through the runtime, "
-                      f"{m['varints_write_numpy']:.0f} / {m['varints_read_numpy']:.0f} in vectorised numpy")
+                print(
+                    f"  codec, CPU ms (best of {max(args.read_repeats, 3)}): decoding the file's {c['messages']} batches "
+                    f"({c['raw_bytes'] / 1e6:.1f} MB) {m['decode_views']:.0f} through the raw views, "
+                    f"{m['decode_runtime']:.0f} through the real classes; a million 2-byte varints written in "
+                    f"{m['varints_write_runtime']:.0f} / read in {m['varints_read_runtime']:.0f} through the runtime, "
+                    f"{m['varints_write_numpy']:.0f} / {m['varints_read_numpy']:.0f} in vectorised numpy"
+                )
 
     runs_dir = Path(args.runs_dir)
     print(f"read_records(folder) into DataFrames, {args.read_repeats} reads each ({runs_dir})")
-    print(f"    {'folder':8} {'files':>5} {'steps':>11} {'MB on disk':>10} {'CPU best':>9} {'CPU med':>9} "
-          f"{'wall best':>10} {'M steps/s':>9}")
+    print(
+        f"    {'folder':8} {'files':>5} {'steps':>11} {'MB on disk':>10} {'CPU best':>9} {'CPU med':>9} "
+        f"{'wall best':>10} {'M steps/s':>9}"
+    )
     for exp in experiments:
         folder = runs_dir / exp
         if not folder.is_dir():
@@ -365,11 +524,15 @@ def main() -> None:
             continue
         r = bench_read(folder, args.read_repeats)
         out["read"][exp] = r
-        print(f"    {exp:8} {r['files']:5} {r['steps']:11,} {r['record_bytes'] / 1e6:10.2f} {r['cpu']['best']:8.3f}s "
-              f"{r['cpu']['median']:8.3f}s {r['wall']['best']:9.3f}s {r['steps_per_s_cpu'] / 1e6:9.2f}")
+        print(
+            f"    {exp:8} {r['files']:5} {r['steps']:11,} {r['record_bytes'] / 1e6:10.2f} {r['cpu']['best']:8.3f}s "
+            f"{r['cpu']['median']:8.3f}s {r['wall']['best']:9.3f}s {r['steps_per_s_cpu'] / 1e6:9.2f}"
+        )
     out["seconds_total"] = time.perf_counter() - t_start
     out["loadavg"] = {"before": load0, "after": os.getloadavg()}
-    print(f"total {out['seconds_total']:.0f} s; load average before {load0[0]:.2f}, after {os.getloadavg()[0]:.2f} (2 cores)")
+    print(
+        f"total {out['seconds_total']:.0f} s; load average before {load0[0]:.2f}, after {os.getloadavg()[0]:.2f} (2 cores)"
+    )
     if args.json:
         Path(args.json).parent.mkdir(parents=True, exist_ok=True)
         Path(args.json).write_text(json.dumps(out, indent=2) + "\n")

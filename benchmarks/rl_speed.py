@@ -8,6 +8,7 @@ steps the same rules one at a time through ``SafeNavigationEnv`` and ``TabularAg
 batched / Gymnasium loop compare figures measured in the same run, one method right after the
 other (the host's speed varies between runs).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -21,9 +22,9 @@ import numpy as np
 from pipeline.rl.agents import TabularAgent, run_episode
 from pipeline.rl.gym_env import SafeNavigationEnv
 from pipeline.rl.methods import get_method
+from pipeline.rl.oracle import OracleRecogniser
 from pipeline.rl.rng import run_seeds
 from pipeline.rl.runner import run_trials
-from pipeline.rl.oracle import OracleRecogniser
 from pipeline.world.maze import load_layout
 
 
@@ -42,8 +43,16 @@ def time_batched(layout, method, runs, episodes, threads):
     best = np.inf
     for _ in range(3):
         t0 = time.perf_counter()
-        res = run_trials(layout, method, runs, episodes, seed=0, recogniser=rec, progress=False,
-                         chunk_episodes=episodes)
+        res = run_trials(
+            layout,
+            method,
+            runs,
+            episodes,
+            seed=0,
+            recogniser=rec,
+            progress=False,
+            chunk_episodes=episodes,
+        )
         best = min(best, time.perf_counter() - t0)
     return int(res.steps.sum()), best
 
@@ -61,7 +70,9 @@ def time_gym(layout, method, episodes, budget_s=3.0):
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     ap.add_argument("--maze", default="11x11")
     ap.add_argument("--runs", type=int, default=100)
     ap.add_argument("--episodes", type=int, default=500)
@@ -71,26 +82,42 @@ def main() -> None:
     all_threads = numba.config.NUMBA_NUM_THREADS
     run_trials(layout, get_method("sarsa"), 2, 2, progress=False)  # compile
     rows = []
-    print(f"maze {args.maze}, {args.runs} runs x {args.episodes} episodes; numba threads: 1 and {all_threads}")
-    print(f"{'method':<13}{'steps':>11}{'1 thread M/s':>14}{f'{all_threads} threads M/s':>15}{'gym k/s':>10}"
-          f"{'x gym (1 thr)':>15}{f'x gym ({all_threads} thr)':>15}")
+    print(
+        f"maze {args.maze}, {args.runs} runs x {args.episodes} episodes; numba threads: 1 and {all_threads}"
+    )
+    print(
+        f"{'method':<13}{'steps':>11}{'1 thread M/s':>14}{f'{all_threads} threads M/s':>15}{'gym k/s':>10}"
+        f"{'x gym (1 thr)':>15}{f'x gym ({all_threads} thr)':>15}"
+    )
     for name in ("qlearning", "sarsa", "shield", "ssrl", "constrained", "fewshot", "fewshot_dss"):
         method = get_method(name)
         steps, t1 = time_batched(layout, method, args.runs, args.episodes, 1)
         _, tn = time_batched(layout, method, args.runs, args.episodes, all_threads)
         gsteps, gt = time_gym(layout, method, args.episodes)
-        row = {"method": name, "steps": steps, "batched_1thread_steps_per_s": steps / t1,
-               f"batched_{all_threads}threads_steps_per_s": steps / tn, "gym_steps_per_s": gsteps / gt,
-               "speedup_1thread_vs_gym": (steps / t1) / (gsteps / gt),
-               f"speedup_{all_threads}threads_vs_gym": (steps / tn) / (gsteps / gt)}
+        row = {
+            "method": name,
+            "steps": steps,
+            "batched_1thread_steps_per_s": steps / t1,
+            f"batched_{all_threads}threads_steps_per_s": steps / tn,
+            "gym_steps_per_s": gsteps / gt,
+            "speedup_1thread_vs_gym": (steps / t1) / (gsteps / gt),
+            f"speedup_{all_threads}threads_vs_gym": (steps / tn) / (gsteps / gt),
+        }
         rows.append(row)
-        print(f"{name:<13}{steps:>11}{steps / t1 / 1e6:>14.2f}{steps / tn / 1e6:>15.2f}"
-              f"{gsteps / gt / 1e3:>10.1f}{row['speedup_1thread_vs_gym']:>15.0f}"
-              f"{row[f'speedup_{all_threads}threads_vs_gym']:>15.0f}")
+        print(
+            f"{name:<13}{steps:>11}{steps / t1 / 1e6:>14.2f}{steps / tn / 1e6:>15.2f}"
+            f"{gsteps / gt / 1e3:>10.1f}{row['speedup_1thread_vs_gym']:>15.0f}"
+            f"{row[f'speedup_{all_threads}threads_vs_gym']:>15.0f}"
+        )
     numba.set_num_threads(all_threads)
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.out).write_text(json.dumps({"maze": args.maze, "runs": args.runs, "episodes": args.episodes,
-                                          "rows": rows}, indent=2) + "\n")
+    Path(args.out).write_text(
+        json.dumps(
+            {"maze": args.maze, "runs": args.runs, "episodes": args.episodes, "rows": rows},
+            indent=2,
+        )
+        + "\n"
+    )
     print(f"wrote {args.out}")
 
 

@@ -4,6 +4,7 @@
 ``SafeNav-11x11-v0`` (``pipeline.envs``) without importing Gymnasium itself: see
 ``pipeline._registration``. ``register_envs()`` registers them by hand.
 """
+
 from pipeline._registration import ENV_IDS, register_envs
 from pipeline._registration import install as _install
 

@@ -4,6 +4,7 @@ Each stage lives in ``pipeline/stages/<stage>.py`` with a ``main()`` that compos
 ``conf/<stage>.yaml`` (``pipeline/stages/_common.py``); the first line of its docstring is the
 description ``--help`` lists.
 """
+
 from __future__ import annotations
 
 import importlib
@@ -16,15 +17,25 @@ from pipeline.stages._common import describe
 
 
 def available_stages() -> list[str]:
-    return sorted(m.name for m in pkgutil.iter_modules(_stages.__path__) if not m.name.startswith("_"))
+    return sorted(
+        m.name for m in pkgutil.iter_modules(_stages.__path__) if not m.name.startswith("_")
+    )
 
 
 def usage(stages: list[str]) -> str:
     """The top-level help: the stages, one line each."""
     width = max(len(s) for s in stages) + 2
     lines = [f"  {s:<{width}}{describe(s)}" for s in stages]
-    return "\n".join(["usage: python -m pipeline <stage> [key=value ...]", "", "stages:", *lines, "",
-                      "python -m pipeline <stage> --help lists a stage's config groups and keys."])
+    return "\n".join(
+        [
+            "usage: python -m pipeline <stage> [key=value ...]",
+            "",
+            "stages:",
+            *lines,
+            "",
+            "python -m pipeline <stage> --help lists a stage's config groups and keys.",
+        ]
+    )
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -35,7 +46,10 @@ def main(argv: list[str] | None = None) -> None:
         raise SystemExit(0 if argv else 2)
     stage = argv.pop(0)
     if stage not in stages:
-        print(f"error: unknown stage {stage!r}; available stages: {', '.join(stages)}", file=sys.stderr)
+        print(
+            f"error: unknown stage {stage!r}; available stages: {', '.join(stages)}",
+            file=sys.stderr,
+        )
         raise SystemExit(2)
     module = importlib.import_module(f"pipeline.stages.{stage}")
     sys.argv = [f"pipeline {stage}", *argv]

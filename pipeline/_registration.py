@@ -13,6 +13,7 @@ point group were removed in 1.0), so ``pyproject.toml`` declares none; without `
 ``gymnasium.make("pipeline:SafeNav-5x5-v0")`` imports the package first (Gymnasium's
 ``module:id`` form) and works the same.
 """
+
 from __future__ import annotations
 
 import sys
@@ -36,8 +37,12 @@ def register_envs(registration=None) -> None:
         from gymnasium.envs import registration
     for maze, env_id in zip(MAZES, ENV_IDS):
         if env_id not in registration.registry:
-            registration.register(id=env_id, entry_point=ENTRY_POINT, max_episode_steps=MAX_EPISODE_STEPS,
-                                  kwargs={"maze": maze, "method": DEFAULT_METHOD})
+            registration.register(
+                id=env_id,
+                entry_point=ENTRY_POINT,
+                max_episode_steps=MAX_EPISODE_STEPS,
+                kwargs={"maze": maze, "method": DEFAULT_METHOD},
+            )
 
 
 class _RegisterWhenGymnasiumLoads:
@@ -68,12 +73,18 @@ class _RegisterWhenGymnasiumLoads:
                 register_envs(module)
             except Exception as exc:  # noqa: BLE001 - never break ``import gymnasium`` for our ids
                 import warnings
-                warnings.warn(f"pipeline could not register its Gymnasium ids ({exc!r}); "
-                              "call pipeline.register_envs() to see why", stacklevel=2)
+
+                warnings.warn(
+                    f"pipeline could not register its Gymnasium ids ({exc!r}); "
+                    "call pipeline.register_envs() to see why",
+                    stacklevel=2,
+                )
 
         try:
             loader.exec_module = exec_module  # on this loader object only; its class is untouched
-        except AttributeError:  # a loader that takes no attributes: ``pipeline.register_envs()`` by hand
+        except (
+            AttributeError
+        ):  # a loader that takes no attributes: ``pipeline.register_envs()`` by hand
             pass
         return spec
 

@@ -19,6 +19,7 @@ Nothing here is imported by ``import pipeline``.
 Relative paths in a yaml (``relation_net``: ``datasets/...``) are read from the working directory,
 as in the stages: run from the project root or pass absolute paths in ``recogniser_options``.
 """
+
 from __future__ import annotations
 
 from collections.abc import Mapping
@@ -44,13 +45,20 @@ def recogniser_names() -> list[str]:
 def _check_name(name: str) -> Path:
     path = RECOGNISER_DIR / f"{name}.yaml"
     if not path.is_file():
-        raise ValueError(f"unknown recogniser {name!r}; expected one of {', '.join(recogniser_names())} "
-                         f"(conf/recogniser/<name>.yaml), or a Recogniser object")
+        raise ValueError(
+            f"unknown recogniser {name!r}; expected one of {', '.join(recogniser_names())} "
+            f"(conf/recogniser/<name>.yaml), or a Recogniser object"
+        )
     return path
 
 
-def make_recogniser(name: str, options: Mapping[str, Any] | None = None, *, substitution_way: int = 0,
-                    carry_over: bool = False) -> Recogniser:
+def make_recogniser(
+    name: str,
+    options: Mapping[str, Any] | None = None,
+    *,
+    substitution_way: int = 0,
+    carry_over: bool = False,
+) -> Recogniser:
     """The recogniser ``conf/recogniser/<name>.yaml``, with ``options`` overriding its keys, built
     as the trials stage builds it. Bad names and values raise ``ValueError`` (``ConfigError``)."""
     # Hydra (about 0.2 s to import) only when a recogniser is built, not for every environment
@@ -61,10 +69,17 @@ def make_recogniser(name: str, options: Mapping[str, Any] | None = None, *, subs
     return build_recogniser(node, substitution_way=substitution_way, carry_over=carry_over)
 
 
-def make_env(maze: str | Layout = "5x5", method: str | MethodSpec = "shield",
-             recogniser: Recogniser | str | None = None, *, recogniser_options: Mapping[str, Any] | None = None,
-             substitution: int = 1, run: int = 0, render_mode: str | None = None,
-             tile_size: int = 32) -> SafeNavigationEnv:
+def make_env(
+    maze: str | Layout = "5x5",
+    method: str | MethodSpec = "shield",
+    recogniser: Recogniser | str | None = None,
+    *,
+    recogniser_options: Mapping[str, Any] | None = None,
+    substitution: int = 1,
+    run: int = 0,
+    render_mode: str | None = None,
+    tile_size: int = 32,
+) -> SafeNavigationEnv:
     """A :class:`SafeNavigationEnv`; ``recogniser`` an object or a name of ``conf/recogniser/``.
 
     A name is built only for the methods that reason with pictures (like the trials stage); with
@@ -79,13 +94,19 @@ def make_env(maze: str | Layout = "5x5", method: str | MethodSpec = "shield",
         else:
             recogniser = None
     elif recogniser_options:
-        raise ValueError("recogniser_options go with a recogniser name (recogniser='fixed_accuracy', ...)")
+        raise ValueError(
+            "recogniser_options go with a recogniser name (recogniser='fixed_accuracy', ...)"
+        )
     elif recogniser is None and spec.uses_recogniser:
-        raise ValueError(f"method {spec.name!r} reasons with pictures and needs a recogniser: pass "
-                         f"recogniser=<name> with a name of conf/recogniser/ ({', '.join(recogniser_names())}), "
-                         f"e.g. gymnasium.make('SafeNav-5x5-v0', method={spec.name!r}, recogniser='oracle'), "
-                         f"or a Recogniser object (pipeline.rl.recogniser)")
-    return SafeNavigationEnv(maze, spec, recogniser, run=run, render_mode=render_mode, tile_size=tile_size)
+        raise ValueError(
+            f"method {spec.name!r} reasons with pictures and needs a recogniser: pass "
+            f"recogniser=<name> with a name of conf/recogniser/ ({', '.join(recogniser_names())}), "
+            f"e.g. gymnasium.make('SafeNav-5x5-v0', method={spec.name!r}, recogniser='oracle'), "
+            f"or a Recogniser object (pipeline.rl.recogniser)"
+        )
+    return SafeNavigationEnv(
+        maze, spec, recogniser, run=run, render_mode=render_mode, tile_size=tile_size
+    )
 
 
 #: ``gymnasium.make`` reads the render modes from the entry point (to add its render wrappers).

@@ -4,6 +4,7 @@ Every stage catches :class:`UserError` once, at its entry (``pipeline.stages._co
 and prints one line naming the thing and the problem, then exits with status 2. Anything else is a
 bug and keeps its traceback.
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -35,5 +36,7 @@ def quiet_broken_pipe():
     try:
         yield
     except BrokenPipeError:
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # the interpreter's last flush must not fail
+        os.dup2(
+            os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno()
+        )  # the interpreter's last flush must not fail
         raise SystemExit(141) from None

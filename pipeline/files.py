@@ -4,6 +4,7 @@ A file is written under a temporary name in its final folder and moved into plac
 ``os.replace`` only when complete, so a reader (or the next stage) never sees half a file, and a
 failed write leaves the previous version untouched.
 """
+
 from __future__ import annotations
 
 import fcntl
@@ -11,9 +12,10 @@ import json
 import os
 import shutil
 import tempfile
+from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any, BinaryIO, Iterator
+from typing import Any, BinaryIO
 
 
 def _umask() -> int:
@@ -68,13 +70,17 @@ def exclusive_folder(folder: str | Path, what: str = "out") -> Iterator[Path]:
         folder.mkdir(parents=True, exist_ok=True)
         handle = open(folder / ".lock", "a+")
     except OSError as exc:
-        raise UserError(f"config key '{what}': cannot write into {folder} ({exc.strerror})") from None
+        raise UserError(
+            f"config key '{what}': cannot write into {folder} ({exc.strerror})"
+        ) from None
     try:
         try:
             fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
-            raise UserError(f"config key '{what}': {folder} is being written by another process; "
-                            "wait for it, or choose another folder") from None
+            raise UserError(
+                f"config key '{what}': {folder} is being written by another process; "
+                "wait for it, or choose another folder"
+            ) from None
         yield folder
     finally:
         (folder / ".lock").unlink(missing_ok=True)

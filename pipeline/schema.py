@@ -6,23 +6,36 @@ config object (dataclasses, dicts, lists) and refuses the first value out of ran
 full key. The science dataclasses (``MethodSpec``, ``TrainConfig``, ...) declare their fields this
 way, so the schema is the only place a key is checked.
 """
+
 from __future__ import annotations
 
 import dataclasses
-from typing import Any, Iterable
+from collections.abc import Iterable
+from typing import Any
 
 from omegaconf import MISSING
 
 from pipeline.errors import ConfigError
 
 
-def setting(default: Any = MISSING, *, ge: float | None = None, gt: float | None = None,
-            le: float | None = None, lt: float | None = None, choices: Iterable[Any] | None = None,
-            nonempty: bool = False, default_factory: Any = None):
+def setting(
+    default: Any = MISSING,
+    *,
+    ge: float | None = None,
+    gt: float | None = None,
+    le: float | None = None,
+    lt: float | None = None,
+    choices: Iterable[Any] | None = None,
+    nonempty: bool = False,
+    default_factory: Any = None,
+):
     """A dataclass field with a range (``ge``/``gt``/``le``/``lt``), a set of ``choices`` or
     ``nonempty`` (strings), checked by :func:`check`."""
-    meta = {k: v for k, v in {"ge": ge, "gt": gt, "le": le, "lt": lt, "nonempty": nonempty or None}.items()
-            if v is not None}
+    meta = {
+        k: v
+        for k, v in {"ge": ge, "gt": gt, "le": le, "lt": lt, "nonempty": nonempty or None}.items()
+        if v is not None
+    }
     if choices is not None:
         meta["choices"] = tuple(choices)
     if default_factory is not None:
@@ -37,8 +50,12 @@ def _problem(value: Any, meta: dict) -> str | None:
         return f"must be one of {', '.join(map(str, meta['choices']))}; got {value!r}"
     if meta.get("nonempty") and not str(value).strip():
         return "must not be empty"
-    for key, ok, word in (("ge", lambda v, b: v >= b, ">="), ("gt", lambda v, b: v > b, ">"),
-                          ("le", lambda v, b: v <= b, "<="), ("lt", lambda v, b: v < b, "<")):
+    for key, ok, word in (
+        ("ge", lambda v, b: v >= b, ">="),
+        ("gt", lambda v, b: v > b, ">"),
+        ("le", lambda v, b: v <= b, "<="),
+        ("lt", lambda v, b: v < b, "<"),
+    ):
         if key in meta and not ok(value, meta[key]):
             return f"must be {word} {meta[key]}; got {value!r}"
     return None
@@ -49,9 +66,13 @@ def check(obj: Any, prefix: str = "") -> None:
     field's constraints."""
     if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
         known = {f.name for f in dataclasses.fields(obj)}
-        extra = sorted(k for k in vars(obj) if k not in known)  # added with '+key=' past Hydra's struct mode
+        extra = sorted(
+            k for k in vars(obj) if k not in known
+        )  # added with '+key=' past Hydra's struct mode
         if extra:
-            raise ConfigError(f"config key '{prefix}{extra[0]}': unknown key; known: {', '.join(sorted(known))}")
+            raise ConfigError(
+                f"config key '{prefix}{extra[0]}': unknown key; known: {', '.join(sorted(known))}"
+            )
         for f in dataclasses.fields(obj):
             value = getattr(obj, f.name)
             key = f"{prefix}{f.name}"

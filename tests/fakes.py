@@ -1,4 +1,5 @@
 """Small deterministic recognisers and an in-memory episode sink for the tests."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -71,4 +72,7 @@ class ListSink:
 #: fig8's Prototypical Network cells run their own recogniser group (conf/recogniser/protonet.yaml),
 #: which needs the rendered pictures and the trained model; these overrides give them the oracle,
 #: for the tests that run fig8 where neither exists (CI's clean checkout).
-FIG8_WITHOUT_MODELS = [f"experiment.cells.{cell}.recogniser_group=oracle" for cell in ("fewshot_protonet", "fewshot_dss_protonet")]
+FIG8_WITHOUT_MODELS = [
+    f"experiment.cells.{cell}.recogniser_group=oracle"
+    for cell in ("fewshot_protonet", "fewshot_dss_protonet")
+]

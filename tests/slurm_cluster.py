@@ -7,6 +7,7 @@ loopback ports with their own key, config and state under a temporary folder, an
 
 :func:`missing` says why a cluster cannot be started here (no binaries, not root), for a skip.
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -45,18 +46,38 @@ def _free_port() -> int:
 def _config(folder: Path, socket_path: Path) -> str:
     ctld, slurmd = _free_port(), _free_port()
     cpus = os.cpu_count() or 1
-    return "\n".join([
-        "ClusterName=pipelinetest", "SlurmctldHost=localhost(127.0.0.1)", "SlurmUser=root", "SlurmdUser=root",
-        "AuthType=auth/munge", f"AuthInfo=socket={socket_path}", "CredType=cred/munge",
-        f"StateSaveLocation={folder / 'state'}", f"SlurmdSpoolDir={folder / 'spool'}",
-        f"SlurmctldPidFile={folder / 'slurmctld.pid'}", f"SlurmdPidFile={folder / 'slurmd.pid'}",
-        f"SlurmctldLogFile={folder / 'slurmctld.log'}", f"SlurmdLogFile={folder / 'slurmd.log'}",
-        f"SlurmctldPort={ctld}", f"SlurmdPort={slurmd}", "ProctrackType=proctrack/linuxproc", "TaskPlugin=task/none",
-        "SchedulerType=sched/builtin", "SelectType=select/cons_tres", "SelectTypeParameters=CR_Core",
-        "ReturnToService=2", "MpiDefault=none", "JobCompType=jobcomp/none", "JobAcctGatherType=jobacct_gather/none",
-        "AccountingStorageType=accounting_storage/none",
-        f"NodeName={NODE} NodeAddr=127.0.0.1 CPUs={cpus} RealMemory=2000 State=UNKNOWN",
-        f"PartitionName={PARTITION} Nodes={NODE} Default=YES MaxTime=INFINITE State=UP", ""])
+    return "\n".join(
+        [
+            "ClusterName=pipelinetest",
+            "SlurmctldHost=localhost(127.0.0.1)",
+            "SlurmUser=root",
+            "SlurmdUser=root",
+            "AuthType=auth/munge",
+            f"AuthInfo=socket={socket_path}",
+            "CredType=cred/munge",
+            f"StateSaveLocation={folder / 'state'}",
+            f"SlurmdSpoolDir={folder / 'spool'}",
+            f"SlurmctldPidFile={folder / 'slurmctld.pid'}",
+            f"SlurmdPidFile={folder / 'slurmd.pid'}",
+            f"SlurmctldLogFile={folder / 'slurmctld.log'}",
+            f"SlurmdLogFile={folder / 'slurmd.log'}",
+            f"SlurmctldPort={ctld}",
+            f"SlurmdPort={slurmd}",
+            "ProctrackType=proctrack/linuxproc",
+            "TaskPlugin=task/none",
+            "SchedulerType=sched/builtin",
+            "SelectType=select/cons_tres",
+            "SelectTypeParameters=CR_Core",
+            "ReturnToService=2",
+            "MpiDefault=none",
+            "JobCompType=jobcomp/none",
+            "JobAcctGatherType=jobacct_gather/none",
+            "AccountingStorageType=accounting_storage/none",
+            f"NodeName={NODE} NodeAddr=127.0.0.1 CPUs={cpus} RealMemory=2000 State=UNKNOWN",
+            f"PartitionName={PARTITION} Nodes={NODE} Default=YES MaxTime=INFINITE State=UP",
+            "",
+        ]
+    )
 
 
 @contextlib.contextmanager
@@ -66,7 +87,9 @@ def one_node_cluster(folder: Path, timeout: float = 60.0):
     for sub in ("munge", "state", "spool"):
         (folder / sub).mkdir(parents=True, exist_ok=True)
     key, sock = folder / "munge" / "munge.key", folder / "munge" / "munge.socket"
-    subprocess.run([_which("mungekey"), "-c", "-f", "-k", str(key)], check=True, capture_output=True)
+    subprocess.run(
+        [_which("mungekey"), "-c", "-f", "-k", str(key)], check=True, capture_output=True
+    )
     key.chmod(0o600)
     conf = folder / "slurm.conf"
     conf.write_text(_config(folder, sock))
@@ -75,22 +98,55 @@ def one_node_cluster(folder: Path, timeout: float = 60.0):
     procs = []
 
     def start(*cmd: str) -> None:
-        procs.append(subprocess.Popen([_which(cmd[0]), *cmd[1:]], env=env, stdout=logs, stderr=logs,
-                                      start_new_session=True))
+        procs.append(
+            subprocess.Popen(
+                [_which(cmd[0]), *cmd[1:]],
+                env=env,
+                stdout=logs,
+                stderr=logs,
+                start_new_session=True,
+            )
+        )
 
     try:
-        start("munged", "--foreground", "--force", f"--key-file={key}", f"--socket={sock}",
-              f"--pid-file={folder / 'munge' / 'munged.pid'}", f"--log-file={folder / 'munge' / 'munged.log'}",
-              f"--seed-file={folder / 'munge' / 'munged.seed'}")
+        start(
+            "munged",
+            "--foreground",
+            "--force",
+            f"--key-file={key}",
+            f"--socket={sock}",
+            f"--pid-file={folder / 'munge' / 'munged.pid'}",
+            f"--log-file={folder / 'munge' / 'munged.log'}",
+            f"--seed-file={folder / 'munge' / 'munged.seed'}",
+        )
         _wait(lambda: sock.exists(), timeout, "munged did not create its socket", folder)
         start("slurmctld", "-D", "-i", "-f", str(conf))
         start("slurmd", "-D", "-N", NODE, "-f", str(conf))
-        _wait(lambda: subprocess.run([_which("sinfo"), "-h", "-N", "-o", "%T"], env=env, capture_output=True,
-                                     text=True).stdout.strip() == "idle", timeout, "the node did not become idle", folder)
+        _wait(
+            lambda: (
+                subprocess.run(
+                    [_which("sinfo"), "-h", "-N", "-o", "%T"],
+                    env=env,
+                    capture_output=True,
+                    text=True,
+                ).stdout.strip()
+                == "idle"
+            ),
+            timeout,
+            "the node did not become idle",
+            folder,
+        )
         yield env
     finally:
-        with contextlib.suppress(OSError, subprocess.SubprocessError):  # jobs first, so their steps end
-            subprocess.run([_which("scancel"), "--full", "--user", "root"], env=env, timeout=10, capture_output=True)
+        with contextlib.suppress(
+            OSError, subprocess.SubprocessError
+        ):  # jobs first, so their steps end
+            subprocess.run(
+                [_which("scancel"), "--full", "--user", "root"],
+                env=env,
+                timeout=10,
+                capture_output=True,
+            )
         for p in reversed(procs):
             with contextlib.suppress(ProcessLookupError):
                 os.killpg(p.pid, signal.SIGTERM)
@@ -107,7 +163,11 @@ def one_node_cluster(folder: Path, timeout: float = 60.0):
 def _kill_leftovers(mark: bytes) -> None:
     """Job steps (slurmstepd and what it started) outlive slurmd: end every process whose environment
     points at this cluster's config."""
-    for pid in (int(p.name) for p in Path("/proc").iterdir() if p.name.isdigit() and int(p.name) != os.getpid()):
+    for pid in (
+        int(p.name)
+        for p in Path("/proc").iterdir()
+        if p.name.isdigit() and int(p.name) != os.getpid()
+    ):
         with contextlib.suppress(OSError):
             if mark in Path(f"/proc/{pid}/environ").read_bytes().split(b"\0"):
                 os.kill(pid, signal.SIGKILL)
@@ -117,6 +177,8 @@ def _wait(ok, timeout: float, what: str, folder: Path) -> None:
     end = time.monotonic() + timeout
     while not ok():
         if time.monotonic() > end:
-            tail = "".join(p.read_text(errors="replace")[-1500:] for p in sorted(folder.glob("*.log")))
+            tail = "".join(
+                p.read_text(errors="replace")[-1500:] for p in sorted(folder.glob("*.log"))
+            )
             raise RuntimeError(f"{what} within {timeout:.0f} s; logs:\n{tail}")
         time.sleep(0.2)

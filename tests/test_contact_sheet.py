@@ -1,4 +1,5 @@
 """Contact sheets show every row given, with whole labels wrapped to the label column."""
+
 import numpy as np
 from PIL import Image, ImageFont
 
@@ -24,6 +25,8 @@ def test_every_row_is_drawn(tmp_path):
     sheet = contact_sheet(rows, tile=16, label_width=100)
     assert sheet.width == 100 + 3 * 18 + 2 and sheet.height >= 20 * 16
     pixels = np.asarray(sheet)
-    assert (pixels[:, :100] < 128).any(axis=2).sum() > 20 * 50  # text in the label column of every row
+    assert (pixels[:, :100] < 128).any(
+        axis=2
+    ).sum() > 20 * 50  # text in the label column of every row
     first_picture = pixels[:, 102:118]  # black in every row: 20 rows x 16 x 16 pixels
     assert (first_picture == 0).all(axis=2).sum() == 20 * 16 * 16

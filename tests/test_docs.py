@@ -4,6 +4,7 @@ A default is quoted as ``key=value`` in backticks followed by "by default" (seve
 "`a=1`, `b=2` and `c=3` by default"); the key is one of a stage's config (``conf/<stage>.yaml``
 composed, profile ``paper``), written ``<stage>.<key>`` where stages disagree.
 """
+
 import re
 import subprocess
 from functools import cache
@@ -30,7 +31,9 @@ ITEM = re.compile(r"`([\w.]+)=([^`]*)`")
 
 def tracked_files() -> list[Path]:
     try:
-        names = subprocess.run(["git", "ls-files"], cwd=ROOT, capture_output=True, text=True, check=True).stdout
+        names = subprocess.run(
+            ["git", "ls-files"], cwd=ROOT, capture_output=True, text=True, check=True
+        ).stdout
     except (OSError, subprocess.CalledProcessError):  # not a git checkout: every file
         return [p for p in ROOT.rglob("*") if p.is_file() and ".git" not in p.parts]
     return [ROOT / n for n in names.splitlines()]
@@ -46,22 +49,36 @@ def test_no_doc_points_outside_the_repository():
             text = path.read_text()
         except UnicodeDecodeError:
             continue
-        found += [f"{rel}:{n}: {word}" for n, line in enumerate(text.splitlines(), 1)
-                  for word in OUTSIDE if word in line]
+        found += [
+            f"{rel}:{n}: {word}"
+            for n, line in enumerate(text.splitlines(), 1)
+            for word in OUTSIDE
+            if word in line
+        ]
     assert not found, "\n".join(found)
 
 
 def test_references_to_readme_sections_name_its_headings():
-    headings = [line.lstrip("#").strip() for line in (ROOT / "README.md").read_text().splitlines()
-                if line.startswith("#")]
+    headings = [
+        line.lstrip("#").strip()
+        for line in (ROOT / "README.md").read_text().splitlines()
+        if line.startswith("#")
+    ]
     wrong = []
     for path in tracked_files():
         rel = path.relative_to(ROOT).as_posix()
-        if rel.startswith(NOT_DOCS) or path.suffix not in (".py", ".md", ".yaml", "") or not path.is_file():
+        if (
+            rel.startswith(NOT_DOCS)
+            or path.suffix not in (".py", ".md", ".yaml", "")
+            or not path.is_file()
+        ):
             continue
         text = " ".join(path.read_text().split())  # a reference may be wrapped over two lines
-        wrong += [f"{rel}: README {name!r}" for name in re.findall(r'README "([^"]+)"', text)
-                  if not any(h.startswith(name) for h in headings)]
+        wrong += [
+            f"{rel}: README {name!r}"
+            for name in re.findall(r'README "([^"]+)"', text)
+            if not any(h.startswith(name) for h in headings)
+        ]
     assert not wrong, "\n".join(wrong)
 
 
@@ -90,21 +107,36 @@ def default_of(key: str):
         except KeyError:
             continue
     assert values, f"{key!r} is no stage's config key"
-    assert len({repr(v) for v in values.values()}) == 1, f"{key!r} differs between stages {values}: name the stage"
+    assert len({repr(v) for v in values.values()}) == 1, (
+        f"{key!r} differs between stages {values}: name the stage"
+    )
     return next(iter(values.values()))
 
 
 def claims() -> list[tuple[str, str, str]]:
     """(doc, key, value) of every quoted default."""
-    return [(doc.name, key, value) for doc in DOCS for match in CLAIMS.finditer(doc.read_text())
-            for key, value in ITEM.findall(match.group(1))]
+    return [
+        (doc.name, key, value)
+        for doc in DOCS
+        for match in CLAIMS.finditer(doc.read_text())
+        for key, value in ITEM.findall(match.group(1))
+    ]
 
 
 def test_the_docs_quote_defaults():
     keys = {key for _, key, _ in claims()}
-    assert {"train.max_minutes", "flush_every", "bind", "quality.studio_shadows", "runs_dir", "trials.out"} <= keys
+    assert {
+        "train.max_minutes",
+        "flush_every",
+        "bind",
+        "quality.studio_shadows",
+        "runs_dir",
+        "trials.out",
+    } <= keys
 
 
 @pytest.mark.parametrize("doc,key,value", claims())
 def test_a_quoted_default_is_the_configs(doc, key, value):
-    assert default_of(key) == yaml.safe_load(value), f"{doc}: `{key}={value}` by default, but the config says otherwise"
+    assert default_of(key) == yaml.safe_load(value), (
+        f"{doc}: `{key}={value}` by default, but the config says otherwise"
+    )

@@ -1,6 +1,7 @@
 """`dvc exp run -S <file>:<key>=<value>` on the real configs, at smoke scale, in a temporary git repo
 holding a copy of pipeline/ and conf/ and a small dvc.yaml shaped like ours (a trials foreach with
 the same kind of params, the oracle recogniser: no pictures or model needed)."""
+
 import json
 import os
 import shutil
@@ -12,7 +13,9 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 BIN = Path(sys.executable).parent
-pytestmark = pytest.mark.skipif(not (BIN / "dvc").exists(), reason="dvc is not installed beside this python")
+pytestmark = pytest.mark.skipif(
+    not (BIN / "dvc").exists(), reason="dvc is not installed beside this python"
+)
 
 DVC_YAML = """\
 stages:
@@ -37,11 +40,22 @@ stages:
 """
 
 
-def run(repo: Path, *args: str, ok: bool = True, cwd: Path | None = None) -> subprocess.CompletedProcess:
-    env = {**os.environ, "PATH": f"{BIN}{os.pathsep}{os.environ.get('PATH', '')}", "PYTHONPATH": str(repo),
-           "DVC_NO_ANALYTICS": "1", "GIT_AUTHOR_NAME": "test", "GIT_AUTHOR_EMAIL": "test@example.org",
-           "GIT_COMMITTER_NAME": "test", "GIT_COMMITTER_EMAIL": "test@example.org"}
-    out = subprocess.run(list(args), cwd=cwd or repo, env=env, capture_output=True, text=True, timeout=180)
+def run(
+    repo: Path, *args: str, ok: bool = True, cwd: Path | None = None
+) -> subprocess.CompletedProcess:
+    env = {
+        **os.environ,
+        "PATH": f"{BIN}{os.pathsep}{os.environ.get('PATH', '')}",
+        "PYTHONPATH": str(repo),
+        "DVC_NO_ANALYTICS": "1",
+        "GIT_AUTHOR_NAME": "test",
+        "GIT_AUTHOR_EMAIL": "test@example.org",
+        "GIT_COMMITTER_NAME": "test",
+        "GIT_COMMITTER_EMAIL": "test@example.org",
+    }
+    out = subprocess.run(
+        list(args), cwd=cwd or repo, env=env, capture_output=True, text=True, timeout=180
+    )
     if ok:
         assert out.returncode == 0, f"{' '.join(args)}:\n{out.stdout[-3000:]}\n{out.stderr[-3000:]}"
     return out
@@ -85,23 +99,37 @@ def test_exp_run_set_param_reruns_trials_and_shows_param_and_metrics(tmp_path):
     commit(repo)
     assert run(repo, "dvc", "status").stdout.strip() == "Data and pipelines are up to date."
 
-    out = run(repo, "dvc", "exp", "run", "-n", "two-runs", "-S", "conf/profile/smoke.yaml:trials.runs=2")
+    out = run(
+        repo, "dvc", "exp", "run", "-n", "two-runs", "-S", "conf/profile/smoke.yaml:trials.runs=2"
+    )
     assert "Running stage 'trials@fig10'" in out.stdout
     exps = experiments(repo)
     base, two = exps["workspace"], exps["two-runs"]
     assert two["params"]["conf/profile/smoke.yaml"]["data"]["trials"] == {"runs": 2, "episodes": 20}
     metrics = two["metrics"]["metrics/fig10.json"]["data"]
     assert set(metrics) == {"restore", "carry"} and metrics["restore"]["converged_runs"] <= 2
-    assert base["params"]["conf/profile/smoke.yaml"]["data"]["trials"]["runs"] == 2  # applied to the workspace
-    assert json.loads((repo / "runs" / "fig10" / "restore" / "summary.json").read_text())["n_runs"] == 2
+    assert (
+        base["params"]["conf/profile/smoke.yaml"]["data"]["trials"]["runs"] == 2
+    )  # applied to the workspace
+    assert (
+        json.loads((repo / "runs" / "fig10" / "restore" / "summary.json").read_text())["n_runs"]
+        == 2
+    )
     diff = run(repo, "dvc", "params", "diff", "--json").stdout
-    assert json.loads(diff)["conf/profile/smoke.yaml"]["trials.runs"] == {"old": 3, "new": 2, "diff": -1}
+    assert json.loads(diff)["conf/profile/smoke.yaml"]["trials.runs"] == {
+        "old": 3,
+        "new": 2,
+        "diff": -1,
+    }
 
     # A key the file does not have (method files omit what they inherit): Hydra's struct mode
     # refuses `alpha=`; `++alpha=` adds it (or overrides it if present).
     method = "conf/method/fewshot_dss.yaml"
     refused = run(repo, "dvc", "exp", "run", "-S", f"{method}:alpha=0.05", ok=False)
-    assert refused.returncode != 0 and "use +alpha=0.05: Key 'alpha' is not in struct" in refused.stderr
+    assert (
+        refused.returncode != 0
+        and "use +alpha=0.05: Key 'alpha' is not in struct" in refused.stderr
+    )
     run(repo, "git", "checkout", "-q", ".")
     out = run(repo, "dvc", "exp", "run", "-n", "alpha", "-S", f"{method}:++alpha=0.05")
     assert "Running stage 'trials@fig10'" in out.stdout
@@ -112,19 +140,25 @@ def test_exp_run_set_param_reruns_trials_and_shows_param_and_metrics(tmp_path):
     # DVC resolves the file's interpolations to apply -S: the stage files (conf/<stage>.yaml, with
     # ${profile...}) cannot take -S; edit them and `dvc exp run` (README "DVC experiments").
     refused = run(repo, "dvc", "exp", "run", "-S", "conf/trials.yaml:seed=1", ok=False)
-    assert refused.returncode != 0 and "Interpolation key 'profile.trials.runs' not found" in refused.stderr
+    assert (
+        refused.returncode != 0
+        and "Interpolation key 'profile.trials.runs' not found" in refused.stderr
+    )
 
 
 def test_site_cache_from_any_cwd_and_in_a_temp_experiment(tmp_path):
     """The site cache form of setup.sh: `dvc exp run --temp` (a copy under .dvc/tmp) and dvc run from a
     subfolder work and write no second cache."""
-    repo = new_repo(tmp_path / "repo", """\
+    repo = new_repo(
+        tmp_path / "repo",
+        """\
 stages:
   copy:
     cmd: python -c "import shutil; shutil.copy('p.yaml', 'out.yaml')"
     params: [{p.yaml: [n]}]
     outs: [out.yaml]
-""")
+""",
+    )
     (repo / "p.yaml").write_text("n: 1\n")
     (repo / "sub").mkdir()
     (repo / "sub" / "keep").write_text("")

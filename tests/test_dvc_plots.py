@@ -1,6 +1,7 @@
 """`dvc plots show` with the repository's plots (dvc.yaml) and page (.dvc/config
 plots.html_template = reports/vega/offline.html): every plot colours its series one each, and the
 page loads no script from the network (vega, vega-lite and vega-embed are inlined)."""
+
 import json
 import re
 import shutil
@@ -18,7 +19,9 @@ PLOTS = yaml.safe_load((ROOT / "dvc.yaml").read_text())["plots"]
 
 def test_the_offline_page_inlines_vega():
     page = (ROOT / "reports" / "vega" / "offline.html").read_text()
-    assert "{plot_divs}" in page and "{scripts}" not in page  # DVC's CDN script tags have nowhere to go
+    assert (
+        "{plot_divs}" in page and "{scripts}" not in page
+    )  # DVC's CDN script tags have nowhere to go
     for name in ("vega 5", "vega-lite 5", "vega-embed 6"):
         assert f"<!-- {name}" in page
     assert not re.search(r"<script[^>]+src=", page)
@@ -28,15 +31,27 @@ def test_the_offline_page_inlines_vega():
 @pytest.mark.skipif(not DVC.exists() and shutil.which("dvc") is None, reason="dvc is not installed")
 def test_plots_render_offline_with_one_colour_per_series(tmp_path):
     dvc = str(DVC) if DVC.exists() else shutil.which("dvc")
-    out = subprocess.run([dvc, "plots", "show", "-o", str(tmp_path)], cwd=ROOT, capture_output=True, text=True, check=False,
-                         timeout=300)
+    out = subprocess.run(
+        [dvc, "plots", "show", "-o", str(tmp_path)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        check=False,
+        timeout=300,
+    )
     assert out.returncode == 0, out.stderr[-2000:]
     page = (tmp_path / "index.html").read_text()
-    assert not re.search(r"<script[^>]+src=[\"']?https?:", page), "the page loads scripts from the network"
-    specs = [json.loads(s) for s in re.findall(r"var spec = (\{.*?\});\s*vegaEmbed", page, re.DOTALL)]
+    assert not re.search(r"<script[^>]+src=[\"']?https?:", page), (
+        "the page loads scripts from the network"
+    )
+    specs = [
+        json.loads(s) for s in re.findall(r"var spec = (\{.*?\});\s*vegaEmbed", page, re.DOTALL)
+    ]
     assert len(specs) == len(PLOTS)
     for spec in specs:
         assert spec["encoding"]["color"]["field"] == "series"
         series = {row["series"] for row in spec["data"]["values"]}
         assert len(series) >= 2, spec["title"]
-        assert len(spec["encoding"]["color"]["scale"]["range"]) >= len(series)  # no colour used twice
+        assert len(spec["encoding"]["color"]["scale"]["range"]) >= len(
+            series
+        )  # no colour used twice

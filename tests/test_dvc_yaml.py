@@ -1,5 +1,6 @@
 """dvc.yaml against conf/: one trials stage per experiment file, config declared as params (keys
 that exist), code and data as deps, and a DVC site cache that does not depend on the cwd."""
+
 import configparser
 import os
 from pathlib import Path
@@ -32,14 +33,18 @@ def all_stages() -> dict[str, dict]:
 def params_entries(stage: dict) -> list[tuple[str, list[str]]]:
     out = []
     for entry in stage.get("params", []):
-        assert isinstance(entry, dict), f"params entry {entry!r}: name its file (there is no params.yaml)"
+        assert isinstance(entry, dict), (
+            f"params entry {entry!r}: name its file (there is no params.yaml)"
+        )
         out.extend((file, keys or []) for file, keys in entry.items())
     return out
 
 
 def test_trials_foreach_is_every_experiment_file():
     files = sorted(p.stem for p in (ROOT / "conf" / "experiment").glob("*.yaml"))
-    assert sorted(EXPERIMENTS) == files, "list every conf/experiment/*.yaml in dvc.yaml's trials foreach"
+    assert sorted(EXPERIMENTS) == files, (
+        "list every conf/experiment/*.yaml in dvc.yaml's trials foreach"
+    )
     assert len(set(EXPERIMENTS)) == len(EXPERIMENTS)
 
 
@@ -54,7 +59,10 @@ def test_each_trials_stage_tracks_its_experiment_and_every_method(exp):
     assert files[f"conf/experiment/{exp}.yaml"] == []  # the whole file
     methods = {f"conf/method/{p.name}" for p in (ROOT / "conf" / "method").glob("*.yaml")}
     assert methods <= {f for f, keys in files.items() if keys == []}
-    assert f"+experiment={exp} " in stage["cmd"] and f"metrics_file=datasets/metrics/{exp}.json" in stage["cmd"]
+    assert (
+        f"+experiment={exp} " in stage["cmd"]
+        and f"metrics_file=datasets/metrics/{exp}.json" in stage["cmd"]
+    )
     assert stage["outs"] == [f"datasets/runs/{exp}"]
 
 
@@ -74,7 +82,9 @@ def test_params_name_existing_files_and_keys_and_deps_hold_no_config():
             for key in keys:  # `dvc exp run -S file:key=...` needs the key in the file
                 _get(data, key)
         for dep in stage.get("deps", []):
-            assert not (dep.startswith("conf/") and dep.endswith(".yaml")), f"{name}: {dep} belongs in params"
+            assert not (dep.startswith("conf/") and dep.endswith(".yaml")), (
+                f"{name}: {dep} belongs in params"
+            )
 
 
 def test_default_scale_is_the_paper_profile():
@@ -95,4 +105,6 @@ def test_site_cache_dir_is_not_relative():
         parser = configparser.ConfigParser()
         parser.read_string(path.read_text())
         value = parser.get("core", "site_cache_dir", fallback=None)
-        assert value is None or os.path.isabs(value), f".dvc/{name}: core.site_cache_dir = {value!r}"
+        assert value is None or os.path.isabs(value), (
+            f".dvc/{name}: core.site_cache_dir = {value!r}"
+        )

@@ -4,6 +4,7 @@ Trials embed package versions in their MCAP records (`package_versions()`), so t
 DVC hashes are the same on a fresh clone only when the versions are. No network: everything here reads
 the lock file, pyproject.toml and the installed packages' metadata.
 """
+
 from __future__ import annotations
 
 import importlib.metadata as im
@@ -74,17 +75,26 @@ def test_recorded_versions_equal_the_lock():
     versions = package_versions()
     assert set(versions) > {"python", "torch", "numpy"}
     bad = _mismatches(versions, pins, python)
-    assert not bad, "versions embedded in records differ from requirements.lock (run `make setup`): " + "; ".join(bad)
+    assert not bad, (
+        "versions embedded in records differ from requirements.lock (run `make setup`): "
+        + "; ".join(bad)
+    )
 
 
 def test_the_comparison_catches_an_unpinned_install():
     """The check above fails when a recorded version is not the locked one."""
     pins, _, python = _read_lock(LOCK.read_text())
     project = _pyproject()["project"]
-    locked = {"python": f"{python}.0", project["name"]: project["version"],
-              "numpy": pins["numpy"], "torch": pins["torch"]}
+    locked = {
+        "python": f"{python}.0",
+        project["name"]: project["version"],
+        "numpy": pins["numpy"],
+        "torch": pins["torch"],
+    }
     assert not _mismatches(locked, pins, python)
-    assert _mismatches(dict(locked, numpy="1.26.0"), pins, python) == [f"numpy 1.26.0, lock {pins['numpy']}"]
+    assert _mismatches(dict(locked, numpy="1.26.0"), pins, python) == [
+        f"numpy 1.26.0, lock {pins['numpy']}"
+    ]
     assert _mismatches(dict(locked, torch="2.13.0"), pins, python)  # the CUDA build has no +cpu
     assert _mismatches(dict(locked, torch="not installed"), pins, python)
     assert _mismatches(dict(locked, python="3.99.0"), pins, python)
@@ -101,7 +111,9 @@ def test_every_locked_package_is_installed_at_its_version():
             got = "not installed"
         if got == "not installed" or Version(got) != Version(want):
             bad.append(f"{name} {got} (lock {want})")
-    assert not bad, "installed packages differ from requirements.lock (run `make setup`): " + "; ".join(bad)
+    assert not bad, (
+        "installed packages differ from requirements.lock (run `make setup`): " + "; ".join(bad)
+    )
 
 
 def test_pyproject_dependencies_are_in_the_lock():
@@ -117,15 +129,19 @@ def test_pyproject_dependencies_are_in_the_lock():
             bad.append(f"{dep}: not in the lock")
         elif not req.specifier.contains(pin, prereleases=True):
             bad.append(f"{dep}: lock has {pin}")
-    assert not bad, "pyproject.toml and requirements.lock disagree (run `make lock`): " + "; ".join(bad)
+    assert not bad, "pyproject.toml and requirements.lock disagree (run `make lock`): " + "; ".join(
+        bad
+    )
 
 
 def test_the_lock_is_hashed_cpu_only_and_for_this_python():
     pins, hashes, python = _read_lock(LOCK.read_text())
-    assert python == "%d.%d" % sys.version_info[:2]
+    assert python == "{}.{}".format(*sys.version_info[:2])
     assert Version(pins["torch"]).local == "cpu"
     assert not [n for n in pins if n.startswith(("nvidia-", "cuda-", "triton"))]
-    assert not [n for n, k in hashes.items() if k == 0], "every pin needs a hash for --require-hashes"
+    assert not [n for n, k in hashes.items() if k == 0], (
+        "every pin needs a hash for --require-hashes"
+    )
 
 
 def test_a_trial_embeds_exactly_these_versions(tmp_path):
@@ -133,7 +149,9 @@ def test_a_trial_embeds_exactly_these_versions(tmp_path):
     from pipeline.records import read_records
     from pipeline.stages._common import run_stage
 
-    run_stage("trials", ["method=ssrl", "runs=1", "episodes=2", f"out={tmp_path}", "progress=false"])
+    run_stage(
+        "trials", ["method=ssrl", "runs=1", "episodes=2", f"out={tmp_path}", "progress=false"]
+    )
     recorded = read_records(tmp_path / "records.mcap", pictures=False).meta.versions
     pins, _, python = _read_lock(LOCK.read_text())
     assert recorded == package_versions() and not _mismatches(recorded, pins, python)

@@ -1,6 +1,7 @@
 """Fault suite: bad input and faults through the real command line. Every case asserts the exit
 code, one line on stderr naming the thing and the problem, and that nothing already on disk was
 lost (docs/reliability.md lists the guarantees)."""
+
 from __future__ import annotations
 
 import hashlib
@@ -19,8 +20,13 @@ FAST = ["runs=2", "episodes=4", "progress=false"]
 
 
 def cli(*args, cwd=ROOT, timeout=300):
-    return subprocess.run([sys.executable, "-m", "pipeline", *args], capture_output=True, text=True,
-                          cwd=cwd, timeout=timeout)
+    return subprocess.run(
+        [sys.executable, "-m", "pipeline", *args],
+        capture_output=True,
+        text=True,
+        cwd=cwd,
+        timeout=timeout,
+    )
 
 
 def one_line_error(out, *words, code=2):
@@ -33,29 +39,42 @@ def one_line_error(out, *words, code=2):
 
 
 def digest(folder: Path) -> dict:
-    return {str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest()
-            for p in sorted(folder.rglob("*")) if p.is_file()}
+    return {
+        str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest()
+        for p in sorted(folder.rglob("*"))
+        if p.is_file()
+    }
 
 
 # ------------------------------------------------------------------ layouts
-@pytest.mark.parametrize("text,words", [
-    ("", ["empty layout"]),
-    ("S..\n..\n..G\n", ["ragged row"]),
-    ("S.a\n...\n..G\n", ["unknown character 'a'"]),
-    ("...\n...\n..G\n", ["no start"]),
-    ("S.G\n...\n..G\n", ["2 goal cells"]),
-    ("S.X\n.X.\nX.G\n", ["unreachable"]),
-    ("S..\n\n..G\n", ["blank line"]),
-])
+@pytest.mark.parametrize(
+    "text,words",
+    [
+        ("", ["empty layout"]),
+        ("S..\n..\n..G\n", ["ragged row"]),
+        ("S.a\n...\n..G\n", ["unknown character 'a'"]),
+        ("...\n...\n..G\n", ["no start"]),
+        ("S.G\n...\n..G\n", ["2 goal cells"]),
+        ("S.X\n.X.\nX.G\n", ["unreachable"]),
+        ("S..\n\n..G\n", ["blank line"]),
+    ],
+)
 def test_bad_layouts(tmp_path, text, words):
     layout = tmp_path / "maze.txt"
     layout.write_text(text)
-    one_line_error(cli("trials", f"maze={layout}", f"out={tmp_path / 'o'}", *FAST), "config key 'maze'", str(layout), *words)
+    one_line_error(
+        cli("trials", f"maze={layout}", f"out={tmp_path / 'o'}", *FAST),
+        "config key 'maze'",
+        str(layout),
+        *words,
+    )
     assert not (tmp_path / "o").exists()
 
 
 def test_layout_folder_binary_and_oversized(tmp_path):
-    one_line_error(cli("trials", f"maze={tmp_path}", f"out={tmp_path / 'o'}"), "a folder, not a layout file")
+    one_line_error(
+        cli("trials", f"maze={tmp_path}", f"out={tmp_path / 'o'}"), "a folder, not a layout file"
+    )
     binary = tmp_path / "b.txt"
     binary.write_bytes(b"\x89PNG\r\n\x1a\n\xff\xfe")
     one_line_error(cli("trials", f"maze={binary}", f"out={tmp_path / 'o'}"), "not a text file")
@@ -69,8 +88,14 @@ def test_layout_folder_binary_and_oversized(tmp_path):
 def test_unusual_valid_layouts_run(tmp_path, text, method):
     layout = tmp_path / "tiny.txt"
     layout.write_text(text)
-    out = cli("trials", f"maze={layout}", f"method={method}", f"out={tmp_path / 'o'}", *FAST,
-              *(["recogniser=oracle"] if method == "fewshot_dss" else []))
+    out = cli(
+        "trials",
+        f"maze={layout}",
+        f"method={method}",
+        f"out={tmp_path / 'o'}",
+        *FAST,
+        *(["recogniser=oracle"] if method == "fewshot_dss" else []),
+    )
     assert out.returncode == 0, out.stderr
     assert json.loads((tmp_path / "o" / "summary.json").read_text())["n_runs"] == 2
 
@@ -98,18 +123,21 @@ def test_a_1000x1000_layout_is_parsed_and_checked_in_seconds(tmp_path):
 
 
 # ------------------------------------------------------------------ configs and out folders
-@pytest.mark.parametrize("args,words", [
-    (["runs=2.7"], ["config key 'runs'", "Integer"]),
-    (["episodes=abc"], ["config key 'episodes'"]),
-    (["record=maybe"], ["config key 'record'"]),
-    (["threads=-1"], ["config key 'threads'", ">= 0"]),
-    (["threads=999"], ["config key 'threads'", "at most"]),
-    (["out="], ["config key 'out'", "empty"]),
-    (["bogus=1"], ["config key 'bogus'"]),
-    (["method=nope"], ["method/nope"]),
-    (["runs=100", "episodes=100000000000000"], ["need about", "GiB", "available"]),
-    (["out=/proc/version/x"], ["config key 'out'"]),
-])
+@pytest.mark.parametrize(
+    "args,words",
+    [
+        (["runs=2.7"], ["config key 'runs'", "Integer"]),
+        (["episodes=abc"], ["config key 'episodes'"]),
+        (["record=maybe"], ["config key 'record'"]),
+        (["threads=-1"], ["config key 'threads'", ">= 0"]),
+        (["threads=999"], ["config key 'threads'", "at most"]),
+        (["out="], ["config key 'out'", "empty"]),
+        (["bogus=1"], ["config key 'bogus'"]),
+        (["method=nope"], ["method/nope"]),
+        (["runs=100", "episodes=100000000000000"], ["need about", "GiB", "available"]),
+        (["out=/proc/version/x"], ["config key 'out'"]),
+    ],
+)
 def test_bad_trial_configs(tmp_path, args, words):
     one_line_error(cli("trials", *args, "progress=false"), *words)
 
@@ -131,7 +159,9 @@ def test_every_stage_turns_a_bad_config_into_one_line(tmp_path):
     one_line_error(cli("meta_train", "train.lr=-1"), "config key 'train.lr'")
     one_line_error(cli("accuracy", "study.repeats=0"), "config key 'study.repeats'")
     one_line_error(cli("report", "out="), "config key 'out'")
-    one_line_error(cli("replay", f"file={tmp_path / 'none.mcap'}"), "config key 'file'", "no such record file")
+    one_line_error(
+        cli("replay", f"file={tmp_path / 'none.mcap'}"), "config key 'file'", "no such record file"
+    )
 
 
 # ------------------------------------------------------------------ checkpoints and image folders
@@ -142,63 +172,122 @@ def tiny_model(tmp_path_factory):
 
     d = tmp_path_factory.mktemp("model")
     write_synthetic_dataset(d / "images", n_train=6, n_val=5, per_class=8, seed=1)
-    run_stage("meta_train", [f"images_dir={d / 'images'}", f"checkpoint={d}/rn.pt", f"metrics_file={d}/metrics.json",
-                             f"history_file={d}/h.csv", "train.input_size=24", "train.relation_padding=1",
-                             "train.episodes=4", "train.val_every=2", "train.val_episodes=2", "train.eval_episodes=4",
-                             "train.n_query=2", "train.eval_queries=2", "progress=false"])
+    run_stage(
+        "meta_train",
+        [
+            f"images_dir={d / 'images'}",
+            f"checkpoint={d}/rn.pt",
+            f"metrics_file={d}/metrics.json",
+            f"history_file={d}/h.csv",
+            "train.input_size=24",
+            "train.relation_padding=1",
+            "train.episodes=4",
+            "train.val_every=2",
+            "train.val_episodes=2",
+            "train.eval_episodes=4",
+            "train.n_query=2",
+            "train.eval_queries=2",
+            "progress=false",
+        ],
+    )
     return d
 
 
 def _with_model(d, *extra):
-    return ["method=fewshot", f"recogniser.images_dir={d / 'images'}", "recogniser.input_size=24",
-            "recogniser.relation_padding=1", *FAST, *extra]
+    return [
+        "method=fewshot",
+        f"recogniser.images_dir={d / 'images'}",
+        "recogniser.input_size=24",
+        "recogniser.relation_padding=1",
+        *FAST,
+        *extra,
+    ]
 
 
 def test_a_small_model_runs_and_is_named_in_the_records(tiny_model, tmp_path):
     from pipeline.fewshot.checkpoint import file_sha256
     from pipeline.records import read_records
 
-    out = cli("trials", *_with_model(tiny_model, f"recogniser.checkpoint={tiny_model}/rn.pt", f"out={tmp_path}"))
+    out = cli(
+        "trials",
+        *_with_model(tiny_model, f"recogniser.checkpoint={tiny_model}/rn.pt", f"out={tmp_path}"),
+    )
     assert out.returncode == 0, out.stderr
     info = read_records(tmp_path / "records.mcap", pictures=False).meta.info["info"]["recogniser"]
     assert info["checkpoint"]["sha256"] == file_sha256(tiny_model / "rn.pt")
     assert info["checkpoint"]["model"] == {"input_size": 24, "relation_padding": 1}
 
 
-@pytest.mark.parametrize("make,words", [
-    (lambda p, good: p.write_bytes(b""), ["corrupt or not a torch checkpoint"]),
-    (lambda p, good: p.write_bytes(good.read_bytes()[: len(good.read_bytes()) // 2]), ["corrupt"]),
-    (lambda p, good: p.write_bytes(b"\x89PNG\r\n\x1a\n" + b"\0" * 100), ["corrupt"]),
-    (lambda p, good: None, ["does not exist"]),
-])
+@pytest.mark.parametrize(
+    "make,words",
+    [
+        (lambda p, good: p.write_bytes(b""), ["corrupt or not a torch checkpoint"]),
+        (
+            lambda p, good: p.write_bytes(good.read_bytes()[: len(good.read_bytes()) // 2]),
+            ["corrupt"],
+        ),
+        (lambda p, good: p.write_bytes(b"\x89PNG\r\n\x1a\n" + b"\0" * 100), ["corrupt"]),
+        (lambda p, good: None, ["does not exist"]),
+    ],
+)
 def test_bad_checkpoints(tiny_model, tmp_path, make, words):
     bad = tmp_path / "bad.pt"
     make(bad, tiny_model / "rn.pt")
-    one_line_error(cli("trials", *_with_model(tiny_model, f"recogniser.checkpoint={bad}", f"out={tmp_path / 'o'}")),
-                   "config key 'recogniser'", str(bad), *words)
+    one_line_error(
+        cli(
+            "trials",
+            *_with_model(tiny_model, f"recogniser.checkpoint={bad}", f"out={tmp_path / 'o'}"),
+        ),
+        "config key 'recogniser'",
+        str(bad),
+        *words,
+    )
     assert not (tmp_path / "o").exists()
 
 
 def test_a_checkpoint_of_another_shape_is_refused(tiny_model, tmp_path):
     args = _with_model(tiny_model, f"recogniser.checkpoint={tiny_model}/rn.pt", f"out={tmp_path}")
     args = [a for a in args if not a.startswith("recogniser.input_size")]  # the config expects 48
-    one_line_error(cli("trials", *args), "config key 'recogniser'", "was trained for", "input_size=24")
+    one_line_error(
+        cli("trials", *args), "config key 'recogniser'", "was trained for", "input_size=24"
+    )
 
 
 def test_an_images_folder_without_a_manifest(tiny_model, tmp_path):
-    one_line_error(cli("trials", "method=fewshot", f"recogniser.images_dir={tmp_path}",
-                       f"recogniser.checkpoint={tiny_model}/rn.pt", "recogniser.input_size=24",
-                       "recogniser.relation_padding=1", f"out={tmp_path / 'o'}", *FAST),
-                   "no picture manifest")
+    one_line_error(
+        cli(
+            "trials",
+            "method=fewshot",
+            f"recogniser.images_dir={tmp_path}",
+            f"recogniser.checkpoint={tiny_model}/rn.pt",
+            "recogniser.input_size=24",
+            "recogniser.relation_padding=1",
+            f"out={tmp_path / 'o'}",
+            *FAST,
+        ),
+        "no picture manifest",
+    )
 
 
 # ------------------------------------------------------------------ concurrent writers and kills
-LONG = ["method=ssrl", "maze=11x11", "runs=100", "episodes=200000", "progress=false", "flush_every=1000"]
+LONG = [
+    "method=ssrl",
+    "maze=11x11",
+    "runs=100",
+    "episodes=200000",
+    "progress=false",
+    "flush_every=1000",
+]
 
 
 def _start(*args):
-    return subprocess.Popen([sys.executable, "-m", "pipeline", "trials", *args], cwd=ROOT,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    return subprocess.Popen(
+        [sys.executable, "-m", "pipeline", "trials", *args],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
 
 
 def _wait_for_partial(out: Path, timeout=60.0):
@@ -238,22 +327,44 @@ def test_a_killed_trial_says_what_it_kept_and_loses_nothing(tmp_path, sig, code)
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == code, err
     lines = err.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("interrupted; partial records at ") and " episodes" in lines[0], err
+    assert (
+        len(lines) == 1
+        and lines[0].startswith("interrupted; partial records at ")
+        and " episodes" in lines[0]
+    ), err
     partial = Path(lines[0].split(" at ")[1].split(":")[0])
     from pipeline.records import read_records
+
     n = int(lines[0].rsplit(": ", 1)[1].split()[0])
-    assert 0 < len(read_records(partial, pictures=False).episodes) <= n  # the reader keeps whole runs' prefixes
+    assert (
+        0 < len(read_records(partial, pictures=False).episodes) <= n
+    )  # the reader keeps whole runs' prefixes
     after = digest(tmp_path)
-    assert {k: v for k, v in after.items() if not k.startswith(".staging-")} == before  # old results whole
+    assert {
+        k: v for k, v in after.items() if not k.startswith(".staging-")
+    } == before  # old results whole
 
 
 def test_a_killed_experiment_rerun_keeps_the_previous_experiment(tmp_path):
-    assert cli("trials", "+experiment=fig9", "recogniser=oracle", f"out={tmp_path}", *FAST).returncode == 0
+    assert (
+        cli("trials", "+experiment=fig9", "recogniser=oracle", f"out={tmp_path}", *FAST).returncode
+        == 0
+    )
     before = digest(tmp_path)
-    proc = _start("+experiment=fig9", "recogniser=oracle", "runs=100", "episodes=100000", "seed=3",
-                  "progress=false", f"out={tmp_path}", "overwrite=true")
+    proc = _start(
+        "+experiment=fig9",
+        "recogniser=oracle",
+        "runs=100",
+        "episodes=100000",
+        "seed=3",
+        "progress=false",
+        f"out={tmp_path}",
+        "overwrite=true",
+    )
     t0 = time.time()
-    while not list(tmp_path.glob(".staging-*/way1/records.mcap.partial")) and time.time() - t0 < 120:
+    while (
+        not list(tmp_path.glob(".staging-*/way1/records.mcap.partial")) and time.time() - t0 < 120
+    ):
         time.sleep(0.2)
     time.sleep(1.0)
     proc.send_signal(signal.SIGTERM)
@@ -261,8 +372,18 @@ def test_a_killed_experiment_rerun_keeps_the_previous_experiment(tmp_path):
     assert proc.returncode == 143
     assert {k: v for k, v in digest(tmp_path).items() if not k.startswith(".staging-")} == before
     # the next complete run replaces it and clears the partial one
-    assert cli("trials", "+experiment=fig9", "recogniser=oracle", "seed=3", f"out={tmp_path}", "overwrite=true",
-               *FAST).returncode == 0
+    assert (
+        cli(
+            "trials",
+            "+experiment=fig9",
+            "recogniser=oracle",
+            "seed=3",
+            f"out={tmp_path}",
+            "overwrite=true",
+            *FAST,
+        ).returncode
+        == 0
+    )
     assert not list(tmp_path.glob(".staging-*"))
     assert json.loads((tmp_path / "way1" / "summary.json").read_text())["seed"] == 3
 
@@ -273,10 +394,22 @@ def recorded(tmp_path_factory):
     """fig8 and fig9 recorded at a tiny scale, and a report built from them."""
     d = tmp_path_factory.mktemp("report")
     for exp in ("fig8", "fig9"):
-        out = cli("trials", f"+experiment={exp}", "recogniser=oracle", f"out={d}/runs/{exp}", *FAST,
-                  *(FIG8_WITHOUT_MODELS if exp == "fig8" else []))
+        out = cli(
+            "trials",
+            f"+experiment={exp}",
+            "recogniser=oracle",
+            f"out={d}/runs/{exp}",
+            *FAST,
+            *(FIG8_WITHOUT_MODELS if exp == "fig8" else []),
+        )
         assert out.returncode == 0, out.stderr
-    out = cli("report", f"runs_dir={d}/runs", f"accuracy_dir={d}/none", f"out={d}/reports", "allow_missing=true")
+    out = cli(
+        "report",
+        f"runs_dir={d}/runs",
+        f"accuracy_dir={d}/none",
+        f"out={d}/reports",
+        "allow_missing=true",
+    )
     assert out.returncode == 0, out.stderr
     return d
 
@@ -287,8 +420,12 @@ def _report(d, runs, *extra):
 
 def test_report_refuses_missing_experiments_and_keeps_the_old_one(recorded):
     before = digest(recorded / "reports")
-    one_line_error(_report(recorded, recorded / "runs"), "no complete records for experiment", "experiment fig10",
-                   "allow_missing=true")
+    one_line_error(
+        _report(recorded, recorded / "runs"),
+        "no complete records for experiment",
+        "experiment fig10",
+        "allow_missing=true",
+    )
     assert digest(recorded / "reports") == before
 
 
@@ -303,6 +440,7 @@ def test_report_with_no_records_changes_nothing(recorded, runs):
 @pytest.mark.parametrize("damage", ["truncate", "partial_only", "garbage"])
 def test_report_refuses_damaged_records_and_keeps_the_old_one(recorded, tmp_path, damage):
     import shutil
+
     runs = tmp_path / "runs"
     shutil.copytree(recorded / "runs", runs)
     target = runs / "fig8" / "ssrl" / "records.mcap"
@@ -321,10 +459,22 @@ def test_report_refuses_damaged_records_and_keeps_the_old_one(recorded, tmp_path
 
 def test_report_refuses_cells_of_different_setups(recorded, tmp_path):
     import shutil
+
     runs = tmp_path / "runs"
     shutil.copytree(recorded / "runs", runs)
     other = tmp_path / "other"
-    assert cli("trials", "+experiment=fig8", "recogniser=oracle", "seed=7", f"out={other}", *FAST, *FIG8_WITHOUT_MODELS).returncode == 0
+    assert (
+        cli(
+            "trials",
+            "+experiment=fig8",
+            "recogniser=oracle",
+            "seed=7",
+            f"out={other}",
+            *FAST,
+            *FIG8_WITHOUT_MODELS,
+        ).returncode
+        == 0
+    )
     shutil.rmtree(runs / "fig8" / "shield")
     shutil.copytree(other / "shield", runs / "fig8" / "shield")
     before = digest(recorded / "reports")

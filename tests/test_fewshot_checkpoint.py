@@ -1,4 +1,5 @@
 """Checkpoint round trip and the errors for corrupt, foreign and mismatched files."""
+
 import numpy as np
 import pytest
 import torch
@@ -15,7 +16,13 @@ def _saved(tmp_path):
     with torch.no_grad():  # move the running statistics away from their defaults
         net(torch.randn(2, 5, 3, 24, 24), torch.randn(4, 3, 24, 24))
     net.eval()
-    path = save_checkpoint(tmp_path / "m" / "rn.pt", net, normalisation=NORM, config={"seed": 3}, metrics={"val_accuracy": 0.8})
+    path = save_checkpoint(
+        tmp_path / "m" / "rn.pt",
+        net,
+        normalisation=NORM,
+        config={"seed": 3},
+        metrics={"val_accuracy": 0.8},
+    )
     return net, path
 
 
@@ -35,7 +42,11 @@ def test_round_trip(tmp_path):
 def test_corrupt_checkpoint_names_file(tmp_path, damage):
     _, path = _saved(tmp_path)
     data = path.read_bytes()
-    path.write_bytes({"garbage": b"not a checkpoint at all", "truncated": data[: len(data) // 2], "empty": b""}[damage])
+    path.write_bytes(
+        {"garbage": b"not a checkpoint at all", "truncated": data[: len(data) // 2], "empty": b""}[
+            damage
+        ]
+    )
     with pytest.raises(CheckpointError, match=r"rn\.pt is corrupt"):
         load_checkpoint(path)
 

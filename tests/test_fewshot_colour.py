@@ -1,17 +1,27 @@
 """The colour test (pipeline/fewshot/colour.py): the hue rotation is exact on pure colours and
 leaves greys alone; the test's counts; the recogniser turns its query pictures only."""
+
 import numpy as np
 import pytest
+
 from pipeline.fewshot.colour import colour_test, hue_rotate
 from pipeline.fewshot.recogniser import RelationRecogniser
 from pipeline.fewshot.synthetic import write_synthetic_dataset
 
 
 def test_hue_rotation_of_pure_colours_and_greys():
-    px = np.array([[[255, 0, 0], [0, 255, 0], [128, 128, 128], [0, 0, 0], [255, 255, 255]]], dtype=np.uint8)
+    px = np.array(
+        [[[255, 0, 0], [0, 255, 0], [128, 128, 128], [0, 0, 0], [255, 255, 255]]], dtype=np.uint8
+    )
     turned = hue_rotate(px, 120.0)
     assert turned.dtype == np.uint8 and turned.shape == px.shape
-    assert turned[0].tolist() == [[0, 255, 0], [0, 0, 255], [128, 128, 128], [0, 0, 0], [255, 255, 255]]
+    assert turned[0].tolist() == [
+        [0, 255, 0],
+        [0, 0, 255],
+        [128, 128, 128],
+        [0, 0, 0],
+        [255, 255, 255],
+    ]
     assert hue_rotate(px, 240.0)[0, 0].tolist() == [0, 0, 255]
     assert hue_rotate(px, 360.0) is px and hue_rotate(px, 0.0) is px
 
@@ -28,21 +38,39 @@ def test_hue_rotation_keeps_value_and_saturation_and_turns_back():
 
 def test_colour_test_counts():
     cats = np.array([0, 0, 1, 1, 2])
-    out = colour_test(np.array([0, 1, 1, 1, 2]), {120.0: np.array([0, 0, 0, 0, 0]), 60.0: cats}, cats)
+    out = colour_test(
+        np.array([0, 1, 1, 1, 2]), {120.0: np.array([0, 0, 0, 0, 0]), 60.0: cats}, cats
+    )
     assert out["shifts_deg"] == [60.0, 120.0]
-    assert out["correct_original"] == 4 and out["correct_per_shift"] == [5, 2] and out["pictures"] == 5
-    assert out["predictions_per_shift"][1] == [0, 0, 0, 0, 0] and out["categories"] == [0, 0, 1, 1, 2]
+    assert (
+        out["correct_original"] == 4 and out["correct_per_shift"] == [5, 2] and out["pictures"] == 5
+    )
+    assert out["predictions_per_shift"][1] == [0, 0, 0, 0, 0] and out["categories"] == [
+        0,
+        0,
+        1,
+        1,
+        2,
+    ]
 
 
 def test_recogniser_turns_only_its_query_pictures(tmp_path):
     import torch
+
     from pipeline.fewshot.checkpoint import save_checkpoint
     from pipeline.fewshot.model import ModelConfig, RelationNetwork
+
     images = tmp_path / "images"
     write_synthetic_dataset(images, n_train=2, n_val=1, per_class=2, seed=1)
     torch.manual_seed(0)
     net = RelationNetwork(ModelConfig(24, 1))
-    save_checkpoint(tmp_path / "rn.pt", net, normalisation={"mean": [0.5] * 3, "std": [0.25] * 3}, config={}, metrics={})
+    save_checkpoint(
+        tmp_path / "rn.pt",
+        net,
+        normalisation={"mean": [0.5] * 3, "std": [0.25] * 3},
+        config={},
+        metrics={},
+    )
     plain = RelationRecogniser.from_files(tmp_path / "rn.pt", images)
     turned = RelationRecogniser.from_files(tmp_path / "rn.pt", images, query_hue_shift=180.0)
     again = RelationRecogniser.from_files(tmp_path / "rn.pt", images, query_hue_shift=180.0)
@@ -52,6 +80,8 @@ def test_recogniser_turns_only_its_query_pictures(tmp_path):
     assert all(torch.equal(turned._part[p], again._part[p]) for p in range(40))
     assert all(torch.equal(plain._part[-j], turned._part[-j]) for j in range(1, 26))
     assert torch.equal(plain._original_state, turned._original_state)
-    assert "query_hue_shift" not in plain.describe() and turned.describe()["query_hue_shift"] == 180.0
+    assert (
+        "query_hue_shift" not in plain.describe() and turned.describe()["query_hue_shift"] == 180.0
+    )
     with pytest.raises(ValueError):
         RelationRecogniser.from_files(tmp_path / "rn.pt", images, query_hue_shift=float("nan"))

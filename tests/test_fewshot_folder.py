@@ -1,5 +1,6 @@
 """Meta-training on a folder-per-class tree (``data=folder``): the loader, the stage at smoke
 scale, and every key the source does not read refused (issue: bring your own meta-training set)."""
+
 import json
 
 import numpy as np
@@ -11,8 +12,17 @@ from pipeline.fewshot.data import DataError, load_folder
 from pipeline.fewshot.episodes import require_episodes
 from pipeline.stages._common import run_stage
 
-SHRINK = ["train.input_size=24", "train.relation_padding=1", "train.n_query=3", "train.episodes=20", "train.val_every=10",
-          "train.val_episodes=10", "train.eval_episodes=20", "train.eval_queries=5", "progress=false"]
+SHRINK = [
+    "train.input_size=24",
+    "train.relation_padding=1",
+    "train.n_query=3",
+    "train.episodes=20",
+    "train.val_every=10",
+    "train.val_episodes=10",
+    "train.eval_episodes=20",
+    "train.eval_queries=5",
+    "progress=false",
+]
 
 
 def make_tree(root, classes, per_class=10, seed=0):
@@ -30,7 +40,11 @@ def make_tree(root, classes, per_class=10, seed=0):
 
 def outputs(folder):
     """Every file the stage writes, inside ``folder`` (never the committed model's)."""
-    return [f"checkpoint={folder}/rn.pt", f"metrics_file={folder}/metrics.json", f"history_file={folder}/h.csv"]
+    return [
+        f"checkpoint={folder}/rn.pt",
+        f"metrics_file={folder}/metrics.json",
+        f"history_file={folder}/h.csv",
+    ]
 
 
 @pytest.fixture
@@ -47,7 +61,14 @@ def test_load_folder_reads_classes_in_name_order_resized(tmp_path):
     (root / "README").write_text("a file at the top is not a class")
     pics = load_folder(root, 16)
     assert pics.class_names == ("a_dog", "b_cat")
-    assert pics.files == ("a_dog/p00.png", "a_dog/p01.jpg", "a_dog/p02.png", "b_cat/p00.png", "b_cat/p01.jpg", "b_cat/p02.png")
+    assert pics.files == (
+        "a_dog/p00.png",
+        "a_dog/p01.jpg",
+        "a_dog/p02.png",
+        "b_cat/p00.png",
+        "b_cat/p01.jpg",
+        "b_cat/p02.png",
+    )
     assert pics.labels.tolist() == [0, 0, 0, 1, 1, 1] and (pics.picture_ids == -1).all()
     assert pics.images.shape == (6, 16, 16, 3) and pics.images.dtype == np.uint8
     again = load_folder(root, 16)
@@ -74,7 +95,9 @@ def test_require_episodes_refuses_small_splits(tmp_path):
     pics = load_folder(make_tree(tmp_path / "t", ["a", "b", "c"], per_class=4), 8)
     with pytest.raises(DataError, match="3 classes; 5-way episodes need at least 5"):
         require_episodes(pics.by_class(), pics.class_names, 5, 4, "here")
-    with pytest.raises(DataError, match=r"needs 5 pictures .* too few in a \(4\), b \(4\), c \(4\)"):
+    with pytest.raises(
+        DataError, match=r"needs 5 pictures .* too few in a \(4\), b \(4\), c \(4\)"
+    ):
         require_episodes(pics.by_class(), pics.class_names, 3, 5, "here")
     require_episodes(pics.by_class(), pics.class_names, 3, 4, "here")
 
@@ -85,7 +108,9 @@ def test_meta_train_on_folders(tmp_path, trees):
     args = ["data=folder", f"data.train_dir={train}", f"data.val_dir={val}", *outputs(out), *SHRINK]
     metrics = run_stage("meta_train", args)
     info = json.loads((out / "train_info.json").read_text())
-    assert info["train_dir"] == str(train) and info["val_dir"] == str(val) and "images_dir" not in info
+    assert (
+        info["train_dir"] == str(train) and info["val_dir"] == str(val) and "images_dir" not in info
+    )
     assert info["n_train_classes"] == 6 and info["n_val_classes"] == 5
     assert 0.0 <= metrics["val_accuracy"] <= 1.0 and (out / "rn.pt").is_file()
     first = (out / "metrics.json").read_bytes()
@@ -93,15 +118,33 @@ def test_meta_train_on_folders(tmp_path, trees):
     assert (out / "metrics.json").read_bytes() == first
 
 
-@pytest.mark.parametrize("extra, match", [
-    (["data=folder", "data.train_dir={train}"], r"config key 'data\.val_dir': data=folder needs it"),
-    (["data=folder", "data.train_dir={train}", "data.val_dir={train}"], r"config key 'data\.val_dir': it is data\.train_dir"),
-    (["data=folder", "data.train_dir={train}", "data.val_dir={val}", "images_dir={val}"], r"config key 'images_dir': data=folder reads"),
-    (["data=folder", "data.train_dir={train}", "data.val_dir={val}/missing"], r"config key 'data\.val_dir': .*missing is not a folder"),
-    (["data.train_dir={train}"], r"config key 'data\.train_dir': read only with data=folder"),
-    (["data=folder", "data.train_dir={train}", "data.val_dir={val}", "train.n_query=8"], r"training classes .* too few in t0 \(10\)"),
-    (["data=bogus"], r"data"),
-])
+@pytest.mark.parametrize(
+    "extra, match",
+    [
+        (
+            ["data=folder", "data.train_dir={train}"],
+            r"config key 'data\.val_dir': data=folder needs it",
+        ),
+        (
+            ["data=folder", "data.train_dir={train}", "data.val_dir={train}"],
+            r"config key 'data\.val_dir': it is data\.train_dir",
+        ),
+        (
+            ["data=folder", "data.train_dir={train}", "data.val_dir={val}", "images_dir={val}"],
+            r"config key 'images_dir': data=folder reads",
+        ),
+        (
+            ["data=folder", "data.train_dir={train}", "data.val_dir={val}/missing"],
+            r"config key 'data\.val_dir': .*missing is not a folder",
+        ),
+        (["data.train_dir={train}"], r"config key 'data\.train_dir': read only with data=folder"),
+        (
+            ["data=folder", "data.train_dir={train}", "data.val_dir={val}", "train.n_query=8"],
+            r"training classes .* too few in t0 \(10\)",
+        ),
+        (["data=bogus"], r"data"),
+    ],
+)
 def test_keys_the_source_does_not_read_are_refused(tmp_path, trees, extra, match):
     train, val = trees
     args = [a.format(train=train, val=val) for a in extra]
@@ -113,5 +156,16 @@ def test_keys_the_source_does_not_read_are_refused(tmp_path, trees, extra, match
 def test_validation_classes_must_be_held_out(tmp_path):
     train = make_tree(tmp_path / "train", ["a", "b", "c", "d", "e"])
     val = make_tree(tmp_path / "val", ["e", "f", "g", "h", "i"])
-    with pytest.raises(ConfigError, match=r"config key 'data\.val_dir': classes e are in data\.train_dir too"):
-        run_stage("meta_train", ["data=folder", f"data.train_dir={train}", f"data.val_dir={val}", *outputs(tmp_path), *SHRINK])
+    with pytest.raises(
+        ConfigError, match=r"config key 'data\.val_dir': classes e are in data\.train_dir too"
+    ):
+        run_stage(
+            "meta_train",
+            [
+                "data=folder",
+                f"data.train_dir={train}",
+                f"data.val_dir={val}",
+                *outputs(tmp_path),
+                *SHRINK,
+            ],
+        )

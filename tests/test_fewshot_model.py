@@ -1,5 +1,6 @@
 """Relation Network shapes, the golden output for a fixed seed, K-shot summing and the split of
 g_phi's first convolution (pipeline.fewshot.model)."""
+
 import numpy as np
 import pytest
 import torch
@@ -9,7 +10,14 @@ from pipeline.fewshot.model import CHANNELS, ModelConfig, RelationNetwork, featu
 
 @pytest.mark.parametrize(
     "size,pad,expected",
-    [(84, 0, (19, 3, 576)), (64, 0, (14, 2, 256)), (48, 0, (10, 1, 64)), (46, 0, (10, 1, 64)), (42, 1, (9, 2, 256)), (24, 1, (4, 1, 64))],
+    [
+        (84, 0, (19, 3, 576)),
+        (64, 0, (14, 2, 256)),
+        (48, 0, (10, 1, 64)),
+        (46, 0, (10, 1, 64)),
+        (42, 1, (9, 2, 256)),
+        (24, 1, (4, 1, 64)),
+    ],
 )
 def test_feature_shapes(size, pad, expected):
     shapes = feature_shapes(size, pad)

@@ -1,6 +1,7 @@
 """Prototypical Networks (pipeline.fewshot.protonet): prototypes, distances and log-probabilities
 pinned to hand-computed values; a seeded training run beats chance; checkpoints name their kind;
 the recogniser keeps the dynamic support set and scores with the softmax of -distances."""
+
 import math
 
 import numpy as np
@@ -32,11 +33,15 @@ def test_prototypes_distances_and_log_probabilities_by_hand():
     logits = negative_squared_distances(protos, QUERY)
     assert logits.tolist() == [[-1.0, -5.0], [-10.0, -0.0]]
     log_p = torch.log_softmax(logits, dim=1)
-    expected = [[-math.log1p(math.exp(-4)), -4 - math.log1p(math.exp(-4))],
-                [-10 - math.log1p(math.exp(-10)), -math.log1p(math.exp(-10))]]
+    expected = [
+        [-math.log1p(math.exp(-4)), -4 - math.log1p(math.exp(-4))],
+        [-10 - math.log1p(math.exp(-10)), -math.log1p(math.exp(-10))],
+    ]
     np.testing.assert_allclose(log_p.numpy(), expected, atol=1e-6)  # float32
     loss = PrototypicalNetwork.loss(logits, torch.tensor([0, 1]))
-    assert float(loss) == pytest.approx((math.log1p(math.exp(-4)) + math.log1p(math.exp(-10))) / 2, abs=1e-6)
+    assert float(loss) == pytest.approx(
+        (math.log1p(math.exp(-4)) + math.log1p(math.exp(-10))) / 2, abs=1e-6
+    )
     net = PrototypicalNetwork(ProtoConfig(24))  # the network's methods are the same functions
     assert net.scores(net.class_features(SUPPORT), QUERY).tolist() == logits.tolist()
 
@@ -50,7 +55,7 @@ def test_forward_is_embedding_then_prototypes():
         f_s = net.embedding(support.flatten(0, 1)).flatten(1).view(3, 2, -1)
         f_q = net.embedding(query).flatten(1)
     assert logits.shape == (4, 3) and f_q.shape[1] == ProtoConfig(24).embedding_dim == 64 * 4 * 4
-    ref = -torch.cdist(f_q, f_s.mean(1)) ** 2
+    ref = -(torch.cdist(f_q, f_s.mean(1)) ** 2)
     torch.testing.assert_close(logits, ref, rtol=1e-4, atol=1e-3)
 
 
@@ -72,8 +77,17 @@ def images(tmp_path_factory):
 def test_seeded_training_beats_chance(images):
     train, val = load_split(images, "train", 24), load_split(images, "val", 24)
     torch.set_num_threads(2)
-    cfg = TrainConfig(model="protonet", input_size=24, n_query=3, episodes=40, val_every=20, val_episodes=30,
-                      eval_episodes=60, eval_queries=5, max_minutes=2.0)
+    cfg = TrainConfig(
+        model="protonet",
+        input_size=24,
+        n_query=3,
+        episodes=40,
+        val_every=20,
+        val_episodes=30,
+        eval_episodes=60,
+        eval_queries=5,
+        max_minutes=2.0,
+    )
     result = meta_train(train, val, cfg, progress=False)
     m = result.metrics
     assert isinstance(result.network, PrototypicalNetwork) and m["model"] == "protonet"
@@ -98,11 +112,22 @@ def test_checkpoints_name_their_kind(tmp_path):
     x_s, x_q = torch.randn(5, 2, 3, 24, 24), torch.randn(3, 3, 24, 24)
     with torch.no_grad():
         np.testing.assert_array_equal(net(x_s, x_q).numpy(), loaded(x_s, x_q).numpy())
-    with pytest.raises(CheckpointError, match=r"pn\.pt holds a Prototypical Network \(train.model=protonet\), "
-                                              r"not a Relation Network; load it with recogniser=protonet"):
+    with pytest.raises(
+        CheckpointError,
+        match=r"pn\.pt holds a Prototypical Network \(train.model=protonet\), "
+        r"not a Relation Network; load it with recogniser=protonet",
+    ):
         load_checkpoint(path)
-    rn = save_checkpoint(tmp_path / "rn.pt", RelationNetwork(ModelConfig(24, 1)), normalisation=NORM, config={}, metrics={})
-    with pytest.raises(CheckpointError, match="holds a Relation Network .* not a Prototypical Network"):
+    rn = save_checkpoint(
+        tmp_path / "rn.pt",
+        RelationNetwork(ModelConfig(24, 1)),
+        normalisation=NORM,
+        config={},
+        metrics={},
+    )
+    with pytest.raises(
+        CheckpointError, match="holds a Relation Network .* not a Prototypical Network"
+    ):
         load_checkpoint(rn, kind="protonet")
     with pytest.raises(CheckpointError, match="was trained for"):
         load_checkpoint(path, ProtoConfig(48), kind="protonet")
@@ -120,8 +145,10 @@ def recogniser_setup(tmp_path_factory):
 
 
 def _reference(f_q, f_s, members):
-    protos = torch.stack([torch.stack([f_q[m] if m >= 0 else f_s[-m - 1] for m in cls]).mean(0) for cls in members])
-    return torch.softmax(-torch.cdist(f_q.double(), protos.double()) ** 2, dim=1).numpy()
+    protos = torch.stack(
+        [torch.stack([f_q[m] if m >= 0 else f_s[-m - 1] for m in cls]).mean(0) for cls in members]
+    )
+    return torch.softmax(-(torch.cdist(f_q.double(), protos.double()) ** 2), dim=1).numpy()
 
 
 def test_recogniser_scores_are_the_softmax_of_minus_distances(recogniser_setup):
@@ -149,7 +176,9 @@ def test_substitution_updates_one_prototype(recogniser_setup):
     assert rec.learn_from_collision(0, picture_id=12, true_category=1) == 1
     assert rec._runs[0].valid.tolist() == [True, False, True, True, True]  # only column 1 is stale
     after = rec.scores(0, np.arange(40))
-    torch.testing.assert_close(np.delete(rec._runs[0].state.numpy(), 1, 0), np.delete(protos.numpy(), 1, 0))
+    torch.testing.assert_close(
+        np.delete(rec._runs[0].state.numpy(), 1, 0), np.delete(protos.numpy(), 1, 0)
+    )
     np.testing.assert_array_equal(np.delete(rec._runs[0].table, 1, 1), np.delete(logits, 1, 1))
     assert rec.support_members(0)[1, :2].tolist() == [10, 12]
     np.testing.assert_allclose(after, _reference(f_q, f_s, rec.support_members(0)), atol=1e-4)

@@ -1,5 +1,6 @@
 """The Relation Network recogniser: the trial runner's protocol, scores equal to the plain forward
 pass, per-class recomputation after a substitution, run ownership and carry-over."""
+
 import ast
 from pathlib import Path
 
@@ -113,9 +114,17 @@ def test_fewshot_imports_neither_rl_nor_world():
     for path in package.glob("*.py"):
         tree = ast.parse(path.read_text())
         for node in ast.walk(tree):
-            names = [a.name for a in node.names] if isinstance(node, ast.Import) else [node.module or ""] if isinstance(node, ast.ImportFrom) else []
+            names = (
+                [a.name for a in node.names]
+                if isinstance(node, ast.Import)
+                else [node.module or ""]
+                if isinstance(node, ast.ImportFrom)
+                else []
+            )
             for name in names:
-                assert not name.startswith(("pipeline.rl", "pipeline.world", "pipeline.records", "pipeline.stages")), f"{path.name} imports {name}"
+                assert not name.startswith(
+                    ("pipeline.rl", "pipeline.world", "pipeline.records", "pipeline.stages")
+                ), f"{path.name} imports {name}"
 
 
 def test_a_recogniser_that_does_not_score_cannot_be_built():

@@ -1,46 +1,88 @@
 """The meta_train and accuracy stages end to end on a tiny synthetic dataset (Hydra-composed real
 configs, shrunk), and their config errors."""
+
 import json
 
 import numpy as np
 import pandas as pd
 import pytest
+
 from pipeline.errors import ConfigError
 from pipeline.fewshot.synthetic import write_synthetic_dataset
 from pipeline.stages import meta_train
 from pipeline.stages._common import load_config, run_stage
 
 SHRINK = [
-    "train.input_size=24", "train.relation_padding=1", "train.n_query=3", "train.episodes=20", "train.val_every=10",
-    "train.val_episodes=10", "train.eval_episodes=20", "train.eval_queries=5", "progress=false",
+    "train.input_size=24",
+    "train.relation_padding=1",
+    "train.n_query=3",
+    "train.episodes=20",
+    "train.val_every=10",
+    "train.val_episodes=10",
+    "train.eval_episodes=20",
+    "train.eval_queries=5",
+    "progress=false",
 ]
 
 
 def test_defaults_point_at_the_shared_dataset():
     cfg = load_config("meta_train")
-    assert cfg.images_dir == "datasets/images" and cfg.checkpoint == "datasets/models/relation_net.pt"
+    assert (
+        cfg.images_dir == "datasets/images" and cfg.checkpoint == "datasets/models/relation_net.pt"
+    )
     assert load_config("accuracy").study.repeats == 100
 
 
 def test_meta_train_then_accuracy(tmp_path):
     images = tmp_path / "images"
     write_synthetic_dataset(images, n_train=6, n_val=5, per_class=10, seed=2)
-    paths = [f"images_dir={images}", f"checkpoint={tmp_path}/m/rn.pt", f"metrics_file={tmp_path}/m/metrics.json", f"history_file={tmp_path}/m/h.csv"]
+    paths = [
+        f"images_dir={images}",
+        f"checkpoint={tmp_path}/m/rn.pt",
+        f"metrics_file={tmp_path}/m/metrics.json",
+        f"history_file={tmp_path}/m/h.csv",
+    ]
     metrics = run_stage("meta_train", paths + SHRINK)
     on_disk = json.loads((tmp_path / "m" / "metrics.json").read_text())
-    assert on_disk["val_accuracy"] == pytest.approx(metrics["val_accuracy"]) and on_disk["val_episodes"] == 20
-    info = json.loads((tmp_path / "m" / "train_info.json").read_text())  # metrics.json: metrics only
-    assert set(on_disk) == set(meta_train.METRIC_KEYS) and {"train_seconds", "torch_threads", "images_dir"} <= set(info)
+    assert (
+        on_disk["val_accuracy"] == pytest.approx(metrics["val_accuracy"])
+        and on_disk["val_episodes"] == 20
+    )
+    info = json.loads(
+        (tmp_path / "m" / "train_info.json").read_text()
+    )  # metrics.json: metrics only
+    assert set(on_disk) == set(meta_train.METRIC_KEYS) and {
+        "train_seconds",
+        "torch_threads",
+        "images_dir",
+    } <= set(info)
     assert len(pd.read_csv(tmp_path / "m" / "h.csv")) == 2
 
     out = tmp_path / "acc"
-    data = run_stage("accuracy", [f"recogniser.images_dir={images}", f"recogniser.checkpoint={tmp_path}/m/rn.pt", "recogniser.input_size=24", "recogniser.relation_padding=1", f"out_dir={out}", "study.repeats=4", "progress=false"])
+    data = run_stage(
+        "accuracy",
+        [
+            f"recogniser.images_dir={images}",
+            f"recogniser.checkpoint={tmp_path}/m/rn.pt",
+            "recogniser.input_size=24",
+            "recogniser.relation_padding=1",
+            f"out_dir={out}",
+            "study.repeats=4",
+            "progress=false",
+        ],
+    )
     t1 = pd.read_csv(out / "table1.csv")
     assert len(t1) == 50
     with_same = t1[t1.variant == "with_same"]
     assert (with_same.total == 32).all()  # 4 repeats x 8 pictures ("x/800" at 100 repeats)
     no_same = t1[t1.variant == "no_same"]
-    assert (no_same.total == [28 if s == t else 32 for s, t in zip(no_same.substituted_category, no_same.tested_category)]).all()
+    assert (
+        no_same.total
+        == [
+            28 if s == t else 32
+            for s, t in zip(no_same.substituted_category, no_same.tested_category)
+        ]
+    ).all()
     t2 = pd.read_csv(out / "table2.csv")
     assert t2.substitution_number.tolist() == [0, 1, 2, 3, 4, 5]
     # Table 2 at n = 1 is Table 1's experiment
@@ -51,11 +93,26 @@ def test_meta_train_then_accuracy(tmp_path):
     assert t2.mean_accuracy[0] == pytest.approx(base.correct.mean())
     colour = json.loads((out / "summary.json").read_text())["colour_test"]  # the default hue shifts
     assert colour["shifts_deg"] == [60.0, 120.0, 180.0, 240.0, 300.0] and colour["pictures"] == 40
-    assert colour["correct_original"] == base.correct.sum() and colour["predictions_original"] == base.predicted.tolist()
-    assert [sum(np.equal(p, colour["categories"])) for p in colour["predictions_per_shift"]] == colour["correct_per_shift"]
-    one = run_stage("accuracy", [f"recogniser.images_dir={images}", f"recogniser.checkpoint={tmp_path}/m/rn.pt",
-                                 "recogniser.input_size=24", "recogniser.relation_padding=1", f"out_dir={tmp_path}/acc1",
-                                 "study.repeats=1", "study.hue_shifts=[180]", "progress=false"])
+    assert (
+        colour["correct_original"] == base.correct.sum()
+        and colour["predictions_original"] == base.predicted.tolist()
+    )
+    assert [
+        sum(np.equal(p, colour["categories"])) for p in colour["predictions_per_shift"]
+    ] == colour["correct_per_shift"]
+    one = run_stage(
+        "accuracy",
+        [
+            f"recogniser.images_dir={images}",
+            f"recogniser.checkpoint={tmp_path}/m/rn.pt",
+            "recogniser.input_size=24",
+            "recogniser.relation_padding=1",
+            f"out_dir={tmp_path}/acc1",
+            "study.repeats=1",
+            "study.hue_shifts=[180]",
+            "progress=false",
+        ],
+    )
     assert one["colour_test"]["shifts_deg"] == [180.0]
     assert one["colour_test"]["predictions_per_shift"] == [colour["predictions_per_shift"][2]]
     assert one["config"]["hue_shifts"] == [180.0]
@@ -64,54 +121,111 @@ def test_meta_train_then_accuracy(tmp_path):
 def test_config_errors_name_the_key(tmp_path):
     with pytest.raises(ConfigError, match=r"train\.bogus"):
         run_stage("meta_train", ["+train.bogus=1"])
-    with pytest.raises(ConfigError, match=r"config key 'train\.episodes'.*could not be converted to Integer"):
+    with pytest.raises(
+        ConfigError, match=r"config key 'train\.episodes'.*could not be converted to Integer"
+    ):
         run_stage("meta_train", ["train.episodes=many"])
     with pytest.raises(ConfigError, match=r"extra"):
         run_stage("accuracy", ["+extra=1"])
     with pytest.raises(ConfigError, match=r"config key 'study.repeats': must be >= 1; got 0"):
         run_stage("accuracy", ["study.repeats=0"])
-    with pytest.raises(ConfigError, match=r"config key 'study.hue_shifts': the colour test turns query pictures"):
-        run_stage("accuracy", ["recogniser=oracle", "study.hue_shifts=[90]", f"out_dir={tmp_path}/o"])
-    with pytest.raises(ConfigError, match=r"config key 'study.hue_shifts\[0\]'.*could not be converted to Float"):
+    with pytest.raises(
+        ConfigError, match=r"config key 'study.hue_shifts': the colour test turns query pictures"
+    ):
+        run_stage(
+            "accuracy", ["recogniser=oracle", "study.hue_shifts=[90]", f"out_dir={tmp_path}/o"]
+        )
+    with pytest.raises(
+        ConfigError, match=r"config key 'study.hue_shifts\[0\]'.*could not be converted to Float"
+    ):
         run_stage("accuracy", ["study.hue_shifts=[red]"])
-    with pytest.raises(ConfigError, match=r"config key 'recogniser': query_hue_shift must be a finite number"):
+    with pytest.raises(
+        ConfigError, match=r"config key 'recogniser': query_hue_shift must be a finite number"
+    ):
         run_stage("accuracy", ["recogniser.query_hue_shift=nan", f"out_dir={tmp_path}/o"])
-    with pytest.raises(ConfigError, match=r"config key 'train.lr_schedule': must be one of constant, cosine, step"):
+    with pytest.raises(
+        ConfigError, match=r"config key 'train.lr_schedule': must be one of constant, cosine, step"
+    ):
         run_stage("meta_train", ["train.lr_schedule=linear"])
 
 
 def test_protonet_meta_train_accuracy_and_report_tables(tmp_path):
     """model=protonet trains a Prototypical Network into its own files; the accuracy study runs it
     with recogniser=protonet; the report's Tables 1-2 show it beside the Relation Network."""
-    from pipeline.report.build import Report
     from pipeline.report.accuracy import accuracy_tables
+    from pipeline.report.build import Report
+
     images = tmp_path / "images"
     write_synthetic_dataset(images, n_train=6, n_val=5, per_class=10, seed=2)
     shrink = [s for s in SHRINK if not s.startswith("train.relation_padding")]
     assert load_config("meta_train", ["model=protonet"]).checkpoint == "datasets/models/protonet.pt"
-    with pytest.raises(ConfigError, match=r"config key 'train.relation_padding': the Prototypical Network has no"):
-        run_stage("meta_train", ["model=protonet", "train.relation_padding=0", f"images_dir={images}"] + shrink)
+    with pytest.raises(
+        ConfigError, match=r"config key 'train.relation_padding': the Prototypical Network has no"
+    ):
+        run_stage(
+            "meta_train",
+            ["model=protonet", "train.relation_padding=0", f"images_dir={images}"] + shrink,
+        )
     with pytest.raises(ConfigError, match=r"config key 'train.relation_padding'"):
-        run_stage("meta_train", ["model=protonet", "train.relation_padding=1", f"images_dir={images}"] + shrink)
+        run_stage(
+            "meta_train",
+            ["model=protonet", "train.relation_padding=1", f"images_dir={images}"] + shrink,
+        )
     dirs = {}
     for model, extra in (("relation_net", ["train.relation_padding=1"]), ("protonet", [])):
         m = tmp_path / model
-        run_stage("meta_train", [f"model={model}", f"images_dir={images}", f"checkpoint={m}/net.pt",
-                                 f"metrics_file={m}/metrics.json", f"history_file={m}/h.csv"] + shrink + extra)
+        run_stage(
+            "meta_train",
+            [
+                f"model={model}",
+                f"images_dir={images}",
+                f"checkpoint={m}/net.pt",
+                f"metrics_file={m}/metrics.json",
+                f"history_file={m}/h.csv",
+            ]
+            + shrink
+            + extra,
+        )
         assert json.loads((m / "train_info.json").read_text())["model"] == model
-        args = [f"recogniser={model}", f"recogniser.images_dir={images}", f"recogniser.checkpoint={m}/net.pt",
-                "recogniser.input_size=24", f"out_dir={m}/acc", "study.repeats=2", "progress=false"]
-        data = run_stage("accuracy", args + (["recogniser.relation_padding=1"] if model == "relation_net" else []))
+        args = [
+            f"recogniser={model}",
+            f"recogniser.images_dir={images}",
+            f"recogniser.checkpoint={m}/net.pt",
+            "recogniser.input_size=24",
+            f"out_dir={m}/acc",
+            "study.repeats=2",
+            "progress=false",
+        ]
+        data = run_stage(
+            "accuracy",
+            args + (["recogniser.relation_padding=1"] if model == "relation_net" else []),
+        )
         scores = pd.read_csv(m / "acc" / "baseline.csv").filter(like="score")
-        assert data["config"]["recogniser"]["_target_"].endswith(("RelationRecogniser.from_files", "ProtoRecogniser.from_files"))
+        assert data["config"]["recogniser"]["_target_"].endswith(
+            ("RelationRecogniser.from_files", "ProtoRecogniser.from_files")
+        )
         assert ((scores >= 0) & (scores <= 1)).all().all()
         dirs[model] = m
-    with pytest.raises(ConfigError, match=r"holds a Relation Network \(train.model=relation_net\), not a Prototypical"):
-        run_stage("accuracy", ["recogniser=protonet", f"recogniser.images_dir={images}",
-                               f"recogniser.checkpoint={dirs['relation_net']}/net.pt", "progress=false"])
+    with pytest.raises(
+        ConfigError,
+        match=r"holds a Relation Network \(train.model=relation_net\), not a Prototypical",
+    ):
+        run_stage(
+            "accuracy",
+            [
+                "recogniser=protonet",
+                f"recogniser.images_dir={images}",
+                f"recogniser.checkpoint={dirs['relation_net']}/net.pt",
+                "progress=false",
+            ],
+        )
     rep = Report(tmp_path / "report")
-    accuracy_tables(rep, dirs["relation_net"] / "acc", dirs["relation_net"] / "metrics.json",
-                    {"Prototypical Network": (dirs["protonet"] / "acc", dirs["protonet"] / "metrics.json")})
+    accuracy_tables(
+        rep,
+        dirs["relation_net"] / "acc",
+        dirs["relation_net"] / "metrics.json",
+        {"Prototypical Network": (dirs["protonet"] / "acc", dirs["protonet"] / "metrics.json")},
+    )
     text = "\n".join(rep.sections)
     assert "## The recogniser" in text
     table = pd.read_csv(tmp_path / "report" / "tables" / "recogniser.csv")
@@ -121,6 +235,9 @@ def test_protonet_meta_train_accuracy_and_report_tables(tmp_path):
     assert table["drop, points [95%]"].str.contains(r"\[").all()
     assert "ours, Prototypical Network" in text
     t2 = pd.read_csv(tmp_path / "report" / "tables" / "table2.csv")
-    assert "Prototypical Network [95% CI]" in t2.columns and t2["Prototypical Network [95% CI]"].str.contains("%").all()
+    assert (
+        "Prototypical Network [95% CI]" in t2.columns
+        and t2["Prototypical Network [95% CI]"].str.contains("%").all()
+    )
     t1 = pd.read_csv(tmp_path / "report" / "tables" / "table1_with_same.csv")
     assert "overall, Prototypical Network [95% CI]" in t1.columns

@@ -1,5 +1,6 @@
 """The four substitution ways of the dynamic support set (paper section 3.3, Figure 5), pinned for
 one seed, and their defining properties for many seeds."""
+
 import numpy as np
 import pytest
 

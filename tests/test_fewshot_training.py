@@ -1,5 +1,6 @@
 """Meta-training on tiny synthetic classes beats chance clearly and is deterministic; the manifest
 contract is checked."""
+
 import numpy as np
 import pytest
 import torch
@@ -9,7 +10,17 @@ from pipeline.fewshot.episodes import mean_and_ci95, sample_episode
 from pipeline.fewshot.synthetic import write_synthetic_dataset
 from pipeline.fewshot.training import TrainConfig, meta_train
 
-TINY = dict(input_size=24, relation_padding=1, n_query=3, episodes=60, val_every=30, val_episodes=30, eval_episodes=60, eval_queries=5, max_minutes=2.0)
+TINY = dict(
+    input_size=24,
+    relation_padding=1,
+    n_query=3,
+    episodes=60,
+    val_every=30,
+    val_episodes=30,
+    eval_episodes=60,
+    eval_queries=5,
+    max_minutes=2.0,
+)
 
 
 @pytest.fixture(scope="module")
@@ -33,7 +44,9 @@ def test_short_training_beats_chance(images):
 
 def test_training_is_deterministic(images):
     train, val = load_split(images, "train", 24), load_split(images, "val", 24)
-    cfg = TrainConfig(**{**TINY, "episodes": 6, "val_every": 3, "val_episodes": 5, "eval_episodes": 5})
+    cfg = TrainConfig(
+        **{**TINY, "episodes": 6, "val_every": 3, "val_episodes": 5, "eval_episodes": 5}
+    )
     a = meta_train(train, val, cfg, progress=False)
     b = meta_train(train, val, cfg, progress=False)
     for k, v in a.network.state_dict().items():
@@ -47,9 +60,13 @@ def test_episodes_and_interval():
     assert ep.support.shape == (5, 5) and ep.query.shape == (15,)
     assert len(set(ep.support.ravel()) | set(ep.query)) == 40  # no picture twice
     for i in range(5):  # support and queries of row i come from one class
-        assert len({x // 10 for x in ep.support[i]} | {x // 10 for x in ep.query[ep.labels == i]}) == 1
+        assert (
+            len({x // 10 for x in ep.support[i]} | {x // 10 for x in ep.query[ep.labels == i]}) == 1
+        )
     mean, half = mean_and_ci95(np.array([0.5, 0.7, 0.6, 0.8]))
-    assert mean == pytest.approx(0.65) and half == pytest.approx(1.96 * np.std([0.5, 0.7, 0.6, 0.8], ddof=1) / 2)
+    assert mean == pytest.approx(0.65) and half == pytest.approx(
+        1.96 * np.std([0.5, 0.7, 0.6, 0.8], ddof=1) / 2
+    )
 
 
 def test_manifest_contract(images, tmp_path):

@@ -1,6 +1,7 @@
 """The Gymnasium conventions of the safe-navigation environment (in the style of Farama Minigrid's
 tests): registration on ``import pipeline``, ``check_env`` on every registered id, determinism,
 the rgb_array picture, recognisers by name and the step limit."""
+
 import subprocess
 import sys
 import warnings
@@ -22,24 +23,35 @@ from pipeline.rl.methods import get_method, method_names
 from pipeline.world.pictures import CATEGORIES
 
 ROOT = Path(__file__).resolve().parents[1]
-OUR_IDS = sorted(i for i, spec in gym.registry.items() if spec.entry_point == _registration.ENTRY_POINT)
+OUR_IDS = sorted(
+    i for i, spec in gym.registry.items() if spec.entry_point == _registration.ENTRY_POINT
+)
 N, E, S, W = 0, 1, 2, 3
 
 
 def run_python(code: str) -> str:
-    out = subprocess.run([sys.executable, "-c", code], check=False, capture_output=True, text=True, cwd=ROOT)
+    out = subprocess.run(
+        [sys.executable, "-c", code], check=False, capture_output=True, text=True, cwd=ROOT
+    )
     assert out.returncode == 0, out.stderr
     return out.stdout
 
 
 def test_the_registered_ids_and_their_step_limit():
-    assert OUR_IDS == sorted(pipeline.ENV_IDS) == ["SafeNav-11x11-v0", "SafeNav-5x5-v0", "SafeNav-7x7-v0"]
+    assert (
+        OUR_IDS
+        == sorted(pipeline.ENV_IDS)
+        == ["SafeNav-11x11-v0", "SafeNav-5x5-v0", "SafeNav-7x7-v0"]
+    )
     for env_id in OUR_IDS:
         spec = gym.spec(env_id)
         assert spec.kwargs["method"] == _registration.DEFAULT_METHOD
         assert spec.max_episode_steps == get_method(_registration.DEFAULT_METHOD).max_steps
     pipeline.register_envs()  # again: nothing changes, no "Overriding environment" warning
-    assert sorted(i for i, s in gym.registry.items() if s.entry_point == _registration.ENTRY_POINT) == OUR_IDS
+    assert (
+        sorted(i for i, s in gym.registry.items() if s.entry_point == _registration.ENTRY_POINT)
+        == OUR_IDS
+    )
 
 
 def test_import_pipeline_registers_without_importing_gymnasium_torch_or_fewshot():
@@ -50,15 +62,19 @@ def test_import_pipeline_registers_without_importing_gymnasium_torch_or_fewshot(
         "print(sorted(i for i in gymnasium.registry if i.startswith('SafeNav')))\n"
         "print(any(type(f).__name__ == '_RegisterWhenGymnasiumLoads' for f in sys.meta_path))\n"
         "env = gymnasium.make('SafeNav-5x5-v0'); env.reset(seed=0); env.step(1)\n"
-        "print('torch' in sys.modules, 'pipeline.fewshot' in sys.modules)\n")
+        "print('torch' in sys.modules, 'pipeline.fewshot' in sys.modules)\n"
+    )
     assert out.splitlines() == ["[]", str(sorted(pipeline.ENV_IDS)), "False", "False False"]
 
 
-@pytest.mark.parametrize("code", [
-    "import gymnasium, pipeline\ngymnasium.make('SafeNav-7x7-v0')",  # Gymnasium first: registered at once
-    "import gymnasium\ngymnasium.make('pipeline:SafeNav-7x7-v0')",  # the module:id form imports pipeline
-    "import gymnasium.envs.registration as r, pipeline\nprint(r.registry['SafeNav-7x7-v0'].entry_point)",
-])
+@pytest.mark.parametrize(
+    "code",
+    [
+        "import gymnasium, pipeline\ngymnasium.make('SafeNav-7x7-v0')",  # Gymnasium first: registered at once
+        "import gymnasium\ngymnasium.make('pipeline:SafeNav-7x7-v0')",  # the module:id form imports pipeline
+        "import gymnasium.envs.registration as r, pipeline\nprint(r.registry['SafeNav-7x7-v0'].entry_point)",
+    ],
+)
 def test_every_way_of_importing_registers(code):
     run_python(code)
 
@@ -70,7 +86,8 @@ def test_a_failing_registration_does_not_break_importing_gymnasium():
         "with warnings.catch_warnings(record=True) as w:\n"
         "    warnings.simplefilter('always')\n"
         "    import gymnasium\n"
-        "print(any('could not register' in str(x.message) for x in w))\n")
+        "print(any('could not register' in str(x.message) for x in w))\n"
+    )
     assert out.strip() == "True"
 
 
@@ -79,7 +96,10 @@ def test_gymnasium_has_no_plugin_entry_points():
     them. Should a version load plugins again, this fails: then add
     ``[project.entry-points."gymnasium.envs"] __root__ = "pipeline._registration:register_envs"``."""
     from gymnasium.envs import registration
-    assert not hasattr(registration, "load_plugin_envs") and not hasattr(registration, "load_env_plugins")
+
+    assert not hasattr(registration, "load_plugin_envs") and not hasattr(
+        registration, "load_env_plugins"
+    )
 
 
 @pytest.mark.parametrize("env_id", OUR_IDS)
@@ -91,12 +111,16 @@ def test_check_env_passes_for_every_registered_id(env_id):
         env.close()
 
 
-@pytest.mark.parametrize("method, recogniser, options", [
-    ("fewshot", "oracle", None), ("fewshot_dss", "fixed_accuracy", {"p": 0.5})])
+@pytest.mark.parametrize(
+    "method, recogniser, options",
+    [("fewshot", "oracle", None), ("fewshot_dss", "fixed_accuracy", {"p": 0.5})],
+)
 def test_check_env_passes_with_a_recogniser_by_name(method, recogniser, options):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        env = gym.make("SafeNav-5x5-v0", method=method, recogniser=recogniser, recogniser_options=options)
+        env = gym.make(
+            "SafeNav-5x5-v0", method=method, recogniser=recogniser, recogniser_options=options
+        )
         check_env(env.unwrapped, skip_render_check=False)
 
 
@@ -104,8 +128,10 @@ def scripted_actions(n=50, seed=5):
     return np.random.default_rng(seed).integers(0, 4, size=n).tolist()
 
 
-@pytest.mark.parametrize("method, recogniser", [
-    ("shield", None), ("ssrl", None), ("fewshot_dss", "fixed_accuracy"), ("qlearning", None)])
+@pytest.mark.parametrize(
+    "method, recogniser",
+    [("shield", None), ("ssrl", None), ("fewshot_dss", "fixed_accuracy"), ("qlearning", None)],
+)
 def test_same_seed_same_episode(method, recogniser):
     """Two environments, the same seed, 50 scripted steps: identical observations, rewards and infos
     (the fixed-accuracy recogniser draws its mistakes from the run's seed)."""
@@ -144,19 +170,29 @@ def test_rgb_array_picture():
     s, reward, *_ = env.step(E)
     assert (s, reward) == (0, -1.0) and u.unsafe[0, E]
     img = env.render()
-    assert tuple(int(x) for x in img[t // 2, t - 2]) == gym_render.UNSAFE_RGB == (220, 0, 0)  # east edge of cell 0
+    assert (
+        tuple(int(x) for x in img[t // 2, t - 2]) == gym_render.UNSAFE_RGB == (220, 0, 0)
+    )  # east edge of cell 0
     assert tuple(int(x) for x in img[t // 2, 2]) == gym_render.START_RGB  # west edge: not in A_d
     assert centre(layout.start, img) == gym_render.ROBOT_RGB
     env.step(S)
     img = env.render()
-    assert centre(layout.start, img) == gym_render.START_RGB and centre(5, img) == gym_render.ROBOT_RGB
+    assert (
+        centre(layout.start, img) == gym_render.START_RGB and centre(5, img) == gym_render.ROBOT_RGB
+    )
 
 
 def test_category_colours_are_distinct_and_apart_from_the_markers():
     colours = set(gym_render.CATEGORY_RGB)
     assert len(gym_render.CATEGORY_RGB) == len(CATEGORIES) == len(colours)
-    assert not colours & {gym_render.GOAL_RGB, gym_render.ROBOT_RGB, gym_render.UNSAFE_RGB,
-                          gym_render.FREE_RGB, gym_render.START_RGB, gym_render.GRID_RGB}
+    assert not colours & {
+        gym_render.GOAL_RGB,
+        gym_render.ROBOT_RGB,
+        gym_render.UNSAFE_RGB,
+        gym_render.FREE_RGB,
+        gym_render.START_RGB,
+        gym_render.GRID_RGB,
+    }
 
 
 def test_ansi_text_grid():
@@ -175,7 +211,9 @@ def test_ansi_text_grid():
 def test_render_modes_and_their_errors():
     assert SafeNavigationEnv.metadata["render_modes"] == ["ansi", "rgb_array"]
     assert SafeNavigationEnv.metadata["render_fps"] > 0
-    frames = gym.make("SafeNav-5x5-v0", render_mode="rgb_array_list")  # Gymnasium's RenderCollection
+    frames = gym.make(
+        "SafeNav-5x5-v0", render_mode="rgb_array_list"
+    )  # Gymnasium's RenderCollection
     frames.reset(seed=0)
     frames.step(S)
     assert [f.shape for f in frames.render()] == [(160, 160, 3)] * 2
@@ -192,45 +230,88 @@ def test_render_modes_and_their_errors():
 def test_recognisers_by_name_and_as_objects():
     env = gym.make("SafeNav-5x5-v0", method="fewshot", recogniser="oracle")
     assert type(env.unwrapped.recogniser).__name__ == "OracleRecogniser"
-    env = gym.make("SafeNav-5x5-v0", method="fewshot_dss", recogniser="fixed_accuracy",
-                   recogniser_options={"p": 0.25}, substitution=3)
+    env = gym.make(
+        "SafeNav-5x5-v0",
+        method="fewshot_dss",
+        recogniser="fixed_accuracy",
+        recogniser_options={"p": 0.25},
+        substitution=3,
+    )
     rec = env.unwrapped.recogniser
     assert (rec.p, rec.substitution_way, rec.carry_over) == (0.25, 3, False)
     obj = always_right()
     assert gym.make("SafeNav-5x5-v0", method="fewshot", recogniser=obj).unwrapped.recogniser is obj
     # methods that see no pictures build none (as the trials stage), but the name is still checked
-    assert gym.make("SafeNav-5x5-v0", method="ssrl", recogniser="relation_net").unwrapped.recogniser is None
+    assert (
+        gym.make("SafeNav-5x5-v0", method="ssrl", recogniser="relation_net").unwrapped.recogniser
+        is None
+    )
 
 
 def test_recogniser_errors_say_what_to_pass():
-    with pytest.raises(ValueError, match=r"unknown recogniser 'relnet'; expected one of fixed_accuracy, oracle, protonet, relation_net"):
+    with pytest.raises(
+        ValueError,
+        match=r"unknown recogniser 'relnet'; expected one of fixed_accuracy, oracle, protonet, relation_net",
+    ):
         gym.make("SafeNav-5x5-v0", method="fewshot", recogniser="relnet")
-    with pytest.raises(ValueError, match=r"'fewshot' reasons with pictures and needs a recogniser: pass recogniser=<name>.*"
-                                         r"fixed_accuracy, oracle, protonet, relation_net.*recogniser='oracle'"):
+    with pytest.raises(
+        ValueError,
+        match=r"'fewshot' reasons with pictures and needs a recogniser: pass recogniser=<name>.*"
+        r"fixed_accuracy, oracle, protonet, relation_net.*recogniser='oracle'",
+    ):
         gym.make("SafeNav-5x5-v0", method="fewshot")
     with pytest.raises(TypeError, match="not the name 'oracle'.*gymnasium.make"):
         SafeNavigationEnv("5x5", "fewshot", recogniser="oracle")
     with pytest.raises(ValueError, match="needs a recogniser: pass recogniser=<name>"):
         SafeNavigationEnv("5x5", "fewshot_dss")
-    with pytest.raises(ConfigError, match=r"config key 'recogniser': p must lie in \[0, 1\], got 2"):
-        gym.make("SafeNav-5x5-v0", method="fewshot", recogniser="fixed_accuracy", recogniser_options={"p": 2.0})
+    with pytest.raises(
+        ConfigError, match=r"config key 'recogniser': p must lie in \[0, 1\], got 2"
+    ):
+        gym.make(
+            "SafeNav-5x5-v0",
+            method="fewshot",
+            recogniser="fixed_accuracy",
+            recogniser_options={"p": 2.0},
+        )
     with pytest.raises(ConfigError, match=r"config key 'recogniser\.q'"):
-        gym.make("SafeNav-5x5-v0", method="fewshot", recogniser="fixed_accuracy", recogniser_options={"q": 1})
+        gym.make(
+            "SafeNav-5x5-v0",
+            method="fewshot",
+            recogniser="fixed_accuracy",
+            recogniser_options={"q": 1},
+        )
     with pytest.raises(ValueError, match="recogniser_options go with a recogniser name"):
-        gym.make("SafeNav-5x5-v0", method="fewshot", recogniser=always_right(), recogniser_options={"p": 1})
+        gym.make(
+            "SafeNav-5x5-v0",
+            method="fewshot",
+            recogniser=always_right(),
+            recogniser_options={"p": 1},
+        )
 
 
 def test_relation_net_by_name_goes_through_the_stage_builder(tmp_path):
     """The same builder as the trials stage: its checks and messages (here: a checkpoint that is not there)."""
     with pytest.raises(ConfigError, match=r"config key 'recogniser'.*nowhere\.pt"):
-        gym.make("SafeNav-5x5-v0", method="fewshot", recogniser="relation_net",
-                 recogniser_options={"checkpoint": str(tmp_path / "nowhere.pt"), "images_dir": str(tmp_path)})
+        gym.make(
+            "SafeNav-5x5-v0",
+            method="fewshot",
+            recogniser="relation_net",
+            recogniser_options={
+                "checkpoint": str(tmp_path / "nowhere.pt"),
+                "images_dir": str(tmp_path),
+            },
+        )
 
 
-@pytest.mark.skipif(not (ROOT / "datasets/images/manifest.csv").exists(), reason="needs datasets/images (make repro)")
+@pytest.mark.skipif(
+    not (ROOT / "datasets/images/manifest.csv").exists(),
+    reason="needs datasets/images (make repro)",
+)
 def test_relation_net_by_name_builds_the_trained_recogniser(monkeypatch):
     monkeypatch.chdir(ROOT)
-    env = gym.make("SafeNav-5x5-v0", method="fewshot_dss", recogniser="relation_net", render_mode="rgb_array")
+    env = gym.make(
+        "SafeNav-5x5-v0", method="fewshot_dss", recogniser="relation_net", render_mode="rgb_array"
+    )
     assert type(env.unwrapped.recogniser).__name__ == "RelationRecogniser"
     env.reset(seed=0)
     env.step(E)
@@ -269,9 +350,17 @@ def test_rl_imports_neither_fewshot_nor_the_wiring():
     """The science packages stay independent (README "Layout"): the environment gets recognisers as
     objects; names are resolved by ``pipeline.envs`` (wiring, like the stages)."""
     import ast
+
     for path in (ROOT / "pipeline" / "rl").glob("*.py"):
         for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
-            names = ([a.name for a in node.names] if isinstance(node, ast.Import)
-                     else [node.module or ""] if isinstance(node, ast.ImportFrom) else [])
+            names = (
+                [a.name for a in node.names]
+                if isinstance(node, ast.Import)
+                else [node.module or ""]
+                if isinstance(node, ast.ImportFrom)
+                else []
+            )
             for name in names:
-                assert not name.startswith(("pipeline.fewshot", "pipeline.stages", "pipeline.envs")), f"{path.name} imports {name}"
+                assert not name.startswith(
+                    ("pipeline.fewshot", "pipeline.stages", "pipeline.envs")
+                ), f"{path.name} imports {name}"

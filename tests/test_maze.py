@@ -1,6 +1,12 @@
 import pytest
 
-from pipeline.world.maze import MazeError, count_shortest_paths, load_layout, parse_layout, shortest_path_length
+from pipeline.world.maze import (
+    MazeError,
+    count_shortest_paths,
+    load_layout,
+    parse_layout,
+    shortest_path_length,
+)
 
 
 @pytest.mark.parametrize("name,obstacles,path", [("5x5", 9, 8), ("7x7", 16, 12), ("11x11", 49, 20)])
@@ -24,16 +30,19 @@ def test_any_rectangular_layout_loads_from_a_file(tmp_path):
     assert (layout.height, layout.width, layout.obstacles, layout.goal) == (2, 4, (3, 5), 7)
 
 
-@pytest.mark.parametrize("text,expected", [
-    ("S..\n..\n..G\n", "bad.txt:2: ragged row: 2 cells where line 1 has 3"),
-    ("S.?\n..G\n", "bad.txt:1:3: unknown character '?'"),
-    ("...\n..G\n", "bad.txt: no start cell 'S'"),
-    ("S.G\n..G\n", "bad.txt: 2 goal cells 'G' (at line 1 column 3, line 2 column 3)"),
-    ("S.X\n.XG\n", "bad.txt:2:3: the goal is unreachable from the start"),
-    ("", "bad.txt: empty layout"),
-    ("\n\n# only a comment\n", "bad.txt: empty layout"),
-    ("S..\n\n..G\n", "bad.txt:2: blank line inside the layout"),
-])
+@pytest.mark.parametrize(
+    "text,expected",
+    [
+        ("S..\n..\n..G\n", "bad.txt:2: ragged row: 2 cells where line 1 has 3"),
+        ("S.?\n..G\n", "bad.txt:1:3: unknown character '?'"),
+        ("...\n..G\n", "bad.txt: no start cell 'S'"),
+        ("S.G\n..G\n", "bad.txt: 2 goal cells 'G' (at line 1 column 3, line 2 column 3)"),
+        ("S.X\n.XG\n", "bad.txt:2:3: the goal is unreachable from the start"),
+        ("", "bad.txt: empty layout"),
+        ("\n\n# only a comment\n", "bad.txt: empty layout"),
+        ("S..\n\n..G\n", "bad.txt:2: blank line inside the layout"),
+    ],
+)
 def test_bad_layouts_name_file_line_and_problem(tmp_path, text, expected):
     f = tmp_path / "bad.txt"
     f.write_text(text)

@@ -2,6 +2,7 @@
 Relation Network: Table 3's order on every maze, the DSS gain growing with the maze, Figure 10's
 carried-over support set ending with fewer collisions than restoring it. Slow (about 2 minutes);
 needs the rendered images (`make repro`). Run with `make test-slow`."""
+
 from pathlib import Path
 
 import numpy as np
@@ -11,9 +12,13 @@ ROOT = Path(__file__).resolve().parents[1]
 CHECKPOINT = ROOT / "datasets/models/relation_net.pt"
 IMAGES = ROOT / "datasets/images"
 
-pytestmark = [pytest.mark.slow,
-              pytest.mark.skipif(not (IMAGES / "manifest.csv").exists() or not CHECKPOINT.exists(),
-                                 reason="needs datasets/images and the trained model (make repro)")]
+pytestmark = [
+    pytest.mark.slow,
+    pytest.mark.skipif(
+        not (IMAGES / "manifest.csv").exists() or not CHECKPOINT.exists(),
+        reason="needs datasets/images and the trained model (make repro)",
+    ),
+]
 
 
 def mean_collisions(method, maze, way=1, support="restore"):
@@ -21,13 +26,26 @@ def mean_collisions(method, maze, way=1, support="restore"):
     from pipeline.rl.methods import get_method
     from pipeline.rl.runner import run_trials
     from pipeline.world.maze import load_layout
+
     spec = get_method(method)
     rec = None
     if spec.uses_recogniser:
-        rec = RelationRecogniser.from_files(CHECKPOINT, IMAGES, substitution_way=way if spec.dynamic_support else 0,
-                                            carry_over=support == "carry")
-    result = run_trials(load_layout(maze), spec, 100, 500, seed=0, recogniser=rec, progress=False,
-                        shared_support=support == "carry")
+        rec = RelationRecogniser.from_files(
+            CHECKPOINT,
+            IMAGES,
+            substitution_way=way if spec.dynamic_support else 0,
+            carry_over=support == "carry",
+        )
+    result = run_trials(
+        load_layout(maze),
+        spec,
+        100,
+        500,
+        seed=0,
+        recogniser=rec,
+        progress=False,
+        shared_support=support == "carry",
+    )
     return float(result.collisions.sum(axis=1).mean())
 
 

@@ -2,6 +2,7 @@
 render -> meta_train (Relation Network, Prototypical Network) -> accuracy (both) -> trials (fig8, fig9, fig10,
 table3, accuracy_curve, generalisation, every episode recorded) -> report (twice: the same bytes) -> replay of
 one recorded episode."""
+
 import hashlib
 import json
 import os
@@ -17,16 +18,27 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def stage(*args):
     env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl"), "HYDRA_FULL_ERROR": "1"}
-    out = subprocess.run([sys.executable, "-m", "pipeline", *args, "profile=smoke"], cwd=ROOT, env=env,
-                         capture_output=True, text=True, timeout=600)
+    out = subprocess.run(
+        [sys.executable, "-m", "pipeline", *args, "profile=smoke"],
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert out.returncode == 0, f"{args[0]} failed:\n{out.stdout[-3000:]}\n{out.stderr[-3000:]}"
-    assert out.stdout.splitlines()[-1].startswith("wrote "), f"{args[0]} does not say where it wrote"
+    assert out.stdout.splitlines()[-1].startswith("wrote "), (
+        f"{args[0]} does not say where it wrote"
+    )
     return out
 
 
 def digest(folder: Path) -> dict:
-    return {str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest()
-            for p in sorted(folder.rglob("*")) if p.is_file()}
+    return {
+        str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest()
+        for p in sorted(folder.rglob("*"))
+        if p.is_file()
+    }
 
 
 @pytest.fixture(scope="module")
@@ -34,26 +46,71 @@ def smoke(tmp_path_factory):
     d = tmp_path_factory.mktemp("smoke")
     images, models, acc, runs = d / "images", d / "models", d / "accuracy", d / "runs"
     stage("render", f"out_dir={images}", f"figures_dir={images}/contact_sheets")
-    stage("meta_train", f"images_dir={images}", f"checkpoint={models}/rn.pt", f"metrics_file={models}/metrics.json",
-          f"history_file={models}/history.csv")
-    stage("meta_train", "model=protonet", f"images_dir={images}", f"checkpoint={models}/pn.pt",
-          f"metrics_file={models}/protonet/metrics.json", f"history_file={models}/protonet/history.csv")
-    stage("accuracy", f"recogniser.images_dir={images}", f"recogniser.checkpoint={models}/rn.pt", f"out_dir={acc}")
-    stage("accuracy", "recogniser=protonet", f"recogniser.images_dir={images}", f"recogniser.checkpoint={models}/pn.pt",
-          f"out_dir={d}/accuracy_protonet")
-    protonet_cells = [f"+experiment.cells.{c}.recogniser.{k}={v}" for c in ("fewshot_protonet", "fewshot_dss_protonet")
-                      for k, v in (("checkpoint", f"{models}/pn.pt"), ("images_dir", images))]
+    stage(
+        "meta_train",
+        f"images_dir={images}",
+        f"checkpoint={models}/rn.pt",
+        f"metrics_file={models}/metrics.json",
+        f"history_file={models}/history.csv",
+    )
+    stage(
+        "meta_train",
+        "model=protonet",
+        f"images_dir={images}",
+        f"checkpoint={models}/pn.pt",
+        f"metrics_file={models}/protonet/metrics.json",
+        f"history_file={models}/protonet/history.csv",
+    )
+    stage(
+        "accuracy",
+        f"recogniser.images_dir={images}",
+        f"recogniser.checkpoint={models}/rn.pt",
+        f"out_dir={acc}",
+    )
+    stage(
+        "accuracy",
+        "recogniser=protonet",
+        f"recogniser.images_dir={images}",
+        f"recogniser.checkpoint={models}/pn.pt",
+        f"out_dir={d}/accuracy_protonet",
+    )
+    protonet_cells = [
+        f"+experiment.cells.{c}.recogniser.{k}={v}"
+        for c in ("fewshot_protonet", "fewshot_dss_protonet")
+        for k, v in (("checkpoint", f"{models}/pn.pt"), ("images_dir", images))
+    ]
     for exp in ("fig8", "fig9", "fig10", "table3"):
-        stage("trials", f"+experiment={exp}", f"out={runs}/{exp}", f"recogniser.checkpoint={models}/rn.pt",
-              f"recogniser.images_dir={images}", "progress=false", f"metrics_file={d}/metrics/{exp}.json",
-              *(protonet_cells if exp == "fig8" else []))
-    stage("trials", "+experiment=accuracy_curve", f"out={runs}/accuracy_curve", "progress=false")  # no model
+        stage(
+            "trials",
+            f"+experiment={exp}",
+            f"out={runs}/{exp}",
+            f"recogniser.checkpoint={models}/rn.pt",
+            f"recogniser.images_dir={images}",
+            "progress=false",
+            f"metrics_file={d}/metrics/{exp}.json",
+            *(protonet_cells if exp == "fig8" else []),
+        )
+    stage(
+        "trials", "+experiment=accuracy_curve", f"out={runs}/accuracy_curve", "progress=false"
+    )  # no model
     # 2 layouts per size x 7 methods; one process (two take longer to start than 42 tiny cells take)
-    stage("trials", "+experiment=generalisation", f"out={runs}/generalisation", f"recogniser.checkpoint={models}/rn.pt",
-          f"recogniser.images_dir={images}", "progress=false", "workers=1")
-    report_args = [f"runs_dir={runs}", f"accuracy_dir={acc}", f"model_metrics={models}/metrics.json",
-                   f"protonet_accuracy_dir={d}/accuracy_protonet", f"protonet_metrics={models}/protonet/metrics.json",
-                   f"contact_dir={images}/contact_sheets"]
+    stage(
+        "trials",
+        "+experiment=generalisation",
+        f"out={runs}/generalisation",
+        f"recogniser.checkpoint={models}/rn.pt",
+        f"recogniser.images_dir={images}",
+        "progress=false",
+        "workers=1",
+    )
+    report_args = [
+        f"runs_dir={runs}",
+        f"accuracy_dir={acc}",
+        f"model_metrics={models}/metrics.json",
+        f"protonet_accuracy_dir={d}/accuracy_protonet",
+        f"protonet_metrics={models}/protonet/metrics.json",
+        f"contact_dir={images}/contact_sheets",
+    ]
     stage("report", *report_args, f"out={d}/reports")
     return d, report_args
 
@@ -61,17 +118,29 @@ def smoke(tmp_path_factory):
 def test_every_experiment_is_recorded_and_reported(smoke):
     d, _ = smoke
     from pipeline.records import read_records
+
     recs = read_records(d / "runs" / "fig8" / "fewshot_dss" / "records.mcap")
     assert sorted(recs.episodes["run"].unique().tolist()) == [0, 1, 2]
     assert len(recs.episodes) == 3 * 20
     assert len(recs.meta.pictures) == 40  # the query pictures, stored once
     index = (d / "reports" / "index.md").read_text()
-    for title in ("Table 1", "Table 2", "Figure 7", "Figure 8", "Figure 9", "Figure 10", "Table 3",
-                  "Beyond the paper: collisions against recognition accuracy",
-                  "Beyond the paper: do the claims generalise over generated layouts?"):
+    for title in (
+        "Table 1",
+        "Table 2",
+        "Figure 7",
+        "Figure 8",
+        "Figure 9",
+        "Figure 10",
+        "Table 3",
+        "Beyond the paper: collisions against recognition accuracy",
+        "Beyond the paper: do the claims generalise over generated layouts?",
+    ):
         assert title in index
     assert "ours, Prototypical Network" in index and "Prototypical Network recogniser" in index
-    assert len(read_records(d / "runs" / "fig8" / "fewshot_dss_protonet" / "records.mcap").episodes) == 3 * 20
+    assert (
+        len(read_records(d / "runs" / "fig8" / "fewshot_dss_protonet" / "records.mcap").episodes)
+        == 3 * 20
+    )
     assert (d / "reports" / "figures" / "fig8_collisions.png").stat().st_size > 1000
     assert (d / "reports" / "figures" / "contact_query.png").exists()
     claims = pd.read_csv(d / "reports" / "tables" / "generalisation_claims.csv")
@@ -88,8 +157,22 @@ def test_report_is_rebuilt_byte_for_byte(smoke):
 def test_replay_of_a_recorded_episode(smoke):
     d, _ = smoke
     rrd = d / "replay.rrd"
-    out = subprocess.run([sys.executable, "-m", "pipeline", "replay", f"file={d}/runs/fig8/fewshot_dss/records.mcap",
-                          "run=1", "episode=3", f"out={rrd}"], cwd=ROOT, capture_output=True, text=True, timeout=300)
+    out = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "pipeline",
+            "replay",
+            f"file={d}/runs/fig8/fewshot_dss/records.mcap",
+            "run=1",
+            "episode=3",
+            f"out={rrd}",
+        ],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert out.returncode == 0, out.stderr[-2000:]
     assert rrd.stat().st_size > 0
     assert out.stdout.splitlines()[-1] == f"wrote {rrd}"
@@ -98,15 +181,24 @@ def test_replay_of_a_recorded_episode(smoke):
 def test_same_experiment_and_seed_give_identical_summaries_and_records(smoke):
     d, _ = smoke
     images, models = d / "images", d / "models"
-    stage("trials", "+experiment=fig10", f"out={d}/again/fig10", f"recogniser.checkpoint={models}/rn.pt",
-          f"recogniser.images_dir={images}", "progress=false")
+    stage(
+        "trials",
+        "+experiment=fig10",
+        f"out={d}/again/fig10",
+        f"recogniser.checkpoint={models}/rn.pt",
+        f"recogniser.images_dir={images}",
+        "progress=false",
+    )
     for cell in ("restore", "carry"):
         first = json.loads((d / "runs" / "fig10" / cell / "summary.json").read_text())
         again = json.loads((d / "again" / "fig10" / cell / "summary.json").read_text())
         assert first == again
     from pipeline.records import read_records
+
     a = read_records(d / "runs" / "fig10" / "carry" / "records.mcap")
     b = read_records(d / "again" / "fig10" / "carry" / "records.mcap")
     for frame in ("steps", "episodes", "recognitions", "unsafe", "substitutions"):
-        pd.testing.assert_frame_equal(getattr(a, frame).drop(columns="file"), getattr(b, frame).drop(columns="file"))
+        pd.testing.assert_frame_equal(
+            getattr(a, frame).drop(columns="file"), getattr(b, frame).drop(columns="file")
+        )
     assert len(a.steps) > 0 and len(a.substitutions) > 0

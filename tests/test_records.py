@@ -1,4 +1,5 @@
 """MCAP records: schema, writer, reader, truncated files (docs/records.md)."""
+
 from __future__ import annotations
 
 import subprocess
@@ -7,18 +8,39 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from synthetic_records import (
+    LAYOUT_5X5,
+    batches,
+    make_batch,
+    obstacle_assignment,
+    tiny_png,
+    write_synthetic,
+)
 
-from pipeline.records import RecordWriter, RecordsWarning, read_records
+from pipeline.records import RecordsWarning, RecordWriter, read_records
 from pipeline.records import schema as S
-from synthetic_records import LAYOUT_5X5, batches, make_batch, obstacle_assignment, tiny_png, write_synthetic
 
 
 def _episode(run=0, episode=0, n=3, **over):
-    f = {"run": run, "episode": episode, "states": np.arange(n, dtype=np.int32),
-         "actions": np.ones(n, np.int8), "rewards": np.zeros(n, np.float32), "flags": np.zeros(n, np.uint8),
-         "recognitions": {}, "unsafe_added": {},
-         "summary": {"steps": n, "collisions": 0, "return_": 0.0, "reached_goal": False, "prevented": 0,
-                     "epsilon": 0.1, "greedy_optimal": False}}
+    f = {
+        "run": run,
+        "episode": episode,
+        "states": np.arange(n, dtype=np.int32),
+        "actions": np.ones(n, np.int8),
+        "rewards": np.zeros(n, np.float32),
+        "flags": np.zeros(n, np.uint8),
+        "recognitions": {},
+        "unsafe_added": {},
+        "summary": {
+            "steps": n,
+            "collisions": 0,
+            "return_": 0.0,
+            "reached_goal": False,
+            "prevented": 0,
+            "epsilon": 0.1,
+            "greedy_optimal": False,
+        },
+    }
     f.update(over)
     return f
 
@@ -58,10 +80,18 @@ def test_write_then_read_back_equals_what_was_written(tmp_path):
         rec = f["recognitions"]
         if len(rec["step"]):
             r = recg.get_group(key)
-            for col, k in [("step", "step"), ("state", "state"), ("action", "action"),
-                           ("picture", "picture"), ("predicted", "predicted"), ("true", "true")]:
+            for col, k in [
+                ("step", "step"),
+                ("state", "state"),
+                ("action", "action"),
+                ("picture", "picture"),
+                ("predicted", "predicted"),
+                ("true", "true"),
+            ]:
                 np.testing.assert_array_equal(r[col].to_numpy(), rec[k])
-            np.testing.assert_array_equal(r[[f"score_{j}" for j in range(5)]].to_numpy(), rec["scores"])
+            np.testing.assert_array_equal(
+                r[[f"score_{j}" for j in range(5)]].to_numpy(), rec["scores"]
+            )
         un = f["unsafe_added"]
         if len(un["step"]):
             u = unsafe.get_group(key)
@@ -75,14 +105,24 @@ def test_write_then_read_back_equals_what_was_written(tmp_path):
     assert recs.episodes.reached_goal.dtype == bool
     subs = [s for f in written for s in f["_substitutions"]]
     assert len(recs.substitutions) == len(subs)
-    got = recs.substitutions[["run", "episode", "step", "picture", "category", "position"]].to_dict("records")
+    got = recs.substitutions[["run", "episode", "step", "picture", "category", "position"]].to_dict(
+        "records"
+    )
     assert got == sorted(subs, key=lambda s: (s["run"], s["episode"], s["step"]))  # stable per step
     m = recs.meta
-    assert m.complete and m.closed == {"complete": "true", "episodes": "21", "substitutions": str(len(subs))}
+    assert m.complete and m.closed == {
+        "complete": "true",
+        "episodes": "21",
+        "substitutions": str(len(subs)),
+    }
     assert m.config == {"experiment": "synthetic", "seed": 1, "runs": 3}
     assert "experiment: synthetic" in m.config_yaml
     assert m.seeds == [0, 1, 2]
-    assert m.maze["layout"] == LAYOUT_5X5 and m.maze["width"] == 5 and m.maze["categories"][0] == "chair"
+    assert (
+        m.maze["layout"] == LAYOUT_5X5
+        and m.maze["width"] == 5
+        and m.maze["categories"][0] == "chair"
+    )
     assert m.obstacles == {r: obstacle_assignment(LAYOUT_5X5, r, 1) for r in range(3)}
     assert m.pictures == {pid: tiny_png(pid) for pid in range(40)}
     assert m.versions["mcap"] and m.versions["python"]
@@ -108,18 +148,45 @@ def test_pictures_are_stored_once_per_file(tmp_path):
 
 def test_q_values_and_missing_scores_round_trip(tmp_path):
     q = np.arange(25 * 4, dtype=np.float32).reshape(25, 4) / 7
-    rec = {"step": np.array([1, 2]), "state": np.array([3, 4]), "action": np.array([0, 1]),
-           "picture": np.array([5, 6]), "predicted": np.array([1, 2]), "true": np.array([1, 3]),
-           "scores": np.zeros((0, 0))}
+    rec = {
+        "step": np.array([1, 2]),
+        "state": np.array([3, 4]),
+        "action": np.array([0, 1]),
+        "picture": np.array([5, 6]),
+        "predicted": np.array([1, 2]),
+        "true": np.array([1, 3]),
+        "scores": np.zeros((0, 0)),
+    }
     with RecordWriter(tmp_path / "q.mcap") as w:
-        w.episodes(**make_batch([_episode(0, 0, q_values=q, recognitions=rec,
-                                          summary={"steps": 3, "collisions": 1, "return_": -1.0, "reached_goal": False,
-                                                   "prevented": 1, "epsilon": 0.07, "greedy_optimal": True})]))
+        w.episodes(
+            **make_batch(
+                [
+                    _episode(
+                        0,
+                        0,
+                        q_values=q,
+                        recognitions=rec,
+                        summary={
+                            "steps": 3,
+                            "collisions": 1,
+                            "return_": -1.0,
+                            "reached_goal": False,
+                            "prevented": 1,
+                            "epsilon": 0.07,
+                            "greedy_optimal": True,
+                        },
+                    )
+                ]
+            )
+        )
         w.episodes(**make_batch([_episode(0, 1)]))
     r = read_records(tmp_path / "q.mcap")
     assert list(r.q_values) == [(str(tmp_path / "q.mcap"), 0, 0)]
     np.testing.assert_array_equal(r.q_values[(str(tmp_path / "q.mcap"), 0, 0)], q)
-    assert list(r.episodes.greedy_optimal) == [True, False] and list(r.episodes.epsilon) == [0.07, 0.1]
+    assert list(r.episodes.greedy_optimal) == [True, False] and list(r.episodes.epsilon) == [
+        0.07,
+        0.1,
+    ]
     assert "score_0" not in r.recognitions and list(r.recognitions.correct) == [True, False]
     assert list(r.recognitions.episode) == [0, 0] and list(r.episodes.n_recognitions) == [2, 0]
 
@@ -130,23 +197,32 @@ def test_batches_of_the_runner_protocol_round_trip(tmp_path):
     from pipeline.rl.sink import split_batch
 
     groups = list(batches(LAYOUT_5X5, batch_size=3, runs=2, episodes_per_run=7, seed=5))
-    order = [g for pair in zip(groups[:3], groups[3:6]) for g in pair] + groups[6:]  # run 0, run 1, ...
+    order = [g for pair in zip(groups[:3], groups[3:6]) for g in pair] + groups[
+        6:
+    ]  # run 0, run 1, ...
     with RecordWriter(tmp_path / "b.mcap", flush_every=4) as w:
         for batch, _ in order:
             w.episodes(**batch)
     with RecordWriter(tmp_path / "e.mcap") as w:
         for batch, _ in groups:
-            for ep in split_batch(batch):  # the sink protocol's own per-episode view, a batch of one each
+            for ep in split_batch(
+                batch
+            ):  # the sink protocol's own per-episode view, a batch of one each
                 w.episodes(**make_batch([ep]))
     a, b = read_records(tmp_path / "b.mcap"), read_records(tmp_path / "e.mcap")
     for key in ("steps", "episodes", "recognitions", "unsafe"):
-        assert getattr(a, key).drop(columns="file").equals(getattr(b, key).drop(columns="file")), key
+        assert getattr(a, key).drop(columns="file").equals(getattr(b, key).drop(columns="file")), (
+            key
+        )
     assert len(a.episodes) == 14 and a.meta.closed["episodes"] == "14"
     # one run, one episode: the batch stamped before it is read and filtered
     one = read_records(tmp_path / "b.mcap", run=1, episode=5)
     assert list(one.episodes.episode) == [5] and set(one.steps.episode) == {5}
     assert one.steps.drop(columns="file").equals(
-        a.steps[(a.steps.run == 1) & (a.steps.episode == 5)].drop(columns="file").reset_index(drop=True))
+        a.steps[(a.steps.run == 1) & (a.steps.episode == 5)]
+        .drop(columns="file")
+        .reset_index(drop=True)
+    )
 
 
 def _encode_with_the_runtime(b) -> bytes:
@@ -171,7 +247,12 @@ def _odd_batches(seed: int, n: int = 30):
     from synthetic_records import maze_layout
 
     layout = maze_layout(11, seed=seed)
-    groups = [b for b, _ in batches(layout, batch_size=5, runs=2, episodes_per_run=n, seed=seed, max_steps=300)]
+    groups = [
+        b
+        for b, _ in batches(
+            layout, batch_size=5, runs=2, episodes_per_run=n, seed=seed, max_steps=300
+        )
+    ]
     groups[1]["states"] = groups[1]["states"] + 70000
     groups[2]["recognitions"]["predicted"][:] = -1
     groups[3]["recognitions"]["scores"] = np.zeros((0, 0), np.float32)
@@ -199,7 +280,9 @@ def test_bad_input_is_refused_with_a_message_naming_it(tmp_path):
     with pytest.raises(ValueError, match="unknown cell characters"):
         RecordWriter(tmp_path / "x.mcap", maze={"layout": ["S.#", "..G"]})
     with pytest.raises(ValueError, match="lacks \\['orientation'\\]"):
-        RecordWriter(tmp_path / "x.mcap", runs=[[{"cell": 1, "physical": 0, "category": 0, "instance": 0}]])
+        RecordWriter(
+            tmp_path / "x.mcap", runs=[[{"cell": 1, "physical": 0, "category": 0, "instance": 0}]]
+        )
     with RecordWriter(tmp_path / "x.mcap") as w:
         with pytest.raises(TypeError, match="missing fields \\['summary'\\]"):
             w.episodes(**{k: v for k, v in make_batch([_episode()]).items() if k != "summary"})
@@ -207,9 +290,11 @@ def test_bad_input_is_refused_with_a_message_naming_it(tmp_path):
             w.episodes(**make_batch([_episode(actions=np.zeros(2))]))
         with pytest.raises(ValueError, match="must hold integers"):
             w.episodes(**make_batch([_episode(actions=np.zeros(3))]))
-        for key, bad, why in (("states", np.array([0, -1, 2]), "states: values -1..2 outside 0..4294967295"),
-                              ("actions", np.array([0, 1, 2**32], np.int64), "actions: values 0..4294967296 outside"),
-                              ("states", np.array([0, 1, 2], ">i4"), None)):  # a non-native dtype is checked, kept
+        for key, bad, why in (
+            ("states", np.array([0, -1, 2]), "states: values -1..2 outside 0..4294967295"),
+            ("actions", np.array([0, 1, 2**32], np.int64), "actions: values 0..4294967296 outside"),
+            ("states", np.array([0, 1, 2], ">i4"), None),
+        ):  # a non-native dtype is checked, kept
             if why is None:
                 check_batch(make_batch([_episode(**{key: bad})]))
                 continue
@@ -244,8 +329,10 @@ def _chunks(path: Path) -> list[tuple[int, int, int]]:
 
     with open(path, "rb") as f:
         summary = make_reader(f).get_summary()
-    return sorted((ci.chunk_start_offset + ci.chunk_length, ci.message_start_time, ci.message_end_time)
-                  for ci in summary.chunk_indexes)
+    return sorted(
+        (ci.chunk_start_offset + ci.chunk_length, ci.message_start_time, ci.message_end_time)
+        for ci in summary.chunk_indexes
+    )
 
 
 def _chunk_ends(path: Path) -> list[int]:
@@ -258,11 +345,15 @@ def test_a_file_truncated_at_many_points_reads_up_to_its_last_complete_chunk(tmp
     full = read_records(tmp_path / "full.mcap")
     chunks = _chunks(tmp_path / "full.mcap")
     ends = [c[0] for c in chunks]
-    assert len(chunks) >= 1 + 24 // 4  # the pictures, then a chunk once 3 episodes came in (4 a batch)
+    assert (
+        len(chunks) >= 1 + 24 // 4
+    )  # the pictures, then a chunk once 3 episodes came in (4 a batch)
     from pipeline.records.scan import scan
 
-    batch_sizes = {t: len(S.EpisodeBatch.FromString(d).episode)
-                   for t, d in scan(tmp_path / "full.mcap").messages["/episodes"]}
+    batch_sizes = {
+        t: len(S.EpisodeBatch.FromString(d).episode)
+        for t, d in scan(tmp_path / "full.mcap").messages["/episodes"]
+    }
     assert sum(batch_sizes.values()) == len(written)
     rng = np.random.default_rng(0)
     cuts = set(rng.integers(9, len(data) - 1, 60).tolist())
@@ -275,10 +366,18 @@ def test_a_file_truncated_at_many_points_reads_up_to_its_last_complete_chunk(tmp
         msg = " ".join(str(w.message) for w in caught)
         assert str(cut_path) in msg and "truncated" in msg, (cut, msg)
         # exactly the episodes of the complete chunks before the cut, equal to the full read
-        expected = sum(n for end, lo, hi in chunks[1:] if end <= cut for t, n in batch_sizes.items() if lo <= t <= hi)
+        expected = sum(
+            n
+            for end, lo, hi in chunks[1:]
+            if end <= cut
+            for t, n in batch_sizes.items()
+            if lo <= t <= hi
+        )
         assert len(r.episodes) == expected, (cut, msg)
         assert ("no complete episode" in msg) == (expected == 0)
-        assert r.episodes.drop(columns="file").equals(full.episodes.drop(columns="file").iloc[:expected])
+        assert r.episodes.drop(columns="file").equals(
+            full.episodes.drop(columns="file").iloc[:expected]
+        )
         n_steps = int(full.episodes.steps.iloc[:expected].sum())
         assert r.steps.drop(columns="file").equals(full.steps.drop(columns="file").iloc[:n_steps])
         if cut >= ends[0]:
@@ -302,7 +401,7 @@ import os, sys
 sys.path.insert(0, {str(Path(__file__).resolve().parents[1])!r})
 from tests.synthetic_records import LAYOUT_5X5, batches
 from pipeline.records import RecordWriter
-w = RecordWriter({str(tmp_path / 'k.mcap')!r}, maze={{"layout": LAYOUT_5X5}}, flush_every=5)
+w = RecordWriter({str(tmp_path / "k.mcap")!r}, maze={{"layout": LAYOUT_5X5}}, flush_every=5)
 for batch, _ in batches(LAYOUT_5X5, batch_size=3, runs=1, episodes_per_run=14):
     w.episodes(**batch)
 os._exit(9)  # killed: no close(), no interpreter clean-up
@@ -312,7 +411,9 @@ os._exit(9)  # killed: no close(), no interpreter clean-up
     assert not (tmp_path / "k.mcap").exists()
     with pytest.warns(RecordsWarning, match="k.mcap.partial"):
         r = read_records(tmp_path)  # a folder: the .partial of the killed run is found
-    assert list(r.episodes.episode) == list(range(12))  # batches of 3; flushed after 6 and 12; 2 lost
+    assert list(r.episodes.episode) == list(
+        range(12)
+    )  # batches of 3; flushed after 6 and 12; 2 lost
 
 
 def test_reading_a_folder_and_filtering_one_episode(tmp_path):
@@ -323,9 +424,15 @@ def test_reading_a_folder_and_filtering_one_episode(tmp_path):
     assert r.episodes.groupby("file", observed=True).size().tolist() == [10, 15]
     one = read_records(tmp_path / "x" / "b.mcap", run=2, episode=3)
     assert len(one.episodes) == 1 and set(one.steps.episode) == {3} and set(one.steps.run) == {2}
-    assert one.steps.equals(r.steps[(r.steps.file == str(tmp_path / "x" / "b.mcap")) & (r.steps.run == 2)
-                                    & (r.steps.episode == 3)].reset_index(drop=True)
-                            .assign(file=lambda d: d.file.cat.remove_unused_categories()))
+    assert one.steps.equals(
+        r.steps[
+            (r.steps.file == str(tmp_path / "x" / "b.mcap"))
+            & (r.steps.run == 2)
+            & (r.steps.episode == 3)
+        ]
+        .reset_index(drop=True)
+        .assign(file=lambda d: d.file.cat.remove_unused_categories())
+    )
 
 
 def test_a_file_that_is_no_mcap_is_refused(tmp_path):
@@ -341,8 +448,19 @@ def test_rerun_mcap_convert_yields_the_pictures(tmp_path):
 
     write_synthetic(tmp_path / "a.mcap", runs=1, episodes_per_run=3)
     rerun_cli = Path(sys.executable).with_name("rerun")
-    res = subprocess.run([str(rerun_cli), "mcap", "convert", str(tmp_path / "a.mcap"), "-o",
-                          str(tmp_path / "a.rrd")], capture_output=True, text=True, timeout=120)
+    res = subprocess.run(
+        [
+            str(rerun_cli),
+            "mcap",
+            "convert",
+            str(tmp_path / "a.mcap"),
+            "-o",
+            str(tmp_path / "a.rrd"),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert res.returncode == 0, res.stderr
     images = {}
     episodes_seen = 0
@@ -361,10 +479,25 @@ def test_rerun_mcap_convert_yields_the_pictures(tmp_path):
     # a killed run's file: Rerun needs --recover (without it, it writes an empty recording)
     data = (tmp_path / "a.mcap").read_bytes()
     (tmp_path / "cut.mcap").write_bytes(data[: len(data) - 3000])
-    res = subprocess.run([str(rerun_cli), "mcap", "convert", "--recover", str(tmp_path / "cut.mcap"), "-o",
-                          str(tmp_path / "cut.rrd")], capture_output=True, text=True, timeout=120)
+    res = subprocess.run(
+        [
+            str(rerun_cli),
+            "mcap",
+            "convert",
+            "--recover",
+            str(tmp_path / "cut.mcap"),
+            "-o",
+            str(tmp_path / "cut.rrd"),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert res.returncode == 0, res.stderr
-    paths = {str(ch.entity_path) for ch in rerun.chunk.RrdReader(tmp_path / "cut.rrd").stream().to_chunks()}
+    paths = {
+        str(ch.entity_path)
+        for ch in rerun.chunk.RrdReader(tmp_path / "cut.rrd").stream().to_chunks()
+    }
     assert "/pictures/39" in paths
 
 
@@ -374,14 +507,24 @@ def _runtime_flat(data: list[bytes]) -> dict:
     from pipeline.records.codec import COLUMNS, SUBS
 
     top = [S.EpisodeBatch.FromString(d) for d in data]
-    msgs = {"EpisodeBatch": top} | {sub: [getattr(v, field) for v in top] for field, sub in SUBS.items()}
-    out = {"run": np.array([m.run for m in top], np.int64), "n_actions": np.array([m.n_actions for m in top]),
-           "n_categories": np.array([m.recognitions.n_categories for m in top], np.int64)}
+    msgs = {"EpisodeBatch": top} | {
+        sub: [getattr(v, field) for v in top] for field, sub in SUBS.items()
+    }
+    out = {
+        "run": np.array([m.run for m in top], np.int64),
+        "n_actions": np.array([m.n_actions for m in top]),
+        "n_categories": np.array([m.recognitions.n_categories for m in top], np.int64),
+    }
     for msg, fields in COLUMNS.items():
         for f in fields:
             raw = [list(getattr(m, f.name)) for m in msgs[msg]]
-            out[msg, f.name] = (np.array([x for xs in raw for x in xs], {S.F32: np.float32, S.F64: np.float64}
-                                         .get(f.type, np.int64)), np.array([len(x) for x in raw], np.int64))
+            out[msg, f.name] = (
+                np.array(
+                    [x for xs in raw for x in xs],
+                    {S.F32: np.float32, S.F64: np.float64}.get(f.type, np.int64),
+                ),
+                np.array([len(x) for x in raw], np.int64),
+            )
     return out
 
 
@@ -404,13 +547,17 @@ def test_raw_view_decoding_equals_the_protobuf_runtime(tmp_path):
         return cols
 
     groups = _odd_batches(4, 20)
-    with RecordWriter(tmp_path / "wide.mcap") as w:  # states of 128 or more: varints of several bytes
+    with RecordWriter(
+        tmp_path / "wide.mcap"
+    ) as w:  # states of 128 or more: varints of several bytes
         for b in groups:
             w.episodes(**b)
     wide = [d for _, d in scan(tmp_path / "wide.mcap").messages["/episodes"]]
     assert max(S.EpisodeBatch.FromString(d).steps.states[0] for d in wide) >= 70000
     same(wide)
-    states = read_records(tmp_path / "wide.mcap").steps.query("run == 0 and episode in [5, 6, 7, 8, 9]")["state"]
+    states = read_records(tmp_path / "wide.mcap").steps.query(
+        "run == 0 and episode in [5, 6, 7, 8, 9]"
+    )["state"]
     np.testing.assert_array_equal(states, groups[1]["states"])
     groups[1]["states"] = groups[1]["states"] - 70000
     with RecordWriter(tmp_path / "v.mcap") as w:
@@ -419,23 +566,28 @@ def test_raw_view_decoding_equals_the_protobuf_runtime(tmp_path):
     msgs = scan(tmp_path / "v.mcap").messages["/episodes"]
     data = [d for _, d in msgs]
     cols = same(data)
-    assert cols["q_values"].keys() == {("v", 1, e) for e in range(5, 10)}  # group 5: run 1, episodes 5-9
+    assert cols["q_values"].keys() == {
+        ("v", 1, e) for e in range(5, 10)
+    }  # group 5: run 1, episodes 5-9
     np.testing.assert_array_equal(cols["q_values"][("v", 1, 6)], groups[5]["q_values"][1])
     assert np.isnan(cols["recognitions"]["score_0"]).sum() > 0  # group 3: no scores
     # other valid encodings of the same values: re-serialized by the real classes, then read the same
     one = S.EpisodeBatch.FromString(data[0])
     states = one.steps.states
-    tail = S.EpisodeBatch(steps=S.Steps(states=states[len(states) // 2:]))
+    tail = S.EpisodeBatch(steps=S.Steps(states=states[len(states) // 2 :]))
     one.steps.ClearField("states")
-    one.steps.states.extend(states[:len(states) // 2])
-    split = one.SerializeToString(deterministic=True) + tail.SerializeToString()  # a packed field in two
+    one.steps.states.extend(states[: len(states) // 2])
+    split = (
+        one.SerializeToString(deterministic=True) + tail.SerializeToString()
+    )  # a packed field in two
     unknown = data[0] + bytes([(15 << 3) | 0, 1])  # an unknown field 15
     long_code = S.EpisodeBatch.FromString(data[0])
     long_code.steps.flags[0] = 200  # a two-byte varint in a code column
     for odd in (split, unknown, long_code.SerializeToString()):
         same([odd])
-    np.testing.assert_array_equal(codec.decode_batches([(0, split)], "v")["steps"]["state"],
-                                  np.asarray(states, np.int32))
+    np.testing.assert_array_equal(
+        codec.decode_batches([(0, split)], "v")["steps"]["state"], np.asarray(states, np.int32)
+    )
 
 
 def test_code_columns_of_every_size_read_back_exactly():
@@ -444,17 +596,28 @@ def test_code_columns_of_every_size_read_back_exactly():
     from pipeline.records import codec
 
     rng = np.random.default_rng(0)
-    values = np.concatenate([[0, 127, 128, 16383, 16384, 2**21, 2**28 - 1, 2**28, 2**32 - 1],
-                             rng.integers(0, 2**32, 500) >> rng.integers(0, 32, 500)])
+    values = np.concatenate(
+        [
+            [0, 127, 128, 16383, 16384, 2**21, 2**28 - 1, 2**28, 2**32 - 1],
+            rng.integers(0, 2**32, 500) >> rng.integers(0, 32, 500),
+        ]
+    )
     parts = [values[:7], values[7:7], values[7:], values[:3] % 128]
-    data = [S.EpisodeBatch(run=1, steps=S.Steps(states=v.tolist(), actions=(v % 4).tolist())).SerializeToString()
-            for v in parts]
+    data = [
+        S.EpisodeBatch(
+            run=1, steps=S.Steps(states=v.tolist(), actions=(v % 4).tolist())
+        ).SerializeToString()
+        for v in parts
+    ]
     got, want = codec._flat(data), _runtime_flat(data)
     for k in (("Steps", "states"), ("Steps", "actions")):
         np.testing.assert_array_equal(got[k][0], want[k][0])
         assert got[k][1].tolist() == [len(v) for v in parts]
-    cut = codec.VIEWS["EpisodeBatch"](steps=codec.VIEWS["Steps"](states=codec._payload("Steps", codec.COLUMNS["Steps"][0],
-                                                                                        np.array([300]))[:1]))
+    cut = codec.VIEWS["EpisodeBatch"](
+        steps=codec.VIEWS["Steps"](
+            states=codec._payload("Steps", codec.COLUMNS["Steps"][0], np.array([300]))[:1]
+        )
+    )
     with pytest.raises(ValueError, match="whole value"):
         codec._flat([cut.SerializeToString()])
 
@@ -468,7 +631,11 @@ def test_the_info_command_lists_runs_and_warns_about_truncation(tmp_path, capsys
     main([str(tmp_path), "--runs"])
     out = capsys.readouterr().out
     assert "a.mcap: complete; 2 runs, 8 episodes" in out
-    assert "warning: " in out and "b.mcap: the file is truncated" in out and "b.mcap: INCOMPLETE" in out
+    assert (
+        "warning: " in out
+        and "b.mcap: the file is truncated" in out
+        and "b.mcap: INCOMPLETE" in out
+    )
 
 
 def test_the_file_is_self_describing_for_generic_protobuf_readers(tmp_path):
@@ -487,8 +654,12 @@ def test_the_file_is_self_describing_for_generic_protobuf_readers(tmp_path):
     assert len(eps) == 1 and list(eps[0].episode) == [0, 1, 2]
     assert list(eps[0].steps.states) == np.concatenate([f["states"] for f in written]).tolist()
     assert list(eps[0].summary.return_) == [f["summary"]["return_"] for f in written]
-    assert decoded["/pictures/5"][0].format == "png" and decoded["/pictures/5"][0].data == tiny_png(5)
-    subs = [s for f in written for s in f["_substitutions"]]  # format 5: in the batch of their episodes
+    assert decoded["/pictures/5"][0].format == "png" and decoded["/pictures/5"][0].data == tiny_png(
+        5
+    )
+    subs = [
+        s for f in written for s in f["_substitutions"]
+    ]  # format 5: in the batch of their episodes
     assert subs and list(eps[0].substitutions.picture) == [s["picture"] for s in subs]
     assert list(eps[0].substitutions.category) == [s["category"] for s in subs]
 
@@ -499,8 +670,11 @@ def test_a_file_of_an_older_record_format_is_refused_in_one_line():
     from pipeline.records import RecordsError
     from pipeline.records.codec import OUR_SCHEMA, FormatError, check_schema
 
-    with pytest.raises(RecordsError, match=r"format4\.mcap: its episode batches use record format 4; this reader "
-                                           r"reads format 5: re-run the trials that wrote it"):
+    with pytest.raises(
+        RecordsError,
+        match=r"format4\.mcap: its episode batches use record format 4; this reader "
+        r"reads format 5: re-run the trials that wrote it",
+    ):
         read_records(Path(__file__).parent / "data" / "format4.mcap")
     check_schema(None, None)  # lost: this writer's is assumed
     check_schema(OUR_SCHEMA, S.LIBRARY)
@@ -517,14 +691,24 @@ def test_record_level_episodes_keeps_everything_but_the_steps(tmp_path):
     write_synthetic(tmp_path / "episodes.mcap", runs=2, episodes_per_run=6, steps=False)
     full, lean = read_records(tmp_path / "steps.mcap"), read_records(tmp_path / "episodes.mcap")
     assert (full.meta.record, lean.meta.record) == ("steps", "episodes") and lean.meta.complete
-    assert len(full.steps) > 0 and lean.steps.empty and list(lean.steps.columns) == list(full.steps.columns)
+    assert (
+        len(full.steps) > 0
+        and lean.steps.empty
+        and list(lean.steps.columns) == list(full.steps.columns)
+    )
     for frame in ("episodes", "recognitions", "unsafe", "substitutions"):
-        pd.testing.assert_frame_equal(getattr(lean, frame).drop(columns="file"), getattr(full, frame).drop(columns="file"))
+        pd.testing.assert_frame_equal(
+            getattr(lean, frame).drop(columns="file"), getattr(full, frame).drop(columns="file")
+        )
     assert (tmp_path / "episodes.mcap").stat().st_size < (tmp_path / "steps.mcap").stat().st_size
 
 
-@pytest.mark.parametrize("rewards", [[0, -1, 1], [0, 63, -64], [0.5, -1, 0], [64, 0, 0], [-65, 0, 0], [0, np.nan, 1]])
-def test_rewards_are_stored_in_one_byte_when_whole_and_small_and_read_back_exactly(tmp_path, rewards):
+@pytest.mark.parametrize(
+    "rewards", [[0, -1, 1], [0, 63, -64], [0.5, -1, 0], [64, 0, 0], [-65, 0, 0], [0, np.nan, 1]]
+)
+def test_rewards_are_stored_in_one_byte_when_whole_and_small_and_read_back_exactly(
+    tmp_path, rewards
+):
     """Format 5: a batch whose rewards are whole numbers in -64..63 stores them as one-byte zigzag
     varints (small_rewards), any other batch as floats; both read back to the same float32 values, in a
     file that mixes the two, through the fast path and the Protobuf runtime, and encode byte for byte
@@ -542,11 +726,14 @@ def test_rewards_are_stored_in_one_byte_when_whole_and_small_and_read_back_exact
     small = all(np.isfinite(odd)) and all(float(r).is_integer() and -64 <= r <= 63 for r in odd)
     for d, b in zip(data, groups):
         steps = S.EpisodeBatch.FromString(d).steps
-        assert (len(steps.small_rewards), len(steps.rewards)) == ((len(b["rewards"]), 0) if b is not groups[1] or small
-                                                                  else (0, len(b["rewards"])))
+        assert (len(steps.small_rewards), len(steps.rewards)) == (
+            (len(b["rewards"]), 0) if b is not groups[1] or small else (0, len(b["rewards"]))
+        )
         assert d == _encode_with_the_runtime(codec.check_batch(b))
     want = np.concatenate([b["rewards"] for b in groups])
-    np.testing.assert_array_equal(read_records(tmp_path / "r.mcap").steps["reward"].to_numpy(), want)
+    np.testing.assert_array_equal(
+        read_records(tmp_path / "r.mcap").steps["reward"].to_numpy(), want
+    )
     slow = codec._columns(_runtime_flat(data), "r")
     np.testing.assert_array_equal(slow["steps"]["reward"], want)
     assert slow["steps"]["reward"].dtype == np.float32

@@ -1,4 +1,5 @@
 """Render stage: determinism, counts, split disjointness, query faces, bad input, atomic writes."""
+
 from __future__ import annotations
 
 import colorsys
@@ -19,16 +20,27 @@ from pipeline.world.pictures import CATEGORIES, N_PICTURES, picture_id
 from pipeline.world.render_plan import MANIFEST_COLUMNS, PlanConfig, make_plan
 from pipeline.world.render_runner import render_batch
 
-SMALL = ["n_train_classes=3", "n_val_classes=2", "per_class=4", "views_per_instance=2", "size=32",
-         "contact_sheets=true", "contact_train_classes=2", "contact_per_class=3"]
+SMALL = [
+    "n_train_classes=3",
+    "n_val_classes=2",
+    "per_class=4",
+    "views_per_instance=2",
+    "size=32",
+    "contact_sheets=true",
+    "contact_train_classes=2",
+    "contact_per_class=3",
+]
 
 
 def _cfg(tmp: Path, *extra: str):
-    return load_config("render", [*SMALL, f"out_dir={tmp / 'images'}", f"figures_dir={tmp / 'figures'}", *extra])
+    return load_config(
+        "render", [*SMALL, f"out_dir={tmp / 'images'}", f"figures_dir={tmp / 'figures'}", *extra]
+    )
 
 
 def _run(tmp: Path, *extra: str) -> dict:
     from pipeline.stages.render import run
+
     return run(_cfg(tmp, *extra))
 
 
@@ -38,8 +50,11 @@ def _manifest(out: Path) -> list[dict]:
 
 
 def _digest(out: Path) -> dict[str, str]:
-    return {str(p.relative_to(out)): hashlib.sha256(p.read_bytes()).hexdigest()
-            for p in sorted(out.rglob("*")) if p.is_file()}
+    return {
+        str(p.relative_to(out)): hashlib.sha256(p.read_bytes()).hexdigest()
+        for p in sorted(out.rglob("*"))
+        if p.is_file()
+    }
 
 
 @pytest.fixture(scope="module")
@@ -61,6 +76,7 @@ def test_counts_columns_and_query_faces(rendered):
     assert figures["pictures"] == len(rows) == 85
     for r in rows:  # every file exists and is a picture of the configured size
         from PIL import Image
+
         with Image.open(out / r["file"]) as im:
             assert im.size == (32, 32) and im.mode == "RGB"
     ids = sorted(int(r["picture_id"]) for r in by["query"])
@@ -70,8 +86,9 @@ def test_counts_columns_and_query_faces(rendered):
         assert int(r["picture_id"]) == picture_id(c, i, f)
         assert r["class_name"] == CATEGORIES[c]
         assert float(r["orientation_deg"]) == (0.0 if i == 0 else 45.0)
-    assert {(int(r["category"]), int(r["instance"]), int(r["face"])) for r in by["query"]} == \
-        {(c, i, f) for c in range(5) for i in range(2) for f in range(4)}
+    assert {(int(r["category"]), int(r["instance"]), int(r["face"])) for r in by["query"]} == {
+        (c, i, f) for c in range(5) for i in range(2) for f in range(4)
+    }
     for s in ("support", "train", "val"):
         assert all(int(r["picture_id"]) == -1 and int(r["face"]) == -1 for r in by[s])
     for name in ("contact_query", "contact_support", "contact_train", "contact_val"):
@@ -83,7 +100,13 @@ def test_splits_are_disjoint(rendered):
     rows = _manifest(rendered[0] / "images")
     q = {(r["category"], r["instance"]) for r in rows if r["split"] == "query"}
     s = {(r["category"], r["instance"]) for r in rows if r["split"] == "support"}
-    assert q.isdisjoint(s) and {int(r["instance"]) for r in rows if r["split"] == "support"} == {2, 3, 4, 5, 6}
+    assert q.isdisjoint(s) and {int(r["instance"]) for r in rows if r["split"] == "support"} == {
+        2,
+        3,
+        4,
+        5,
+        6,
+    }
     train = {r["class_name"] for r in rows if r["split"] == "train"}
     val = {r["class_name"] for r in rows if r["split"] == "val"}
     assert len(train) == 3 and len(val) == 2 and train.isdisjoint(val)
@@ -127,10 +150,19 @@ def test_family_instances_vary_in_colour_parts_and_proportions():
         if len(fam.leg_counts) > 1 or len(fam.arm_counts) > 1 or any(t.optional for t in fam.tiers):
             assert len({len(o.parts) for o in insts}) > 1, fam.name
         if any(len(t.kinds) > 1 for t in fam.tiers):
-            assert len({tuple(p.kind for p in o.parts) for o in insts}
-                       | {tuple(p.mesh is None for p in o.parts) for o in insts}) > 1, fam.name
-    hues = [colorsys.rgb_to_hsv(*build_meta_instance(families[0], np.random.default_rng(k)).palette[0])[0]
-            for k in range(200)]
+            assert (
+                len(
+                    {tuple(p.kind for p in o.parts) for o in insts}
+                    | {tuple(p.mesh is None for p in o.parts) for o in insts}
+                )
+                > 1
+            ), fam.name
+    hues = [
+        colorsys.rgb_to_hsv(*build_meta_instance(families[0], np.random.default_rng(k)).palette[0])[
+            0
+        ]
+        for k in range(200)
+    ]
     assert np.histogram(hues, bins=6, range=(0, 1))[0].min() >= 15  # any hue, about evenly
 
 
@@ -149,6 +181,7 @@ def test_side_azimuth_looks_at_origin():
 
 # ----------------------------------------------------------------------------- bad input
 
+
 def test_unknown_category_is_a_clear_error(tmp_path):
     with pytest.raises(ValueError, match="unknown category 'sofa'.*chair, kettle"):
         category_index("sofa")
@@ -165,7 +198,11 @@ def test_negative_size_is_a_clear_error(tmp_path):
 
 def test_missing_parent_is_a_clear_error(tmp_path):
     from pipeline.stages.render import run
-    cfg = load_config("render", [*SMALL, f"out_dir={tmp_path / 'nope' / 'images'}", f"figures_dir={tmp_path / 'figures'}"])
+
+    cfg = load_config(
+        "render",
+        [*SMALL, f"out_dir={tmp_path / 'nope' / 'images'}", f"figures_dir={tmp_path / 'figures'}"],
+    )
     with pytest.raises(ConfigError, match="config key 'out_dir'.*does not exist"):
         run(cfg)
     assert not (tmp_path / "nope").exists()
@@ -174,6 +211,7 @@ def test_missing_parent_is_a_clear_error(tmp_path):
 def test_interrupted_write_leaves_no_half_picture(tmp_path, monkeypatch):
     """A crash while writing leaves neither a partial file under the final name nor a manifest."""
     import os
+
     target = tmp_path / "query" / "x.png"
     real_replace = os.replace
 
@@ -191,6 +229,7 @@ def test_interrupted_write_leaves_no_half_picture(tmp_path, monkeypatch):
 def test_interrupted_stage_leaves_no_manifest(tmp_path, monkeypatch):
     """An old manifest is removed before rendering; one killed mid-render leaves none behind."""
     import pipeline.stages.render as stage
+
     (tmp_path / "images").mkdir()
     (tmp_path / "images" / "manifest.csv").write_text("stale\n")
 

@@ -1,4 +1,5 @@
 """Replay of recorded episodes in Rerun (pipeline.replay, stage ``replay``)."""
+
 from __future__ import annotations
 
 import contextlib
@@ -50,12 +51,19 @@ def test_replay_of_one_episode_has_the_entities_and_one_row_per_step(recorded, t
     f = next(w for w in written if w["run"] == 1 and w["episode"] == 3)
     rows = _rows(build_replay(path, 1, 3, out=tmp_path / "e.rrd"))
     n = len(f["states"])
-    for entity in ("/maze/robot", "/maze/robot/action", "/maze/robot/trajectory", "/metrics/return"):
+    for entity in (
+        "/maze/robot",
+        "/maze/robot/action",
+        "/maze/robot/trajectory",
+        "/metrics/return",
+    ):
         assert rows[entity] == n, entity
     assert {"/maze/cells", "/maze/obstacles"} <= rows.keys()
     n_rec = len(f["recognitions"]["step"])
     assert rows.get("/recognition/picture", 0) == n_rec > 0
-    assert [rows.get(f"/recognition/scores/{name}", 0) for name in CATEGORIES] == [n_rec] * 5  # a bar each
+    assert [rows.get(f"/recognition/scores/{name}", 0) for name in CATEGORIES] == [
+        n_rec
+    ] * 5  # a bar each
     assert rows["/maze/unsafe"] == 1 + len(set(f["unsafe_added"]["step"].tolist()))
     if f["_substitutions"]:
         assert any(k.startswith("/support/") for k in rows)
@@ -79,7 +87,9 @@ def test_replay_names_a_missing_episode(recorded, tmp_path):
 def test_replay_of_a_file_without_steps_says_so(tmp_path):
     """``record=episodes`` files hold no steps: the replay refuses them naming the level, and writes nothing."""
     write_synthetic(tmp_path / "e.mcap", runs=1, episodes_per_run=3, steps=False)
-    with pytest.raises(ReplayError, match="recorded with record=episodes: it holds no steps to replay") as e:
+    with pytest.raises(
+        ReplayError, match="recorded with record=episodes: it holds no steps to replay"
+    ) as e:
         build_replay(tmp_path / "e.mcap", 0, 1, out=tmp_path / "x.rrd")
     assert e.value.key == "file" and not (tmp_path / "x.rrd").exists()
 
@@ -90,27 +100,70 @@ def test_replay_shows_recorded_q_values(tmp_path):
     n = 4
     with RecordWriter(tmp_path / "q.mcap", maze={"layout": ["S.", ".G"]}) as w:
         for e in range(2):
-            w.episodes(**make_batch([dict(
-                run=0, episode=e, states=np.array([0, 1, 3, 2])[:n], actions=np.array([1, 2, 3, 0]),
-                rewards=np.zeros(n), flags=np.zeros(n, np.uint8), recognitions={}, unsafe_added={},
-                summary={"collisions": 0, "return_": 0.0, "reached_goal": False, "prevented": 0, "epsilon": 0.1,
-                         "greedy_optimal": False}, q_values=np.full((4, 4), e + 0.5))]))
+            w.episodes(
+                **make_batch(
+                    [
+                        dict(
+                            run=0,
+                            episode=e,
+                            states=np.array([0, 1, 3, 2])[:n],
+                            actions=np.array([1, 2, 3, 0]),
+                            rewards=np.zeros(n),
+                            flags=np.zeros(n, np.uint8),
+                            recognitions={},
+                            unsafe_added={},
+                            summary={
+                                "collisions": 0,
+                                "return_": 0.0,
+                                "reached_goal": False,
+                                "prevented": 0,
+                                "epsilon": 0.1,
+                                "greedy_optimal": False,
+                            },
+                            q_values=np.full((4, 4), e + 0.5),
+                        )
+                    ]
+                )
+            )
     rows = _rows(build_replay(tmp_path / "q.mcap", 0, 1, out=tmp_path / "q.rrd"))
     assert rows["/q_values/max"] == 2 and "/derived/visits" not in rows
     image = _columns(tmp_path / "q.rrd", "/q_values/max")
-    assert image["Image:format"][0][0]["width"] == image["Image:format"][0][0]["height"] == 2  # a pixel a cell
+    assert (
+        image["Image:format"][0][0]["width"] == image["Image:format"][0][0]["height"] == 2
+    )  # a pixel a cell
 
 
 def test_replay_stage_with_a_positional_file(recorded, tmp_path):
     path, written = recorded
     out = tmp_path / "stage.rrd"
-    res = subprocess.run([sys.executable, "-m", "pipeline", "replay", str(path), "run=0", "episode=2",
-                          f"out={out}"], check=False, cwd=ROOT, capture_output=True, text=True, timeout=120)
+    res = subprocess.run(
+        [sys.executable, "-m", "pipeline", "replay", str(path), "run=0", "episode=2", f"out={out}"],
+        check=False,
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert res.returncode == 0, res.stderr
     f = next(w for w in written if w["run"] == 0 and w["episode"] == 2)
     assert _rows(out)["/maze/robot"] == len(f["states"])
-    bad = subprocess.run([sys.executable, "-m", "pipeline", "replay", f"file={path}", "run=0", "episode=2",
-                          "viewer=desktop"], check=False, cwd=ROOT, capture_output=True, text=True, timeout=120)
+    bad = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "pipeline",
+            "replay",
+            f"file={path}",
+            "run=0",
+            "episode=2",
+            "viewer=desktop",
+        ],
+        check=False,
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert bad.returncode == 2 and "config key 'viewer'" in bad.stderr
 
 
@@ -131,11 +184,25 @@ def test_the_trials_stage_records_the_worlds_moves_and_names(tmp_path):
     from pipeline.world.maze import ACTION_NAMES, MOVES
     from pipeline.world.pictures import CATEGORIES
 
-    run_stage("trials", ["method=shield", "maze=5x5", "runs=1", "episodes=2", "record=steps", f"out={tmp_path}",
-                         "progress=false"])
+    run_stage(
+        "trials",
+        [
+            "method=shield",
+            "maze=5x5",
+            "runs=1",
+            "episodes=2",
+            "record=steps",
+            f"out={tmp_path}",
+            "progress=false",
+        ],
+    )
     (path,) = tmp_path.rglob("records.mcap")
     maze = read_records(path, pictures=False).meta.maze
-    assert (maze["actions"], maze["moves"], maze["categories"]) == (list(ACTION_NAMES), list(MOVES), list(CATEGORIES))
+    assert (maze["actions"], maze["moves"], maze["categories"]) == (
+        list(ACTION_NAMES),
+        list(MOVES),
+        list(CATEGORIES),
+    )
 
 
 def test_replay_draws_with_the_files_moves_and_names(tmp_path):
@@ -143,19 +210,45 @@ def test_replay_draws_with_the_files_moves_and_names(tmp_path):
 
     def write(path, **maze):
         with RecordWriter(path, maze={"layout": ["S.", ".G"], **maze}) as w:
-            w.episodes(**make_batch([dict(
-                run=0, episode=0, states=np.array([0, 1, 3, 2]), actions=np.array([1, 2, 3, 0]),
-                rewards=np.zeros(4), flags=np.array([1, 0, 0, 8], np.uint8), recognitions={}, unsafe_added={},
-                summary={"collisions": 0, "return_": 0.0, "reached_goal": True, "prevented": 1, "epsilon": 0.1,
-                         "greedy_optimal": False})]))
+            w.episodes(
+                **make_batch(
+                    [
+                        dict(
+                            run=0,
+                            episode=0,
+                            states=np.array([0, 1, 3, 2]),
+                            actions=np.array([1, 2, 3, 0]),
+                            rewards=np.zeros(4),
+                            flags=np.array([1, 0, 0, 8], np.uint8),
+                            recognitions={},
+                            unsafe_added={},
+                            summary={
+                                "collisions": 0,
+                                "return_": 0.0,
+                                "reached_goal": True,
+                                "prevented": 1,
+                                "epsilon": 0.1,
+                                "greedy_optimal": False,
+                            },
+                        )
+                    ]
+                )
+            )
         return build_replay(path, 0, 0, out=path.with_suffix(".rrd"))
 
-    own = write(tmp_path / "own.mcap", actions=["up", "right", "down", "left"],
-                moves=[(-1, 0), (0, 2), (1, 0), (0, -2)])
+    own = write(
+        tmp_path / "own.mcap",
+        actions=["up", "right", "down", "left"],
+        moves=[(-1, 0), (0, 2), (1, 0), (0, -2)],
+    )
     vectors = [v[0] for v in _columns(own, "/maze/robot/action")["Arrows2D:vectors"]]
-    assert np.allclose(vectors, [[0.8, 0], [0, 0.4], [-0.8, 0], [0, -0.4]])  # (x, y) = (d_col, d_row) * 0.4
+    assert np.allclose(
+        vectors, [[0.8, 0], [0, 0.4], [-0.8, 0], [0, -0.4]]
+    )  # (x, y) = (d_col, d_row) * 0.4
     assert [t[0] for t in _columns(own, "/events")["TextLog:text"]] == [
-        "run 0 ep 0 step 0: cell 0 action right: reselected", "run 0 ep 0 step 3: cell 2 action up: goal"]
+        "run 0 ep 0 step 0: cell 0 action right: reselected",
+        "run 0 ep 0 step 3: cell 2 action up: goal",
+    ]
     old = write(tmp_path / "old.mcap")  # a file without moves or names (as older files): N, E, S, W
     vectors = [v[0] for v in _columns(old, "/maze/robot/action")["Arrows2D:vectors"]]
     assert np.allclose(vectors, [[0.4, 0], [0, 0.4], [-0.4, 0], [0, -0.4]])
@@ -164,7 +257,9 @@ def test_replay_draws_with_the_files_moves_and_names(tmp_path):
         write(tmp_path / "bad.mcap", actions=["up", "down"], moves=[(-1, 0), (0, 1), (1, 0)])
 
 
-SUPPORT = {c: [tiny_png(100 + 5 * c + k) for k in range(5)] for c in range(5)}  # category -> 5 shots
+SUPPORT = {
+    c: [tiny_png(100 + 5 * c + k) for k in range(5)] for c in range(5)
+}  # category -> 5 shots
 
 
 @pytest.fixture(scope="module")
@@ -177,7 +272,9 @@ def with_support(tmp_path_factory):
 def test_the_support_set_is_a_grid_of_25_with_substitutions_framed(with_support, tmp_path):
     path, written = with_support
     rrd = build_replay(path, 0, 2, out=tmp_path / "g.rrd")
-    subs = [s for w in written for s in w["_substitutions"] if w["episode"] <= 2]  # episode, then step order
+    subs = [
+        s for w in written for s in w["_substitutions"] if w["episode"] <= 2
+    ]  # episode, then step order
     assert any(s["episode"] < 2 for s in subs) and any(s["episode"] == 2 for s in subs)
     before = {(s["category"], s["position"]): s["picture"] for s in subs if s["episode"] < 2}
     places = {}
@@ -186,15 +283,24 @@ def test_the_support_set_is_a_grid_of_25_with_substitutions_framed(with_support,
             cols = _columns(rrd, f"/support/{c}/{k}")
             places[(c, k)] = tuple(cols["Transform3D:translation"][0][0][:2])
             shown = bytes(cols["EncodedImage:blob"][0][0])  # what the episode starts with
-            assert shown == (tiny_png(before[(c, k)]) if (c, k) in before else SUPPORT[c][k]), (c, k)
+            assert shown == (tiny_png(before[(c, k)]) if (c, k) in before else SUPPORT[c][k]), (
+                c,
+                k,
+            )
     xs, ys = sorted({x for x, _ in places.values()}), sorted({y for _, y in places.values()})
-    assert len(xs) == len(ys) == 5 and all(places[(c, k)] == (xs[k], ys[c]) for c, k in places)  # none stacked
+    assert len(xs) == len(ys) == 5 and all(
+        places[(c, k)] == (xs[k], ys[c]) for c, k in places
+    )  # none stacked
     marks = {(s["category"], s["position"]): f"ep {s['episode']} t {s['step']}" for s in subs}
     frames = _columns(rrd, "/support/substituted")
     centres = [tuple(np.round(np.add(places[ck], 0.5), 3)) for ck in sorted(marks)]
-    assert [tuple(np.round(c, 3)) for c in frames["Boxes2D:centers"][-1]] == centres  # frame the pictures
+    assert [
+        tuple(np.round(c, 3)) for c in frames["Boxes2D:centers"][-1]
+    ] == centres  # frame the pictures
     assert frames["Boxes2D:labels"][-1] == [marks[ck] for ck in sorted(marks)]
-    assert _columns(rrd, "/support/categories")["Points2D:class_ids"] == [[0, 1, 2, 3, 4]]  # rows, named:
+    assert _columns(rrd, "/support/categories")["Points2D:class_ids"] == [
+        [0, 1, 2, 3, 4]
+    ]  # rows, named:
     context = _columns(rrd, "/")["AnnotationContext:context"][0][0]
     assert [c["class_description"]["info"]["label"] for c in context] == list(CATEGORIES)
     assert "/support/note" not in _rows(rrd)
@@ -210,36 +316,61 @@ def test_the_scores_are_labelled_by_category(recorded, tmp_path):
     path, written = recorded
     rrd = build_replay(path, 1, 3, out=tmp_path / "s.rrd")
     f = next(w for w in written if w["run"] == 1 and w["episode"] == 3)
-    for c, name in enumerate(CATEGORIES):  # each category its own bar, at its index, named by its entity
+    for c, name in enumerate(
+        CATEGORIES
+    ):  # each category its own bar, at its index, named by its entity
         bars = _columns(rrd, f"/recognition/scores/{name}")
         assert {v[0]["buffer"][0] for v in bars["BarChart:abscissa"]} == {c}
-        assert np.allclose([v[0]["buffer"][0] for v in bars["BarChart:values"]], f["recognitions"]["scores"][:, c])
+        assert np.allclose(
+            [v[0]["buffer"][0] for v in bars["BarChart:values"]], f["recognitions"]["scores"][:, c]
+        )
     text = _columns(rrd, "/recognition/result")["TextDocument:text"][-1][0]
     last, predicted = f["recognitions"]["scores"][-1], f["recognitions"]["predicted"][-1]
-    assert text.endswith("| category | relation score |\n|---|---|\n" + "\n".join(  # the predicted one in bold
-        f"| {f'**{name}**' if c == predicted else name} | {last[c]:.3f} |" for c, name in enumerate(CATEGORIES)))
+    assert text.endswith(
+        "| category | relation score |\n|---|---|\n"
+        + "\n".join(  # the predicted one in bold
+            f"| {f'**{name}**' if c == predicted else name} | {last[c]:.3f} |"
+            for c, name in enumerate(CATEGORIES)
+        )
+    )
 
 
 def test_the_recording_is_named_by_experiment_cell_run_and_episode(with_support, tmp_path):
     path, _ = with_support
     rrd = build_replay(path, 0, 2, out=tmp_path / "p.rrd")
-    assert _columns(rrd, "/__properties")["RecordingInfo:name"] == [["synthetic/fewshot_dss run 0 ep 2"]]
+    assert _columns(rrd, "/__properties")["RecordingInfo:name"] == [
+        ["synthetic/fewshot_dss run 0 ep 2"]
+    ]
     folders = FileMeta(path=Path("datasets/runs/fig8/fewshot_dss/records.mcap"), complete=True)
-    assert recording_name(folders, 3, 120) == "fig8/fewshot_dss run 3 ep 120"  # no config: the folders
-    trials = FileMeta(path=path, complete=True, config={"experiment": {"name": "table3"}},
-                      info={"info": {"cell": "dss_7x7"}})
-    assert recording_name(trials, 3) == "table3/dss_7x7 run 3 all episodes"  # the trials stage's metadata
+    assert (
+        recording_name(folders, 3, 120) == "fig8/fewshot_dss run 3 ep 120"
+    )  # no config: the folders
+    trials = FileMeta(
+        path=path,
+        complete=True,
+        config={"experiment": {"name": "table3"}},
+        info={"info": {"cell": "dss_7x7"}},
+    )
+    assert (
+        recording_name(trials, 3) == "table3/dss_7x7 run 3 all episodes"
+    )  # the trials stage's metadata
 
 
 def test_the_default_replay_file_names_the_cell(with_support, tmp_path, monkeypatch):
     from pipeline.stages._common import run_stage
 
-    assert replay_stem("datasets/runs/fig8/fewshot_dss/records.mcap", 3, 120) == "fig8-fewshot_dss-run3-ep120"
+    assert (
+        replay_stem("datasets/runs/fig8/fewshot_dss/records.mcap", 3, 120)
+        == "fig8-fewshot_dss-run3-ep120"
+    )
     assert replay_stem("datasets/runs/fig8/ssrl/records.mcap.partial", 3) == "fig8-ssrl-run3-all"
     assert replay_stem("runs/mine/other.mcap", 0, 1) == "runs-mine-other-run0-ep1"
     path, _ = with_support
     monkeypatch.chdir(tmp_path)
-    assert run_stage("replay", [f"file={path}", "run=0", "episode=1"]) == tmp_path / "replays/fig8-fewshot_dss-run0-ep1.rrd"
+    assert (
+        run_stage("replay", [f"file={path}", "run=0", "episode=1"])
+        == tmp_path / "replays/fig8-fewshot_dss-run0-ep1.rrd"
+    )
 
 
 def test_the_trials_stage_records_the_initial_support_set(tmp_path):
@@ -252,10 +383,22 @@ def test_the_trials_stage_records_the_initial_support_set(tmp_path):
 
     images = tmp_path / "images"
     write_synthetic_dataset(images, n_train=1, n_val=1, per_class=1, size=12)
-    rows = pd.read_csv(images / "manifest.csv").query("split == 'support'")  # shot k: instance k here
-    expected = {(int(r.category), int(r.instance)): (images / r.file).read_bytes() for r in rows.itertuples()}
-    trial = ["method=fewshot_dss", "recogniser=fixed_accuracy", "runs=1", "episodes=2", "progress=false",
-             f"out={tmp_path / 'cell'}", "overwrite=true"]
+    rows = pd.read_csv(images / "manifest.csv").query(
+        "split == 'support'"
+    )  # shot k: instance k here
+    expected = {
+        (int(r.category), int(r.instance)): (images / r.file).read_bytes()
+        for r in rows.itertuples()
+    }
+    trial = [
+        "method=fewshot_dss",
+        "recogniser=fixed_accuracy",
+        "runs=1",
+        "episodes=2",
+        "progress=false",
+        f"out={tmp_path / 'cell'}",
+        "overwrite=true",
+    ]
     run_stage("trials", [*trial, f"images_dir={images}"])
     first = (tmp_path / "cell" / "records.mcap").read_bytes()
     meta = read_records(tmp_path / "cell" / "records.mcap").meta
@@ -266,8 +409,19 @@ def test_the_trials_stage_records_the_initial_support_set(tmp_path):
     assert read_records(tmp_path / "cell" / "records.mcap").meta.support_pictures == {}
     with pytest.raises(ConfigError, match="config key 'images_dir': .*manifest"):
         run_stage("trials", [*trial, f"images_dir={tmp_path}"])
-    with pytest.raises(ConfigError, match="config key 'images_dir': read only by methods that recognise"):
-        run_stage("trials", ["method=shield", "runs=1", "episodes=2", f"out={tmp_path / 's'}", f"images_dir={images}"])
+    with pytest.raises(
+        ConfigError, match="config key 'images_dir': read only by methods that recognise"
+    ):
+        run_stage(
+            "trials",
+            [
+                "method=shield",
+                "runs=1",
+                "episodes=2",
+                f"out={tmp_path / 's'}",
+                f"images_dir={images}",
+            ],
+        )
 
 
 # ---------------------------------------------------------------- viewer=web (serving, lifetime, ports, bind)
@@ -277,9 +431,26 @@ def web_replay(path: Path, out: Path, *overrides: str, timeout: float = 120):
     address it printed and its children, once it says "serving"; ends whatever is left afterwards."""
     import psutil
 
-    proc = subprocess.Popen([sys.executable, "-m", "pipeline", "replay", f"file={path}", "run=0", "episode=1",
-                             f"out={out}", "viewer=web", "web_port=0", "grpc_port=0", *overrides],
-                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "pipeline",
+            "replay",
+            f"file={path}",
+            "run=0",
+            "episode=1",
+            f"out={out}",
+            "viewer=web",
+            "web_port=0",
+            "grpc_port=0",
+            *overrides,
+        ],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     lines: queue.Queue = queue.Queue()
     threading.Thread(target=lambda: [lines.put(x) for x in proc.stdout], daemon=True).start()
     children: list = []
@@ -301,7 +472,9 @@ def _serving_url(lines: queue.Queue, proc: subprocess.Popen, timeout: float) -> 
             line = lines.get(timeout=1)
         except queue.Empty:
             if proc.poll() is not None:
-                raise AssertionError(f"replay ended ({proc.returncode}) before serving: {proc.stderr.read()}")
+                raise AssertionError(
+                    f"replay ended ({proc.returncode}) before serving: {proc.stderr.read()}"
+                ) from None
             continue
         if line.startswith("serving "):
             return re.search(r"http://\S+", line).group(0)
@@ -334,21 +507,33 @@ def _gone(pid: int) -> bool:
         return True
 
 
-@pytest.mark.parametrize("sig, code", [(signal.SIGTERM, 143), (signal.SIGINT, 0), (signal.SIGKILL, -9)],
-                         ids=["SIGTERM", "Ctrl-C", "SIGKILL"])
+@pytest.mark.parametrize(
+    "sig, code",
+    [(signal.SIGTERM, 143), (signal.SIGINT, 0), (signal.SIGKILL, -9)],
+    ids=["SIGTERM", "Ctrl-C", "SIGKILL"],
+)
 def test_web_viewer_lives_and_dies_with_the_command(recorded, tmp_path, sig, code):
     path, _ = recorded
     with web_replay(path, tmp_path / "w.rrd") as (proc, url, children):
         web_port, grpc_port = _ports(url)
-        assert url == (f"http://127.0.0.1:{web_port}?url=rerun%2Bhttp%3A%2F%2F127.0.0.1%3A{grpc_port}%2Fproxy")
-        assert [c.name() for c in children] == ["rerun"]  # the binary itself, not its Python wrapper
+        assert url == (
+            f"http://127.0.0.1:{web_port}?url=rerun%2Bhttp%3A%2F%2F127.0.0.1%3A{grpc_port}%2Fproxy"
+        )
+        assert [c.name() for c in children] == [
+            "rerun"
+        ]  # the binary itself, not its Python wrapper
         assert not _free(web_port) and not _free(grpc_port)
         with urllib.request.urlopen(f"http://127.0.0.1:{web_port}/", timeout=10) as page:
             assert page.status == 200
         proc.send_signal(sig)
         assert proc.wait(30) == code
-        deadline = time.monotonic() + 10  # SIGKILL: the child's parent-death signal, then its own exit
-        while not (_gone(children[0].pid) and _free(web_port) and _free(grpc_port)) and time.monotonic() < deadline:
+        deadline = (
+            time.monotonic() + 10
+        )  # SIGKILL: the child's parent-death signal, then its own exit
+        while (
+            not (_gone(children[0].pid) and _free(web_port) and _free(grpc_port))
+            and time.monotonic() < deadline
+        ):
             time.sleep(0.1)
         assert _gone(children[0].pid) and _free(web_port) and _free(grpc_port)
 
@@ -360,13 +545,36 @@ def test_web_viewer_refuses_a_busy_port(recorded, tmp_path):
         busy.listen()
         port = busy.getsockname()[1]
         for key, other in (("web_port", "grpc_port"), ("grpc_port", "web_port")):
-            res = subprocess.run([sys.executable, "-m", "pipeline", "replay", f"file={path}", "run=0", "episode=1",
-                                  f"out={tmp_path / 'b.rrd'}", "viewer=web", f"{key}={port}", f"{other}=0"],
-                                 check=False, cwd=ROOT, capture_output=True, text=True, timeout=120)
+            res = subprocess.run(
+                [
+                    sys.executable,
+                    "-m",
+                    "pipeline",
+                    "replay",
+                    f"file={path}",
+                    "run=0",
+                    "episode=1",
+                    f"out={tmp_path / 'b.rrd'}",
+                    "viewer=web",
+                    f"{key}={port}",
+                    f"{other}=0",
+                ],
+                check=False,
+                cwd=ROOT,
+                capture_output=True,
+                text=True,
+                timeout=120,
+            )
             assert res.returncode == 2, res.stderr
-            assert res.stderr.splitlines() == [(f"error: config key '{key}': cannot listen on 127.0.0.1 port {port}: "
-                                                f"Address already in use (another viewer? {key}=0 picks a free port)")]
-            assert "serving" not in res.stdout and not (tmp_path / "b.rrd").exists()  # refused before any work
+            assert res.stderr.splitlines() == [
+                (
+                    f"error: config key '{key}': cannot listen on 127.0.0.1 port {port}: "
+                    f"Address already in use (another viewer? {key}=0 picks a free port)"
+                )
+            ]
+            assert (
+                "serving" not in res.stdout and not (tmp_path / "b.rrd").exists()
+            )  # refused before any work
 
 
 def test_web_viewer_needs_allow_remote_off_the_loopback(recorded, tmp_path, capsys):
@@ -374,18 +582,46 @@ def test_web_viewer_needs_allow_remote_off_the_loopback(recorded, tmp_path, caps
     from pipeline.stages.replay import web_address
 
     path, _ = recorded
-    res = subprocess.run([sys.executable, "-m", "pipeline", "replay", f"file={path}", "run=0", "episode=1",
-                          f"out={tmp_path / 'r.rrd'}", "viewer=web", "bind=0.0.0.0"],
-                         check=False, cwd=ROOT, capture_output=True, text=True, timeout=120)
+    res = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "pipeline",
+            "replay",
+            f"file={path}",
+            "run=0",
+            "episode=1",
+            f"out={tmp_path / 'r.rrd'}",
+            "viewer=web",
+            "bind=0.0.0.0",
+        ],
+        check=False,
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert res.returncode == 2 and len(res.stderr.splitlines()) == 1
-    assert res.stderr.startswith("error: config key 'bind': 0.0.0.0 is reachable from other machines")
+    assert res.stderr.startswith(
+        "error: config key 'bind': 0.0.0.0 is reachable from other machines"
+    )
     assert "allow_remote=true" in res.stderr and not (tmp_path / "r.rrd").exists()
 
     def address(*overrides):
-        return web_address(load_config("replay", [f"file={path}", "web_port=0", "grpc_port=0", *overrides]))
+        return web_address(
+            load_config("replay", [f"file={path}", "web_port=0", "grpc_port=0", *overrides])
+        )
 
-    web = address("bind=0.0.0.0", "allow_remote=true")  # checks the ports on every interface, serves nothing
-    assert capsys.readouterr().err.startswith("warning: bind=0.0.0.0: the viewer and the recording are served")
-    assert web.bind == "0.0.0.0" and web.url.startswith("http://127.0.0.1:") and web.web_port != web.grpc_port
+    web = address(
+        "bind=0.0.0.0", "allow_remote=true"
+    )  # checks the ports on every interface, serves nothing
+    assert capsys.readouterr().err.startswith(
+        "warning: bind=0.0.0.0: the viewer and the recording are served"
+    )
+    assert (
+        web.bind == "0.0.0.0"
+        and web.url.startswith("http://127.0.0.1:")
+        and web.web_port != web.grpc_port
+    )
     assert address("bind=::1").url.startswith("http://[::1]:")
     assert capsys.readouterr().err == ""  # loopback: no warning

@@ -9,6 +9,7 @@ RRD bytes; on the welcome page it throws "No active recording"). The WASM bundle
 load on 2 cores with software WebGL. Skipped without playwright (the ``test`` extra) or chromium
 (``apt-get install chromium``; ``scripts/setup.sh`` installs it when run as root).
 """
+
 from __future__ import annotations
 
 import base64
@@ -21,11 +22,20 @@ import pytest
 from synthetic_records import write_synthetic
 from test_replay import _rows, web_replay
 
-pytestmark = pytest.mark.slow  # 50 s, most of it the viewer's WASM loading: `make test-slow` runs it
+pytestmark = (
+    pytest.mark.slow
+)  # 50 s, most of it the viewer's WASM loading: `make test-slow` runs it
 
 CHROMIUM = Path(os.environ.get("CHROMIUM") or shutil.which("chromium") or "/usr/bin/chromium")
-CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run", "--disable-background-networking",
-                 "--disable-component-update", "--disable-sync"]
+CHROMIUM_ARGS = [
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+]
 LOAD_TIMEOUT = 150.0  # seconds for the viewer to show the whole recording
 
 #: The page's active recording as base64 RRD; null before the viewer has started, "ERR ..." without one.
@@ -46,12 +56,19 @@ SAVE_RECORDING = """() => {
 @pytest.fixture(scope="module")
 def chromium():
     """A headless chromium of the system, through Playwright."""
-    sync_api = pytest.importorskip("playwright.sync_api", reason="playwright is not installed (the 'test' extra)",
-                                   exc_type=ImportError)
+    sync_api = pytest.importorskip(
+        "playwright.sync_api",
+        reason="playwright is not installed (the 'test' extra)",
+        exc_type=ImportError,
+    )
     if not os.access(CHROMIUM, os.X_OK):
-        pytest.skip(f"no chromium at {CHROMIUM} (apt-get install chromium; scripts/setup.sh does it as root)")
+        pytest.skip(
+            f"no chromium at {CHROMIUM} (apt-get install chromium; scripts/setup.sh does it as root)"
+        )
     with sync_api.sync_playwright() as pw:
-        browser = pw.chromium.launch(executable_path=str(CHROMIUM), headless=True, args=CHROMIUM_ARGS)
+        browser = pw.chromium.launch(
+            executable_path=str(CHROMIUM), headless=True, args=CHROMIUM_ARGS
+        )
         try:
             yield browser
         finally:
@@ -92,13 +109,20 @@ def test_the_printed_address_opens_the_recording_in_chromium(chromium, tmp_path)
         page.goto(url, wait_until="commit")
         seen = _viewer_recording(page, expected, tmp_path / "from_browser.rrd")
         page.screenshot(path=tmp_path / "viewer.png")
-        print(f"the viewer showed the recording after {time.monotonic() - start:.0f} s ({tmp_path / 'viewer.png'})")
+        print(
+            f"the viewer showed the recording after {time.monotonic() - start:.0f} s ({tmp_path / 'viewer.png'})"
+        )
         assert seen == expected, f"the viewer's active recording: {seen!r}"
-        assert {"/maze/robot", "/recognition/scores/chair", "/support/note", "/__properties", "/events"} <= seen.keys()
+        assert {
+            "/maze/robot",
+            "/recognition/scores/chair",
+            "/support/note",
+            "/__properties",
+            "/events",
+        } <= seen.keys()
 
         start = time.monotonic()  # the bare web port: Rerun's welcome page, without the recording
         welcome = chromium.new_page(viewport={"width": 1280, "height": 800})
         welcome.goto(url.split("?")[0], wait_until="commit")
         assert _started(welcome, settle=3) == "ERR No active recording to save"
         print(f"the welcome page started after {time.monotonic() - start:.0f} s")
-

@@ -1,6 +1,7 @@
 """The ``accuracy_curve`` experiment and its report section: collisions against the accuracy p of
 the fixed-accuracy recogniser, SSRL and the shield as references, the Relation Network's measured
 accuracy marked, break-even accuracies with bootstrap intervals. Smoke scale (3 runs x 20 episodes)."""
+
 from __future__ import annotations
 
 import json
@@ -23,12 +24,36 @@ MAZES = ["5x5", "7x7", "11x11"]
 @pytest.fixture(scope="module")
 def built(tmp_path_factory):
     d = tmp_path_factory.mktemp("accuracy_curve")
-    run_stage("trials", ["+experiment=accuracy_curve", "profile=smoke", "progress=false",
-                         f"out={d}/runs/accuracy_curve"])
+    run_stage(
+        "trials",
+        [
+            "+experiment=accuracy_curve",
+            "profile=smoke",
+            "progress=false",
+            f"out={d}/runs/accuracy_curve",
+        ],
+    )
     # an accuracy study of its own (a recogniser of known accuracy stands in for the model)
-    run_stage("accuracy", ["recogniser=fixed_accuracy", "recogniser.p=0.7", "study.repeats=3",
-                           f"out_dir={d}/accuracy", "profile=smoke", "progress=false"])
-    run_stage("report", [f"runs_dir={d}/runs", f"accuracy_dir={d}/accuracy", f"out={d}/reports", "allow_missing=true"])
+    run_stage(
+        "accuracy",
+        [
+            "recogniser=fixed_accuracy",
+            "recogniser.p=0.7",
+            "study.repeats=3",
+            f"out_dir={d}/accuracy",
+            "profile=smoke",
+            "progress=false",
+        ],
+    )
+    run_stage(
+        "report",
+        [
+            f"runs_dir={d}/runs",
+            f"accuracy_dir={d}/accuracy",
+            f"out={d}/reports",
+            "allow_missing=true",
+        ],
+    )
     return d, (d / "reports" / "index.md").read_text()
 
 
@@ -53,12 +78,20 @@ def level(text: str) -> float:
 
 def test_each_cell_ran_and_recorded_its_accuracy(built):
     d, _ = built
-    for name, p in (("fewshot_5x5_p20", 0.2), ("fewshot_dss_11x11_p70", 0.7), ("fewshot_7x7_p100", 1.0)):
-        meta = read_records(d / "runs" / "accuracy_curve" / name / "records.mcap", pictures=False).meta
+    for name, p in (
+        ("fewshot_5x5_p20", 0.2),
+        ("fewshot_dss_11x11_p70", 0.7),
+        ("fewshot_7x7_p100", 1.0),
+    ):
+        meta = read_records(
+            d / "runs" / "accuracy_curve" / name / "records.mcap", pictures=False
+        ).meta
         assert meta.config["recogniser"]["p"] == p
         assert meta.config["recogniser"]["_target_"].endswith("FixedAccuracyRecogniser")
     means = summary_means(d)
-    assert all(means[f"{m}_{z}_p100"] == 0 for m in ("fewshot", "fewshot_dss") for z in MAZES)  # always right
+    assert all(
+        means[f"{m}_{z}_p100"] == 0 for m in ("fewshot", "fewshot_dss") for z in MAZES
+    )  # always right
 
 
 def test_the_section_plots_the_curves_and_marks_the_relation_network(built):
@@ -66,39 +99,56 @@ def test_the_section_plots_the_curves_and_marks_the_relation_network(built):
     assert "## Beyond the paper: collisions against recognition accuracy (three mazes)" in index
     baseline = json.loads((d / "accuracy" / "summary.json").read_text())["baseline"]
     correct, total = sum(baseline["correct"]), sum(baseline["total"])
-    assert f"({correct}/{total} = {100 * correct / total:.1f}%;" in index  # read from the study, not a constant
+    assert (
+        f"({correct}/{total} = {100 * correct / total:.1f}%;" in index
+    )  # read from the study, not a constant
     assert correct != 22  # not the committed study's 22/40
     assert (d / "reports" / "figures" / "accuracy_curve.png").stat().st_size > 10_000
     data = pd.read_csv(d / "reports" / "tables" / "accuracy_curve_data.csv")
     curves = data[data["p"].notna()]
     assert sorted(curves["p"].unique().round(2).tolist()) == LEVELS
     assert curves.groupby(["maze", "method"]).size().to_dict() == {
-        (z, m): 9 for z in MAZES for m in ("Few-shot (static support set)", "Few-shot + DSS")}
+        (z, m): 9 for z in MAZES for m in ("Few-shot (static support set)", "Few-shot + DSS")
+    }
     refs = data[data["p"].isna()]
-    assert sorted(zip(refs["maze"], refs["method"])) == sorted((z, m) for z in MAZES for m in ("SSRL", "Shield"))
+    assert sorted(zip(refs["maze"], refs["method"])) == sorted(
+        (z, m) for z in MAZES for m in ("SSRL", "Shield")
+    )
     means = summary_means(d)
-    assert dict(zip(data["cell"], data["mean"].round(4))) == {k: round(v, 4) for k, v in means.items()}
+    assert dict(zip(data["cell"], data["mean"].round(4))) == {
+        k: round(v, 4) for k, v in means.items()
+    }
     assert (data["ci_low"] <= data["mean"]).all() and (data["mean"] <= data["ci_high"]).all()
 
 
 def test_break_even_table_matches_the_cells_means(built):
     d, _ = built
     table = pd.read_csv(d / "reports" / "tables" / "accuracy_curve.csv", keep_default_na=False)
-    assert table["maze"].tolist() == [z for z in MAZES for _ in range(4)]  # mazes by size, not by name
+    assert table["maze"].tolist() == [
+        z for z in MAZES for _ in range(4)
+    ]  # mazes by size, not by name
     means = summary_means(d)
     methods = {"Few-shot (static support set)": "fewshot", "Few-shot + DSS": "fewshot_dss"}
     references = {"SSRL": "ssrl", "Shield": "shield"}
     for row in table.to_dict("records"):
-        expected = expected_break_even(means, methods[row["method"]], row["maze"], references[row["against"]])
+        expected = expected_break_even(
+            means, methods[row["method"]], row["maze"], references[row["against"]]
+        )
         assert row["break-even p"] == expected, row
         low, high = row["95% CI"].strip("[]").split(", ")
-        assert level(low) <= level(row["break-even p"]) <= level(high), row  # the point lies in its interval
+        assert level(low) <= level(row["break-even p"]) <= level(high), (
+            row
+        )  # the point lies in its interval
 
 
 def test_break_even_finds_the_first_level_at_or_below_the_reference():
     levels = [0.2, 0.4, 0.6, 0.8]
     curve = np.array([[10.0] * 5, [8.0] * 5, [5.0] * 5, [1.0] * 5])
-    assert break_even(levels, curve, np.full(5, 5.0)) == (0.6, 0.6, 0.6)  # "at or below": equal counts
+    assert break_even(levels, curve, np.full(5, 5.0)) == (
+        0.6,
+        0.6,
+        0.6,
+    )  # "at or below": equal counts
     assert break_even(levels, curve, np.full(5, 12.0)) == (0.2, 0.2, 0.2)
     assert break_even(levels, curve, np.full(5, 0.5)) == (np.inf, np.inf, np.inf)
 
@@ -123,11 +173,18 @@ def test_the_block_chooses_cells_and_takes_no_groups(built):
     exp.spec.cells = ["ssrl_7x7", "fewshot_7x7_p50", "fewshot_7x7_p20"]
     parts = split(exp)
     assert parts.mazes == ["7x7"] and list(parts.references) == [("7x7", "SSRL")]
-    assert [(c.label, c.levels.tolist()) for c in parts.curves] == [("Few-shot (static support set)", [0.2, 0.5])]
+    assert [(c.label, c.levels.tolist()) for c in parts.curves] == [
+        ("Few-shot (static support set)", [0.2, 0.5])
+    ]
     spec = ReportSpec(kind="accuracy_curve", groups=[Group(key="a", cells=["ssrl_7x7"])])
     assert [key for key, _ in spec.problems(exp.declared)] == ["groups"]
-    for key in ("curves", "support_accuracy"):  # given, even as true, they would be ignored: refused
+    for key in (
+        "curves",
+        "support_accuracy",
+    ):  # given, even as true, they would be ignored: refused
         for value in (True, False):
             spec = ReportSpec(kind="accuracy_curve", **{key: value})
             assert [k for k, _ in spec.problems(exp.declared)] == [key]
-    assert ReportSpec(kind="default", curves=False, support_accuracy=True).problems(exp.declared) == []
+    assert (
+        ReportSpec(kind="default", curves=False, support_accuracy=True).problems(exp.declared) == []
+    )

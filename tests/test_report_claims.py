@@ -1,6 +1,7 @@
 """The pieces behind the report's words and intervals: display names derived from the method
 configs, intervals over run seeds (pooled cells count each seed once, cells sharing seeds are
 paired), the accuracy study's conservative intervals, the claims' verdicts. Seeded; no trials."""
+
 from pathlib import Path
 
 import numpy as np
@@ -25,29 +26,55 @@ ACCURACY = Path(__file__).resolve().parents[1] / "datasets" / "accuracy"
 def info(method="fewshot_dss", maze="5x5", substitution=1, support="restore", **fields):
     spec = get_method(method, **fields).as_dict()
     recogniser = {"kind": "relation_net"} if spec["safety"] == "fewshot" else None
-    return {"method": spec, "maze": maze, "substitution": substitution, "support": support, "recogniser": recogniser}
+    return {
+        "method": spec,
+        "maze": maze,
+        "substitution": substitution,
+        "support": support,
+        "recogniser": recogniser,
+    }
 
 
 def test_every_method_config_has_its_own_name():
     names = {m: method_name(get_method(m).as_dict()) for m in method_names()}
-    assert names == {"constrained": "Constrained RL", "fewshot": "Few-shot (static support set)",
-                     "fewshot_dss": "Few-shot + DSS", "qlearning": "Q-learning", "sarsa": "Sarsa",
-                     "shield": "Shield", "ssrl": "SSRL"}
+    assert names == {
+        "constrained": "Constrained RL",
+        "fewshot": "Few-shot (static support set)",
+        "fewshot_dss": "Few-shot + DSS",
+        "qlearning": "Q-learning",
+        "sarsa": "Sarsa",
+        "shield": "Shield",
+        "ssrl": "SSRL",
+    }
 
 
 def test_row_names_show_what_tells_rows_apart():
     # Figure 8: methods differ (and so do fields their names imply, like recovery): names only
     fig8 = [[info(m)] for m in ("qlearning", "shield", "fewshot", "fewshot_dss")]
-    assert row_names(fig8) == ["Q-learning", "Shield", "Few-shot (static support set)", "Few-shot + DSS"]
+    assert row_names(fig8) == [
+        "Q-learning",
+        "Shield",
+        "Few-shot (static support set)",
+        "Few-shot + DSS",
+    ]
     # Figure 9 / 10: one method, the way or the support set differs
-    assert row_names([[info(substitution=w)] for w in (1, 2)]) == ["Few-shot + DSS, way 1", "Few-shot + DSS, way 2"]
+    assert row_names([[info(substitution=w)] for w in (1, 2)]) == [
+        "Few-shot + DSS, way 1",
+        "Few-shot + DSS, way 2",
+    ]
     assert row_names([[info(support="restore")], [info(support="carry")]]) == [
-        "Few-shot + DSS, support set restored", "Few-shot + DSS, support set carried over"]
+        "Few-shot + DSS, support set restored",
+        "Few-shot + DSS, support set carried over",
+    ]
     # a pooled row leaves out what varies inside it; a sweep shows the field it sweeps
     assert row_names([[info("fewshot")], [info(substitution=w) for w in (1, 2, 3, 4)]]) == [
-        "Few-shot (static support set)", "Few-shot + DSS"]
-    assert row_names([[info("shield", alpha=0.01)], [info("shield", alpha=0.1)]]) == ["Shield, alpha 0.01",
-                                                                                   "Shield, alpha 0.1"]
+        "Few-shot (static support set)",
+        "Few-shot + DSS",
+    ]
+    assert row_names([[info("shield", alpha=0.01)], [info("shield", alpha=0.1)]]) == [
+        "Shield, alpha 0.01",
+        "Shield, alpha 0.1",
+    ]
 
 
 def test_pooled_cells_count_each_seed_once_and_shared_seeds_pair():
@@ -56,7 +83,9 @@ def test_pooled_cells_count_each_seed_once_and_shared_seeds_pair():
     a, b = seed_effect + rng.normal(0, 0.1, 50), seed_effect + 0.5 + rng.normal(0, 0.1, 50)
     # two copies of one cell pooled: the interval is that of one cell, not narrower
     runs = np.arange(50)
-    assert describe(np.r_[a, a], np.r_[runs, runs])["ci_low"] == pytest.approx(describe(a)["ci_low"])
+    assert describe(np.r_[a, a], np.r_[runs, runs])["ci_low"] == pytest.approx(
+        describe(a)["ci_low"]
+    )
     np.testing.assert_allclose(cluster_means([1.0, 3.0, 5.0], [0, 0, 1]), [2.0, 5.0])
     diff, lo, hi = bootstrap_difference(b, a, paired=True)
     assert diff == pytest.approx(0.5, abs=0.05) and lo > 0.4 and hi < 0.6  # the seed effect cancels
@@ -77,16 +106,24 @@ def test_check_and_claim_verdicts():
     def check(lo, hi, expect=">", margin=0.0):
         return Check("x", (lo + hi) / 2, lo, hi, expect, "u", "b", margin=margin)
 
-    assert [check(*ci).verdict for ci in ((0.1, 1), (-1, -0.1), (-1, 1))] == ["holds", "does not hold",
-                                                                              "not resolved"]
+    assert [check(*ci).verdict for ci in ((0.1, 1), (-1, -0.1), (-1, 1))] == [
+        "holds",
+        "does not hold",
+        "not resolved",
+    ]
     assert [check(*ci, "≈", 1).verdict for ci in ((-0.5, 0.5), (1.5, 2), (0.5, 1.5))] == [
-        "holds", "does not hold", "not resolved"]
+        "holds",
+        "does not hold",
+        "not resolved",
+    ]
     assert Claim("s", "t", [check(0.1, 1), check(-1, 1)]).verdict == "not resolved"
     assert Claim("s", "t", [check(0.1, 1), check(-1, -0.5)]).verdict == "does not hold"
     assert Claim("s", "t", missing="no records").verdict == "not checked"
 
 
-@pytest.mark.skipif(not (ACCURACY / "summary.json").exists(), reason="needs the committed accuracy study")
+@pytest.mark.skipif(
+    not (ACCURACY / "summary.json").exists(), reason="needs the committed accuracy study"
+)
 def test_accuracy_intervals_are_over_draws_and_conservative():
     study = Study(ACCURACY)
     assert study.substitutions(0).se == 0  # the original support set: no draw, no interval

@@ -3,18 +3,19 @@
 experiments keep their sections through the ``report:`` blocks of their yamls, read back from the
 records; the block is typed; rows are named from what their cells ran. Smoke scale with the oracle
 recogniser (no model needed)."""
+
 import dataclasses
 import shutil
 
 import numpy as np
 import pandas as pd
 import pytest
+from fakes import FIG8_WITHOUT_MODELS
 
 from pipeline.errors import ConfigError
 from pipeline.report.spec import ReportSpec
 from pipeline.report.stats import mean_band, t_quantile_975
 from pipeline.stages._common import load_config, run_stage
-from fakes import FIG8_WITHOUT_MODELS
 
 #: A new experiment file that holds only cells (no report block).
 CELLS_ONLY = """\
@@ -29,7 +30,9 @@ experiment:
 
 
 def trials(exp, out, *extra):
-    run_stage("trials", [f"+experiment={exp}", "profile=smoke", "progress=false", f"out={out}", *extra])
+    run_stage(
+        "trials", [f"+experiment={exp}", "profile=smoke", "progress=false", f"out={out}", *extra]
+    )
 
 
 @pytest.fixture(scope="module")
@@ -43,7 +46,15 @@ def built(tmp_path_factory):
     trials("mine", runs / "mine", f"hydra.searchpath=[file://{conf}]")
     trials("fig8", runs / "fig8", "recogniser=oracle", *FIG8_WITHOUT_MODELS)
     trials("table3", runs / "table3", "recogniser=oracle")
-    run_stage("report", [f"runs_dir={runs}", f"accuracy_dir={d}/no_accuracy", f"out={d}/reports", "allow_missing=true"])
+    run_stage(
+        "report",
+        [
+            f"runs_dir={runs}",
+            f"accuracy_dir={d}/no_accuracy",
+            f"out={d}/reports",
+            "allow_missing=true",
+        ],
+    )
     return d, (d / "reports" / "index.md").read_text()
 
 
@@ -51,7 +62,10 @@ def test_a_cells_only_experiment_gets_the_default_section(built):
     d, index = built
     assert "## Experiment mine" in index
     table = pd.read_csv(d / "reports" / "tables" / "mine.csv")
-    assert table["cell"].tolist() == ["Shield", "SSRL"]  # named from the recorded methods, not the cell ids
+    assert table["cell"].tolist() == [
+        "Shield",
+        "SSRL",
+    ]  # named from the recorded methods, not the cell ids
     assert table["runs"].tolist() == [3, 3]
     ci = table["collisions (mean ± s.d. [95% CI])"]
     assert ci.str.fullmatch(r"[\d.]+ ± [\d.]+ \[[\d.]+, [\d.]+\]").all()
@@ -59,18 +73,31 @@ def test_a_cells_only_experiment_gets_the_default_section(built):
     curves = pd.read_csv(d / "reports" / "tables" / "mine_learning_curves.csv")
     assert curves.columns.tolist() == ["series", "key", "episode", "mean", "ci_low", "ci_high"]
     a = curves[curves["key"] == "a"]
-    assert set(a["series"]) == {"Shield"} and a["episode"].tolist() == list(range(20))  # from episode 0
+    assert set(a["series"]) == {"Shield"} and a["episode"].tolist() == list(
+        range(20)
+    )  # from episode 0
     assert (a["ci_low"] <= a["mean"]).all() and (a["mean"] <= a["ci_high"]).all()
     # shield: every run collides in the first episode; the mean of the table is the curves' sum
-    assert a["mean"].sum() == pytest.approx(float(table["collisions (mean ± s.d. [95% CI])"][0].split()[0]), abs=0.01)
+    assert a["mean"].sum() == pytest.approx(
+        float(table["collisions (mean ± s.d. [95% CI])"][0].split()[0]), abs=0.01
+    )
 
 
 def test_paper_sections_come_from_their_report_blocks(built):
     d, index = built
-    for heading in ("## Figure 7: the learned optimal path", "## Figure 8: collisions", "## Table 3: mean collisions"):
+    for heading in (
+        "## Figure 7: the learned optimal path",
+        "## Figure 8: collisions",
+        "## Table 3: mean collisions",
+    ):
         assert heading in index
     # order: the blocks' order (fig8 1, table3 4), then experiments without a block (100)
-    assert index.index("## Figure 7") < index.index("## Figure 8") < index.index("## Table 3") < index.index("## Experiment mine")
+    assert (
+        index.index("## Figure 7")
+        < index.index("## Figure 8")
+        < index.index("## Table 3")
+        < index.index("## Experiment mine")
+    )
     assert "Paper: Methods with a safety guarantee collide far less than Q-learning" in index
     fig8 = pd.read_csv(d / "reports" / "tables" / "fig8.csv")
     # FIG8_WITHOUT_MODELS gives the Prototypical Network's cells the oracle too (no pictures here), so
@@ -80,14 +107,39 @@ def test_paper_sections_come_from_their_report_blocks(built):
     # the paper's numbers for Figure 8 are Table 3's for the same setting (recorded in table3's block)
     paper = ["", "", "", "8.77 (Table 3)", "7.145 (Table 3, ways 1-4 pooled)"]
     assert fig8["paper"].fillna("").tolist() == paper + paper[3:]
-    for name in ("fig8_collisions.png", "fig8_learning_curves.png", "fig8_path.png", "fig8_support_accuracy.png",
-                 "table3_learning_curves_11x11.png", "table3_support_accuracy_7x7.png"):
+    for name in (
+        "fig8_collisions.png",
+        "fig8_learning_curves.png",
+        "fig8_path.png",
+        "fig8_support_accuracy.png",
+        "table3_learning_curves_11x11.png",
+        "table3_support_accuracy_7x7.png",
+    ):
         assert (d / "reports" / "figures" / name).stat().st_size > 1000, name
-    curves = pd.read_csv(d / "reports" / "tables" / "fig8_learning_curves.csv")  # dvc.yaml's plots read these columns
-    assert curves["series"].unique().tolist() == names and {"episode", "mean", "ci_low", "ci_high"} <= set(curves)
+    curves = pd.read_csv(
+        d / "reports" / "tables" / "fig8_learning_curves.csv"
+    )  # dvc.yaml's plots read these columns
+    assert curves["series"].unique().tolist() == names and {
+        "episode",
+        "mean",
+        "ci_low",
+        "ci_high",
+    } <= set(curves)
     table3 = pd.read_csv(d / "reports" / "tables" / "table3.csv")
-    assert table3["method"].tolist() == ["Sarsa", "Constrained RL", "Few-shot (static support set)", "Few-shot + DSS"]
-    assert table3.columns.tolist()[1:] == ["5x5 ours", "5x5 paper", "7x7 ours", "7x7 paper", "11x11 ours", "11x11 paper"]
+    assert table3["method"].tolist() == [
+        "Sarsa",
+        "Constrained RL",
+        "Few-shot (static support set)",
+        "Few-shot + DSS",
+    ]
+    assert table3.columns.tolist()[1:] == [
+        "5x5 ours",
+        "5x5 paper",
+        "7x7 ours",
+        "7x7 paper",
+        "11x11 ours",
+        "11x11 paper",
+    ]
     assert table3.set_index("method").loc["Few-shot + DSS", "5x5 paper"] == 7.145
     assert table3.set_index("method").loc["Sarsa", "7x7 paper"] == "not converged"
     data = pd.read_csv(d / "reports" / "tables" / "table3_data.csv")
@@ -103,41 +155,80 @@ def test_claims_section_is_generated_from_the_records(built):
     claims = pd.read_csv(d / "reports" / "tables" / "claims.csv")
     assert set(claims["claim verdict"]) <= {"holds", "does not hold", "not resolved", "not checked"}
     by_source = claims.groupby("source")["claim verdict"].apply(set)
-    assert by_source["Figure 9"] == {"not checked"} and by_source["Table 2"] == {"not checked"}  # no records, no study
+    assert by_source["Figure 9"] == {"not checked"} and by_source["Table 2"] == {
+        "not checked"
+    }  # no records, no study
     order = claims[claims["claim text"].str.startswith("collisions fall in the order")]
-    assert len(order) == 9 and order["check verdict"].isin(["holds", "does not hold", "not resolved"]).all()
-    assert (order["ci_low"] <= order["estimate"]).all() and (order["estimate"] <= order["ci_high"]).all()
-    assert order["interval over"].eq("3 run seeds, paired").all()  # the cells of table3 share run seeds
+    assert (
+        len(order) == 9
+        and order["check verdict"].isin(["holds", "does not hold", "not resolved"]).all()
+    )
+    assert (order["ci_low"] <= order["estimate"]).all() and (
+        order["estimate"] <= order["ci_high"]
+    ).all()
+    assert (
+        order["interval over"].eq("3 run seeds, paired").all()
+    )  # the cells of table3 share run seeds
 
 
 def test_experiments_and_cells_without_records_are_named(built, tmp_path):
     d, index = built
     line = next(x for x in index.splitlines() if x.startswith("**Missing from this report**"))
-    assert "experiment fig9" in line and "experiment fig10" in line and "fig8" not in line and "table3" not in line
+    assert (
+        "experiment fig9" in line
+        and "experiment fig10" in line
+        and "fig8" not in line
+        and "table3" not in line
+    )
     runs = tmp_path / "runs"
     shutil.copytree(d / "runs" / "mine", runs / "mine")
     shutil.rmtree(runs / "mine" / "b")
-    run_stage("report", [f"runs_dir={runs}", f"accuracy_dir={tmp_path}/none", f"out={tmp_path}/reports", "allow_missing=true"])
+    run_stage(
+        "report",
+        [
+            f"runs_dir={runs}",
+            f"accuracy_dir={tmp_path}/none",
+            f"out={tmp_path}/reports",
+            "allow_missing=true",
+        ],
+    )
     index = (tmp_path / "reports" / "index.md").read_text()
-    assert "cell mine/b" in next(x for x in index.splitlines() if x.startswith("**Missing from this report**"))
+    assert "cell mine/b" in next(
+        x for x in index.splitlines() if x.startswith("**Missing from this report**")
+    )
     assert pd.read_csv(tmp_path / "reports" / "tables" / "mine.csv")["cell"].tolist() == ["Shield"]
 
 
-@pytest.mark.parametrize("override,message", [
-    ("+experiment.report.colour=red", "config key 'experiment.report.colour'"),
-    ("experiment.report.kind=pie", "config key 'experiment.report.kind': must be one of"),
-    ("experiment.report.cells=[qlearning,nope]", "config key 'experiment.report.cells': no cell 'nope'"),
-    ("+experiment.report.path.colour=red", "config key 'experiment.report.path.colour'"),
-])
+@pytest.mark.parametrize(
+    "override,message",
+    [
+        ("+experiment.report.colour=red", "config key 'experiment.report.colour'"),
+        ("experiment.report.kind=pie", "config key 'experiment.report.kind': must be one of"),
+        (
+            "experiment.report.cells=[qlearning,nope]",
+            "config key 'experiment.report.cells': no cell 'nope'",
+        ),
+        ("+experiment.report.path.colour=red", "config key 'experiment.report.path.colour'"),
+    ],
+)
 def test_the_report_block_is_typed(override, message, tmp_path):
     with pytest.raises(ConfigError, match=message):
         run_stage("trials", ["+experiment=fig8", "recogniser=oracle", override, f"out={tmp_path}"])
 
 
 def test_wrong_group_keys_are_refused(tmp_path):
-    with pytest.raises(ConfigError, match=r"experiment.report.groups.0.cells': no cell 'sarsa_9x9'"):
-        run_stage("trials", ["+experiment=table3", "recogniser=oracle", f"out={tmp_path}",
-                             "experiment.report.groups.0.cells=[sarsa_9x9]"])
+    with pytest.raises(
+        ConfigError, match=r"experiment.report.groups.0.cells': no cell 'sarsa_9x9'"
+    ):
+        run_stage(
+            "trials",
+            [
+                "+experiment=table3",
+                "recogniser=oracle",
+                f"out={tmp_path}",
+                "experiment.report.groups.0.cells=[sarsa_9x9]",
+            ],
+        )
     with pytest.raises(ConfigError, match=r"experiment.report.groups.0.paperz"):
         load_config("trials", ["+experiment=table3", "+experiment.report.groups.0.paperz=1"])
 
@@ -170,9 +261,19 @@ def test_band_is_a_t_interval():
 
 def test_start_accuracy_note_names_each_recogniser_when_they_differ():
     from pipeline.report.sections import start_accuracy_note
+
     same = {"Few-shot": [0.55, 0.55], "Few-shot + DSS": [0.55]}
-    assert start_accuracy_note(same) == "; at the start of a run the support set recognises 55.0% of the query pictures"
-    mixed = {"Few-shot, Relation Network": [0.55], "Few-shot, Prototypical Network": [0.375], "Shield": []}
-    assert start_accuracy_note(mixed) == ("; at the start of a run the support set recognises 55.0% (Few-shot, "
-                                          "Relation Network), 37.5% (Few-shot, Prototypical Network) of the query pictures")
+    assert (
+        start_accuracy_note(same)
+        == "; at the start of a run the support set recognises 55.0% of the query pictures"
+    )
+    mixed = {
+        "Few-shot, Relation Network": [0.55],
+        "Few-shot, Prototypical Network": [0.375],
+        "Shield": [],
+    }
+    assert start_accuracy_note(mixed) == (
+        "; at the start of a run the support set recognises 55.0% (Few-shot, "
+        "Relation Network), 37.5% (Few-shot, Prototypical Network) of the query pictures"
+    )
     assert start_accuracy_note({"Shield": []}) == ""

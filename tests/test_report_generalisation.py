@@ -1,5 +1,6 @@
 """The generalisation section's pure parts (pipeline/report/generalisation.py): layout features,
 the fitted lines and the DSS gain's growth, pinned on small exact cases."""
+
 import numpy as np
 import pytest
 
@@ -16,7 +17,11 @@ def test_features_of_the_papers_5x5():
 
 def test_features_of_a_small_layout_by_hand():
     # the centre obstacle is met from its 4 free neighbours; the path goes around it
-    assert features(["S..", ".X.", "..G"]) == {"unsafe_pairs": 4, "obstacles_reachable": 1, "shortest_path": 4}
+    assert features(["S..", ".X.", "..G"]) == {
+        "unsafe_pairs": 4,
+        "obstacles_reachable": 1,
+        "shortest_path": 4,
+    }
 
 
 def test_fit_is_least_squares_with_a_t_interval():
@@ -37,10 +42,17 @@ def test_no_line_for_a_constant_feature_or_too_few_layouts():
 
 
 def test_growth_compares_consecutive_sizes():
-    rows = growth({"5x5": np.array([1.0, 1.0, 1.0]), "7x7": np.array([3.0, 3.0, 3.0]),
-                   "11x11": np.array([2.0, 2.0, 2.0])})
+    rows = growth(
+        {
+            "5x5": np.array([1.0, 1.0, 1.0]),
+            "7x7": np.array([3.0, 3.0, 3.0]),
+            "11x11": np.array([2.0, 2.0, 2.0]),
+        }
+    )
     assert [(r["check"], r["estimate"], r["verdict"]) for r in rows] == [
-        ("DSS gain on 7x7 − on 5x5", 2.0, "holds"), ("DSS gain on 11x11 − on 7x7", -1.0, "does not hold")]
+        ("DSS gain on 7x7 − on 5x5", 2.0, "holds"),
+        ("DSS gain on 11x11 − on 7x7", -1.0, "does not hold"),
+    ]
 
 
 def test_the_claims_checked_per_layout():

@@ -1,9 +1,10 @@
 """Scripted episodes with exact returns (in the style of ai-safety-gridworlds' tests)."""
-import pytest
 
+import pytest
 from fakes import always_right, always_wrong
-from pipeline.rl.gym_env import SafeNavigationEnv
+
 from pipeline.rl.codes import StepFlag
+from pipeline.rl.gym_env import SafeNavigationEnv
 from pipeline.world.maze import parse_layout
 
 # S . X       cells 0 1 2
@@ -45,7 +46,12 @@ def test_collision_ends_the_episode_without_self_recovery():
 @pytest.mark.parametrize("method", ["shield", "ssrl"])
 def test_self_recovery_reverts_and_the_episode_goes_on(method):
     env, trace = play(method, [E, E, S, E])
-    assert [t[:3] for t in trace] == [(1, 0.0, False), (1, -1.0, False), (4, 0.0, False), (5, 1.0, True)]
+    assert [t[:3] for t in trace] == [
+        (1, 0.0, False),
+        (1, -1.0, False),
+        (4, 0.0, False),
+        (5, 1.0, True),
+    ]
     assert sum(t[1] for t in trace) == 0.0
     assert trace[1][3] == StepFlag.collided | StepFlag.recovered
     assert env.unsafe[1, E]
@@ -75,10 +81,13 @@ def test_fewshot_misrecognition_collides_and_learns():
 def test_gym_check_env_passes_for_every_registered_maze():
     import gymnasium as gym
     from gymnasium.utils.env_checker import check_env
+
     for name in ("5x5", "7x7", "11x11"):
         env = gym.make(f"SafeNav-{name}-v0")
         check_env(env.unwrapped, skip_render_check=True)
-    check_env(SafeNavigationEnv("5x5", "fewshot", recogniser=always_wrong()), skip_render_check=True)
+    check_env(
+        SafeNavigationEnv("5x5", "fewshot", recogniser=always_wrong()), skip_render_check=True
+    )
 
 
 def test_env_rejects_bad_input():
@@ -105,6 +114,7 @@ def test_only_the_rules_tell_safety_methods_apart():
     from pathlib import Path
 
     import pipeline.rl as rl
+
     for name in ("kernel.py", "runner.py", "gym_env.py", "agents.py", "structs.py"):
         src = (Path(rl.__file__).parent / name).read_text(encoding="utf-8")
         assert "Safety." not in src and ".uses_recogniser" not in src, name

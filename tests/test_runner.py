@@ -1,13 +1,13 @@
 import numpy as np
 import pytest
-
 from fakes import ListSink, TableRecogniser, always_right, always_wrong
+
 from pipeline.rl.agents import TabularAgent, run_episode
+from pipeline.rl.codes import StepFlag
 from pipeline.rl.gym_env import SafeNavigationEnv
 from pipeline.rl.methods import get_method, method_names
 from pipeline.rl.rng import run_seeds
 from pipeline.rl.runner import run_trials
-from pipeline.rl.codes import StepFlag
 from pipeline.world.geometry import build_geometry
 from pipeline.world.maze import load_layout
 
@@ -26,7 +26,9 @@ def collisions_by(sink, run, key):
 
 def test_shield_never_collides_twice_from_the_same_pair():
     sink = ListSink()
-    result = run_trials(MAZE, get_method("shield"), runs=4, episodes=60, seed=1, sink=sink, progress=False)
+    result = run_trials(
+        MAZE, get_method("shield"), runs=4, episodes=60, seed=1, sink=sink, progress=False
+    )
     for run in range(4):
         seen = collisions_by(sink, run, lambda s, a: (s, a))
         assert seen and max(seen.values()) == 1
@@ -43,14 +45,28 @@ def test_ssrl_never_collides_twice_with_the_same_obstacle():
 
 
 def test_fewshot_with_a_perfect_recogniser_never_collides():
-    result = run_trials(MAZE, get_method("fewshot"), runs=3, episodes=40, seed=3,
-                        recogniser=always_right(), progress=False)
+    result = run_trials(
+        MAZE,
+        get_method("fewshot"),
+        runs=3,
+        episodes=40,
+        seed=3,
+        recogniser=always_right(),
+        progress=False,
+    )
     assert result.collisions.sum() == 0 and result.prevented.sum() > 0
 
 
 def test_fewshot_with_a_blind_recogniser_collides_once_per_pair_like_the_shield():
-    blind = run_trials(MAZE, get_method("fewshot"), runs=3, episodes=40, seed=3,
-                       recogniser=always_wrong(), progress=False)
+    blind = run_trials(
+        MAZE,
+        get_method("fewshot"),
+        runs=3,
+        episodes=40,
+        seed=3,
+        recogniser=always_wrong(),
+        progress=False,
+    )
     assert blind.prevented.sum() == 0
     # every collision is a distinct (s, a): never more than the dangerous pairs
     assert (blind.collisions.sum(axis=1) <= len(build_geometry(MAZE).dangerous_pairs)).all()
@@ -59,20 +75,37 @@ def test_fewshot_with_a_blind_recogniser_collides_once_per_pair_like_the_shield(
 def test_dynamic_support_set_learns_from_every_misrecognition():
     rec = TableRecogniser(correct=(), dynamic=True)
     sink = ListSink()
-    result = run_trials(MAZE, get_method("fewshot_dss"), runs=2, episodes=30, seed=4,
-                        recogniser=rec, sink=sink, progress=False)
+    result = run_trials(
+        MAZE,
+        get_method("fewshot_dss"),
+        runs=2,
+        episodes=30,
+        seed=4,
+        recogniser=rec,
+        sink=sink,
+        progress=False,
+    )
     learnt = [s for s in sink.substitutions if s["picture"] >= 0]
     assert len(rec.learnt) == result.collisions.sum() == len(learnt)
     # one record of the initial support set per run, then its accuracy rises with every substitution
     starts = [s for s in sink.substitutions if s["picture"] < 0]
-    assert [s["run"] for s in starts] == [0, 1] and all(s["support_accuracy"] == 0.0 for s in starts)
+    assert [s["run"] for s in starts] == [0, 1] and all(
+        s["support_accuracy"] == 0.0 for s in starts
+    )
     for run in range(2):
         acc = [s["support_accuracy"] for s in sink.substitutions if s["run"] == run]
-        assert acc == sorted(acc) and acc[-1] == len(set(x["picture"] for x in learnt if x["run"] == run)) / 40
+        assert (
+            acc == sorted(acc)
+            and acc[-1] == len(set(x["picture"] for x in learnt if x["run"] == run)) / 40
+        )
     # after learning a picture the robot recognises it: no picture collides twice in a run
     for run in range(2):
-        pics = [e["recognitions"]["picture"][e["recognitions"]["predicted"] != e["recognitions"]["true"]]
-                for e in sink.by_run(run)]
+        pics = [
+            e["recognitions"]["picture"][
+                e["recognitions"]["predicted"] != e["recognitions"]["true"]
+            ]
+            for e in sink.by_run(run)
+        ]
         pics = np.concatenate(pics)
         assert len(pics) == len(set(pics.tolist()))
 
@@ -100,11 +133,21 @@ def test_gym_and_batched_runner_give_identical_trajectories(name):
     seed, episodes = 11, 25
     recs = {}
     if method.uses_recogniser:
-        recs = {"runner": TableRecogniser(correct=range(0, 40, 2), dynamic=method.dynamic_support),
-                "gym": TableRecogniser(correct=range(0, 40, 2), dynamic=method.dynamic_support)}
+        recs = {
+            "runner": TableRecogniser(correct=range(0, 40, 2), dynamic=method.dynamic_support),
+            "gym": TableRecogniser(correct=range(0, 40, 2), dynamic=method.dynamic_support),
+        }
     sink = ListSink()
-    run_trials(MAZE, method, runs=1, episodes=episodes, seed=seed, sink=sink,
-               recogniser=recs.get("runner"), progress=False)
+    run_trials(
+        MAZE,
+        method,
+        runs=1,
+        episodes=episodes,
+        seed=seed,
+        sink=sink,
+        recogniser=recs.get("runner"),
+        progress=False,
+    )
     env = SafeNavigationEnv(MAZE, method, recogniser=recs.get("gym"))
     agent = TabularAgent(method, MAZE.n_cells, run_seeds(seed, 0).agent)
     for ep, recorded in enumerate(sink.by_run(0)):
@@ -120,9 +163,17 @@ def test_recorded_relation_scores_are_the_recognisers_at_the_time_of_each_recogn
     from pipeline.rl.fixed_accuracy import FixedAccuracyRecogniser
 
     sink = ListSink()
-    run_trials(load_layout("7x7"), get_method("fewshot_dss"), runs=3, episodes=80, seed=4, sink=sink,
-               recogniser=FixedAccuracyRecogniser(p=0.4, learn=True, substitution_way=1), progress=False,
-               trace_capacity=256)
+    run_trials(
+        load_layout("7x7"),
+        get_method("fewshot_dss"),
+        runs=3,
+        episodes=80,
+        seed=4,
+        sink=sink,
+        recogniser=FixedAccuracyRecogniser(p=0.4, learn=True, substitution_way=1),
+        progress=False,
+        trace_capacity=256,
+    )
     rec = [b["recognitions"] for b in sink.batches if len(b["recognitions"]["step"])]
     assert len(rec) > 3 and any(s["picture"] >= 0 for s in sink.substitutions)
     scores = np.concatenate([r["scores"] for r in rec])
@@ -137,9 +188,17 @@ def test_a_sink_without_steps_gets_the_same_episodes_without_the_step_rows():
     from pipeline.rl.fixed_accuracy import FixedAccuracyRecogniser
 
     def trial(sink):
-        return run_trials(load_layout("7x7"), get_method("fewshot_dss"), runs=3, episodes=50, seed=2, sink=sink,
-                          recogniser=FixedAccuracyRecogniser(p=0.5, substitution_way=1), progress=False,
-                          chunk_episodes=20)
+        return run_trials(
+            load_layout("7x7"),
+            get_method("fewshot_dss"),
+            runs=3,
+            episodes=50,
+            seed=2,
+            sink=sink,
+            recogniser=FixedAccuracyRecogniser(p=0.5, substitution_way=1),
+            progress=False,
+            chunk_episodes=20,
+        )
 
     full, lean = ListSink(), ListSink()
     lean.records_steps = False

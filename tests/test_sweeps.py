@@ -1,4 +1,5 @@
 """Hydra multirun sweeps of the trials stage through the joblib and submitit_local launchers."""
+
 import json
 import os
 import subprocess
@@ -12,15 +13,33 @@ ROOT = Path(__file__).resolve().parents[1]
 
 @pytest.mark.parametrize("launcher", ["joblib", "submitit_local"])
 def test_sweep_over_methods(tmp_path, launcher):
-    args = [sys.executable, "-m", "pipeline", "trials", "-m", "method=shield,ssrl", "maze=5x5", "profile=smoke",
-            "record=none", "progress=false", f"out={tmp_path}/" + "${method.name}", f"hydra/launcher={launcher}",
-            f"hydra.sweep.dir={tmp_path}/multirun"]
+    args = [
+        sys.executable,
+        "-m",
+        "pipeline",
+        "trials",
+        "-m",
+        "method=shield,ssrl",
+        "maze=5x5",
+        "profile=smoke",
+        "record=none",
+        "progress=false",
+        f"out={tmp_path}/" + "${method.name}",
+        f"hydra/launcher={launcher}",
+        f"hydra.sweep.dir={tmp_path}/multirun",
+    ]
     if launcher == "joblib":
         args.append("hydra.launcher.n_jobs=2")
     else:
         args += ["hydra.launcher.timeout_min=5", "hydra.launcher.cpus_per_task=1"]
-    out = subprocess.run(args, cwd=ROOT, capture_output=True, text=True, timeout=600,
-                         env={**os.environ, "HYDRA_FULL_ERROR": "1"})
+    out = subprocess.run(
+        args,
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=600,
+        env={**os.environ, "HYDRA_FULL_ERROR": "1"},
+    )
     assert out.returncode == 0, out.stderr[-3000:]
     shield = json.loads((tmp_path / "shield" / "summary.json").read_text())
     ssrl = json.loads((tmp_path / "ssrl" / "summary.json").read_text())

@@ -1,4 +1,5 @@
 """The trials command end to end, composed from the real configs (lightning-hydra-template style)."""
+
 import json
 import subprocess
 import sys
@@ -17,8 +18,16 @@ def trials(*overrides):
 
 
 def test_trials_writes_summary(tmp_path):
-    summary = trials("method=shield", "maze=7x7", "runs=3", "episodes=40", "seed=5", "record=none",
-                     f"out={tmp_path}", "progress=false")
+    summary = trials(
+        "method=shield",
+        "maze=7x7",
+        "runs=3",
+        "episodes=40",
+        "seed=5",
+        "record=none",
+        f"out={tmp_path}",
+        "progress=false",
+    )
     on_disk = json.loads((tmp_path / "summary.json").read_text())
     assert on_disk["runs"] == summary["runs"] and len(on_disk["runs"]) == 3
     assert on_disk["method"] == "shield" and on_disk["maze"] == "7x7"
@@ -27,20 +36,36 @@ def test_trials_writes_summary(tmp_path):
 
 
 def test_method_fields_can_be_overridden(tmp_path):
-    summary = trials("method=qlearning", "method.epsilon=0.5", "runs=2", "episodes=5",
-                     "record=none", f"out={tmp_path}", "progress=false")
+    summary = trials(
+        "method=qlearning",
+        "method.epsilon=0.5",
+        "runs=2",
+        "episodes=5",
+        "record=none",
+        f"out={tmp_path}",
+        "progress=false",
+    )
     assert summary["method_spec"]["epsilon"] == 0.5
 
 
-@pytest.mark.parametrize("override,message", [
-    ("episodes=-3", "config key 'episodes'"),
-    ("runs=0", "config key 'runs'"),
-    ("maze=does/not/exist.txt", "config key 'maze'"),
-    ("method.alpha=2", "config key 'method.alpha'"),
-    ("method=fewshot recogniser.checkpoint=/nonexistent.pt", "config key 'recogniser'.*nonexistent.pt"),
-    ("+experiment=fig8 recogniser.checkpoint=/nonexistent.pt", "config key 'recogniser'.*nonexistent.pt"),
-    ("substitution=7", "config key 'substitution'"),
-])
+@pytest.mark.parametrize(
+    "override,message",
+    [
+        ("episodes=-3", "config key 'episodes'"),
+        ("runs=0", "config key 'runs'"),
+        ("maze=does/not/exist.txt", "config key 'maze'"),
+        ("method.alpha=2", "config key 'method.alpha'"),
+        (
+            "method=fewshot recogniser.checkpoint=/nonexistent.pt",
+            "config key 'recogniser'.*nonexistent.pt",
+        ),
+        (
+            "+experiment=fig8 recogniser.checkpoint=/nonexistent.pt",
+            "config key 'recogniser'.*nonexistent.pt",
+        ),
+        ("substitution=7", "config key 'substitution'"),
+    ],
+)
 def test_broken_configs_fail_naming_the_key(tmp_path, override, message):
     with pytest.raises(ConfigError, match=message):
         trials(*override.split(), f"out={tmp_path}", "progress=false")
@@ -48,15 +73,40 @@ def test_broken_configs_fail_naming_the_key(tmp_path, override, message):
 
 
 def test_command_line(tmp_path):
-    out = subprocess.run([sys.executable, "-m", "pipeline", "trials", "method=ssrl", "maze=5x5", "runs=2",
-                          "episodes=10", f"out={tmp_path}", "progress=false", "record=none"],
-                         capture_output=True, text=True, cwd=ROOT)
+    out = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "pipeline",
+            "trials",
+            "method=ssrl",
+            "maze=5x5",
+            "runs=2",
+            "episodes=10",
+            f"out={tmp_path}",
+            "progress=false",
+            "record=none",
+        ],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+    )
     assert out.returncode == 0, out.stderr
     assert json.loads((tmp_path / "summary.json").read_text())["n_runs"] == 2
-    bad = subprocess.run([sys.executable, "-m", "pipeline", "trials", "method=nope"],
-                         capture_output=True, text=True, cwd=ROOT)
-    assert bad.returncode == 2 and "method/nope" in bad.stderr and len(bad.stderr.strip().splitlines()) == 1
-    unknown = subprocess.run([sys.executable, "-m", "pipeline", "nostage"], capture_output=True, text=True, cwd=ROOT)
+    bad = subprocess.run(
+        [sys.executable, "-m", "pipeline", "trials", "method=nope"],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+    )
+    assert (
+        bad.returncode == 2
+        and "method/nope" in bad.stderr
+        and len(bad.stderr.strip().splitlines()) == 1
+    )
+    unknown = subprocess.run(
+        [sys.executable, "-m", "pipeline", "nostage"], capture_output=True, text=True, cwd=ROOT
+    )
     assert unknown.returncode == 2 and "unknown stage 'nostage'" in unknown.stderr
 
 
@@ -66,14 +116,25 @@ def test_record_levels(tmp_path, level):
     record file; the summary is the same whatever is recorded, and the file names its level."""
     from pipeline.records import read_records
 
-    summary = trials("method=fewshot_dss", "recogniser=fixed_accuracy", "maze=5x5", "runs=2", "episodes=30",
-                     f"record={level}", f"out={tmp_path}", "progress=false")
+    summary = trials(
+        "method=fewshot_dss",
+        "recogniser=fixed_accuracy",
+        "maze=5x5",
+        "runs=2",
+        "episodes=30",
+        f"record={level}",
+        f"out={tmp_path}",
+        "progress=false",
+    )
     path = tmp_path / "records.mcap"
     assert path.exists() == (level != "none")
     if level != "none":
         recs = read_records(path)
-        assert recs.meta.record == level and recs.meta.config["record"] == level and recs.meta.complete
+        assert (
+            recs.meta.record == level and recs.meta.config["record"] == level and recs.meta.complete
+        )
         assert len(recs.episodes) == 60 and int(recs.episodes.collisions.sum()) == sum(
-            r["collisions"] for r in summary["runs"])
+            r["collisions"] for r in summary["runs"]
+        )
         assert recs.steps.empty == (level == "episodes") and not recs.substitutions.empty
         assert len(recs.steps) in (0, int(recs.episodes.steps.sum()))

@@ -55,8 +55,9 @@ def test_placement_without_repetition_then_balanced():
 
 
 def test_picture_ids_round_trip():
-    assert [picture_parts(picture_id(*picture_parts(p))) for p in range(N_PICTURES)] == \
-        [picture_parts(p) for p in range(N_PICTURES)]
+    assert [picture_parts(picture_id(*picture_parts(p))) for p in range(N_PICTURES)] == [
+        picture_parts(p) for p in range(N_PICTURES)
+    ]
     assert picture_parts(39) == (4, 1, 3)
 
 

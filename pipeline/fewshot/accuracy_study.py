@@ -13,6 +13,7 @@
 Draws come from ``numpy.random.default_rng([seed, n])``, so each substitution number has its own
 stream.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -25,12 +26,31 @@ from pipeline.schema import setting
 # The paper's figures (Tables 1 and 2), for the report to put beside ours.
 PAPER_BASELINE = {"correct": [0, 3, 2, 8, 4], "total": [8, 8, 8, 8, 8], "mean": 0.425}
 PAPER_TABLE1 = {
-    "with_same": [[186, 495, 168, 748, 364], [0, 689, 132, 771, 292], [5, 581, 383, 742, 388], [4, 500, 136, 792, 314], [12, 500, 335, 692, 577]],
-    "no_same": [[95, 496, 155, 747, 373], [0, 596, 134, 756, 303], [11, 574, 331, 748, 389], [0, 500, 127, 697, 316], [13, 500, 334, 685, 487]],
+    "with_same": [
+        [186, 495, 168, 748, 364],
+        [0, 689, 132, 771, 292],
+        [5, 581, 383, 742, 388],
+        [4, 500, 136, 792, 314],
+        [12, 500, 335, 692, 577],
+    ],
+    "no_same": [
+        [95, 496, 155, 747, 373],
+        [0, 596, 134, 756, 303],
+        [11, 574, 331, 748, 389],
+        [0, 500, 127, 697, 316],
+        [13, 500, 334, 685, 487],
+    ],
     "mean_with_same": 0.4903,
     "mean_no_same": 0.4804,
 }
-PAPER_TABLE2 = {0: (0.425, 0.425), 1: (0.4903, 0.4804), 2: (0.5083, 0.4846), 3: (0.5247, 0.4841), 4: (0.5364, 0.4868), 5: (0.5491, 0.4860)}
+PAPER_TABLE2 = {
+    0: (0.425, 0.425),
+    1: (0.4903, 0.4804),
+    2: (0.5083, 0.4846),
+    3: (0.5247, 0.4841),
+    4: (0.5364, 0.4868),
+    5: (0.5491, 0.4860),
+}
 
 
 @dataclass
@@ -68,8 +88,9 @@ class StudyResult:
         return float(self.baseline_correct.sum() / self.per_category_total.sum())
 
 
-def run_study(recogniser, categories: np.ndarray, config: StudyConfig, k_shot: int = 5,
-              progress: bool = False) -> StudyResult:
+def run_study(
+    recogniser, categories: np.ndarray, config: StudyConfig, k_shot: int = 5, progress: bool = False
+) -> StudyResult:
     """Run the baseline, Table 1 and Table 2 with any recogniser of the trials' protocol
     (``start_run``, ``predictions``, ``scores``, ``learn_from_collision``); ``categories`` are the
     query pictures' true categories. A recogniser with a support set of positions (``replace(run,
@@ -94,7 +115,12 @@ def run_study(recogniser, categories: np.ndarray, config: StudyConfig, k_shot: i
     t1_ns_total = np.zeros((n_way, n_way), dtype=np.int64)
     table2: dict[int, tuple[float, float]] = {0: (float(base_correct.sum() / per_cat.sum()),) * 2}
     max_n = min(k_shot, int(per_cat.min()))
-    bar = tqdm(total=max_n * n_way * config.repeats, desc="accuracy study", disable=not progress, mininterval=1.0)
+    bar = tqdm(
+        total=max_n * n_way * config.repeats,
+        desc="accuracy study",
+        disable=not progress,
+        mininterval=1.0,
+    )
     for n in range(1, max_n + 1):
         rng = np.random.default_rng([config.seed, n])
         with_same = [0, 0]

@@ -5,6 +5,7 @@ refused. Written atomically (a temporary file in the same folder, then ``os.repl
 read with ``torch.load(weights_only=True)``, and checked: a corrupt, foreign or mismatched file
 raises :class:`CheckpointError` naming the file and the problem.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -14,16 +15,19 @@ from typing import Any
 
 import torch
 
+from pipeline.errors import UserError
 from pipeline.files import atomic_output
 
 from .model import ModelConfig, RelationNetwork
 from .protonet import PrototypicalNetwork
 from .settings import ProtoConfig
-from pipeline.errors import UserError
 
 #: The ``format`` entry of each kind of network (``train.model``), its class and its shape.
 FORMATS = {"relation_net": "relation-network/1", "protonet": "prototypical-network/1"}
-NETWORKS = {"relation_net": (RelationNetwork, ModelConfig), "protonet": (PrototypicalNetwork, ProtoConfig)}
+NETWORKS = {
+    "relation_net": (RelationNetwork, ModelConfig),
+    "protonet": (PrototypicalNetwork, ProtoConfig),
+}
 NAMES = {"relation_net": "a Relation Network", "protonet": "a Prototypical Network"}
 REQUIRED = ("format", "model", "state_dict", "normalisation", "config", "metrics")
 
@@ -47,7 +51,10 @@ def save_checkpoint(
         "format": FORMATS[network.kind],
         "model": asdict(network.config),
         "state_dict": {k: v.detach().clone().contiguous() for k, v in network.state_dict().items()},
-        "normalisation": {"mean": [float(x) for x in normalisation["mean"]], "std": [float(x) for x in normalisation["std"]]},
+        "normalisation": {
+            "mean": [float(x) for x in normalisation["mean"]],
+            "std": [float(x) for x in normalisation["std"]],
+        },
         "config": config,
         "metrics": metrics,
     }
@@ -65,42 +72,60 @@ def file_sha256(path: str | Path) -> str:
     return digest.hexdigest()
 
 
-def load_checkpoint(path: str | Path, expected_model: ModelConfig | ProtoConfig | None = None,
-                    kind: str = "relation_net") -> tuple[RelationNetwork | PrototypicalNetwork, dict[str, Any]]:
+def load_checkpoint(
+    path: str | Path,
+    expected_model: ModelConfig | ProtoConfig | None = None,
+    kind: str = "relation_net",
+) -> tuple[RelationNetwork | PrototypicalNetwork, dict[str, Any]]:
     """Load a checkpoint of network ``kind`` (``relation_net`` or ``protonet``) into a fresh
     network in ``eval()`` mode. Returns ``(network, payload)`` where the payload holds ``model``,
     ``normalisation``, ``config`` and ``metrics``. ``expected_model``, when given, must equal the
     checkpoint's model shape. A checkpoint of the other kind is refused."""
     path = Path(path)
-    hint = "retrain it with `python -m pipeline meta_train" + ("`" if kind == "relation_net" else f" train.model={kind}`")
+    hint = "retrain it with `python -m pipeline meta_train" + (
+        "`" if kind == "relation_net" else f" train.model={kind}`"
+    )
     if not path.is_file():
         raise CheckpointError(f"checkpoint {path} does not exist; {hint}")
     try:
         payload = torch.load(path, map_location="cpu", weights_only=True)
     except Exception as exc:  # torch raises several types for truncated/garbage files
         first = (str(exc).strip().splitlines() or [""])[0][:200]
-        raise CheckpointError(f"checkpoint {path} is corrupt or not a torch checkpoint ({type(exc).__name__}: {first}); {hint}") from None
+        raise CheckpointError(
+            f"checkpoint {path} is corrupt or not a torch checkpoint ({type(exc).__name__}: {first}); {hint}"
+        ) from None
     if not isinstance(payload, dict) or any(k not in payload for k in REQUIRED):
         have = sorted(payload) if isinstance(payload, dict) else type(payload).__name__
-        raise CheckpointError(f"checkpoint {path} lacks required entries {list(REQUIRED)} (has {have}); {hint}")
+        raise CheckpointError(
+            f"checkpoint {path} lacks required entries {list(REQUIRED)} (has {have}); {hint}"
+        )
     if payload["format"] != FORMATS[kind]:
         other = {v: k for k, v in FORMATS.items()}.get(payload["format"])
         if other is not None:
-            raise CheckpointError(f"checkpoint {path} holds {NAMES[other]} (train.model={other}), not {NAMES[kind]}; "
-                                  f"load it with recogniser={other}")
-        raise CheckpointError(f"checkpoint {path} has format {payload['format']!r}, expected {FORMATS[kind]!r}; {hint}")
+            raise CheckpointError(
+                f"checkpoint {path} holds {NAMES[other]} (train.model={other}), not {NAMES[kind]}; "
+                f"load it with recogniser={other}"
+            )
+        raise CheckpointError(
+            f"checkpoint {path} has format {payload['format']!r}, expected {FORMATS[kind]!r}; {hint}"
+        )
     network_class, shape_class = NETWORKS[kind]
     try:
         model = shape_class(**payload["model"])
     except (TypeError, ValueError) as exc:
-        raise CheckpointError(f"checkpoint {path} has an invalid model config {payload['model']}: {exc}") from exc
+        raise CheckpointError(
+            f"checkpoint {path} has an invalid model config {payload['model']}: {exc}"
+        ) from exc
     if expected_model is not None and model != expected_model:
-        raise CheckpointError(f"checkpoint {path} was trained for {model}, but {expected_model} was asked for; {hint}")
+        raise CheckpointError(
+            f"checkpoint {path} was trained for {model}, but {expected_model} was asked for; {hint}"
+        )
     network = network_class(model)
     try:
         network.load_state_dict(payload["state_dict"], strict=True)
     except RuntimeError as exc:
-        raise CheckpointError(f"checkpoint {path} does not match {NAMES[kind]}'s weights: {exc}") from exc
+        raise CheckpointError(
+            f"checkpoint {path} does not match {NAMES[kind]}'s weights: {exc}"
+        ) from exc
     network.eval()
     return network, payload
-

@@ -6,6 +6,7 @@ pictures are classified against the original support set, which is left as rende
 that matches shapes keeps its accuracy; one that matches colours loses it. Not in the paper: its
 photographs fix each object's colour.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -24,8 +25,11 @@ def hue_rotate(images: np.ndarray, degrees: float) -> np.ndarray:
     return np.clip(np.rint(hsv_to_rgb(hsv) * 255.0), 0, 255).astype(np.uint8)
 
 
-def colour_test(baseline_predictions: np.ndarray, shifted_predictions: dict[float, np.ndarray],
-                categories: np.ndarray) -> dict:
+def colour_test(
+    baseline_predictions: np.ndarray,
+    shifted_predictions: dict[float, np.ndarray],
+    categories: np.ndarray,
+) -> dict:
     """The colour test's counts: correct query pictures with the original colours and with each hue
     shift (every query picture turned, the original support set), and each picture's predictions
     (for a paired interval of the drop over pictures). Plain numbers, for ``summary.json``."""
@@ -35,8 +39,12 @@ def colour_test(baseline_predictions: np.ndarray, shifted_predictions: dict[floa
         "shifts_deg": [float(s) for s in shifts],
         "pictures": int(len(cats)),
         "correct_original": int((np.asarray(baseline_predictions) == cats).sum()),
-        "correct_per_shift": [int((np.asarray(shifted_predictions[s]) == cats).sum()) for s in shifts],
+        "correct_per_shift": [
+            int((np.asarray(shifted_predictions[s]) == cats).sum()) for s in shifts
+        ],
         "categories": cats.astype(int).tolist(),
         "predictions_original": np.asarray(baseline_predictions).astype(int).tolist(),
-        "predictions_per_shift": [np.asarray(shifted_predictions[s]).astype(int).tolist() for s in shifts],
+        "predictions_per_shift": [
+            np.asarray(shifted_predictions[s]).astype(int).tolist() for s in shifts
+        ],
     }

@@ -12,6 +12,7 @@ validation classes (``data=folder`` of the meta_train stage).
 
 Pictures are resized once, at load time, to the model's input size and kept as uint8 arrays.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -25,7 +26,16 @@ from tqdm.auto import tqdm
 from pipeline.errors import UserError
 
 MANIFEST = "manifest.csv"
-COLUMNS = ("split", "category", "class_name", "instance", "face", "orientation_deg", "picture_id", "file")
+COLUMNS = (
+    "split",
+    "category",
+    "class_name",
+    "instance",
+    "face",
+    "orientation_deg",
+    "picture_id",
+    "file",
+)
 SPLITS = ("query", "support", "train", "val")
 #: File endings :func:`load_folder` reads as pictures (any case); other files are left alone.
 PICTURE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".webp")
@@ -85,14 +95,18 @@ def load_image(path: Path, size: int) -> np.ndarray:
         raise DataError(f"cannot read picture {path}: {exc}") from exc
 
 
-def load_split(images_dir: str | Path, split: str, size: int, frame: pd.DataFrame | None = None) -> PictureSet:
+def load_split(
+    images_dir: str | Path, split: str, size: int, frame: pd.DataFrame | None = None
+) -> PictureSet:
     """Load every picture of ``split`` resized to ``size`` px. Rows are sorted by
     (category, instance, face, file) so the order does not depend on how the manifest was written."""
     if split not in SPLITS:
         raise DataError(f"unknown split {split!r}; expected one of {list(SPLITS)}")
     images_dir = Path(images_dir)
     frame = read_manifest(images_dir) if frame is None else frame
-    rows = frame[frame["split"] == split].sort_values(["category", "instance", "face", "file"], kind="stable")
+    rows = frame[frame["split"] == split].sort_values(
+        ["category", "instance", "face", "file"], kind="stable"
+    )
     if rows.empty:
         raise DataError(f"{images_dir / MANIFEST}: no rows for split {split!r}")
     categories = rows["category"].to_numpy(dtype=np.int64)
@@ -106,7 +120,9 @@ def load_split(images_dir: str | Path, split: str, size: int, frame: pd.DataFram
     for c in range(n_classes):
         cls = rows.loc[rows["category"] == c, "class_name"].astype(str).unique()
         if len(cls) != 1:
-            raise DataError(f"{images_dir / MANIFEST}: split {split!r} category {c} has class names {list(cls)}")
+            raise DataError(
+                f"{images_dir / MANIFEST}: split {split!r} category {c} has class names {list(cls)}"
+            )
         names.append(cls[0])
     files = tuple(rows["file"].astype(str))
     images = np.stack([load_image(images_dir / f, size) for f in files])
@@ -128,20 +144,30 @@ def load_folder(root: str | Path, size: int, *, progress: bool = False) -> Pictu
     cannot be read raises :class:`DataError` naming it."""
     root = Path(root)
     if not root.is_dir():
-        raise DataError(f"{root}: no such folder (expected a folder-per-class tree: <dir>/<class>/<picture>)")
+        raise DataError(
+            f"{root}: no such folder (expected a folder-per-class tree: <dir>/<class>/<picture>)"
+        )
     classes = sorted(p for p in root.iterdir() if p.is_dir() and not p.name.startswith("."))
     if not classes:
-        raise DataError(f"{root}: no class folders (expected <dir>/<class>/<picture>, pictures ending in "
-                        f"{', '.join(PICTURE_SUFFIXES)})")
+        raise DataError(
+            f"{root}: no class folders (expected <dir>/<class>/<picture>, pictures ending in "
+            f"{', '.join(PICTURE_SUFFIXES)})"
+        )
     files: list[str] = []
     labels: list[int] = []
     for label, folder in enumerate(classes):
-        pictures = sorted(f.name for f in folder.iterdir() if f.is_file() and f.suffix.lower() in PICTURE_SUFFIXES)
+        pictures = sorted(
+            f.name for f in folder.iterdir() if f.is_file() and f.suffix.lower() in PICTURE_SUFFIXES
+        )
         if not pictures:
-            raise DataError(f"{folder}: class folder without pictures (files ending in {', '.join(PICTURE_SUFFIXES)})")
+            raise DataError(
+                f"{folder}: class folder without pictures (files ending in {', '.join(PICTURE_SUFFIXES)})"
+            )
         files += [f"{folder.name}/{name}" for name in pictures]
         labels += [label] * len(pictures)
-    bar = tqdm(files, desc=f"load {root.name}", unit="picture", disable=not progress, mininterval=2.0)
+    bar = tqdm(
+        files, desc=f"load {root.name}", unit="picture", disable=not progress, mininterval=2.0
+    )
     return PictureSet(
         images=np.stack([load_image(root / f, size) for f in bar]),
         labels=np.asarray(labels, dtype=np.int64),

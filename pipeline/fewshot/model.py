@@ -27,6 +27,7 @@ Because the first convolution of g_phi is linear in its 128 input channels, it s
 class half and a query half (:meth:`RelationModule.first_conv_halves`); the recogniser uses this to
 recompute only the class half when a support set changes (section 3.3).
 """
+
 from __future__ import annotations
 
 import torch
@@ -54,7 +55,10 @@ class Embedding(nn.Module):
     def __init__(self) -> None:
         super().__init__()
         self.layers = nn.Sequential(
-            _block(3, 0, True), _block(CHANNELS, 0, True), _block(CHANNELS, 1, False), _block(CHANNELS, 1, False)
+            _block(3, 0, True),
+            _block(CHANNELS, 0, True),
+            _block(CHANNELS, 1, False),
+            _block(CHANNELS, 1, False),
         )
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
@@ -84,7 +88,9 @@ class RelationModule(nn.Module):
         h = torch.relu(self.fc1(h.flatten(1)))
         return torch.sigmoid(self.fc2(h)).squeeze(1)
 
-    def first_conv_halves(self, class_features: torch.Tensor, query_features: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    def first_conv_halves(
+        self, class_features: torch.Tensor, query_features: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor]:
         """Split the first convolution over C(class, query):
         ``conv(C(a, b)) = conv_a(a) + conv_b(b) + bias``. Returns the two halves without the bias
         (see :meth:`first_conv_bias`); convolution is linear, so the class half of a K-shot sum is
@@ -115,7 +121,9 @@ class RelationNetwork(nn.Module):
         """(C, K, 64, s, s) -> (C, 64, s, s): element-wise sum over the K shots."""
         return support_features.sum(dim=1)
 
-    def relation_scores(self, class_features: torch.Tensor, query_features: torch.Tensor) -> torch.Tensor:
+    def relation_scores(
+        self, class_features: torch.Tensor, query_features: torch.Tensor
+    ) -> torch.Tensor:
         """Scores (Q, C) of every query against every class feature map."""
         n_class, n_query = class_features.shape[0], query_features.shape[0]
         a = class_features.unsqueeze(0).expand(n_query, -1, -1, -1, -1)

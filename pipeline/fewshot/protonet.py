@@ -14,6 +14,7 @@ beside the Relation Network (:mod:`.model`), trained on the same classes and epi
 We write it ourselves rather than use easyfsl: easyfsl needs torchvision, whose PyPI wheel does not
 import beside our CPU torch and would pull in a second torch build.
 """
+
 from __future__ import annotations
 
 import torch

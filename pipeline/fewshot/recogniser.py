@@ -27,6 +27,7 @@ Each run owns its support set. ``start_run`` restores the original support set, 
 ``carry_over=True`` (long-term autonomy, paper Figure 10), keeps the run's current one and only reseeds
 its substitution stream.
 """
+
 from __future__ import annotations
 
 import abc
@@ -77,7 +78,9 @@ class SupportSetRecogniser(abc.ABC):
         carry_over: bool = False,
     ) -> None:
         if len(support_images) != n_way * k_shot:
-            raise ValueError(f"support set needs {n_way}x{k_shot} = {n_way * k_shot} pictures, got {len(support_images)}")
+            raise ValueError(
+                f"support set needs {n_way}x{k_shot} = {n_way * k_shot} pictures, got {len(support_images)}"
+            )
         if len(query_images) != len(query_categories):
             raise ValueError("query_images and query_categories differ in length")
         cats = np.asarray(query_categories, dtype=np.int64)
@@ -90,7 +93,9 @@ class SupportSetRecogniser(abc.ABC):
         self.query_categories = cats
         self.n_pictures = len(cats)
         self.class_names: tuple[str, ...] = tuple(f"category_{c}" for c in range(n_way))
-        self.checkpoint: dict | None = None  # config and metrics of the checkpoint, when loaded from files
+        self.checkpoint: dict | None = (
+            None  # config and metrics of the checkpoint, when loaded from files
+        )
         with torch.no_grad():
             query_f = embed_all(network, query_images, channels_last=False)
             support_f = embed_all(network, support_images, channels_last=False)
@@ -102,12 +107,18 @@ class SupportSetRecogniser(abc.ABC):
             self._part[-(j + 1)] = support_parts[j]
         self._runs: dict[int, _Run] = {}
         template = SupportSet(n_way, k_shot, 0, 0)
-        self._original_state = torch.stack([self._class_state(template.members[c]) for c in range(n_way)])
-        self._original_table = np.stack([self._column(self._original_state[c]) for c in range(n_way)], axis=1)
+        self._original_state = torch.stack(
+            [self._class_state(template.members[c]) for c in range(n_way)]
+        )
+        self._original_table = np.stack(
+            [self._column(self._original_state[c]) for c in range(n_way)], axis=1
+        )
 
     # -- what a subclass provides ------------------------------------------------------------
     @abc.abstractmethod
-    def _prepare(self, query_f: torch.Tensor, support_f: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    def _prepare(
+        self, query_f: torch.Tensor, support_f: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor]:
         """From the eval-mode embeddings, each query and support picture's part of a class state
         (and whatever the scoring keeps about the query pictures)."""
 
@@ -125,15 +136,25 @@ class SupportSetRecogniser(abc.ABC):
 
     # -- construction from files -------------------------------------------------------------
     @classmethod
-    def _from_files(cls, checkpoint, images_dir, expected, query_hue_shift: float, *, substitution_way: int,
-                    carry_over: bool):
+    def _from_files(
+        cls,
+        checkpoint,
+        images_dir,
+        expected,
+        query_hue_shift: float,
+        *,
+        substitution_way: int,
+        carry_over: bool,
+    ):
         """Load a ``cls.kind`` checkpoint and the query/support pictures of ``images_dir``'s
         manifest, resized to the checkpoint's input size and normalised with its statistics.
         ``expected``, when given, is the model shape the config expects: a checkpoint of another
         shape or kind is refused (:class:`CheckpointError`). ``query_hue_shift`` (degrees) turns the
         hue of the query pictures only (:mod:`.colour`, the colour test); 0 leaves them as rendered."""
         if not np.isfinite(query_hue_shift):
-            raise ValueError(f"query_hue_shift must be a finite number of degrees, got {query_hue_shift!r}")
+            raise ValueError(
+                f"query_hue_shift must be a finite number of degrees, got {query_hue_shift!r}"
+            )
         network, payload = load_checkpoint(checkpoint, expected, kind=cls.kind)
         size = network.config.input_size
         frame = read_manifest(images_dir)
@@ -153,31 +174,52 @@ class SupportSetRecogniser(abc.ABC):
             carry_over=carry_over,
         )
         recogniser.class_names = support.class_names
-        recogniser.checkpoint = {k: payload[k] for k in ("model", "config", "metrics", "normalisation")}
-        recogniser.checkpoint_file = {"path": str(checkpoint), "sha256": file_sha256(checkpoint),
-                                      "model": dict(payload["model"])}
+        recogniser.checkpoint = {
+            k: payload[k] for k in ("model", "config", "metrics", "normalisation")
+        }
+        recogniser.checkpoint_file = {
+            "path": str(checkpoint),
+            "sha256": file_sha256(checkpoint),
+            "model": dict(payload["model"]),
+        }
         recogniser.query_hue_shift = float(query_hue_shift)
         return recogniser
 
     def describe(self) -> dict:
         """What the records keep about this recogniser: the checkpoint's path, sha256 and shape (and
         the query pictures' hue shift, when they are turned)."""
-        out = {"kind": self.kind, "checkpoint": getattr(self, "checkpoint_file", None),
-               "substitution_way": self.substitution_way, "carry_over": self.carry_over}
+        out = {
+            "kind": self.kind,
+            "checkpoint": getattr(self, "checkpoint_file", None),
+            "substitution_way": self.substitution_way,
+            "carry_over": self.carry_over,
+        }
         if getattr(self, "query_hue_shift", 0.0):
             out["query_hue_shift"] = self.query_hue_shift
         return out
 
     @staticmethod
-    def _arrange(query: PictureSet, support: PictureSet, images_dir) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, int]:
+    def _arrange(
+        query: PictureSet, support: PictureSet, images_dir
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, int]:
         order = np.argsort(query.picture_ids, kind="stable")
         ids = query.picture_ids[order]
         if not np.array_equal(ids, np.arange(len(ids))):
-            raise DataError(f"{images_dir}: query picture ids must be 0..{len(ids) - 1}, each once; got {ids.tolist()}")
+            raise DataError(
+                f"{images_dir}: query picture ids must be 0..{len(ids) - 1}, each once; got {ids.tolist()}"
+            )
         counts = np.bincount(support.labels)
         if len(set(counts.tolist())) != 1 or support.n_classes != query.n_classes:
-            raise DataError(f"{images_dir}: the support split needs the same number of pictures in each of the {query.n_classes} categories; got {counts.tolist()}")
-        return query.images[order], query.labels[order], support.images, support.n_classes, int(counts[0])
+            raise DataError(
+                f"{images_dir}: the support split needs the same number of pictures in each of the {query.n_classes} categories; got {counts.tolist()}"
+            )
+        return (
+            query.images[order],
+            query.labels[order],
+            support.images,
+            support.n_classes,
+            int(counts[0]),
+        )
 
     # -- the Recogniser protocol -------------------------------------------------------------
     def start_run(self, run: int, seed: int) -> None:
@@ -201,7 +243,9 @@ class SupportSetRecogniser(abc.ABC):
         """Scores (len(picture_ids), C) in [0, 1] under run ``run``'s support set."""
         ids = np.asarray(picture_ids, dtype=np.int64)
         if ids.size and (ids.min() < 0 or ids.max() >= self.n_pictures):
-            raise ValueError(f"picture ids must lie in 0..{self.n_pictures - 1}, got {ids.tolist()}")
+            raise ValueError(
+                f"picture ids must lie in 0..{self.n_pictures - 1}, got {ids.tolist()}"
+            )
         return self._scores(self._table(run)[ids])
 
     def learn_from_collision(self, run: int, picture_id: int, true_category: int) -> int:
@@ -235,13 +279,17 @@ class SupportSetRecogniser(abc.ABC):
         try:
             return self._runs[run]
         except KeyError:
-            raise KeyError(f"run {run} was not started; call start_run({run}, seed) first") from None
+            raise KeyError(
+                f"run {run} was not started; call start_run({run}, seed) first"
+            ) from None
 
     def _check_picture(self, picture_id: int, category: int) -> None:
         if not 0 <= picture_id < self.n_pictures:
             raise ValueError(f"picture id {picture_id} out of range 0..{self.n_pictures - 1}")
         if self.query_categories[picture_id] != category:
-            raise ValueError(f"picture {picture_id} shows category {self.query_categories[picture_id]}, not {category}")
+            raise ValueError(
+                f"picture {picture_id} shows category {self.query_categories[picture_id]}, not {category}"
+            )
 
     def _refresh(self, state: _Run, category: int) -> None:
         state.state[category] = self._class_state(state.support.members[category])
@@ -263,18 +311,34 @@ class RelationRecogniser(SupportSetRecogniser):
     kind = "relation_net"
 
     @classmethod
-    def from_files(cls, checkpoint: str | Path, images_dir: str | Path, input_size: int | None = None,
-                   relation_padding: int | None = None, query_hue_shift: float = 0.0, *, substitution_way: int = 1,
-                   carry_over: bool = False) -> "RelationRecogniser":
+    def from_files(
+        cls,
+        checkpoint: str | Path,
+        images_dir: str | Path,
+        input_size: int | None = None,
+        relation_padding: int | None = None,
+        query_hue_shift: float = 0.0,
+        *,
+        substitution_way: int = 1,
+        carry_over: bool = False,
+    ) -> RelationRecogniser:
         """Load a trained Relation Network checkpoint and the pictures of ``images_dir`` (see
         :meth:`SupportSetRecogniser._from_files`). ``input_size`` and ``relation_padding``, when
         given, are the model shape the config expects; ``query_hue_shift`` turns the query pictures' hue."""
         expected = None
         if input_size is not None or relation_padding is not None:
-            expected = ModelConfig(input_size if input_size is not None else 84,
-                                   relation_padding if relation_padding is not None else 0)
-        return cls._from_files(checkpoint, images_dir, expected, query_hue_shift,
-                               substitution_way=substitution_way, carry_over=carry_over)
+            expected = ModelConfig(
+                input_size if input_size is not None else 84,
+                relation_padding if relation_padding is not None else 0,
+            )
+        return cls._from_files(
+            checkpoint,
+            images_dir,
+            expected,
+            query_hue_shift,
+            substitution_way=substitution_way,
+            carry_over=carry_over,
+        )
 
     def _prepare(self, query_f, support_f):
         relation = self.network.relation
@@ -300,15 +364,28 @@ class ProtoRecogniser(SupportSetRecogniser):
     kind = "protonet"
 
     @classmethod
-    def from_files(cls, checkpoint: str | Path, images_dir: str | Path, input_size: int | None = None,
-                   query_hue_shift: float = 0.0, *, substitution_way: int = 1,
-                   carry_over: bool = False) -> "ProtoRecogniser":
+    def from_files(
+        cls,
+        checkpoint: str | Path,
+        images_dir: str | Path,
+        input_size: int | None = None,
+        query_hue_shift: float = 0.0,
+        *,
+        substitution_way: int = 1,
+        carry_over: bool = False,
+    ) -> ProtoRecogniser:
         """Load a trained Prototypical Network checkpoint and the pictures of ``images_dir`` (see
         :meth:`SupportSetRecogniser._from_files`). ``input_size``, when given, is the input side
         the config expects; ``query_hue_shift`` turns the query pictures' hue."""
         expected = ProtoConfig(input_size) if input_size is not None else None
-        return cls._from_files(checkpoint, images_dir, expected, query_hue_shift,
-                               substitution_way=substitution_way, carry_over=carry_over)
+        return cls._from_files(
+            checkpoint,
+            images_dir,
+            expected,
+            query_hue_shift,
+            substitution_way=substitution_way,
+            carry_over=carry_over,
+        )
 
     def _prepare(self, query_f, support_f):
         self._queries = query_f.flatten(1)

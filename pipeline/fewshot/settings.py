@@ -4,6 +4,7 @@
 (:class:`TrainConfig`, whose ``model`` chooses between them). The stage schemas (``pipeline/stages/_schema.py``) type
 ``conf/meta_train.yaml`` with them, so checking a config never loads torch.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -50,7 +51,6 @@ def feature_shapes(input_size: int, relation_padding: int = 0) -> dict[str, int]
             f"relation map (embedding {embedding}x{embedding}); use input_size >= 46 or relation_padding=1"
         )
     return {"embedding": embedding, "relation": r, "fc_in": CHANNELS * r * r}
-
 
 
 @dataclass(frozen=True)
@@ -126,8 +126,10 @@ class TrainConfig:
     def __post_init__(self) -> None:
         check(self, "train.")
         if self.model == "protonet" and self.relation_padding != 0:
-            raise ConfigError(f"config key 'train.relation_padding': {self.relation_padding} means nothing to the "
-                              "Prototypical Network (it has no relation module g_phi); leave it out (0) with train.model=protonet")
+            raise ConfigError(
+                f"config key 'train.relation_padding': {self.relation_padding} means nothing to the "
+                "Prototypical Network (it has no relation module g_phi); leave it out (0) with train.model=protonet"
+            )
         self.network_config()
 
     def network_config(self) -> ModelConfig | ProtoConfig:

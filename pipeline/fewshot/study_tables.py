@@ -1,6 +1,7 @@
 """The accuracy study's results as tables (pure functions; the ``accuracy`` stage writes them):
 ``baseline`` (one row per query picture), ``table1`` (long format, paper's Table 1 beside ours),
 ``table2`` (paper's Table 2 beside ours) and a JSON-ready ``summary``."""
+
 from __future__ import annotations
 
 from typing import Any
@@ -32,7 +33,12 @@ def table1_frame(result: StudyResult, repeats: int) -> pd.DataFrame:
     paper_ok = n_way == 5 and repeats == 100
     for variant, correct, total, paper in (
         ("with_same", result.table1_correct, result.table1_total, PAPER_TABLE1["with_same"]),
-        ("no_same", result.table1_no_same_correct, result.table1_no_same_total, PAPER_TABLE1["no_same"]),
+        (
+            "no_same",
+            result.table1_no_same_correct,
+            result.table1_no_same_total,
+            PAPER_TABLE1["no_same"],
+        ),
     ):
         for s in range(n_way):
             for t in range(n_way):
@@ -90,7 +96,11 @@ def summary(result: StudyResult, class_names: list[str]) -> dict[str, Any]:
             "paper_mean_no_same": PAPER_TABLE1["mean_no_same"],
         },
         "table2": {
-            str(n): {"mean_accuracy": w, "mean_accuracy_no_same": ns, "paper": list(PAPER_TABLE2.get(n, (None, None)))}
+            str(n): {
+                "mean_accuracy": w,
+                "mean_accuracy_no_same": ns,
+                "paper": list(PAPER_TABLE2.get(n, (None, None))),
+            }
             for n, (w, ns) in sorted(result.table2.items())
         },
     }

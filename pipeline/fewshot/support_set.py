@@ -16,12 +16,19 @@ one random stream per run (seeded in :meth:`SupportSet.reset_stream`) serves eve
 Members are integers: an original support picture ``j`` (its index in the support split, class
 ``c`` holding ``c*K .. c*K+K-1``) is ``-(j + 1)``; a query picture is its picture id (>= 0).
 """
+
 from __future__ import annotations
 
 import numpy as np
 
 WAYS = (0, 1, 2, 3, 4)
-WAY_NAMES = {0: "static", 1: "in order", 2: "random", 3: "random rounds", 4: "random round, then in order"}
+WAY_NAMES = {
+    0: "static",
+    1: "in order",
+    2: "random",
+    3: "random rounds",
+    4: "random round, then in order",
+}
 
 
 def original_member(j: int) -> int:
@@ -37,7 +44,9 @@ class PositionChooser:
             raise ValueError(f"substitution way must be 1, 2, 3 or 4, got {way}")
         self.way, self.k = way, k_shot
         self.count = 0  # substitutions made so far in this category
-        self.round_left: list[int] = list(range(k_shot))  # way 3/4: positions not yet replaced this round
+        self.round_left: list[int] = list(
+            range(k_shot)
+        )  # way 3/4: positions not yet replaced this round
         self.first_round: list[int] = []  # way 4: the first round's order
 
     def next_position(self, rng: np.random.Generator) -> int:
@@ -66,7 +75,10 @@ class SupportSet:
         if way not in WAYS:
             raise ValueError(f"substitution way must be one of {WAYS} (0 = static), got {way}")
         self.n_way, self.k_shot, self.way = n_way, k_shot, way
-        self.members = np.array([[original_member(c * k_shot + k) for k in range(k_shot)] for c in range(n_way)], dtype=np.int64)
+        self.members = np.array(
+            [[original_member(c * k_shot + k) for k in range(k_shot)] for c in range(n_way)],
+            dtype=np.int64,
+        )
         self.choosers = [PositionChooser(way, k_shot) for _ in range(n_way)] if way else []
         self.reset_stream(seed)
 

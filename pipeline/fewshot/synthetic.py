@@ -2,6 +2,7 @@
 and smoke runs: each class is a coloured shape (disc, square, cross, stripes...) on a noisy
 background, with per-picture jitter of position, size and brightness. Deterministic for a seed.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -15,7 +16,9 @@ from .data import COLUMNS, MANIFEST
 SHAPES = ("disc", "square", "cross", "hstripes", "vstripes", "ring", "triangle", "diamond")
 
 
-def _draw(rng: np.random.Generator, size: int, shape: str, colour: np.ndarray, background: np.ndarray) -> np.ndarray:
+def _draw(
+    rng: np.random.Generator, size: int, shape: str, colour: np.ndarray, background: np.ndarray
+) -> np.ndarray:
     yy, xx = np.mgrid[0:size, 0:size].astype(np.float64) / size
     cx, cy = 0.5 + rng.uniform(-0.12, 0.12, 2)
     r = rng.uniform(0.22, 0.32)
@@ -61,11 +64,22 @@ def write_synthetic_dataset(
     shapes = [SHAPES[i % len(SHAPES)] for i in rng.permutation(n_classes)]
     rows = []
 
-    def write(split: str, cls: int, label: int, name: str, instance: int, face: int, pid: int, bg_shift: float) -> None:
+    def write(
+        split: str,
+        cls: int,
+        label: int,
+        name: str,
+        instance: int,
+        face: int,
+        pid: int,
+        bg_shift: float,
+    ) -> None:
         rel = f"{split}/{name}/{instance}_{face}_{len(rows):05d}.png"
         path = images_dir / rel
         path.parent.mkdir(parents=True, exist_ok=True)
-        img = _draw(rng, size, shapes[cls], colours[cls], np.clip(backgrounds[cls] + bg_shift, 0, 255))
+        img = _draw(
+            rng, size, shapes[cls], colours[cls], np.clip(backgrounds[cls] + bg_shift, 0, 255)
+        )
         Image.fromarray(img).save(path)
         rows.append((split, label, name, instance, face, 0.0, pid, rel))
 
@@ -79,8 +93,19 @@ def write_synthetic_dataset(
         name = f"category_{category}"
         for instance in range(2):
             for face in range(4):
-                write("query", cls, category, name, instance, face, (category * 2 + instance) * 4 + face, 0.0)
+                write(
+                    "query",
+                    cls,
+                    category,
+                    name,
+                    instance,
+                    face,
+                    (category * 2 + instance) * 4 + face,
+                    0.0,
+                )
         for k in range(5):
-            write("support", cls, category, name, k, 0, -1, 40.0)  # a different "catalogue" background
+            write(
+                "support", cls, category, name, k, 0, -1, 40.0
+            )  # a different "catalogue" background
     pd.DataFrame(rows, columns=list(COLUMNS)).to_csv(images_dir / MANIFEST, index=False)
     return images_dir / MANIFEST

@@ -15,6 +15,7 @@ episodes, drawn from another seed than the selection episodes, with its 95% inte
 In eval mode a picture's embedding does not depend on the other pictures, so evaluation embeds
 every validation picture once and runs only the relation module per episode.
 """
+
 from __future__ import annotations
 
 import copy
@@ -39,6 +40,7 @@ Network = RelationNetwork | PrototypicalNetwork
 
 log = logging.getLogger(__name__)
 
+
 @dataclass
 class TrainResult:
     """The selected network (in eval mode) and everything measured while training it."""
@@ -55,7 +57,9 @@ def _lr_lambda(config: TrainConfig):
     if config.lr_schedule == "step":
         return lambda step: 0.5 ** (step // config.lr_step)
     lo = config.min_lr_fraction
-    return lambda step: lo + (1 - lo) * 0.5 * (1 + math.cos(math.pi * min(step, config.episodes) / config.episodes))
+    return lambda step: (
+        lo + (1 - lo) * 0.5 * (1 + math.cos(math.pi * min(step, config.episodes) / config.episodes))
+    )
 
 
 def _format(x: torch.Tensor, channels_last: bool) -> torch.Tensor:
@@ -63,10 +67,15 @@ def _format(x: torch.Tensor, channels_last: bool) -> torch.Tensor:
 
 
 @torch.no_grad()
-def embed_all(network: Network, images: torch.Tensor, channels_last: bool = True, batch: int = 256) -> torch.Tensor:
+def embed_all(
+    network: Network, images: torch.Tensor, channels_last: bool = True, batch: int = 256
+) -> torch.Tensor:
     """f_varphi of every picture, in eval mode, in fixed-size batches (N, 64, s, s)."""
     network.eval()
-    out = [network.embedding(_format(images[i : i + batch], channels_last)) for i in range(0, len(images), batch)]
+    out = [
+        network.embedding(_format(images[i : i + batch], channels_last))
+        for i in range(0, len(images), batch)
+    ]
     return torch.cat(out).contiguous()
 
 
@@ -88,7 +97,9 @@ def build_network(config: TrainConfig) -> Network:
     return PrototypicalNetwork(shape) if config.model == "protonet" else RelationNetwork(shape)
 
 
-def meta_train(train: PictureSet, val: PictureSet, config: TrainConfig, progress: bool = True) -> TrainResult:
+def meta_train(  # noqa: PLR0915 (to split)
+    train: PictureSet, val: PictureSet, config: TrainConfig, progress: bool = True
+) -> TrainResult:
     """Meta-train on ``train``'s classes and select the checkpoint on ``val``'s classes."""
     torch.manual_seed(config.seed)
     rng = np.random.default_rng(config.seed)
@@ -96,7 +107,14 @@ def meta_train(train: PictureSet, val: PictureSet, config: TrainConfig, progress
     x_train = to_tensor(train.images, mean, std)
     x_val = to_tensor(val.images, mean, std)
     by_train, by_val = train.by_class(), val.by_class()
-    select_eps = sample_episodes(config.seed + 1, config.val_episodes, by_val, config.n_way, config.k_shot, config.eval_queries)
+    select_eps = sample_episodes(
+        config.seed + 1,
+        config.val_episodes,
+        by_val,
+        config.n_way,
+        config.k_shot,
+        config.eval_queries,
+    )
 
     network = build_network(config)
     if config.channels_last:
@@ -134,15 +152,42 @@ def meta_train(train: PictureSet, val: PictureSet, config: TrainConfig, progress
         done = step + 1
         out_of_time = time.perf_counter() - start > budget
         if done % config.val_every == 0 or done == config.episodes or out_of_time:
-            acc = float(evaluate(network, embed_all(network, x_val, config.channels_last), select_eps).mean())
+            acc = float(
+                evaluate(
+                    network, embed_all(network, x_val, config.channels_last), select_eps
+                ).mean()
+            )
             elapsed = time.perf_counter() - start
-            history.append({"episode": done, "loss": float(np.mean(losses[-config.val_every :])), "val_accuracy": acc, "elapsed_s": elapsed, "lr": scheduler.get_last_lr()[0]})
+            history.append(
+                {
+                    "episode": done,
+                    "loss": float(np.mean(losses[-config.val_every :])),
+                    "val_accuracy": acc,
+                    "elapsed_s": elapsed,
+                    "lr": scheduler.get_last_lr()[0],
+                }
+            )
             if acc > best["val_accuracy"]:
-                best = {"val_accuracy": acc, "episode": done, "state": copy.deepcopy(network.state_dict())}
+                best = {
+                    "val_accuracy": acc,
+                    "episode": done,
+                    "state": copy.deepcopy(network.state_dict()),
+                }
             if time_to_goal is None and acc >= config.target_accuracy:
                 time_to_goal = elapsed
-            log.info("episode %d: loss %.4f, selection accuracy %.4f (best %.4f), %.0f s", done, history[-1]["loss"], acc, best["val_accuracy"], elapsed)
-            bar.set_postfix(loss=f"{history[-1]['loss']:.4f}", val=f"{acc:.3f}", best=f"{best['val_accuracy']:.3f}")
+            log.info(
+                "episode %d: loss %.4f, selection accuracy %.4f (best %.4f), %.0f s",
+                done,
+                history[-1]["loss"],
+                acc,
+                best["val_accuracy"],
+                elapsed,
+            )
+            bar.set_postfix(
+                loss=f"{history[-1]['loss']:.4f}",
+                val=f"{acc:.3f}",
+                best=f"{best['val_accuracy']:.3f}",
+            )
         if out_of_time:
             break
     bar.close()
@@ -151,7 +196,14 @@ def meta_train(train: PictureSet, val: PictureSet, config: TrainConfig, progress
     network.load_state_dict(best["state"])
     network.eval()
     t0 = time.perf_counter()
-    eval_eps = sample_episodes(config.seed + 2, config.eval_episodes, by_val, config.n_way, config.k_shot, config.eval_queries)
+    eval_eps = sample_episodes(
+        config.seed + 2,
+        config.eval_episodes,
+        by_val,
+        config.n_way,
+        config.k_shot,
+        config.eval_queries,
+    )
     acc = evaluate(network, embed_all(network, x_val, config.channels_last), eval_eps)
     mean_acc, ci95 = mean_and_ci95(acc)
     metrics = {
@@ -172,7 +224,9 @@ def meta_train(train: PictureSet, val: PictureSet, config: TrainConfig, progress
         "model": config.model,
     }
     network = network.to(memory_format=torch.contiguous_format)
-    return TrainResult(network=network, normalisation={"mean": mean, "std": std}, metrics=metrics, history=history)
+    return TrainResult(
+        network=network, normalisation={"mean": mean, "std": std}, metrics=metrics, history=history
+    )
 
 
 def config_dict(config: TrainConfig) -> dict[str, Any]:

@@ -13,6 +13,7 @@ Measured (``benchmarks.records_overhead``, this 2-core machine, CPU, best of 5):
 kept. For varints of several bytes the runtime is as fast to write and faster to read: a million 2-byte values in
 77-86 ms and 12-13 ms through it, in 75-106 and 37-52 ms through vectorised numpy, which is why there is none.
 """
+
 from __future__ import annotations
 
 from collections.abc import Mapping
@@ -24,16 +25,36 @@ from google.protobuf import descriptor_pb2
 from . import schema as S
 from .schema import BOOL, CODE, F32, F64, I32, MESSAGES, SMALL, U32, Field
 
-SUBS = {f.name: f.type for f in MESSAGES["EpisodeBatch"] if isinstance(f.type, str)}  # summary -> EpisodeSummaries
-COLUMNS = {m: [f for f in fs if f.repeated and not isinstance(f.type, str)] for m, fs in MESSAGES.items()
-           if m != "Substitution"}  # the messages of a batch
+SUBS = {
+    f.name: f.type for f in MESSAGES["EpisodeBatch"] if isinstance(f.type, str)
+}  # summary -> EpisodeSummaries
+COLUMNS = {
+    m: [f for f in fs if f.repeated and not isinstance(f.type, str)]
+    for m, fs in MESSAGES.items()
+    if m != "Substitution"
+}  # the messages of a batch
 OPTIONAL = frozenset({"q_values", "substitutions"})  # sink batch keys that may be left out
-BATCH_KEYS = frozenset({f.name for f in MESSAGES["EpisodeBatch"]} - {"n_actions"} - OPTIONAL
-                       | {f.key or f.name for f in COLUMNS["Steps"]})
-REWARDS, SMALL_REWARDS = (f for f in COLUMNS["Steps"] if f.column == "reward")  # one of the two per batch
-_RANGE = {S.I32: (-2**31, 2**31), S.U32: (0, 2**31), CODE: (0, 2**32)}  # of the integer fields' values
-_LIMITS = {np.dtype(t): (int(np.iinfo(t).min), int(np.iinfo(t).max)) for t in np.typecodes["AllInteger"]}
-FIXED = {F32: "<f4", F64: "<f8", U32: "<u4", I32: "<i4"}  # fixed-width fields -> little-endian dtype; others varints
+BATCH_KEYS = frozenset(
+    {f.name for f in MESSAGES["EpisodeBatch"]} - {"n_actions"} - OPTIONAL
+    | {f.key or f.name for f in COLUMNS["Steps"]}
+)
+REWARDS, SMALL_REWARDS = (
+    f for f in COLUMNS["Steps"] if f.column == "reward"
+)  # one of the two per batch
+_RANGE = {
+    S.I32: (-(2**31), 2**31),
+    S.U32: (0, 2**31),
+    CODE: (0, 2**32),
+}  # of the integer fields' values
+_LIMITS = {
+    np.dtype(t): (int(np.iinfo(t).min), int(np.iinfo(t).max)) for t in np.typecodes["AllInteger"]
+}
+FIXED = {
+    F32: "<f4",
+    F64: "<f8",
+    U32: "<u4",
+    I32: "<i4",
+}  # fixed-width fields -> little-endian dtype; others varints
 OUR_SCHEMA = S.file_descriptor_set(S.EpisodeBatch)
 VIEWS = S.message_classes(view=True)
 
@@ -44,8 +65,14 @@ def _column(a: Any, f: Field, n: int | None, where: str) -> np.ndarray:
     the dtype allows values outside it."""
     a = np.asarray(a)
     if a.ndim != 1 or (n is not None and len(a) != n):
-        raise ValueError(f"{where}: " + (f"length {len(a)}, expected {n}" if a.ndim == 1
-                                         else f"expected a 1-D array, got shape {a.shape}"))
+        raise ValueError(
+            f"{where}: "
+            + (
+                f"length {len(a)}, expected {n}"
+                if a.ndim == 1
+                else f"expected a 1-D array, got shape {a.shape}"
+            )
+        )
     if f.type in (F32, F64):
         return a.astype(FIXED[f.type], copy=False)
     if a.dtype.kind not in "biu":
@@ -53,7 +80,7 @@ def _column(a: Any, f: Field, n: int | None, where: str) -> np.ndarray:
     if f.type == BOOL:
         return (a != 0).view(np.uint8)
     a = a.view(np.uint8) if a.dtype.kind == "b" else a
-    (lo, hi), (low, high) = _RANGE[f.type], _LIMITS.get(a.dtype, (-2**64, 2**64))  # of the dtype
+    (lo, hi), (low, high) = _RANGE[f.type], _LIMITS.get(a.dtype, (-(2**64), 2**64))  # of the dtype
     if len(a) and (low < lo and int(a.min()) < lo or high >= hi and int(a.max()) >= hi):
         raise ValueError(f"{where}: values {int(a.min())}..{int(a.max())} outside {lo}..{hi - 1}")
     return a if f.type == CODE else a.astype(FIXED[f.type], copy=False)
@@ -66,29 +93,42 @@ def check_batch(batch: Mapping[str, Any], *, with_steps: bool = True) -> dict[st
     ``with_steps=False`` (``record=episodes``): the step columns are left out, whatever the batch holds."""
     missing, unknown = BATCH_KEYS - batch.keys(), batch.keys() - BATCH_KEYS - OPTIONAL
     if missing or unknown:
-        raise TypeError(f"episode batch: missing fields {sorted(missing)}, unknown fields {sorted(unknown)} "
-                        "(see pipeline/rl/sink.py)")
+        raise TypeError(
+            f"episode batch: missing fields {sorted(missing)}, unknown fields {sorted(unknown)} "
+            "(see pipeline/rl/sink.py)"
+        )
     run = int(batch["run"])
     where = f"episode batch of run {run}"
     summary, keys = batch["summary"], [f.name for f in COLUMNS["EpisodeSummaries"][1:]]
     if set(keys) != summary.keys():
-        raise ValueError(f"{where}.summary: missing {sorted(set(keys) - summary.keys())}, unknown "
-                         f"{sorted(summary.keys() - set(keys))}; expected {keys}")
+        raise ValueError(
+            f"{where}.summary: missing {sorted(set(keys) - summary.keys())}, unknown "
+            f"{sorted(summary.keys() - set(keys))}; expected {keys}"
+        )
     ep = _column(batch["episode"], COLUMNS["EpisodeBatch"][0], None, f"{where}.episode")
     steps = _column(batch["steps"], COLUMNS["EpisodeSummaries"][0], len(ep), f"{where}.steps")
     e, t = len(ep), int(steps.sum())
     if e and (int(ep[-1]) - int(ep[0]) != e - 1 or (np.diff(ep.astype(np.int64)) != 1).any()):
         raise ValueError(f"{where}: episode ids must be consecutive, got {ep.tolist()}")
     cols = {"EpisodeBatch": {"episode": ep}, "EpisodeSummaries": {"steps": steps}}
-    cols["EpisodeSummaries"] |= {f.name: _column(summary[f.name], f, e, f"{where}.summary.{f.name}")
-                                 for f in COLUMNS["EpisodeSummaries"][1:]}
-    cols["Steps"] = {f.name: _column(batch[f.name], f, t, f"{where}.{f.name}")
-                     for f in COLUMNS["Steps"] if with_steps and f.column != "reward"}
+    cols["EpisodeSummaries"] |= {
+        f.name: _column(summary[f.name], f, e, f"{where}.summary.{f.name}")
+        for f in COLUMNS["EpisodeSummaries"][1:]
+    }
+    cols["Steps"] = {
+        f.name: _column(batch[f.name], f, t, f"{where}.{f.name}")
+        for f in COLUMNS["Steps"]
+        if with_steps and f.column != "reward"
+    }
     if with_steps:
         r = _column(batch["rewards"], REWARDS, t, f"{where}.rewards")
-        with np.errstate(invalid="ignore"):  # NaN, inf, huge: not whole and small, the floats keep them
+        with np.errstate(
+            invalid="ignore"
+        ):  # NaN, inf, huge: not whole and small, the floats keep them
             small = r.astype(np.int8)
-        whole = not len(r) or (small == r).all() and -64 <= int(small.min()) and int(small.max()) <= 63
+        whole = (
+            not len(r) or (small == r).all() and -64 <= int(small.min()) and int(small.max()) <= 63
+        )
         cols["Steps"] |= {SMALL_REWARDS.name: small} if whole else {REWARDS.name: r}
     scalars = {"EpisodeBatch": {"run": run, "n_actions": 0}, "Recognitions": {"n_categories": 0}}
     for sub in ("recognitions", "unsafe_added", "substitutions"):
@@ -96,30 +136,59 @@ def check_batch(batch: Mapping[str, Any], *, with_steps: bool = True) -> dict[st
         n = len(d.get("step", ()))
         names = [f.key or f.name for f in COLUMNS[msg] if f.name != "scores"]
         if n and set(names) - d.keys():
-            raise ValueError(f"{where}.{sub}: missing columns {[k for k in names if k not in d]}; expected {names}")
-        cols[msg] = {f.name: _column(d[f.key or f.name], f, n, f"{where}.{sub}.{f.key or f.name}")
-                     for f in COLUMNS[msg] if n and f.name != "scores"}
-        if n and e and not ep[0] <= cols[msg]["episode"].min() <= cols[msg]["episode"].max() <= ep[-1]:
-            raise ValueError(f"{where}.{sub}.episode: values outside the batch's episodes {ep[0]}..{ep[-1]}")
-        sc = np.asarray(d.get("scores", ()), "<f4") if sub == "recognitions" and n else np.zeros(0, "<f4")
+            raise ValueError(
+                f"{where}.{sub}: missing columns {[k for k in names if k not in d]}; expected {names}"
+            )
+        cols[msg] = {
+            f.name: _column(d[f.key or f.name], f, n, f"{where}.{sub}.{f.key or f.name}")
+            for f in COLUMNS[msg]
+            if n and f.name != "scores"
+        }
+        if (
+            n
+            and e
+            and not ep[0] <= cols[msg]["episode"].min() <= cols[msg]["episode"].max() <= ep[-1]
+        ):
+            raise ValueError(
+                f"{where}.{sub}.episode: values outside the batch's episodes {ep[0]}..{ep[-1]}"
+            )
+        sc = (
+            np.asarray(d.get("scores", ()), "<f4")
+            if sub == "recognitions" and n
+            else np.zeros(0, "<f4")
+        )
         if sc.size:
             if sc.ndim != 2 or sc.shape[0] != n:
-                raise ValueError(f"{where}.recognitions.scores: expected shape ({n}, n_categories), got {sc.shape}")
+                raise ValueError(
+                    f"{where}.recognitions.scores: expected shape ({n}, n_categories), got {sc.shape}"
+                )
             cols[msg]["scores"], scalars[msg]["n_categories"] = sc.ravel(), sc.shape[1]
     if batch.get("q_values") is not None:
         q = np.asarray(batch["q_values"], dtype="<f4")
         if q.ndim != 3 or q.shape[0] != e:
-            raise ValueError(f"{where}.q_values: expected shape ({e}, n_states, n_actions), got {q.shape}")
-        cols["EpisodeBatch"]["q_values"], scalars["EpisodeBatch"]["n_actions"] = q.ravel(), q.shape[2]
+            raise ValueError(
+                f"{where}.q_values: expected shape ({e}, n_states, n_actions), got {q.shape}"
+            )
+        cols["EpisodeBatch"]["q_values"], scalars["EpisodeBatch"]["n_actions"] = (
+            q.ravel(),
+            q.shape[2],
+        )
     return {"run": run, "episode": ep, "cols": cols, "scalars": scalars}
 
 
 def _payload(msg: str, f: Field, a: np.ndarray) -> bytes:
-    if f.type == CODE and len(a) and int(a.max()) >= 128:  # varints of several bytes: the runtime writes them
-        return getattr(VIEWS[msg].FromString(S.CLASSES[msg](**{f.name: a.tolist()}).SerializeToString()), f.name)
+    if (
+        f.type == CODE and len(a) and int(a.max()) >= 128
+    ):  # varints of several bytes: the runtime writes them
+        return getattr(
+            VIEWS[msg].FromString(S.CLASSES[msg](**{f.name: a.tolist()}).SerializeToString()),
+            f.name,
+        )
     if f.type == CODE:  # values below 128 are their own varint byte
         return a.astype(np.uint8).tobytes()
-    if f.type == SMALL:  # Protobuf's sint32 zigzag of values in -64..63, one byte each: 0, -1, 1, -2 -> 0, 1, 2, 3
+    if (
+        f.type == SMALL
+    ):  # Protobuf's sint32 zigzag of values in -64..63, one byte each: 0, -1, 1, -2 -> 0, 1, 2, 3
         return ((a.astype(np.int16) << 1) ^ (a.astype(np.int16) >> 15)).astype(np.uint8).tobytes()
     return a.tobytes()
 
@@ -128,7 +197,7 @@ def _message(msg: str, b: Mapping[str, Any]):
     cols = b["cols"].get(msg, {})
     kw = {f.name: _payload(msg, f, cols[f.name]) for f in COLUMNS[msg] if len(cols.get(f.name, ()))}
     kw.update({k: v for k, v in b["scalars"].get(msg, {}).items() if v})
-    for field, sub in (SUBS.items() if msg == "EpisodeBatch" else ()):
+    for field, sub in SUBS.items() if msg == "EpisodeBatch" else ():
         if (v := _message(sub, b)) is not None:
             kw[field] = v
     return VIEWS[msg](**kw) if kw else None
@@ -154,10 +223,15 @@ def check_schema(schema_data: bytes | None, library: str | None) -> None:
             return
     except Exception:  # not a FileDescriptorSet: not ours either
         pass
-    written = f"record format {library.rsplit('/', 1)[1]}" if (library or "").startswith("pipeline.records/") else \
-        "another record schema"
-    raise FormatError(f"its episode batches use {written}; this reader reads format {S.FORMAT_VERSION}: re-run the "
-                      "trials that wrote it (or read it with the commit of the pipeline that wrote it)")
+    written = (
+        f"record format {library.rsplit('/', 1)[1]}"
+        if (library or "").startswith("pipeline.records/")
+        else "another record schema"
+    )
+    raise FormatError(
+        f"its episode batches use {written}; this reader reads format {S.FORMAT_VERSION}: re-run the "
+        "trials that wrote it (or read it with the commit of the pipeline that wrote it)"
+    )
 
 
 def _values(raw: list[bytes], f: Field, column) -> tuple[np.ndarray, np.ndarray]:
@@ -170,7 +244,9 @@ def _values(raw: list[bytes], f: Field, column) -> tuple[np.ndarray, np.ndarray]
             raise ValueError("a fixed-width column is not whole elements")
         return np.frombuffer(b, FIXED[f.type]), lens // size
     values = np.frombuffer(b, np.uint8)
-    if (values >= 128).any():  # the runtime reads them (measured: 13 ms a million values; numpy took 52)
+    if (
+        values >= 128
+    ).any():  # the runtime reads them (measured: 13 ms a million values; numpy took 52)
         if (values[np.cumsum(lens)[lens > 0] - 1] >= 128).any():
             raise ValueError("a varint column does not end with a whole value")
         ends = np.r_[0, np.cumsum(values < 128)][np.r_[0, np.cumsum(lens)]]
@@ -193,13 +269,22 @@ def _flat(data: list[bytes]) -> dict:
             m.DiscardUnknownFields()
             v = VIEWS["EpisodeBatch"].FromString(m.SerializeToString(deterministic=True))
         top.append(v)
-    msgs = {"EpisodeBatch": top} | {sub: [getattr(v, field) for v in top] for field, sub in SUBS.items()}
-    out: dict = {"run": np.array([m.run for m in top], np.int64), "n_actions": np.array([m.n_actions for m in top]),
-                 "n_categories": np.array([m.recognitions.n_categories for m in top], np.int64)}
+    msgs = {"EpisodeBatch": top} | {
+        sub: [getattr(v, field) for v in top] for field, sub in SUBS.items()
+    }
+    out: dict = {
+        "run": np.array([m.run for m in top], np.int64),
+        "n_actions": np.array([m.n_actions for m in top]),
+        "n_categories": np.array([m.recognitions.n_categories for m in top], np.int64),
+    }
     for msg, fields in COLUMNS.items():
         for f in fields:
+
             def column(payload, msg=msg, name=f.name):
-                return getattr(S.CLASSES[msg].FromString(VIEWS[msg](**{name: payload}).SerializeToString()), name)
+                return getattr(
+                    S.CLASSES[msg].FromString(VIEWS[msg](**{name: payload}).SerializeToString()),
+                    name,
+                )
 
             out[msg, f.name] = _values([getattr(m, f.name) for m in msgs[msg]], f, column)
     return out
@@ -214,9 +299,15 @@ def decode_batches(messages: list[tuple[int, bytes]], name: str) -> dict:
 
 def _frame(flat: dict, msg: str, head: dict, **given: np.ndarray) -> dict:
     """The frame columns of ``msg``'s fields in field order (``given``: columns already built)."""
-    return head | {f.column: given[f.column] if f.column in given else flat[msg, f.name][0] != 0
-                   if f.dtype == "bool" else flat[msg, f.name][0].astype(f.dtype)
-                   for f in COLUMNS[msg] if f.name != "scores"}
+    return head | {
+        f.column: given[f.column]
+        if f.column in given
+        else flat[msg, f.name][0] != 0
+        if f.dtype == "bool"
+        else flat[msg, f.name][0].astype(f.dtype)
+        for f in COLUMNS[msg]
+        if f.name != "scores"
+    }
 
 
 def _columns(flat: dict, name: str) -> dict[str, Any]:
@@ -224,7 +315,10 @@ def _columns(flat: dict, name: str) -> dict[str, Any]:
         return ValueError(f"{name}: episode batch messages are inconsistent: {why}")
 
     count = {k: v[1] for k, v in flat.items() if isinstance(k, tuple)}
-    n_eps, lens = count["EpisodeBatch", "episode"], flat["EpisodeSummaries", "steps"][0].astype(np.int64)
+    n_eps, lens = (
+        count["EpisodeBatch", "episode"],
+        flat["EpisodeSummaries", "steps"][0].astype(np.int64),
+    )
     msg_of_ep = np.repeat(np.arange(len(n_eps)), n_eps)
     if not count["Steps", "states"].any():  # recorded without steps (record=episodes)
         lens = np.zeros_like(lens)
@@ -232,24 +326,48 @@ def _columns(flat: dict, name: str) -> dict[str, Any]:
     count["Steps", REWARDS.name] = n_float + n_small  # per batch, its rewards are in one of the two
     if ((n_float > 0) & (n_small > 0)).any():
         raise bad("a batch has rewards in both reward columns")
-    rows = {"EpisodeSummaries": (n_eps, "episode"), "Steps": (np.bincount(msg_of_ep, lens, len(n_eps)), "step")} | {
-        m: (count[m, "episode"], "row") for m in ("Recognitions", "UnsafeAdditions", "Substitutions")}
+    rows = {
+        "EpisodeSummaries": (n_eps, "episode"),
+        "Steps": (np.bincount(msg_of_ep, lens, len(n_eps)), "step"),
+    } | {
+        m: (count[m, "episode"], "row")
+        for m in ("Recognitions", "UnsafeAdditions", "Substitutions")
+    }
     for msg, (expected, per) in rows.items():
         for f in COLUMNS[msg]:
-            if f.name not in ("scores", SMALL_REWARDS.name) and not np.array_equal(count[msg, f.name], expected):
+            if f.name not in ("scores", SMALL_REWARDS.name) and not np.array_equal(
+                count[msg, f.name], expected
+            ):
                 raise bad(f"{msg}.{f.name} does not have one entry per {per}")
-    rec_m, un_k, ncat = count["Recognitions", "episode"], count["UnsafeAdditions", "episode"], flat["n_categories"]
+    rec_m, un_k, ncat = (
+        count["Recognitions", "episode"],
+        count["UnsafeAdditions", "episode"],
+        flat["n_categories"],
+    )
     n_sc = count["Recognitions", "scores"]
     if not np.array_equal(n_sc, np.where(n_sc > 0, rec_m * ncat, 0)):
         raise bad("scores do not have n_categories columns")
     ep_run = np.repeat(flat["run"], n_eps).astype(np.int32)
     ep_ep = flat["EpisodeBatch", "episode"][0].astype(np.int32)
     starts = np.repeat(np.cumsum(lens) - lens, lens)
-    small = np.repeat(n_small > 0, n_float + n_small)  # the steps whose rewards are in small_rewards
+    small = np.repeat(
+        n_small > 0, n_float + n_small
+    )  # the steps whose rewards are in small_rewards
     reward = np.empty(len(small), np.float32)
-    reward[small], reward[~small] = flat["Steps", SMALL_REWARDS.name][0], flat["Steps", REWARDS.name][0]
-    steps = _frame(flat, "Steps", {"run": np.repeat(ep_run, lens), "episode": np.repeat(ep_ep, lens),
-                                   "step": (np.arange(len(starts)) - starts).astype(np.int32)}, reward=reward)
+    reward[small], reward[~small] = (
+        flat["Steps", SMALL_REWARDS.name][0],
+        flat["Steps", REWARDS.name][0],
+    )
+    steps = _frame(
+        flat,
+        "Steps",
+        {
+            "run": np.repeat(ep_run, lens),
+            "episode": np.repeat(ep_ep, lens),
+            "step": (np.arange(len(starts)) - starts).astype(np.int32),
+        },
+        reward=reward,
+    )
     steps |= {flag: (steps["flags"] & bit) != 0 for flag, bit in S.FLAG_NAMES.items()}
     rec = _frame(flat, "Recognitions", {"run": np.repeat(flat["run"], rec_m).astype(np.int32)})
     rec["correct"] = rec["predicted"] == rec["true"]
@@ -262,11 +380,14 @@ def _columns(flat: dict, name: str) -> dict[str, Any]:
             scores = np.full((len(rec["run"]), width), np.nan, np.float32)
             row, pos = np.cumsum(rec_m) - rec_m, np.cumsum(n_sc) - n_sc
             for r, p, m, k in zip(row[has], pos[has], rec_m[has], ncat[has]):
-                scores[r:r + m, :k] = values[p:p + m * k].reshape(m, k)
+                scores[r : r + m, :k] = values[p : p + m * k].reshape(m, k)
         rec |= {f"score_{j}": scores[:, j] for j in range(width)}
     unsafe = _frame(flat, "UnsafeAdditions", {"run": np.repeat(flat["run"], un_k).astype(np.int32)})
-    subs = _frame(flat, "Substitutions", {"run": np.repeat(flat["run"], count["Substitutions", "episode"])
-                                          .astype(np.int32)})
+    subs = _frame(
+        flat,
+        "Substitutions",
+        {"run": np.repeat(flat["run"], count["Substitutions", "episode"]).astype(np.int32)},
+    )
     ep_key = ep_run.astype(np.int64) << 32 | ep_ep
     order = np.argsort(ep_key, kind="stable")
     per_episode = {}
@@ -277,14 +398,25 @@ def _columns(flat: dict, name: str) -> dict[str, Any]:
             raise bad(f"{what} of episodes that are not in their batch")
         per_episode[what] = np.bincount(order[pos], minlength=len(ep_key)).astype(np.int32)
     episodes = _frame(flat, "EpisodeSummaries", {"run": ep_run, "episode": ep_ep}) | {
-        "n_recognitions": per_episode["recognitions"], "n_unsafe_added": per_episode["unsafe"]}
+        "n_recognitions": per_episode["recognitions"],
+        "n_unsafe_added": per_episode["unsafe"],
+    }
     q_values, (q, n_q), row = {}, flat["EpisodeBatch", "q_values"], np.cumsum(n_eps) - n_eps
     pos = np.cumsum(n_q) - n_q
     for i in np.flatnonzero(n_q):
         e, na = int(n_eps[i]), int(flat["n_actions"][i])
         if not na or n_q[i] % (na * e):
             raise bad("q_values do not have n_actions columns for every episode")
-        tables = q[pos[i]:pos[i] + n_q[i]].astype(np.float32).reshape(e, -1, na)
-        q_values |= {(name, int(ep_run[row[i] + j]), int(ep_ep[row[i] + j])): tables[j] for j in range(e)}
-    return {"steps": steps, "recognitions": rec, "unsafe": unsafe, "substitutions": subs, "episodes": episodes,
-            "q_values": q_values, "batch_sizes": n_eps}
+        tables = q[pos[i] : pos[i] + n_q[i]].astype(np.float32).reshape(e, -1, na)
+        q_values |= {
+            (name, int(ep_run[row[i] + j]), int(ep_ep[row[i] + j])): tables[j] for j in range(e)
+        }
+    return {
+        "steps": steps,
+        "recognitions": rec,
+        "unsafe": unsafe,
+        "substitutions": subs,
+        "episodes": episodes,
+        "q_values": q_values,
+        "batch_sizes": n_eps,
+    }

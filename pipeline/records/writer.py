@@ -2,6 +2,7 @@
 episode of every run, one ``EpisodeBatch`` message a sink batch (docs/records.md "The writer": the atomic finish,
 checksums, flushing, what is checked; schema in :mod:`.schema`, encoding in :mod:`.codec`). Same input, same bytes.
 """
+
 from __future__ import annotations
 
 import functools
@@ -20,11 +21,28 @@ from .codec import check_batch, encode_batch
 
 LAYOUT_CHARS = frozenset("SGX.")
 OBSTACLE_KEYS = ("cell", "physical", "category", "instance", "orientation")
-VERSION_PACKAGES = ("fewshot-safe-rl-pipeline", "numpy", "numba", "pandas", "torch", "mujoco", "mcap",
-                    "mcap-protobuf-support", "protobuf", "foxglove-schemas-protobuf", "rerun-sdk",
-                    "hydra-core", "omegaconf", "gymnasium")
+VERSION_PACKAGES = (
+    "fewshot-safe-rl-pipeline",
+    "numpy",
+    "numba",
+    "pandas",
+    "torch",
+    "mujoco",
+    "mcap",
+    "mcap-protobuf-support",
+    "protobuf",
+    "foxglove-schemas-protobuf",
+    "rerun-sdk",
+    "hydra-core",
+    "omegaconf",
+    "gymnasium",
+)
 SUBSTITUTION_KEYS = tuple(f.name for f in S.MESSAGES["Substitutions"])  # of the substitution() call
-COMPRESSION = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
+COMPRESSION = {
+    "zstd": CompressionType.ZSTD,
+    "lz4": CompressionType.LZ4,
+    "none": CompressionType.NONE,
+}
 
 
 @functools.cache
@@ -39,7 +57,9 @@ def package_versions() -> dict[str, str]:
         except _im.PackageNotFoundError:
             return "not installed"
 
-    return {"python": platform.python_version()} | {name: version(name) for name in VERSION_PACKAGES}
+    return {"python": platform.python_version()} | {
+        name: version(name) for name in VERSION_PACKAGES
+    }
 
 
 def _plain(obj: Any) -> Any:
@@ -52,8 +72,11 @@ def _plain(obj: Any) -> Any:
 
 
 def _json_default(o: Any) -> Any:
-    for types, to in (((np.integer, np.floating, np.bool_, np.ndarray), lambda o: o.tolist()),
-                      ((set, frozenset, tuple), list), (Path, str)):
+    for types, to in (
+        ((np.integer, np.floating, np.bool_, np.ndarray), lambda o: o.tolist()),
+        ((set, frozenset, tuple), list),
+        (Path, str),
+    ):
         if isinstance(o, types):
             return to(o)
     raise TypeError(f"cannot record a {type(o).__name__} in the metadata (value {o!r})")
@@ -66,11 +89,16 @@ def to_json(obj: Any) -> str:
 def _image(frame_id: str, data: bytes) -> bytes:
     """A ``foxglove.CompressedImage`` message of PNG, JPEG or WebP bytes."""
     data = bytes(data)
-    for fmt, ok in (("png", data[:8] == b"\x89PNG\r\n\x1a\n"), ("jpeg", data[:3] == b"\xff\xd8\xff"),
-                    ("webp", data[:4] == b"RIFF" and data[8:12] == b"WEBP")):
+    for fmt, ok in (
+        ("png", data[:8] == b"\x89PNG\r\n\x1a\n"),
+        ("jpeg", data[:3] == b"\xff\xd8\xff"),
+        ("webp", data[:4] == b"RIFF" and data[8:12] == b"WEBP"),
+    ):
         if ok:
             return S.CompressedImage(frame_id=frame_id, data=data, format=fmt).SerializeToString()
-    raise ValueError("pictures must be PNG, JPEG or WebP bytes (Foxglove's CompressedImage formats)")
+    raise ValueError(
+        "pictures must be PNG, JPEG or WebP bytes (Foxglove's CompressedImage formats)"
+    )
 
 
 def _check_maze(maze: Mapping[str, Any]) -> dict[str, str]:
@@ -81,20 +109,33 @@ def _check_maze(maze: Mapping[str, Any]) -> dict[str, str]:
         raise ValueError(f"maze.layout: rows must be non-empty and of equal length, got {rows!r}")
     bad = set("".join(rows)) - LAYOUT_CHARS
     if bad:
-        raise ValueError(f"maze.layout: unknown cell characters {sorted(bad)}; allowed: 'S', 'G', 'X', '.'")
-    out = {"layout": "\n".join(rows), "height": str(len(rows)), "width": str(len(rows[0])),
-           "cell_index": "row * width + col"}
+        raise ValueError(
+            f"maze.layout: unknown cell characters {sorted(bad)}; allowed: 'S', 'G', 'X', '.'"
+        )
+    out = {
+        "layout": "\n".join(rows),
+        "height": str(len(rows)),
+        "width": str(len(rows[0])),
+        "cell_index": "row * width + col",
+    }
     if maze.get("categories") is not None:
         out["categories"] = to_json(list(maze["categories"]))
-    names, moves = maze.get("actions"), maze.get("moves")  # the caller's: records has no moves of its own
+    names, moves = (
+        maze.get("actions"),
+        maze.get("moves"),
+    )  # the caller's: records has no moves of its own
     if names is not None:  # comma-separated, as files have always had them
         if not (names := [str(n) for n in names]) or not all(names) or "," in "".join(names):
-            raise ValueError(f"maze.actions: names must be non-empty and without commas, got {names!r}")
+            raise ValueError(
+                f"maze.actions: names must be non-empty and without commas, got {names!r}"
+            )
         out["actions"] = ",".join(names)
     if moves is not None:
         m = np.asarray(moves)
         if m.ndim != 2 or m.shape[1] != 2 or m.dtype.kind not in "iu" or len(names or m) != len(m):
-            raise ValueError(f"maze.moves: one (d_row, d_col) pair of integers per action name, got {moves!r}")
+            raise ValueError(
+                f"maze.moves: one (d_row, d_col) pair of integers per action name, got {moves!r}"
+            )
         out["moves"] = to_json(m)
     extra = {k: v for k, v in maze.items() if k not in ("layout", "categories", "actions", "moves")}
     if extra:
@@ -104,22 +145,35 @@ def _check_maze(maze: Mapping[str, Any]) -> dict[str, str]:
 
 def _check_runs(runs: Sequence | Mapping) -> dict[str, list[dict[str, int]]]:
     out: dict[str, list[dict[str, int]]] = {}
-    for run, obstacles in (runs.items() if isinstance(runs, Mapping) else enumerate(runs)):
+    for run, obstacles in runs.items() if isinstance(runs, Mapping) else enumerate(runs):
         for i, ob in enumerate(obstacles):
             if [k for k in OBSTACLE_KEYS if k not in ob]:
-                raise ValueError(f"runs[{run}][{i}]: obstacle assignment lacks {[k for k in OBSTACLE_KEYS if k not in ob]}; "
-                                 f"expected keys {list(OBSTACLE_KEYS)}")
+                raise ValueError(
+                    f"runs[{run}][{i}]: obstacle assignment lacks {[k for k in OBSTACLE_KEYS if k not in ob]}; "
+                    f"expected keys {list(OBSTACLE_KEYS)}"
+                )
         out[str(int(run))] = [{k: int(ob[k]) for k in OBSTACLE_KEYS} for ob in obstacles]
     return out
 
 
-def _metadata_records(metadata: dict[str, Any], maze, runs, level: str) -> list[tuple[str, dict[str, str]]]:
+def _metadata_records(
+    metadata: dict[str, Any], maze, runs, level: str
+) -> list[tuple[str, dict[str, str]]]:
     import yaml
 
-    out = [("recording", {"format_version": S.FORMAT_VERSION, "library": S.LIBRARY, "record": level,
-                          "time": "log_time_ns = run * 1e15 + episode * 1e9 + step * 1e6 (1 ms a step, 1 s an episode)",
-                          "episodes_topic": S.TOPIC_EPISODES,
-                          "pictures_topic": S.TOPIC_PICTURES + "/<picture id>"})]
+    out = [
+        (
+            "recording",
+            {
+                "format_version": S.FORMAT_VERSION,
+                "library": S.LIBRARY,
+                "record": level,
+                "time": "log_time_ns = run * 1e15 + episode * 1e9 + step * 1e6 (1 ms a step, 1 s an episode)",
+                "episodes_topic": S.TOPIC_EPISODES,
+                "pictures_topic": S.TOPIC_PICTURES + "/<picture id>",
+            },
+        )
+    ]
     config = _plain(metadata.pop("config", None))
     if config is not None:
         parsed = yaml.safe_load(config) if isinstance(config, str) else json.loads(to_json(config))
@@ -127,12 +181,19 @@ def _metadata_records(metadata: dict[str, Any], maze, runs, level: str) -> list[
         out.append(("config", {"yaml": text, "json": to_json(parsed)}))
     if "seeds" in metadata:
         out.append(("seeds", {"json": to_json(metadata.pop("seeds"))}))
-    out.append(("versions", dict(package_versions()) | {str(k): str(v) for k, v in
-                                                  dict(metadata.pop("versions", {}) or {}).items()}))
+    out.append(
+        (
+            "versions",
+            dict(package_versions())
+            | {str(k): str(v) for k, v in dict(metadata.pop("versions", {}) or {}).items()},
+        )
+    )
     if maze is not None:
         out.append(("maze", _check_maze(maze)))
     if runs is not None:
-        out.append(("obstacles", {"json": to_json(_check_runs(runs)), "keys": ",".join(OBSTACLE_KEYS)}))
+        out.append(
+            ("obstacles", {"json": to_json(_check_runs(runs)), "keys": ",".join(OBSTACLE_KEYS)})
+        )
     if metadata:
         out.append(("info", {str(k): to_json(v) for k, v in sorted(metadata.items())}))
     return out
@@ -153,44 +214,76 @@ class RecordWriter:
     keeps no step trace, see ``records_steps`` in ``pipeline/rl/sink.py``).
     """
 
-    def __init__(self, path: str | os.PathLike, *, metadata: Mapping[str, Any] | None = None,
-                 maze: Mapping[str, Any] | None = None, runs: Sequence | Mapping | None = None,
-                 pictures: Mapping[int, bytes] | None = None,
-                 support_pictures: Mapping[int, Sequence[bytes]] | None = None,
-                 flush_every: int = 100, compression: str = "zstd", chunk_size: int = 8 * 2**20,
-                 steps: bool = True):
+    def __init__(
+        self,
+        path: str | os.PathLike,
+        *,
+        metadata: Mapping[str, Any] | None = None,
+        maze: Mapping[str, Any] | None = None,
+        runs: Sequence | Mapping | None = None,
+        pictures: Mapping[int, bytes] | None = None,
+        support_pictures: Mapping[int, Sequence[bytes]] | None = None,
+        flush_every: int = 100,
+        compression: str = "zstd",
+        chunk_size: int = 8 * 2**20,
+        steps: bool = True,
+    ):
         self.path = Path(path)
         if self.path.suffix != ".mcap":
             raise ValueError(f"record file name must end in .mcap, got {self.path}")
         if flush_every < 1:
             raise ValueError(f"flush_every must be >= 1, got {flush_every}")
         if compression not in COMPRESSION:
-            raise ValueError(f"compression must be one of {sorted(COMPRESSION)}, got {compression!r}")
+            raise ValueError(
+                f"compression must be one of {sorted(COMPRESSION)}, got {compression!r}"
+            )
         self.partial_path = self.path.with_name(self.path.name + ".partial")
         self.records_steps = bool(steps)
         self.flush_every, self.n_episodes, self.n_substitutions = int(flush_every), 0, 0
         self._since_flush, self._closed = 0, False
         self._next_episode: dict[int, int] = {}  # run -> first episode not yet recorded
-        self._subs: dict[int, list[tuple]] = {}  # run -> substitutions waiting for their episode's batch
-        records = _metadata_records(dict(metadata or {}), maze, runs, "steps" if steps else "episodes")  # validated
-        images = [(f"{S.TOPIC_PICTURES}/{int(p)}", _image(f"picture_{int(p)}", pictures[p])) for p in sorted(pictures or {})]
-        images += [(f"{S.TOPIC_SUPPORT}/{int(c)}/{k}", _image(f"support_{int(c)}_{k}", data))
-                   for c in sorted(support_pictures or {}) for k, data in enumerate(support_pictures[c])]
+        self._subs: dict[
+            int, list[tuple]
+        ] = {}  # run -> substitutions waiting for their episode's batch
+        records = _metadata_records(
+            dict(metadata or {}), maze, runs, "steps" if steps else "episodes"
+        )  # validated
+        images = [
+            (f"{S.TOPIC_PICTURES}/{int(p)}", _image(f"picture_{int(p)}", pictures[p]))
+            for p in sorted(pictures or {})
+        ]
+        images += [
+            (f"{S.TOPIC_SUPPORT}/{int(c)}/{k}", _image(f"support_{int(c)}_{k}", data))
+            for c in sorted(support_pictures or {})
+            for k, data in enumerate(support_pictures[c])
+        ]
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._file = open(self.partial_path, "wb")
         # enable_data_crcs: a flipped byte outside the chunks is detected too (docs/reliability.md)
-        self._mcap = Writer(self._file, chunk_size=chunk_size, compression=COMPRESSION[compression],
-                            enable_data_crcs=True)
+        self._mcap = Writer(
+            self._file,
+            chunk_size=chunk_size,
+            compression=COMPRESSION[compression],
+            enable_data_crcs=True,
+        )
         self._mcap.start(profile="", library=S.LIBRARY)
         # schemas 1-2, then channel 1 /episodes: a reader falls back on this layout
-        ids = [self._mcap.register_schema(name=cls.DESCRIPTOR.full_name, encoding="protobuf",
-                                          data=S.file_descriptor_set(cls)) for cls in (S.EpisodeBatch, S.CompressedImage)]
+        ids = [
+            self._mcap.register_schema(
+                name=cls.DESCRIPTOR.full_name, encoding="protobuf", data=S.file_descriptor_set(cls)
+            )
+            for cls in (S.EpisodeBatch, S.CompressedImage)
+        ]
         self._ch_episodes = self._mcap.register_channel(S.TOPIC_EPISODES, "protobuf", ids[0])
         for name, data in records:
             self._mcap.add_metadata(name, data)
         for topic, data in images:
-            self._mcap.add_message(self._mcap.register_channel(topic, "protobuf", ids[1]), log_time=0,
-                                   publish_time=0, data=data)
+            self._mcap.add_message(
+                self._mcap.register_channel(topic, "protobuf", ids[1]),
+                log_time=0,
+                publish_time=0,
+                data=data,
+            )
         self._mcap.flush()  # the pictures and channel definitions in a complete first chunk
 
     def episodes(self, **batch: Any) -> None:
@@ -202,35 +295,53 @@ class RecordWriter:
         if len(batch["episode"]) and (waiting := self._subs.get(run)):
             last = int(batch["episode"][-1])
             k = next((i for i, s in enumerate(waiting) if s[0] > last), len(waiting))
-            batch = dict(batch, substitutions=dict(zip(SUBSTITUTION_KEYS, map(np.array, zip(*waiting[:k])))))
+            batch = dict(
+                batch, substitutions=dict(zip(SUBSTITUTION_KEYS, map(np.array, zip(*waiting[:k]))))
+            )
         b = check_batch(batch, with_steps=self.records_steps)
         if not len(b["episode"]):
             return
         run, first, last = b["run"], int(b["episode"][0]), int(b["episode"][-1])
         if first < self._next_episode.get(run, 0):
-            raise ValueError(f"episode batch of run {run}, episodes {first}..{last}: episodes of a run must "
-                             f"be recorded once and in order; {self.path} already has run {run} up to "
-                             f"episode {self._next_episode[run] - 1}")
+            raise ValueError(
+                f"episode batch of run {run}, episodes {first}..{last}: episodes of a run must "
+                f"be recorded once and in order; {self.path} already has run {run} up to "
+                f"episode {self._next_episode[run] - 1}"
+            )
         t = S.log_time_ns(run, first, 0)
         S.log_time_ns(run, last, 0)  # range check of the last episode too
         self._mcap.add_message(self._ch_episodes, log_time=t, publish_time=t, data=encode_batch(b))
         if waiting:
             self.n_substitutions += len(b["cols"]["Substitutions"].get("episode", ()))
-            del waiting[:len(b["cols"]["Substitutions"].get("episode", ()))]
+            del waiting[: len(b["cols"]["Substitutions"].get("episode", ()))]
         self._next_episode[run] = last + 1
-        self.n_episodes, self._since_flush = self.n_episodes + len(b["episode"]), self._since_flush + len(b["episode"])
+        self.n_episodes, self._since_flush = (
+            self.n_episodes + len(b["episode"]),
+            self._since_flush + len(b["episode"]),
+        )
         if self._since_flush >= self.flush_every:
             self.flush()
 
-    def substitution(self, *, run: int, episode: int, step: int, picture: int, category: int,
-                     position: int, support_accuracy: float = float("nan")) -> None:
+    def substitution(
+        self,
+        *,
+        run: int,
+        episode: int,
+        step: int,
+        picture: int,
+        category: int,
+        position: int,
+        support_accuracy: float = float("nan"),
+    ) -> None:
         """Record that ``picture`` replaced shot ``position`` of class ``category`` (section 3.3),
         and the accuracy of the support set on the query pictures after it. ``picture = -1``
         (position -1) records the support set a run starts with. It is written with the batch of its
         episode (substitutions of episodes never recorded are not written)."""
         self._check_open()
         S.log_time_ns(int(run), int(episode), int(step))  # range check
-        self._subs.setdefault(int(run), []).append((episode, step, picture, category, position, support_accuracy))
+        self._subs.setdefault(int(run), []).append(
+            (episode, step, picture, category, position, support_accuracy)
+        )
 
     def flush(self) -> None:
         """Close the current chunk and write it out: everything recorded so far survives a kill."""
@@ -243,8 +354,14 @@ class RecordWriter:
         ``complete=False`` (an interrupted run) the finished file keeps its ``.partial`` name.
         Returns the path of the file."""
         if not self._closed:
-            self._mcap.add_metadata("closed", {"complete": str(bool(complete)).lower(), "episodes": str(self.n_episodes),
-                                               "substitutions": str(self.n_substitutions)})
+            self._mcap.add_metadata(
+                "closed",
+                {
+                    "complete": str(bool(complete)).lower(),
+                    "episodes": str(self.n_episodes),
+                    "substitutions": str(self.n_substitutions),
+                },
+            )
             self._mcap.finish()
             self._file.flush()
             os.fsync(self._file.fileno())
@@ -258,7 +375,7 @@ class RecordWriter:
         if self._closed:
             raise RuntimeError(f"record writer for {self.path} is closed")
 
-    def __enter__(self) -> "RecordWriter":
+    def __enter__(self) -> RecordWriter:
         return self
 
     def __exit__(self, exc_type, exc, tb) -> None:

@@ -3,6 +3,7 @@ shows (:mod:`.panels`) and the recording built from a record file alone (:mod:`.
 
 ``replay`` reads the files through :mod:`pipeline.records`; nothing in ``records`` imports it.
 """
+
 from .build import ReplayError, build_replay, recording_name, replay_stem
 
 __all__ = ["ReplayError", "build_replay", "recording_name", "replay_stem"]

@@ -3,6 +3,7 @@ docs/records.md "Replay it in Rerun"); timelines ``step`` (global across the rep
 and ``episode``. Moves, action and category names come from the file's maze metadata; a file
 without moves (written before the writer recorded them) gets :data:`NESW`, here and nowhere else.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -22,11 +23,24 @@ from .panels import (
     legend_positions,
 )
 
-NESW = {"N": (-1, 0), "E": (0, 1), "S": (1, 0), "W": (0, -1)}  # (d_row, d_col) of files without moves
-FREE, START, GOAL, RED, ORANGE, BLUE = (235, 235, 235), (120, 200, 120), (255, 215, 0), (220, 30, 30), \
-    (255, 140, 0), (30, 30, 200)
+NESW = {
+    "N": (-1, 0),
+    "E": (0, 1),
+    "S": (1, 0),
+    "W": (0, -1),
+}  # (d_row, d_col) of files without moves
+FREE, START, GOAL, RED, ORANGE, BLUE = (
+    (235, 235, 235),
+    (120, 200, 120),
+    (255, 215, 0),
+    (220, 30, 30),
+    (255, 140, 0),
+    (30, 30, 200),
+)
 APPLICATION = "fewshot_safe_rl_replay"
-SHOTS = 5  # the support set's shots a category (the paper's K) when the file holds no support pictures
+SHOTS = (
+    5  # the support set's shots a category (the paper's K) when the file holds no support pictures
+)
 
 
 class ReplayError(UserError):
@@ -49,7 +63,11 @@ def replay_stem(path: str | Path, run: int, episode: int | None = None) -> str:
     from the record file's folders; a file not called ``records.mcap`` adds its own stem."""
     stem = Path(path).name.removesuffix(".partial").removesuffix(".mcap")
     parts = [*cell_of(path), *([stem] if stem != "records" else [])]
-    return "-".join(p for p in parts if p) + f"-run{run}-" + ("all" if episode is None else f"ep{episode}")
+    return (
+        "-".join(p for p in parts if p)
+        + f"-run{run}-"
+        + ("all" if episode is None else f"ep{episode}")
+    )
 
 
 def recording_name(meta: FileMeta, run: int, episode: int | None = None) -> str:
@@ -60,8 +78,9 @@ def recording_name(meta: FileMeta, run: int, episode: int | None = None) -> str:
     info = meta.info.get("info")  # the trials stage's info record: cell, method, maze, ...
     cell = info.get("cell") if isinstance(info, dict) else None
     folders = cell_of(meta.path)
-    return (f"{experiment or folders[0]}/{cell or folders[1]} run {run} "
-            + ("all episodes" if episode is None else f"ep {episode}"))
+    return f"{experiment or folders[0]}/{cell or folders[1]} run {run} " + (
+        "all episodes" if episode is None else f"ep {episode}"
+    )
 
 
 def read_run(path: Path, run: int, episode: int | None) -> Records:
@@ -74,22 +93,35 @@ def read_run(path: Path, run: int, episode: int | None) -> Records:
     if meta.unusable:  # our magic bytes and nothing readable after them
         raise ReplayError(meta.unusable, key="file")
     if meta.record != "steps":  # record=episodes: summaries and events, no step to draw
-        raise ReplayError(f"{path}: recorded with record={meta.record}: it holds no steps to replay; run the cell "
-                          "again with record=steps (the default) to replay it", key="file")
+        raise ReplayError(
+            f"{path}: recorded with record={meta.record}: it holds no steps to replay; run the cell "
+            "again with record=steps (the default) to replay it",
+            key="file",
+        )
     why = f"; the file is damaged or cut: {meta.lost}" if meta.lost else ""
     have = recs.episodes.episode[recs.episodes.run == run]
     if have.empty:
         raise ReplayError(f"{path}: no recorded episode of run {run}{why}")
     if episode is not None and episode not in set(have):
-        raise ReplayError(f"{path}: run {run} has no recorded episode {episode} "
-                          f"(episodes {int(have.min())}..{int(have.max())}, {len(have)} recorded){why}")
+        raise ReplayError(
+            f"{path}: run {run} has no recorded episode {episode} "
+            f"(episodes {int(have.min())}..{int(have.max())}, {len(have)} recorded){why}"
+        )
     if not meta.maze:
-        raise ReplayError(f"{path}: the file holds no maze metadata, so the maze cannot be drawn", key="file")
+        raise ReplayError(
+            f"{path}: the file holds no maze metadata, so the maze cannot be drawn", key="file"
+        )
     return recs
 
 
-def build_replay(path: str | Path, run: int, episode: int | None = None, *, out: str | Path,
-                 whole_run: bool = False) -> Path:
+def build_replay(
+    path: str | Path,
+    run: int,
+    episode: int | None = None,
+    *,
+    out: str | Path,
+    whole_run: bool = False,
+) -> Path:
     """Write a Rerun ``.rrd`` replaying ``episode`` of ``run`` of the record file ``path`` (every
     episode of the run with ``whole_run=True``) and return its path. The reader's warnings about a
     damaged or cut file pass through to the caller."""
@@ -102,7 +134,9 @@ def build_replay(path: str | Path, run: int, episode: int | None = None, *, out:
     recs = read_run(path, run, shown)
     have = recs.episodes.episode[recs.episodes.run == run]
     out.parent.mkdir(parents=True, exist_ok=True)
-    rec = rr.RecordingStream(APPLICATION, send_properties=False, recording_id=replay_stem(path, run, shown))
+    rec = rr.RecordingStream(
+        APPLICATION, send_properties=False, recording_id=replay_stem(path, run, shown)
+    )
     replay, name = Replay(rec, recs, run), recording_name(recs.meta, run, shown)
     rec.save(out, default_blueprint=replay.blueprint(name))
     rec.send_recording_name(name)
@@ -118,19 +152,36 @@ class Replay:
     def __init__(self, rec, recs: Records, run: int):
         meta, mz = recs.meta, recs.meta.maze
         self.rec, self.meta, self.run = rec, meta, run
-        self.width, self.shape, self.cats = mz["width"], (mz["height"], mz["width"]), mz.get("categories") or []
+        self.width, self.shape, self.cats = (
+            mz["width"],
+            (mz["height"], mz["width"]),
+            mz.get("categories") or [],
+        )
         self.names = mz.get("actions") or list(NESW)
-        self.moves = np.array(mz.get("moves") or list(NESW.values()), np.float32)[:, ::-1]  # as (x, y)
-        self.steps, self.recog, self.unsafe, self.subs = (df[df.run == run] for df in (
-            recs.steps, recs.recognitions, recs.unsafe, recs.substitutions))
+        self.moves = np.array(mz.get("moves") or list(NESW.values()), np.float32)[
+            :, ::-1
+        ]  # as (x, y)
+        self.steps, self.recog, self.unsafe, self.subs = (
+            df[df.run == run]
+            for df in (recs.steps, recs.recognitions, recs.unsafe, recs.substitutions)
+        )
         self.subs = self.subs[self.subs.picture >= 0]
         self.score_cols = [c for c in self.recog.columns if c.startswith("score_")]
         self.q = {e: v for (_, r, e), v in recs.q_values.items() if r == run}
-        n_cats = max([len(self.cats), len(self.score_cols), *(c + 1 for c, _ in meta.support_pictures),
-                      *(self.subs.category + 1), *(o["category"] + 1 for o in meta.obstacles.get(run, []))])
+        n_cats = max(
+            [
+                len(self.cats),
+                len(self.score_cols),
+                *(c + 1 for c, _ in meta.support_pictures),
+                *(self.subs.category + 1),
+                *(o["category"] + 1 for o in meta.obstacles.get(run, [])),
+            ]
+        )
         self.labels = [self.cat(c) for c in range(n_cats)]
         shots = max([0, *(p + 1 for _, p in meta.support_pictures), *(self.subs.position + 1)])
-        self.grid = SupportGrid(rec, self.labels, shots if meta.support_pictures else max(shots, SHOTS))
+        self.grid = SupportGrid(
+            rec, self.labels, shots if meta.support_pictures else max(shots, SHOTS)
+        )
         self.ad: list[list[int]] = []
 
     # ---------------------------------------------------------------- names and geometry
@@ -148,7 +199,9 @@ class Replay:
     def boxes(self, cells, size: float, **kw):
         import rerun as rr
 
-        return rr.Boxes2D(mins=self.xy(cells) - size / 2, sizes=np.full((len(cells), 2), size), **kw)
+        return rr.Boxes2D(
+            mins=self.xy(cells) - size / 2, sizes=np.full((len(cells), 2), size), **kw
+        )
 
     def log(self, entity: str, what, level: str = "INFO", **kw) -> None:
         """Log an archetype, or a text as a TextLog line of ``level``."""
@@ -159,8 +212,13 @@ class Replay:
     # ---------------------------------------------------------------- what does not change
     def blueprint(self, name: str):
         """The viewer's layout, with views that fit this maze and support set."""
-        return blueprint(name, "max Q per cell" if self.q else "visits per cell (log scale)", *self.shape,
-                         legend_positions(*self.shape, len(self.labels))[1], self.grid.bounds())
+        return blueprint(
+            name,
+            "max Q per cell" if self.q else "visits per cell (log scale)",
+            *self.shape,
+            legend_positions(*self.shape, len(self.labels))[1],
+            self.grid.bounds(),
+        )
 
     def draw_static(self) -> None:
         """The maze (cells; obstacles in their category colours, named in the legend right of the
@@ -170,19 +228,51 @@ class Replay:
         self.log("/", categories_context(self.labels), static=True)
         grid = np.array([list(r) for r in self.meta.maze["layout"]]).ravel()
         free = np.flatnonzero(grid != "X")
-        self.log("maze/cells", self.boxes(free, 1.0, draw_order=0.0, colors=np.array(
-            [{"S": START, "G": GOAL}.get(ch, FREE) for ch in grid[free]], np.uint8)), static=True)
+        self.log(
+            "maze/cells",
+            self.boxes(
+                free,
+                1.0,
+                draw_order=0.0,
+                colors=np.array(
+                    [{"S": START, "G": GOAL}.get(ch, FREE) for ch in grid[free]], np.uint8
+                ),
+            ),
+            static=True,
+        )
         if obstacles := self.meta.obstacles.get(self.run, []):  # this run's assignment
-            self.log("maze/obstacles", self.boxes([o["cell"] for o in obstacles], 0.9, draw_order=1.0,
-                                                  class_ids=[o["category"] for o in obstacles], show_labels=False,
-                                                  labels=[f"{self.cat(o['category'])} #{o['instance']} r{o['orientation']}"
-                                                          for o in obstacles]), static=True)
+            self.log(
+                "maze/obstacles",
+                self.boxes(
+                    [o["cell"] for o in obstacles],
+                    0.9,
+                    draw_order=1.0,
+                    class_ids=[o["category"] for o in obstacles],
+                    show_labels=False,
+                    labels=[
+                        f"{self.cat(o['category'])} #{o['instance']} r{o['orientation']}"
+                        for o in obstacles
+                    ],
+                ),
+                static=True,
+            )
             n = len(self.labels)
-            self.log("maze/legend", rr.Points2D(legend_positions(*self.shape, n)[0], radii=0.15,
-                                                class_ids=np.arange(n), show_labels=True), static=True)
+            self.log(
+                "maze/legend",
+                rr.Points2D(
+                    legend_positions(*self.shape, n)[0],
+                    radii=0.15,
+                    class_ids=np.arange(n),
+                    show_labels=True,
+                ),
+                static=True,
+            )
         else:
-            self.log("maze/obstacles", self.boxes(np.flatnonzero(grid == "X"), 0.9, colors=[90, 90, 90],
-                                                  draw_order=1.0), static=True)
+            self.log(
+                "maze/obstacles",
+                self.boxes(np.flatnonzero(grid == "X"), 0.9, colors=[90, 90, 90], draw_order=1.0),
+                static=True,
+            )
         self.log("metrics/return", rr.SeriesLines(names="return"), static=True)
 
     # ---------------------------------------------------------------- what changes
@@ -191,8 +281,18 @@ class Replay:
         import rerun as rr
 
         arr = np.array(self.ad, dtype=np.int64).reshape(-1, 2)
-        self.log("maze/unsafe", rr.Arrows2D(origins=self.xy(arr[:, 0]), vectors=self.moves[arr[:, 1]] * 0.45,
-                                            colors=RED, radii=0.04, draw_order=3.0) if len(arr) else rr.Clear(recursive=False))
+        self.log(
+            "maze/unsafe",
+            rr.Arrows2D(
+                origins=self.xy(arr[:, 0]),
+                vectors=self.moves[arr[:, 1]] * 0.45,
+                colors=RED,
+                radii=0.04,
+                draw_order=3.0,
+            )
+            if len(arr)
+            else rr.Clear(recursive=False),
+        )
 
     def heat(self, entity: str, values: np.ndarray, what: str) -> None:
         """``values`` per cell as a heat map aligned with the maze (one pixel a cell), with its range below."""
@@ -200,15 +300,23 @@ class Replay:
 
         rgb, lo, hi = heat_rgb(values.reshape(self.shape), log=what == "visits")
         self.log(entity, rr.Image(rgb, draw_order=-5.0))
-        self.log(f"{entity}/range", rr.Points2D([[self.shape[1] / 2, self.shape[0] + 0.4]], radii=0.01,
-                                                labels=[f"{what}: {lo:.4g} (dark) .. {hi:.4g} (yellow)"],
-                                                show_labels=True))
+        self.log(
+            f"{entity}/range",
+            rr.Points2D(
+                [[self.shape[1] / 2, self.shape[0] + 0.4]],
+                radii=0.01,
+                labels=[f"{what}: {lo:.4g} (dark) .. {hi:.4g} (yellow)"],
+                show_labels=True,
+            ),
+        )
 
     def picture(self, entity: str, pid: int) -> None:
         import rerun as rr
 
         if pid in self.meta.pictures:
-            self.log(entity, rr.EncodedImage(contents=self.meta.pictures[pid], media_type="image/png"))
+            self.log(
+                entity, rr.EncodedImage(contents=self.meta.pictures[pid], media_type="image/png")
+            )
 
     def start_support(self, first: int) -> None:
         """The support set the replay starts from: the file's initial pictures with the run's earlier
@@ -217,7 +325,10 @@ class Replay:
         support = {k: (png, None) for k, png in self.meta.support_pictures.items()}
         for s in self.subs[self.subs.episode < first].itertuples():
             if int(s.picture) in self.meta.pictures:
-                support[(int(s.category), int(s.position))] = (self.meta.pictures[int(s.picture)], self.when(s))
+                support[(int(s.category), int(s.position))] = (
+                    self.meta.pictures[int(s.picture)],
+                    self.when(s),
+                )
         for (c, p), (png, mark) in sorted(support.items()):
             self.grid.put(c, p, png, mark)
 
@@ -235,7 +346,10 @@ class Replay:
             return None
         sc = np.nan_to_num(sc)
         for c, value in enumerate(sc):
-            self.log(f"recognition/scores/{rr.escape_entity_path_part(self.labels[c])}", rr.BarChart([value], abscissa=[c], color=colour(c)))
+            self.log(
+                f"recognition/scores/{rr.escape_entity_path_part(self.labels[c])}",
+                rr.BarChart([value], abscissa=[c], color=colour(c)),
+            )
         return sc.tolist()
 
     def recognition(self, r, e: int, t: int) -> None:
@@ -244,16 +358,30 @@ class Replay:
 
         self.picture("recognition/picture", int(r.picture))
         sc = self.scores(r)
-        table = "" if sc is None else "\n\n| category | relation score |\n|---|---|\n" + "\n".join(
-            f"| {'**' + self.cat(c) + '**' if c == int(r.predicted) else self.cat(c)} | {v:.3f} |"
-            for c, v in enumerate(sc))
-        self.log("recognition/result", rr.TextDocument(
-            f"### picture {int(r.picture)}\n\nrun {self.run}, episode {e}, step {t}, cell {int(r.state)}, "
-            f"action {self.act(int(r.action))}\n\npredicted **{self.cat(int(r.predicted))}**, true "
-            f"**{self.cat(int(r.true))}**: " + ("recognised: unsafe pair added, action reselected"
-                                                if r.predicted == r.true else
-                                                "misrecognised: collision, picture substitutes into the support set")
-            + table, media_type="text/markdown"))
+        table = (
+            ""
+            if sc is None
+            else "\n\n| category | relation score |\n|---|---|\n"
+            + "\n".join(
+                f"| {'**' + self.cat(c) + '**' if c == int(r.predicted) else self.cat(c)} | {v:.3f} |"
+                for c, v in enumerate(sc)
+            )
+        )
+        self.log(
+            "recognition/result",
+            rr.TextDocument(
+                f"### picture {int(r.picture)}\n\nrun {self.run}, episode {e}, step {t}, cell {int(r.state)}, "
+                f"action {self.act(int(r.action))}\n\npredicted **{self.cat(int(r.predicted))}**, true "
+                f"**{self.cat(int(r.true))}**: "
+                + (
+                    "recognised: unsafe pair added, action reselected"
+                    if r.predicted == r.true
+                    else "misrecognised: collision, picture substitutes into the support set"
+                )
+                + table,
+                media_type="text/markdown",
+            ),
+        )
 
     def draw(self, episodes: list[int]) -> None:
         """Every step of ``episodes`` (consecutive recorded episodes of the run), after what the run
@@ -261,7 +389,10 @@ class Replay:
         first = episodes[0]
         self.draw_static()
         self.ad = self.unsafe[self.unsafe.episode < first][["state", "action"]].to_numpy().tolist()
-        visits = np.bincount(self.steps[self.steps.episode < first].state.to_numpy(), minlength=self.shape[0] * self.width)
+        visits = np.bincount(
+            self.steps[self.steps.episode < first].state.to_numpy(),
+            minlength=self.shape[0] * self.width,
+        )
         tick = 0
         for e in episodes:
             self.rec.set_time("step", sequence=tick)
@@ -275,22 +406,47 @@ class Replay:
         import rerun as rr
 
         ep = self.steps[self.steps.episode == e]
-        states, actions, flags = ep.state.to_numpy(), ep.action.to_numpy().astype(np.int64), ep["flags"].to_numpy()
+        states, actions, flags = (
+            ep.state.to_numpy(),
+            ep.action.to_numpy().astype(np.int64),
+            ep["flags"].to_numpy(),
+        )
         n, at = len(states), self.xy(states)
         self.log_unsafe()
         if e - 1 in self.q:  # the Q table the episode starts from
             self.heat("q_values/max", self.q[e - 1].max(axis=1), "max Q")
         if n:  # one row per recorded step on each of these entities
-            ticks = [rr.TimeColumn("step", sequence=np.arange(tick, tick + n)),
-                     rr.TimeColumn("episode", sequence=np.full(n, e))]
-            colours = np.where((flags & S.FLAG_COLLIDED)[:, None] != 0, RED,
-                               np.where((flags & S.FLAG_RESELECTED)[:, None] != 0, ORANGE, BLUE))
+            ticks = [
+                rr.TimeColumn("step", sequence=np.arange(tick, tick + n)),
+                rr.TimeColumn("episode", sequence=np.full(n, e)),
+            ]
+            colours = np.where(
+                (flags & S.FLAG_COLLIDED)[:, None] != 0,
+                RED,
+                np.where((flags & S.FLAG_RESELECTED)[:, None] != 0, ORANGE, BLUE),
+            )
             for entity, columns in (
-                    ("maze/robot", rr.Points2D.columns(positions=at, radii=np.full(n, 0.25, np.float32))),
-                    ("maze/robot/action", rr.Arrows2D.columns(origins=at, vectors=self.moves[actions] * 0.4,
-                                                              colors=colours.astype(np.uint8))),
-                    ("maze/robot/trajectory", rr.LineStrips2D.columns(strips=[at[:t + 1] for t in range(n)])),
-                    ("metrics/return", rr.Scalars.columns(scalars=np.cumsum(ep.reward.to_numpy(np.float64))))):
+                (
+                    "maze/robot",
+                    rr.Points2D.columns(positions=at, radii=np.full(n, 0.25, np.float32)),
+                ),
+                (
+                    "maze/robot/action",
+                    rr.Arrows2D.columns(
+                        origins=at,
+                        vectors=self.moves[actions] * 0.4,
+                        colors=colours.astype(np.uint8),
+                    ),
+                ),
+                (
+                    "maze/robot/trajectory",
+                    rr.LineStrips2D.columns(strips=[at[: t + 1] for t in range(n)]),
+                ),
+                (
+                    "metrics/return",
+                    rr.Scalars.columns(scalars=np.cumsum(ep.reward.to_numpy(np.float64))),
+                ),
+            ):
                 self.rec.send_columns(entity, indexes=ticks, columns=columns)
         if not self.q:
             self.heat("derived/visits", visits, "visits")
@@ -306,25 +462,42 @@ class Replay:
 
     def events(self, e: int, tick: int, states, actions, flags) -> None:
         """The steps of episode ``e`` where something happened: flags, recognitions, A_d, substitutions."""
-        seen, added, swapped = ({int(t): list(g.itertuples()) for t, g in df[df.episode == e].groupby("step")}
-                                for df in (self.recog, self.unsafe, self.subs))
-        for t in sorted({int(x) for x in np.flatnonzero(flags)} | seen.keys() | added.keys() | swapped.keys()):
+        seen, added, swapped = (
+            {int(t): list(g.itertuples()) for t, g in df[df.episode == e].groupby("step")}
+            for df in (self.recog, self.unsafe, self.subs)
+        )
+        for t in sorted(
+            {int(x) for x in np.flatnonzero(flags)} | seen.keys() | added.keys() | swapped.keys()
+        ):
             self.rec.set_time("step", sequence=tick + t)
             where = f"run {self.run} ep {e} step {t}: "
             if f := int(flags[t]):
-                self.log("events", f"{where}cell {int(states[t])} action {self.act(int(actions[t]))}: "
-                         + ", ".join(name for name, bit in S.FLAG_NAMES.items() if f & bit),
-                         level="ERROR" if f & S.FLAG_COLLIDED else "WARN" if f & S.FLAG_RESELECTED else "INFO")
+                self.log(
+                    "events",
+                    f"{where}cell {int(states[t])} action {self.act(int(actions[t]))}: "
+                    + ", ".join(name for name, bit in S.FLAG_NAMES.items() if f & bit),
+                    level="ERROR"
+                    if f & S.FLAG_COLLIDED
+                    else "WARN"
+                    if f & S.FLAG_RESELECTED
+                    else "INFO",
+                )
             for r in seen.get(t, ()):
                 self.recognition(r, e, t)
             if t in added:
                 self.ad.extend([int(u.state), int(u.action)] for u in added[t])
                 self.log_unsafe()
                 for u in added[t]:
-                    self.log("events", f"{where}({int(u.state)}, {self.act(int(u.action))}) joins A_d "
-                                       f"({S.SOURCE_NAMES[int(u.source)]})")
+                    self.log(
+                        "events",
+                        f"{where}({int(u.state)}, {self.act(int(u.action))}) joins A_d "
+                        f"({S.SOURCE_NAMES[int(u.source)]})",
+                    )
             for s in swapped.get(t, ()):
                 c, p, pid = int(s.category), int(s.position), int(s.picture)
                 if pid in self.meta.pictures:
                     self.grid.put(c, p, self.meta.pictures[pid], self.when(s))
-                self.log("events", f"{where}picture {pid} replaces shot {p} of {self.cat(c)} in the support set")
+                self.log(
+                    "events",
+                    f"{where}picture {pid} replaces shot {p} of {self.cat(c)} in the support set",
+                )

@@ -2,6 +2,7 @@
 category colours and names (:func:`categories_context`), the heat map of visits or max Q
 (:func:`heat_rgb`) and the support set as a grid of pictures (:class:`SupportGrid`).
 """
+
 from __future__ import annotations
 
 import io
@@ -9,12 +10,28 @@ from collections.abc import Sequence
 
 import numpy as np
 
-COLOURS = np.array([[230, 159, 0], [86, 180, 233], [0, 158, 115], [200, 170, 0], [204, 121, 167],
-                    [213, 94, 0], [0, 114, 178], [120, 120, 120]], dtype=np.uint8)  # by category
+COLOURS = np.array(
+    [
+        [230, 159, 0],
+        [86, 180, 233],
+        [0, 158, 115],
+        [200, 170, 0],
+        [204, 121, 167],
+        [213, 94, 0],
+        [0, 114, 178],
+        [120, 120, 120],
+    ],
+    dtype=np.uint8,
+)  # by category
 MARK = (255, 120, 0)  # the frame of a substituted support picture
 #: Viridis at 0, 1/4, 1/2, 3/4 and 1: the heat map's colours, dark (low) to yellow (high).
-RAMP = np.array([[68, 1, 84], [59, 82, 139], [33, 145, 140], [94, 201, 98], [253, 231, 37]], np.float64)
-PITCH = (1.12, 1.5)  # support grid: a picture is 1 x 1 scene units, its neighbours PITCH further (x, y),
+RAMP = np.array(
+    [[68, 1, 84], [59, 82, 139], [33, 145, 140], [94, 201, 98], [253, 231, 37]], np.float64
+)
+PITCH = (
+    1.12,
+    1.5,
+)  # support grid: a picture is 1 x 1 scene units, its neighbours PITCH further (x, y),
 # leaving room under it for the label of a substitution
 
 
@@ -42,28 +59,57 @@ def blueprint(name: str, heat_name: str, height: int, width: int, maze: Bounds, 
     V, H = rrb.Vertical, rrb.Horizontal
 
     def S2(bounds: Bounds, **kw):
-        return rrb.Spatial2DView(visual_bounds=rrb.VisualBounds2D(x_range=bounds[0], y_range=bounds[1]), **kw)
+        return rrb.Spatial2DView(
+            visual_bounds=rrb.VisualBounds2D(x_range=bounds[0], y_range=bounds[1]), **kw
+        )
 
-    heat = S2(((0, width), (0, height + 0.8)), origin="/", name=heat_name,
-              contents=["/derived/**", "/q_values/**", "/maze/obstacles", "/maze/robot"])
+    heat = S2(
+        ((0, width), (0, height + 0.8)),
+        origin="/",
+        name=heat_name,
+        contents=["/derived/**", "/q_values/**", "/maze/obstacles", "/maze/robot"],
+    )
     picture = rrb.Spatial2DView(origin="recognition/picture", name="picture seen")
-    return rrb.Blueprint(H(
-        V(S2(maze, origin="maze", name=f"maze: {name}"), H(heat, rrb.TimeSeriesView(origin="metrics", name="return")),
-          row_shares=[3, 2]),
-        V(picture,
-          rrb.BarChartView(origin="recognition/scores", name="relation scores",
-                           plot_legend=rrb.PlotLegend(corner=rrb.Corner2D.RightTop, visible=True)),
-          rrb.TextDocumentView(origin="recognition/result", name="recognition"), row_shares=[2, 2, 3]),
-        V(S2(grid, origin="support", name="support set (framed: substituted at episode, step t)"), rrb.TextLogView(origin="events", name="events"),
-          row_shares=[3, 2]), column_shares=[3, 2, 3]),
-        rrb.SelectionPanel(state="collapsed"), rrb.TimePanel(state="collapsed"))
+    return rrb.Blueprint(
+        H(
+            V(
+                S2(maze, origin="maze", name=f"maze: {name}"),
+                H(heat, rrb.TimeSeriesView(origin="metrics", name="return")),
+                row_shares=[3, 2],
+            ),
+            V(
+                picture,
+                rrb.BarChartView(
+                    origin="recognition/scores",
+                    name="relation scores",
+                    plot_legend=rrb.PlotLegend(corner=rrb.Corner2D.RightTop, visible=True),
+                ),
+                rrb.TextDocumentView(origin="recognition/result", name="recognition"),
+                row_shares=[2, 2, 3],
+            ),
+            V(
+                S2(
+                    grid,
+                    origin="support",
+                    name="support set (framed: substituted at episode, step t)",
+                ),
+                rrb.TextLogView(origin="events", name="events"),
+                row_shares=[3, 2],
+            ),
+            column_shares=[3, 2, 3],
+        ),
+        rrb.SelectionPanel(state="collapsed"),
+        rrb.TimePanel(state="collapsed"),
+    )
 
 
 def categories_context(names: Sequence[str]):
     """Class id ``c`` -> category name and colour, for every entity (obstacles, legend, grid rows)."""
     import rerun as rr
 
-    return rr.AnnotationContext([rr.AnnotationInfo(id=c, label=name, color=colour(c)) for c, name in enumerate(names)])
+    return rr.AnnotationContext(
+        [rr.AnnotationInfo(id=c, label=name, color=colour(c)) for c, name in enumerate(names)]
+    )
 
 
 def heat_rgb(values: np.ndarray, log: bool = False) -> tuple[np.ndarray, float, float]:
@@ -71,7 +117,13 @@ def heat_rgb(values: np.ndarray, log: bool = False) -> tuple[np.ndarray, float, 
     (``log``: of log(1 + value), for counts); returns the image, the minimum and the maximum."""
     v = np.asarray(values, np.float64)
     lo, hi = float(v.min()), float(v.max())
-    scaled = np.log1p(v - lo) / np.log1p(hi - lo) if log and hi > lo else (v - lo) / (hi - lo) if hi > lo else v * 0
+    scaled = (
+        np.log1p(v - lo) / np.log1p(hi - lo)
+        if log and hi > lo
+        else (v - lo) / (hi - lo)
+        if hi > lo
+        else v * 0
+    )
     x = np.linspace(0.0, 1.0, len(RAMP))
     rgb = np.stack([np.interp(scaled, x, RAMP[:, i]) for i in range(3)], axis=-1)
     return np.round(rgb).astype(np.uint8), lo, hi
@@ -100,13 +152,32 @@ class SupportGrid:
         import rerun as rr
 
         n = len(self.names)
-        self.rec.log("support/categories", rr.Points2D(
-            [[-0.8, c * PITCH[1] + 0.35] for c in range(n)], radii=0.12, class_ids=np.arange(n), show_labels=True),
-            static=True)
-        if not has_pictures:  # in the middle of the grid, over whatever substituted pictures come in
-            self.rec.log("support/note", rr.Points2D(
-                [[self.shots * PITCH[0] / 2, n * PITCH[1] / 2]], radii=0.01, colors=[[90, 90, 90]], show_labels=True,
-                labels=["this file holds no support pictures:\nthe grid shows substituted ones only"]), static=True)
+        self.rec.log(
+            "support/categories",
+            rr.Points2D(
+                [[-0.8, c * PITCH[1] + 0.35] for c in range(n)],
+                radii=0.12,
+                class_ids=np.arange(n),
+                show_labels=True,
+            ),
+            static=True,
+        )
+        if (
+            not has_pictures
+        ):  # in the middle of the grid, over whatever substituted pictures come in
+            self.rec.log(
+                "support/note",
+                rr.Points2D(
+                    [[self.shots * PITCH[0] / 2, n * PITCH[1] / 2]],
+                    radii=0.01,
+                    colors=[[90, 90, 90]],
+                    show_labels=True,
+                    labels=[
+                        "this file holds no support pictures:\nthe grid shows substituted ones only"
+                    ],
+                ),
+                static=True,
+            )
 
     def bounds(self) -> Bounds:
         """What the view shows: the grid and the row names left of it."""
@@ -117,8 +188,12 @@ class SupportGrid:
         import rerun as rr
 
         entity = f"support/{category}/{position}"
-        self.rec.log(entity, rr.Transform3D(translation=[position * PITCH[0], category * PITCH[1], 0],
-                                            scale=picture_scale(png)))
+        self.rec.log(
+            entity,
+            rr.Transform3D(
+                translation=[position * PITCH[0], category * PITCH[1], 0], scale=picture_scale(png)
+            ),
+        )
         self.rec.log(entity, rr.EncodedImage(contents=png, media_type="image/png"))
         if mark is not None:
             self.marks[(category, position)] = mark
@@ -129,7 +204,15 @@ class SupportGrid:
         import rerun as rr
 
         cells = sorted(self.marks)
-        self.rec.log("support/substituted", rr.Boxes2D(
-            mins=[[p * PITCH[0] - 0.04, c * PITCH[1] - 0.04] for c, p in cells], sizes=[[1.08, 1.08]] * len(cells),
-            colors=[MARK] * len(cells), radii=0.04, labels=[self.marks[k] for k in cells], show_labels=True,
-            draw_order=20.0))
+        self.rec.log(
+            "support/substituted",
+            rr.Boxes2D(
+                mins=[[p * PITCH[0] - 0.04, c * PITCH[1] - 0.04] for c, p in cells],
+                sizes=[[1.08, 1.08]] * len(cells),
+                colors=[MARK] * len(cells),
+                radii=0.04,
+                labels=[self.marks[k] for k in cells],
+                show_labels=True,
+                draw_order=20.0,
+            ),
+        )

@@ -12,6 +12,7 @@ s.d. of an accuracy over several categories is at most the sum of theirs. The 95
 ``p ± 1.96 se`` with that bound is conservative. The original support set involves no draw, so its
 accuracy has no interval.
 """
+
 from __future__ import annotations
 
 import json
@@ -26,9 +27,13 @@ from pipeline.report import figures as F
 from pipeline.report.stats import bootstrap_ci, bounded_sd, normal_ci, wilson_ci
 
 #: Table 2's columns (the accuracy study's ``table2.csv``) as the report prints them.
-TABLE2_HEADERS = {"substitution_number": "substitutions", "mean_accuracy": "ours [95% CI]",
-                  "mean_accuracy_no_same": "ours, no same picture [95% CI]", "paper_mean_accuracy": "paper",
-                  "paper_mean_accuracy_no_same": "paper, no same picture"}
+TABLE2_HEADERS = {
+    "substitution_number": "substitutions",
+    "mean_accuracy": "ours [95% CI]",
+    "mean_accuracy_no_same": "ours, no same picture [95% CI]",
+    "paper_mean_accuracy": "paper",
+    "paper_mean_accuracy_no_same": "paper, no same picture",
+}
 
 #: ``table2.csv``'s column of each variant of Table 1 (``table1.csv``'s ``variant``).
 VARIANTS = {"with_same": "mean_accuracy", "no_same": "mean_accuracy_no_same"}
@@ -62,7 +67,9 @@ class Study:
 
     def cells(self, variant: str, substituted: int) -> pd.DataFrame:
         t = self.table1
-        return t[(t["variant"] == variant) & (t["substituted_category"] == substituted)].sort_values("tested_category")
+        return t[
+            (t["variant"] == variant) & (t["substituted_category"] == substituted)
+        ].sort_values("tested_category")
 
     def row(self, variant: str, substituted: int) -> Estimate:
         """Table 1: accuracy on all pictures with one picture of ``substituted`` substituted."""
@@ -79,7 +86,7 @@ class Study:
     def mean(self, variant: str) -> Estimate:
         """Table 1's mean over the substituted categories (independent draws each)."""
         rows = [self.row(variant, s) for s in range(len(self.names))]
-        se = float(np.sqrt(sum(r.se ** 2 for r in rows))) / len(rows)
+        se = float(np.sqrt(sum(r.se**2 for r in rows))) / len(rows)
         return Estimate(float(np.mean([r.value for r in rows])), se)
 
     def substitutions(self, n: int, variant: str = "with_same") -> Estimate:
@@ -117,34 +124,43 @@ def percent(value, estimate: Estimate | None = None) -> str:
 
 
 def intervals_note(study: Study) -> str:
-    return (f"[95% CI] over the study's random draws ({study.draws} per substituted category), conservative: "
-            "the data files keep sums over draws, and the interval takes the largest spread those sums allow "
-            "(each draw's accuracy on a category lies in [0, 1]); the original support set involves no draw.")
+    return (
+        f"[95% CI] over the study's random draws ({study.draws} per substituted category), conservative: "
+        "the data files keep sums over draws, and the interval takes the largest spread those sums allow "
+        "(each draw's accuracy on a category lies in [0, 1]); the original support set involves no draw."
+    )
 
 
 #: The paper's recogniser, whose study fills Tables 1 and 2.
 MAIN = "Relation Network"
 
 
-def accuracy_tables(rep, accuracy_dir: Path, model_metrics: Path,
-                    others: dict[str, tuple[Path, Path]] | None = None) -> None:
+def accuracy_tables(
+    rep, accuracy_dir: Path, model_metrics: Path, others: dict[str, tuple[Path, Path]] | None = None
+) -> None:
     """The recogniser's validation accuracy and Tables 1-2 of the Relation Network's study
     (``accuracy_dir``, ``model_metrics``); ``others`` maps another method's name to its study folder
     and metrics file, shown beside the Relation Network (missing files: said, not shown)."""
     others = others or {}
     rows = []
-    for name, (metrics, folder) in [(MAIN, (model_metrics, accuracy_dir)), *((n, (m, f)) for n, (f, m) in others.items())]:
+    for name, (metrics, folder) in [
+        (MAIN, (model_metrics, accuracy_dir)),
+        *((n, (m, f)) for n, (f, m) in others.items()),
+    ]:
         if metrics.exists() or (folder / "summary.json").exists():
             rows.append(recogniser_row(name, metrics, folder))
     if rows:
         rep.add("## The recogniser\n")
-        rep.table("recogniser", pd.DataFrame(rows),
-                  "Validation: 5-way 5-shot accuracy on held-out procedural families, mean over the episodes "
-                  "with its 95% interval (the model is selected on validation classes only). Query pictures: the "
-                  "40 pictures the robot takes, against the original support set, with a Wilson 95% interval. "
-                  "Colour test: every query picture's hue turned by each of the study's hue shifts (the support "
-                  "set as rendered; `pipeline/fewshot/colour.py`), correct over pictures x shifts; its interval "
-                  "and the drop's (paired, in points) are bootstrap 95% intervals over the 40 pictures.")
+        rep.table(
+            "recogniser",
+            pd.DataFrame(rows),
+            "Validation: 5-way 5-shot accuracy on held-out procedural families, mean over the episodes "
+            "with its 95% interval (the model is selected on validation classes only). Query pictures: the "
+            "40 pictures the robot takes, against the original support set, with a Wilson 95% interval. "
+            "Colour test: every query picture's hue turned by each of the study's hue shifts (the support "
+            "set as rendered; `pipeline/fewshot/colour.py`), correct over pictures x shifts; its interval "
+            "and the drop's (paired, in points) are bootstrap 95% intervals over the 40 pictures.",
+        )
     if not (accuracy_dir / "table2.csv").exists():
         rep.add(f"Accuracy study: no data under `{accuracy_dir}`.\n")
         return
@@ -154,53 +170,94 @@ def accuracy_tables(rep, accuracy_dir: Path, model_metrics: Path,
         if (folder / "table2.csv").exists():
             beside[name] = Study(folder)
         else:
-            rep.add(f"{name}: no accuracy study under `{folder}` (its trained model and `accuracy` run), not shown.\n")
+            rep.add(
+                f"{name}: no accuracy study under `{folder}` (its trained model and `accuracy` run), not shown.\n"
+            )
     names, base = study.names, study.baseline
-    rows = [{"": f"ours, {name}", **{n: f"{c}/{t}" for n, c, t in zip(names, b["correct"], b["total"])},
-             "overall": f"{100 * b['accuracy']:.1f}%"}
-            for name, b in [(MAIN, base), *((n, s.baseline) for n, s in beside.items())]]
+    rows = [
+        {
+            "": f"ours, {name}",
+            **{n: f"{c}/{t}" for n, c, t in zip(names, b["correct"], b["total"])},
+            "overall": f"{100 * b['accuracy']:.1f}%",
+        }
+        for name, b in [(MAIN, base), *((n, s.baseline) for n, s in beside.items())]
+    ]
     paper = (base.get("paper") or {}).get("correct")
     if paper:
-        rows.append({"": "paper", **{n: f"{c}/{t}" for n, c, t in zip(names, paper, base["total"])},
-                     "overall": f"{100 * sum(paper) / study.pictures:.1f}%"})
+        rows.append(
+            {
+                "": "paper",
+                **{n: f"{c}/{t}" for n, c, t in zip(names, paper, base["total"])},
+                "overall": f"{100 * sum(paper) / study.pictures:.1f}%",
+            }
+        )
     rep.add("## Table 1: recognition accuracy of the 40 query pictures\n")
-    rep.table("table1_no_substitution", pd.DataFrame(rows),
-              "Original support set (no substitution), correct per category (no random draw: no interval).")
-    for variant, title in (("with_same", "one substitution"), ("no_same", "one substitution, no same picture")):
-        rep.table(f"table1_{variant}", table1(study, variant, beside),
-                  f"Table 1, {title}: correct/tested per category ({MAIN}"
-                  + "".join(f"; the {n}'s overall accuracy beside it" for n in beside)
-                  + f"); {intervals_note(study)}")
+    rep.table(
+        "table1_no_substitution",
+        pd.DataFrame(rows),
+        "Original support set (no substitution), correct per category (no random draw: no interval).",
+    )
+    for variant, title in (
+        ("with_same", "one substitution"),
+        ("no_same", "one substitution, no same picture"),
+    ):
+        rep.table(
+            f"table1_{variant}",
+            table1(study, variant, beside),
+            f"Table 1, {title}: correct/tested per category ({MAIN}"
+            + "".join(f"; the {n}'s overall accuracy beside it" for n in beside)
+            + f"); {intervals_note(study)}",
+        )
     summary = study.summary["table1"]
     means = []
     for name, s in [(MAIN, study), *beside.items()]:
         with_same, no_same = s.mean("with_same"), s.mean("no_same")
-        means.append(f"ours, {name} {percent(with_same.value, with_same)} (no same picture {percent(no_same.value, no_same)})")
-    rep.add(f"Mean accuracy after one substitution: {'; '.join(means)}; paper {percent(summary['paper_mean'])} "
-            f"({percent(summary['paper_mean_no_same'])}); [95% CI] over the draws of the {len(names)} categories.\n")
+        means.append(
+            f"ours, {name} {percent(with_same.value, with_same)} (no same picture {percent(no_same.value, no_same)})"
+        )
+    rep.add(
+        f"Mean accuracy after one substitution: {'; '.join(means)}; paper {percent(summary['paper_mean'])} "
+        f"({percent(summary['paper_mean_no_same'])}); [95% CI] over the draws of the {len(names)} categories.\n"
+    )
     rep.add("## Table 2: accuracy against the number of substitutions\n")
-    rep.table("table2", table2(study, beside), f"Mean accuracy over the {study.pictures} query pictures (ours, "
-                                               f"{MAIN}{''.join(', ' + n for n in beside)}, and the paper's); "
-                                               f"{intervals_note(study)}")
+    rep.table(
+        "table2",
+        table2(study, beside),
+        f"Mean accuracy over the {study.pictures} query pictures (ours, "
+        f"{MAIN}{''.join(', ' + n for n in beside)}, and the paper's); "
+        f"{intervals_note(study)}",
+    )
     table2_figure(rep, study, beside)
 
 
 def recogniser_row(name: str, metrics: Path, accuracy_dir: Path) -> dict:
     """One row of the recogniser table: validation accuracy, query accuracy and the colour test
     (blank where a file is missing or the study ran without the colour test)."""
-    row = {"recogniser": name, "validation [95%]": "", "query pictures [95%]": "",
-           "hue-turned query pictures [95%]": "", "drop, points [95%]": ""}
+    row = {
+        "recogniser": name,
+        "validation [95%]": "",
+        "query pictures [95%]": "",
+        "hue-turned query pictures [95%]": "",
+        "drop, points [95%]": "",
+    }
     if metrics.exists():
         m = json.loads(metrics.read_text())
-        row["validation [95%]"] = (f"{100 * m['val_accuracy']:.2f}% ± {100 * m['val_ci95']:.2f} "
-                                   f"({m['val_episodes']} episodes)")
+        row["validation [95%]"] = (
+            f"{100 * m['val_accuracy']:.2f}% ± {100 * m['val_ci95']:.2f} "
+            f"({m['val_episodes']} episodes)"
+        )
     path = accuracy_dir / "summary.json"
     if not path.is_file():
         return row
     summary = json.loads(path.read_text())
-    correct, total = int(sum(summary["baseline"]["correct"])), int(sum(summary["baseline"]["total"]))
+    correct, total = (
+        int(sum(summary["baseline"]["correct"])),
+        int(sum(summary["baseline"]["total"])),
+    )
     lo, hi = wilson_ci(correct / total, total)
-    row["query pictures [95%]"] = f"{correct}/{total} = {100 * correct / total:.1f}% [{100 * lo:.1f}, {100 * hi:.1f}]"
+    row["query pictures [95%]"] = (
+        f"{correct}/{total} = {100 * correct / total:.1f}% [{100 * lo:.1f}, {100 * hi:.1f}]"
+    )
     colour = summary.get("colour_test")
     if not colour or not colour["shifts_deg"]:
         return row
@@ -210,10 +267,14 @@ def recogniser_row(name: str, metrics: Path, accuracy_dir: Path) -> dict:
     per_picture = (turned == cats).mean(axis=0)
     n = turned.size
     lo, hi = bootstrap_ci(per_picture)
-    row["hue-turned query pictures [95%]"] = (f"{int((turned == cats).sum())}/{n} = {100 * per_picture.mean():.1f}% "
-                                              f"[{100 * lo:.1f}, {100 * hi:.1f}]")
+    row["hue-turned query pictures [95%]"] = (
+        f"{int((turned == cats).sum())}/{n} = {100 * per_picture.mean():.1f}% "
+        f"[{100 * lo:.1f}, {100 * hi:.1f}]"
+    )
     lo, hi = bootstrap_ci(original - per_picture)
-    row["drop, points [95%]"] = f"{100 * (original - per_picture).mean():.1f} [{100 * lo:.1f}, {100 * hi:.1f}]"
+    row["drop, points [95%]"] = (
+        f"{100 * (original - per_picture).mean():.1f} [{100 * lo:.1f}, {100 * hi:.1f}]"
+    )
     return row
 
 
@@ -225,17 +286,28 @@ def table1(study: Study, variant: str, beside: dict[str, Study] | None = None) -
     out = []
     for s in range(len(names)):
         d = study.cells(variant, s)
-        line = {"substituted": names[s], **{names[int(t)]: f"{c}/{n}" for t, c, n in
-                                            zip(d["tested_category"], d["correct"], d["total"])}}
+        line = {
+            "substituted": names[s],
+            **{
+                names[int(t)]: f"{c}/{n}"
+                for t, c, n in zip(d["tested_category"], d["correct"], d["total"])
+            },
+        }
         row = study.row(variant, s)
         line["overall, ours [95% CI]"] = percent(row.value, row)
         for name, other in (beside or {}).items():
             r = other.row(variant, s)
             line[f"overall, {name} [95% CI]"] = percent(r.value, r)
         if d["paper_correct"].notna().all():
-            line.update({f"{names[int(t)]} (paper)": f"{int(c)}/{int(n)}"
-                         for t, c, n in zip(d["tested_category"], d["paper_correct"], d["paper_total"])})
-            line["overall, paper"] = f"{int(d['paper_correct'].sum())}/{int(d['paper_total'].sum())}"
+            line.update(
+                {
+                    f"{names[int(t)]} (paper)": f"{int(c)}/{int(n)}"
+                    for t, c, n in zip(d["tested_category"], d["paper_correct"], d["paper_total"])
+                }
+            )
+            line["overall, paper"] = (
+                f"{int(d['paper_correct'].sum())}/{int(d['paper_total'].sum())}"
+            )
         out.append(line)
     return pd.DataFrame(out)
 
@@ -243,36 +315,63 @@ def table1(study: Study, variant: str, beside: dict[str, Study] | None = None) -
 def table2(study: Study, beside: dict[str, Study] | None = None) -> pd.DataFrame:
     show = study.table2.reset_index()
     for variant, column in VARIANTS.items():
-        show[column] = [percent(v, study.substitutions(int(n), variant)) for n, v in zip(show["substitution_number"],
-                                                                                        show[column])]
+        show[column] = [
+            percent(v, study.substitutions(int(n), variant))
+            for n, v in zip(show["substitution_number"], show[column])
+        ]
         show["paper_" + column] = show["paper_" + column].map(percent)
     show = show.rename(columns=TABLE2_HEADERS)
     for name, other in (beside or {}).items():
         for variant, column in VARIANTS.items():
             label = TABLE2_HEADERS[column].replace("ours", name)
-            show[label] = [percent(other.substitutions(int(n), variant).value, other.substitutions(int(n), variant))
-                           if n in other.table2.index else "" for n in show["substitutions"]]
+            show[label] = [
+                percent(
+                    other.substitutions(int(n), variant).value, other.substitutions(int(n), variant)
+                )
+                if n in other.table2.index
+                else ""
+                for n in show["substitutions"]
+            ]
     return show
 
 
 def table2_figure(rep, study: Study, beside: dict[str, Study] | None = None) -> None:
     fig, ax = plt.subplots(figsize=(5.5, 3.4))
     n = study.table2.index.to_numpy()
-    for (variant, column), style, label in zip(VARIANTS.items(), ("o-", "o--"), ("ours", "ours, no same picture")):
-        for who, s, marker in [(MAIN, study, "o"), *((name, other, "^") for name, other in (beside or {}).items())]:
+    for (variant, column), style, label in zip(
+        VARIANTS.items(), ("o-", "o--"), ("ours", "ours, no same picture")
+    ):
+        for who, s, marker in [
+            (MAIN, study, "o"),
+            *((name, other, "^") for name, other in (beside or {}).items()),
+        ]:
             k = s.table2.index.to_numpy()
             estimates = [s.substitutions(int(i), variant) for i in k]
             values = np.array([100 * e.value for e in estimates])
-            err = np.array([[100 * (e.value - e.ci()[0]), 100 * (e.ci()[1] - e.value)] for e in estimates]).T
+            err = np.array(
+                [[100 * (e.value - e.ci()[0]), 100 * (e.ci()[1] - e.value)] for e in estimates]
+            ).T
             name = label if not beside else label.replace("ours", f"ours, {who}")
-            ax.errorbar(k, values, yerr=err, fmt=marker + style[1:], capsize=3, label=f"{name} (95% CI)")
+            ax.errorbar(
+                k, values, yerr=err, fmt=marker + style[1:], capsize=3, label=f"{name} (95% CI)"
+            )
         paper = study.table2.get("paper_" + column)
         if paper is not None and paper.notna().any():
-            ax.plot(n, 100 * paper, "s" + style[1:], color="red", alpha=0.6, label=label.replace("ours", "paper"))
+            ax.plot(
+                n,
+                100 * paper,
+                "s" + style[1:],
+                color="red",
+                alpha=0.6,
+                label=label.replace("ours", "paper"),
+            )
     ax.set_xlabel("substitution number")
     ax.set_ylabel("mean accuracy (%)")
     ax.legend(fontsize=8)
     ax.set_title("Table 2 as a plot", fontsize=10)
     F.save(fig, rep.out / "figures" / "table2_accuracy.png")
-    rep.figure("figures/table2_accuracy.png", "Table 2: mean accuracy against the number of substitutions, ours with "
-                                              "conservative 95% intervals over the draws, beside the paper's.")
+    rep.figure(
+        "figures/table2_accuracy.png",
+        "Table 2: mean accuracy against the number of substitutions, ours with "
+        "conservative 95% intervals over the draws, beside the paper's.",
+    )

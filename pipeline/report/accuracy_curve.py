@@ -21,6 +21,7 @@ shield) is a reference line on its maze. Mazes are ordered by their number of ce
 * ``tables/<folder>_data.csv``: every point and reference (maze, method, p, runs, mean, s.d.,
   interval).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -71,22 +72,32 @@ def split(exp: Experiment) -> Split:
     points: dict[tuple[str, str], dict[float, Cell]] = {}
     references: dict[tuple[str, str], Cell] = {}
     notes = []
-    shown = [exp.cells[n] for n in exp.spec.cells if n in exp.cells] if exp.spec.cells else list(exp.cells.values())
+    shown = (
+        [exp.cells[n] for n in exp.spec.cells if n in exp.cells]
+        if exp.spec.cells
+        else list(exp.cells.values())
+    )
     for cell in shown:
         key = (cell.maze, method_name(cell.info["method"]))
         if cell.start_accuracy() is None:
             slot, at = references, key
         elif (p := recogniser_p(cell)) is None:
-            notes.append(f"cell {cell.name}: its recogniser has no accuracy p, so it is not on a curve")
+            notes.append(
+                f"cell {cell.name}: its recogniser has no accuracy p, so it is not on a curve"
+            )
             continue
         else:
             slot, at = points.setdefault(key, {}), p
         if at in slot:
-            notes.append(f"cell {cell.name} repeats the setting of cell {slot[at].name}, which is shown")
+            notes.append(
+                f"cell {cell.name} repeats the setting of cell {slot[at].name}, which is shown"
+            )
             continue
         slot[at] = cell
-    curves = [Curve(maze, label, np.array(sorted(by_p)), [by_p[p] for p in sorted(by_p)])
-              for (maze, label), by_p in points.items()]
+    curves = [
+        Curve(maze, label, np.array(sorted(by_p)), [by_p[p] for p in sorted(by_p)])
+        for (maze, label), by_p in points.items()
+    ]
     sizes = {c.maze: len(c.layout) * len(c.layout[0]) for c in shown}
     mazes = sorted(sizes, key=lambda m: (sizes[m], m))
     curves.sort(key=lambda c: (mazes.index(c.maze), c.label))
@@ -109,20 +120,47 @@ def break_even_table(parts: Split) -> pd.DataFrame:
         for (maze, reference), cell in parts.references.items():
             if maze != curve.maze:
                 continue
-            point, low, high = break_even(curve.levels, curve.collisions(), cell.collisions_per_run())
-            rows.append({"maze": maze, "method": curve.label, "against": reference,
-                         "reference collisions (mean ± s.d. [95% CI])": fmt(describe(cell.collisions_per_run())),
-                         "break-even p": level_text(point, curve.levels),
-                         "95% CI": f"[{level_text(low, curve.levels)}, {level_text(high, curve.levels)}]"})
+            point, low, high = break_even(
+                curve.levels, curve.collisions(), cell.collisions_per_run()
+            )
+            rows.append(
+                {
+                    "maze": maze,
+                    "method": curve.label,
+                    "against": reference,
+                    "reference collisions (mean ± s.d. [95% CI])": fmt(
+                        describe(cell.collisions_per_run())
+                    ),
+                    "break-even p": level_text(point, curve.levels),
+                    "95% CI": f"[{level_text(low, curve.levels)}, {level_text(high, curve.levels)}]",
+                }
+            )
     return pd.DataFrame(rows)
 
 
 def data_table(parts: Split) -> pd.DataFrame:
     """Every point of every curve and every reference, with the statistics the figure shows."""
-    rows = [{"maze": c.maze, "method": c.label, "p": p, "cell": cell.name, **describe(cell.collisions_per_run())}
-            for c in parts.curves for p, cell in zip(c.levels, c.cells)]
-    rows += [{"maze": maze, "method": label, "p": np.nan, "cell": cell.name, **describe(cell.collisions_per_run())}
-             for (maze, label), cell in parts.references.items()]
+    rows = [
+        {
+            "maze": c.maze,
+            "method": c.label,
+            "p": p,
+            "cell": cell.name,
+            **describe(cell.collisions_per_run()),
+        }
+        for c in parts.curves
+        for p, cell in zip(c.levels, c.cells)
+    ]
+    rows += [
+        {
+            "maze": maze,
+            "method": label,
+            "p": np.nan,
+            "cell": cell.name,
+            **describe(cell.collisions_per_run()),
+        }
+        for (maze, label), cell in parts.references.items()
+    ]
     return pd.DataFrame(rows)
 
 
@@ -134,9 +172,17 @@ def panels(parts: Split) -> list[dict]:
         for c in parts.curves:
             if c.maze == maze:
                 ds = [describe(cell.collisions_per_run()) for cell in c.cells]
-                curves[c.label] = (c.levels, *(np.array([d[k] for d in ds]) for k in ("mean", "ci_low", "ci_high")))
-        references = {label: tuple(describe(cell.collisions_per_run())[k] for k in ("mean", "ci_low", "ci_high"))
-                      for (m, label), cell in parts.references.items() if m == maze}
+                curves[c.label] = (
+                    c.levels,
+                    *(np.array([d[k] for d in ds]) for k in ("mean", "ci_low", "ci_high")),
+                )
+        references = {
+            label: tuple(
+                describe(cell.collisions_per_run())[k] for k in ("mean", "ci_low", "ci_high")
+            )
+            for (m, label), cell in parts.references.items()
+            if m == maze
+        }
         out.append({"title": maze, "curves": curves, "references": references})
     return out
 
@@ -146,9 +192,11 @@ def marker_text(measured: tuple[int, int] | None) -> str:
     if measured is None:
         return "the Relation Network's accuracy is not marked (no accuracy study)"
     correct, tested = measured
-    return (f"the dotted red line is the Relation Network's query accuracy with the original support set in "
-            f"the accuracy study ({correct}/{tested} = {100 * correct / tested:.1f}%; its errors fall on particular "
-            "pictures and categories, where p draws them independently)")
+    return (
+        f"the dotted red line is the Relation Network's query accuracy with the original support set in "
+        f"the accuracy study ({correct}/{tested} = {100 * correct / tested:.1f}%; its errors fall on particular "
+        "pictures and categories, where p draws them independently)"
+    )
 
 
 def accuracy_curve_kind(rep, exp: Experiment, paper=None) -> None:
@@ -158,24 +206,41 @@ def accuracy_curve_kind(rep, exp: Experiment, paper=None) -> None:
     measured = query_accuracy(rep.accuracy_dir) if rep.accuracy_dir is not None else None
     marker = measured[0] / measured[1] if measured else None
     rn = marker_text(measured)
-    rep.add("A controlled recogniser (`fixed_accuracy`) recognises each query picture correctly with probability "
-            "p, drawn once per picture per run (a picture substituted after a collision is recognised from then on). "
-            "Where do few-shot reasoning's collisions fall below those of the methods without a recogniser?"
-            + "".join(f"\n\nNote: {n}." for n in parts.notes) + "\n")
+    rep.add(
+        "A controlled recogniser (`fixed_accuracy`) recognises each query picture correctly with probability "
+        "p, drawn once per picture per run (a picture substituted after a collision is recognised from then on). "
+        "Where do few-shot reasoning's collisions fall below those of the methods without a recogniser?"
+        + "".join(f"\n\nNote: {n}." for n in parts.notes)
+        + "\n"
+    )
     name = f"{exp.folder}.png"
-    F.accuracy_curves(panels(parts), rep.out / "figures" / name, marker,
-                      f"Relation Network ({100 * marker:.1f}%)" if marker is not None else "")
-    rep.figure(f"figures/{name}", f"Collisions per run against the recognition accuracy p, one panel per maze: mean "
-                                  f"over {'/'.join(map(str, runs))} runs with its 95% bootstrap interval (band); "
-                                  f"the methods without a recogniser as horizontal lines with their intervals; {rn}. "
-                                  f"Data: `tables/{exp.folder}_data.csv`.")
-    data_table(parts).to_csv(rep.out / "tables" / f"{exp.folder}_data.csv", index=False, lineterminator="\n",
-                              float_format="%.6g")
+    F.accuracy_curves(
+        panels(parts),
+        rep.out / "figures" / name,
+        marker,
+        f"Relation Network ({100 * marker:.1f}%)" if marker is not None else "",
+    )
+    rep.figure(
+        f"figures/{name}",
+        f"Collisions per run against the recognition accuracy p, one panel per maze: mean "
+        f"over {'/'.join(map(str, runs))} runs with its 95% bootstrap interval (band); "
+        f"the methods without a recogniser as horizontal lines with their intervals; {rn}. "
+        f"Data: `tables/{exp.folder}_data.csv`.",
+    )
+    data_table(parts).to_csv(
+        rep.out / "tables" / f"{exp.folder}_data.csv",
+        index=False,
+        lineterminator="\n",
+        float_format="%.6g",
+    )
     table = break_even_table(parts)
     if len(table):
         table = table.rename(columns={"method": exp.spec.row_header})
-        rep.table(exp.folder, table,
-                  "Break-even accuracy: the smallest p at which the method's mean collisions per run are at or "
-                  "below the reference's; 95% CI from 2000 bootstrap resamples of the run seeds (seed 0), paired "
-                  "across the cells, which share run seeds; its resolution is the grid of p. '≤' marks the smallest "
-                  "p tried, 'not reached': above the reference at every p tried.")
+        rep.table(
+            exp.folder,
+            table,
+            "Break-even accuracy: the smallest p at which the method's mean collisions per run are at or "
+            "below the reference's; 95% CI from 2000 bootstrap resamples of the run seeds (seed 0), paired "
+            "across the cells, which share run seeds; its resolution is the grid of p. '≤' marks the smallest "
+            "p tried, 'not reached': above the reference at every p tried.",
+        )

@@ -12,6 +12,7 @@ again gives the same bytes. On a terminal, a progress bar on stderr counts the p
 records, the accuracy section, one per experiment, the contact sheets) and names the one being
 built; elsewhere (a pipe, a log) stderr holds only errors, in one line.
 """
+
 from __future__ import annotations
 
 import os
@@ -37,8 +38,10 @@ class Inputs:
     model_metrics: Path
     contact_dir: Path
     out: Path
-    experiments_dir: Path | None = None  # the experiment files (conf/experiment/): which are missing
-    allow_missing: bool = False          # build without missing experiments/cells, saying so at the top
+    experiments_dir: Path | None = (
+        None  # the experiment files (conf/experiment/): which are missing
+    )
+    allow_missing: bool = False  # build without missing experiments/cells, saying so at the top
     beside: dict[str, tuple[Path, Path]] = field(default_factory=dict)
     """Other few-shot methods for Tables 1-2: name -> (accuracy study folder, metrics file)."""
 
@@ -72,9 +75,14 @@ class Report:
         return path
 
 
-def accuracy_section(rep: Report, accuracy_dir: Path, model_metrics: Path,
-                     beside: dict[str, tuple[Path, Path]] | None = None) -> None:
+def accuracy_section(
+    rep: Report,
+    accuracy_dir: Path,
+    model_metrics: Path,
+    beside: dict[str, tuple[Path, Path]] | None = None,
+) -> None:
     from pipeline.report.accuracy import accuracy_tables
+
     accuracy_tables(rep, accuracy_dir, model_metrics, beside)
 
 
@@ -106,7 +114,10 @@ def build_report(inputs: Inputs) -> Path:
 
 
 def _build(inputs: Inputs) -> Path:
-    with tqdm(total=3, desc="report", unit="part", disable=None) as bar, ticking(bar):  # None: only on a terminal
+    with (
+        tqdm(total=3, desc="report", unit="part", disable=None) as bar,
+        ticking(bar),
+    ):  # None: only on a terminal
         return _build_parts(inputs, bar)
 
 
@@ -131,14 +142,16 @@ def ticking(bar: tqdm, every: float = 1.0):
 def _build_parts(inputs: Inputs, bar: tqdm) -> Path:
     """The report, part by part; ``bar`` names the part being built and counts those done."""
     rep = Report(inputs.out, inputs.accuracy_dir)
-    rep.add("# Few-shot reasoning-based safe RL: our results beside the paper's\n\n"
-            "Built by `python -m pipeline report` from the recorded data only (MCAP records of every "
-            "episode, the accuracy study's data files, the model's validation metrics). Collisions are "
-            "mean ± standard deviation over runs with a 95% percentile-bootstrap interval of the mean "
-            "(2000 resamples, seed 0); a pooled row pools its cells' runs, and the runs of a carried-over "
-            "support set are one robot's consecutive experiments, not independent ones. Accuracies carry "
-            "the interval their table names. Learning curves show the mean over runs per episode with its "
-            "95% t interval shaded.\n")
+    rep.add(
+        "# Few-shot reasoning-based safe RL: our results beside the paper's\n\n"
+        "Built by `python -m pipeline report` from the recorded data only (MCAP records of every "
+        "episode, the accuracy study's data files, the model's validation metrics). Collisions are "
+        "mean ± standard deviation over runs with a 95% percentile-bootstrap interval of the mean "
+        "(2000 resamples, seed 0); a pooled row pools its cells' runs, and the runs of a carried-over "
+        "support set are one robot's consecutive experiments, not independent ones. Accuracies carry "
+        "the interval their table names. Learning curves show the mean over runs per episode with its "
+        "95% t interval shaded.\n"
+    )
     bar.set_postfix_str(f"reading the records under {inputs.runs_dir}")
     experiments = load_all(inputs.runs_dir)
     bar.total += len(experiments)
@@ -166,16 +179,22 @@ def refuse_missing(rep: Report, inputs: Inputs, experiments: list) -> None:
     """Nothing to report, or experiment files and cells without complete records: refused, unless
     ``allow_missing`` (then the report says at the top what it lacks)."""
     if not experiments and not inputs.accuracy_dir.exists():
-        raise ReportInputError(f"nothing to report: no experiments under {inputs.runs_dir} and no "
-                               f"{inputs.accuracy_dir}")
+        raise ReportInputError(
+            f"nothing to report: no experiments under {inputs.runs_dir} and no "
+            f"{inputs.accuracy_dir}"
+        )
     recorded = {e.name for e in experiments} | {e.folder for e in experiments}
     folder = inputs.experiments_dir
     files = sorted(folder.glob("*.yaml")) if folder and folder.is_dir() else []
     missing = [f"experiment {p.stem}" for p in files if p.stem not in recorded]
     missing += [f"cell {e.folder}/{c}" for e in experiments for c in e.missing]
     if missing and not inputs.allow_missing:
-        raise ReportInputError(f"no complete records for {', '.join(missing)} under {inputs.runs_dir}; run their "
-                               "trials, or build without them with allow_missing=true")
+        raise ReportInputError(
+            f"no complete records for {', '.join(missing)} under {inputs.runs_dir}; run their "
+            "trials, or build without them with allow_missing=true"
+        )
     if missing:
-        rep.add(f"**Missing from this report** (no complete records; built with `allow_missing=true`): "
-                f"{', '.join(missing)}.\n")
+        rep.add(
+            f"**Missing from this report** (no complete records; built with `allow_missing=true`): "
+            f"{', '.join(missing)}.\n"
+        )

@@ -18,6 +18,7 @@ all its checks hold and does not hold when one does not.
 The claims name the experiments by their recorded names (``fig8``...) and select cells by what they
 ran (method, maze, way, support set); a claim whose records are missing is "not checked".
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -47,9 +48,9 @@ class Check:
     high: float
     expect: str
     unit: str
-    basis: str              # what the interval is over
-    paper: str = ""         # the paper's numbers for it, as printed
-    margin: float = 0.0     # ``≈``: the largest difference that counts as comparable
+    basis: str  # what the interval is over
+    paper: str = ""  # the paper's numbers for it, as printed
+    margin: float = 0.0  # ``≈``: the largest difference that counts as comparable
 
     @property
     def verdict(self) -> str:
@@ -57,12 +58,23 @@ class Check:
             return "holds" if self.low > 0 else "does not hold" if self.high < 0 else "not resolved"
         if self.expect == "≈":
             inside = -self.margin <= self.low and self.high <= self.margin
-            return "holds" if inside else "does not hold" if self.low > self.margin or self.high < -self.margin \
+            return (
+                "holds"
+                if inside
+                else "does not hold"
+                if self.low > self.margin or self.high < -self.margin
                 else "not resolved"
-        return "holds" if self.estimate == (1.0 if self.expect == "all" else 0.0) else "does not hold"
+            )
+        return (
+            "holds" if self.estimate == (1.0 if self.expect == "all" else 0.0) else "does not hold"
+        )
 
     def text(self) -> str:
-        scale, digits = (100, 1) if self.unit.startswith("percentage") or self.unit.startswith("share") else (1, 2)
+        scale, digits = (
+            (100, 1)
+            if self.unit.startswith("percentage") or self.unit.startswith("share")
+            else (1, 2)
+        )
         numbers = f"{scale * self.estimate:.{digits}f} [{scale * self.low:.{digits}f}, {scale * self.high:.{digits}f}]"
         paper = f"; paper: {self.paper}" if self.paper else ""
         margin = f"; comparable within ±{self.margin:.2f}" if self.expect == "≈" else ""
@@ -71,11 +83,11 @@ class Check:
 
 @dataclass
 class Claim:
-    source: str            # where the paper says it
-    says: str              # the paper's words (quoted), or our reading of a table (``quoted=False``)
+    source: str  # where the paper says it
+    says: str  # the paper's words (quoted), or our reading of a table (``quoted=False``)
     checks: list[Check] = field(default_factory=list)
-    missing: str = ""      # why it is not checked
-    how: str = ""          # how the check reads the claim, where that needs saying
+    missing: str = ""  # why it is not checked
+    how: str = ""  # how the check reads the claim, where that needs saying
     quoted: bool = True
 
     def text(self) -> str:
@@ -119,11 +131,19 @@ class Data:
         self.experiments = experiments
         self.by_name = {e.name: e for e in experiments}
 
-    def cells(self, experiment: str, method: str, maze: str | None = None, ways=None, support=None) -> list[Cell]:
+    def cells(
+        self, experiment: str, method: str, maze: str | None = None, ways=None, support=None
+    ) -> list[Cell]:
         exp = self.by_name.get(experiment)
-        found = [c for c in (exp.cells.values() if exp else ()) if c.method == method and maze in (None, c.maze)
-                 and (ways is None or c.info.get("substitution") in ways) and support in (None, c.info.get("support"))
-                 and (c.info.get("recogniser") or {}).get("kind") not in BESIDE_THE_PAPER]
+        found = [
+            c
+            for c in (exp.cells.values() if exp else ())
+            if c.method == method
+            and maze in (None, c.maze)
+            and (ways is None or c.info.get("substitution") in ways)
+            and support in (None, c.info.get("support"))
+            and (c.info.get("recogniser") or {}).get("kind") not in BESIDE_THE_PAPER
+        ]
         if not found:
             where = ", ".join(str(x) for x in (method, maze, support) if x)
             raise Missing(f"no records of {experiment} ({where})")
@@ -138,19 +158,27 @@ class Data:
     def arm(self, *args, first: int = 0, **kw) -> Arm:
         """The cells' collisions per run (from run index ``first`` on)."""
         cells = self.cells(*args, **kw)
-        values = pd.concat([pd.Series(c.collisions_per_run(), index=c.runs()) for c in cells], axis=1).mean(axis=1)
+        values = pd.concat(
+            [pd.Series(c.collisions_per_run(), index=c.runs()) for c in cells], axis=1
+        ).mean(axis=1)
         return Arm(values[values.index >= first], cells)
 
     def paper(self, arm: Arm) -> str:
         """The paper's number for exactly these cells' setting (not one that pools more ways)."""
-        found = paper_for(arm.cells, self.experiments) if len({c.maze for c in arm.cells}) == 1 else None
+        found = (
+            paper_for(arm.cells, self.experiments)
+            if len({c.maze for c in arm.cells}) == 1
+            else None
+        )
         return found.value if found and not found.pools else ""
 
 
 def fewer(data: Data, what: str, more: Arm, less: Arm) -> Check:
     """``less`` collides less than ``more``: the difference ``more - less`` per run."""
     paired = same_seeds(more.cells + less.cells) and more.values.index.equals(less.values.index)
-    est, lo, hi = bootstrap_difference(more.values.to_numpy(), less.values.to_numpy(), paired=paired)
+    est, lo, hi = bootstrap_difference(
+        more.values.to_numpy(), less.values.to_numpy(), paired=paired
+    )
     papers = [data.paper(more), data.paper(less)]
     paper = f"{papers[0] or '—'} vs {papers[1] or '—'}" if any(papers) else ""
     basis = f"{len(more.values)} run seeds{', paired' if paired else ''}"
@@ -160,7 +188,9 @@ def fewer(data: Data, what: str, more: Arm, less: Arm) -> Check:
 def converged(what: str, cells: list[Cell], expect: str) -> Check:
     runs = [e for c in cells for e in c.converged_episode()]
     share = sum(e is not None for e in runs) / len(runs)
-    return Check(what, share, *wilson_ci(share, len(runs)), expect, "share of runs (%)", f"{len(runs)} runs")
+    return Check(
+        what, share, *wilson_ci(share, len(runs)), expect, "share of runs (%)", f"{len(runs)} runs"
+    )
 
 
 #: Recognisers the paper did not use: their cells (fig8's Prototypical Network cells) are shown
@@ -177,7 +207,10 @@ def order_checks(data: Data, arm_of, order=TABLE3_ORDER, where: str = "") -> lis
     """Each method of ``order`` collides more than the next one: ``arm_of(method)`` gives its
     :class:`Arm` (``where``, e.g. ``, 7x7``, ends each check's name)."""
     arms = [arm_of(method) for method in order]
-    return [fewer(data, f"{more.name} − {less.name}{where}", more, less) for more, less in pairwise(arms)]
+    return [
+        fewer(data, f"{more.name} − {less.name}{where}", more, less)
+        for more, less in pairwise(arms)
+    ]
 
 
 def rl_claims(data: Data) -> list[Claim]:
@@ -197,17 +230,27 @@ def rl_claims(data: Data) -> list[Claim]:
         return fewer(data, f"{more.name} − {less.name}{', ' + maze if maze else ''}", more, less)
 
     def table3_order() -> list[Check]:
-        return [c for m in mazes for c in order_checks(data, lambda method: t3(method, m), where=f", {m}")]
+        return [
+            c
+            for m in mazes
+            for c in order_checks(data, lambda method, m=m: t3(method, m), where=f", {m}")
+        ]
 
     def gains() -> list[Check]:
         arms = {m: (t3("fewshot", m), t3("fewshot_dss", m)) for m in mazes}
         papers = {m: [data.paper(a), data.paper(b)] for m, (a, b) in arms.items()}
         out = []
         for small, large in pairwise(mazes):
-            check = fewer(data, f"DSS gain on {large} − on {small}", arms[large][0] - arms[large][1],
-                          arms[small][0] - arms[small][1])
+            check = fewer(
+                data,
+                f"DSS gain on {large} − on {small}",
+                arms[large][0] - arms[large][1],
+                arms[small][0] - arms[small][1],
+            )
             try:  # the paper's gains, from its numbers of the two rows
-                check.paper = " vs ".join(f"{float(papers[m][0]) - float(papers[m][1]):.4g}" for m in (large, small))
+                check.paper = " vs ".join(
+                    f"{float(papers[m][0]) - float(papers[m][1]):.4g}" for m in (large, small)
+                )
             except ValueError:
                 check.paper = ""
             out.append(check)
@@ -232,44 +275,112 @@ def rl_claims(data: Data) -> list[Claim]:
 
     fewshot = ("fewshot", "fewshot_dss")
     claims = [
-        ("Figure 7", "all the RL methods for comparison are able to find it [the optimal path] within 500 episodes",
-         lambda: [converged(f"{method_name(c.info['method'])}: converged runs", [c], "all") for c in data.all("fig8")],
-         "every run of Figure 8's methods converges: its greedy path is optimal from some episode on"),
-        ("Figure 8", ("algorithms with the safety guarantee can significantly reduce the number of collisions than "
-                      "the algorithm without a safety guarantee"),
-         lambda: [pair(fig8("qlearning"), fig8(m)) for m in ("shield", "ssrl", "fewshot")], ""),
-        ("Figure 8", ("SSRL and few-shot reasoning (without a dynamic support set) [...] both of them have a better "
-                      "performance in safety exploration than Q-learning with shield"),
-         lambda: [pair(fig8("shield"), fig8(m)) for m in ("ssrl", "fewshot")], ""),
-        ("Figure 8", "the performance of SSRL is slightly better than few-shot reasoning",
-         lambda: [pair(fig8("fewshot"), fig8("ssrl"))], ""),
-        ("Figure 9", "all the different substitution ways are comparable", comparable,
-         "every difference between two ways within ±20% of the ways' mean collisions"),
-        ("Figure 9", ("[all the different substitution ways] can further reduce the collision number than few-shot "
-                      "reasoning with no substitution"),
-         lambda: [pair(fig8("fewshot"), way(w), f"way {w}") for w in (1, 2, 3, 4)], ""),
-        ("Figure 10", ("the collision number can be reduced to a very low level if we do not restore the support set "
-                       "to the original set in the following experiments"), long_term,
-         "collisions per experiment after the first, restoring against carrying the support set over"),
-        ("Table 3", "in our 5 * 5 maze experiment, Sarsa has more collisions than Q-learning",
-         lambda: [pair(t3("sarsa", "5x5"), fig8("qlearning"), "5x5")],
-         "against Figure 8's Q-learning (Table 3 has no Q-learning row)"),
-        ("Table 3", "[Sarsa] can be found as not converged within 500 episodes in 7 * 7 and 11 * 11 environments",
-         lambda: [converged(f"Sarsa, {m}: converged runs", data.cells("table3", "sarsa", m), "none")
-                  for m in ("7x7", "11x11")], ""),
-        ("Table 3", ("our method, no matter with or without the dynamic support set, has fewer collisions than "
-                     "constrained RL methods"),
-         lambda: [pair(t3("constrained", m), t3(f, m), m) for m in mazes for f in fewshot], ""),
+        (
+            "Figure 7",
+            "all the RL methods for comparison are able to find it [the optimal path] within 500 episodes",
+            lambda: [
+                converged(f"{method_name(c.info['method'])}: converged runs", [c], "all")
+                for c in data.all("fig8")
+            ],
+            "every run of Figure 8's methods converges: its greedy path is optimal from some episode on",
+        ),
+        (
+            "Figure 8",
+            (
+                "algorithms with the safety guarantee can significantly reduce the number of collisions than "
+                "the algorithm without a safety guarantee"
+            ),
+            lambda: [pair(fig8("qlearning"), fig8(m)) for m in ("shield", "ssrl", "fewshot")],
+            "",
+        ),
+        (
+            "Figure 8",
+            (
+                "SSRL and few-shot reasoning (without a dynamic support set) [...] both of them have a better "
+                "performance in safety exploration than Q-learning with shield"
+            ),
+            lambda: [pair(fig8("shield"), fig8(m)) for m in ("ssrl", "fewshot")],
+            "",
+        ),
+        (
+            "Figure 8",
+            "the performance of SSRL is slightly better than few-shot reasoning",
+            lambda: [pair(fig8("fewshot"), fig8("ssrl"))],
+            "",
+        ),
+        (
+            "Figure 9",
+            "all the different substitution ways are comparable",
+            comparable,
+            "every difference between two ways within ±20% of the ways' mean collisions",
+        ),
+        (
+            "Figure 9",
+            (
+                "[all the different substitution ways] can further reduce the collision number than few-shot "
+                "reasoning with no substitution"
+            ),
+            lambda: [pair(fig8("fewshot"), way(w), f"way {w}") for w in (1, 2, 3, 4)],
+            "",
+        ),
+        (
+            "Figure 10",
+            (
+                "the collision number can be reduced to a very low level if we do not restore the support set "
+                "to the original set in the following experiments"
+            ),
+            long_term,
+            "collisions per experiment after the first, restoring against carrying the support set over",
+        ),
+        (
+            "Table 3",
+            "in our 5 * 5 maze experiment, Sarsa has more collisions than Q-learning",
+            lambda: [pair(t3("sarsa", "5x5"), fig8("qlearning"), "5x5")],
+            "against Figure 8's Q-learning (Table 3 has no Q-learning row)",
+        ),
+        (
+            "Table 3",
+            "[Sarsa] can be found as not converged within 500 episodes in 7 * 7 and 11 * 11 environments",
+            lambda: [
+                converged(f"Sarsa, {m}: converged runs", data.cells("table3", "sarsa", m), "none")
+                for m in ("7x7", "11x11")
+            ],
+            "",
+        ),
+        (
+            "Table 3",
+            (
+                "our method, no matter with or without the dynamic support set, has fewer collisions than "
+                "constrained RL methods"
+            ),
+            lambda: [pair(t3("constrained", m), t3(f, m), m) for m in mazes for f in fewshot],
+            "",
+        ),
     ]
     readings = [  # what Table 3 shows without the paper saying it in words
-        ("Table 3", ("collisions fall in the order of its rows on every maze: Sarsa, constrained RL, our method "
-                     "without, with the dynamic support set"), table3_order, ""),
-        ("Table 3", "the dynamic support set reduces collisions on every maze",
-         lambda: [pair(t3("fewshot", m), t3("fewshot_dss", m), m) for m in mazes], ""),
-        ("Table 3", "the gain of the dynamic support set (collisions without minus with it) grows with the maze",
-         gains, ""),
+        (
+            "Table 3",
+            (
+                "collisions fall in the order of its rows on every maze: Sarsa, constrained RL, our method "
+                "without, with the dynamic support set"
+            ),
+            table3_order,
+            "",
+        ),
+        (
+            "Table 3",
+            "the dynamic support set reduces collisions on every maze",
+            lambda: [pair(t3("fewshot", m), t3("fewshot_dss", m), m) for m in mazes],
+            "",
+        ),
+        (
+            "Table 3",
+            "the gain of the dynamic support set (collisions without minus with it) grows with the maze",
+            gains,
+            "",
+        ),
     ]
-    return ([checked(*c) for c in claims] + [checked(*c, quoted=False) for c in readings])
+    return [checked(*c) for c in claims] + [checked(*c, quoted=False) for c in readings]
 
 
 def checked(source: str, says: str, make, how: str = "", quoted: bool = True) -> Claim:
@@ -283,17 +394,28 @@ def checked(source: str, says: str, make, how: str = "", quoted: bool = True) ->
 def accuracy_claims(accuracy_dir: Path) -> list[Claim]:
     """Section 4.2.1: Tables 1 and 2, from the accuracy study's data files (intervals over its
     random draws: :class:`~pipeline.report.accuracy.Study`)."""
-    gradually = "the recognition accuracy increases gradually with the increase of substitution number"
+    gradually = (
+        "the recognition accuracy increases gradually with the increase of substitution number"
+    )
     claims = [
-        Claim("Table 1", "the test accuracy increases from 42.5% to 49.03%, 48.04% (no same picture) when the "
-              "substituted picture number is 1"),
-        Claim("Table 1", "The substituted category tends to have higher accuracy",
-              how="each category's accuracy when one of its pictures is substituted, not counting that picture, "
-                  "against the original support set (categories below 100% there)"),
+        Claim(
+            "Table 1",
+            "the test accuracy increases from 42.5% to 49.03%, 48.04% (no same picture) when the "
+            "substituted picture number is 1",
+        ),
+        Claim(
+            "Table 1",
+            "The substituted category tends to have higher accuracy",
+            how="each category's accuracy when one of its pictures is substituted, not counting that picture, "
+            "against the original support set (categories below 100% there)",
+        ),
         Claim("Table 2", gradually, how="the most substitutions against none"),
         Claim("Table 2", gradually, how="each further substitution"),
-        Claim("Table 2", "When it comes to the no same pic condition, the accuracy decreases a little compared to "
-              "the previous result"),
+        Claim(
+            "Table 2",
+            "When it comes to the no same pic condition, the accuracy decreases a little compared to "
+            "the previous result",
+        ),
     ]
     if not (accuracy_dir / "summary.json").exists():
         for c in claims:
@@ -312,31 +434,54 @@ def accuracy_claims(accuracy_dir: Path) -> list[Claim]:
     top = int(study.table2.index.max())
     none, paper_none = table2(0)
     for label, variant in (("", "with_same"), (", no same picture", "no_same")):
-        claims[0].checks.append(rise(f"one substitution{label} − none", study.mean(variant) - none,
-                                     (study.paper(1, variant), paper_none)))
+        claims[0].checks.append(
+            rise(
+                f"one substitution{label} − none",
+                study.mean(variant) - none,
+                (study.paper(1, variant), paper_none),
+            )
+        )
     base = study.baseline
     for c, name in enumerate(study.names):
         before = base["correct"][c] / base["total"][c]
         row = study.cells("no_same", c).set_index("tested_category").loc[c]
-        paper = "" if pd.isna(row["paper_correct"]) else (f"{int(row['paper_correct'])}/{int(row['paper_total'])} vs "
-                                                          f"{base['paper']['correct'][c]}/{base['total'][c]}")
+        paper = (
+            ""
+            if pd.isna(row["paper_correct"])
+            else (
+                f"{int(row['paper_correct'])}/{int(row['paper_total'])} vs "
+                f"{base['paper']['correct'][c]}/{base['total'][c]}"
+            )
+        )
         if before < 1:
             after = study.cell("no_same", c, c)
-            check = rise(f"{name} when substituted − original support set", after - Estimate(before))
+            check = rise(
+                f"{name} when substituted − original support set", after - Estimate(before)
+            )
             check.paper = paper
             claims[1].checks.append(check)
-    claims[2].checks.append(rise(f"{top} substitutions − none", table2(top)[0] - none, (table2(top)[1], paper_none)))
+    claims[2].checks.append(
+        rise(f"{top} substitutions − none", table2(top)[0] - none, (table2(top)[1], paper_none))
+    )
     for n in range(1, top + 1):
         (now, paper_now), (before, paper_before) = table2(n), table2(n - 1)
-        claims[3].checks.append(rise(f"{n} substitution{'s' if n > 1 else ''} − {n - 1}", now - before,
-                                     (paper_now, paper_before)))
+        claims[3].checks.append(
+            rise(
+                f"{n} substitution{'s' if n > 1 else ''} − {n - 1}",
+                now - before,
+                (paper_now, paper_before),
+            )
+        )
     for n in range(1, top + 1):
         d = table2(n)[0].value - table2(n, "no_same")[0].value
         # one draw's difference lies in [-n/P, n/P] (P pictures, n of them substituted): paired draws
         bound = n / study.pictures
         se = bounded_sd(d, low=-bound, high=bound) / np.sqrt(len(study.names) * study.draws)
-        check = rise(f"{n} substitution{'s' if n > 1 else ''}: counting the substituted pictures − not",
-                     Estimate(d, se), (table2(n)[1], table2(n, "no_same")[1]))
+        check = rise(
+            f"{n} substitution{'s' if n > 1 else ''}: counting the substituted pictures − not",
+            Estimate(d, se),
+            (table2(n)[1], table2(n, "no_same")[1]),
+        )
         check.basis = f"{study.draws} draws per category, paired, conservative"
         claims[4].checks.append(check)
     return claims
@@ -346,30 +491,57 @@ def accuracy_claims(accuracy_dir: Path) -> list[Claim]:
 def claims_section(rep, experiments: list[Experiment], accuracy_dir: Path) -> list[Claim]:
     """Write the claims section into ``rep`` and ``tables/claims.csv``; returns the claims."""
     claims = accuracy_claims(accuracy_dir) + rl_claims(Data(experiments))
-    rows = [{"claim": i, "source": c.source, "claim text": c.text(), "check": k.what, "estimate": k.estimate,
-             "ci_low": k.low, "ci_high": k.high, "unit": k.unit, "interval over": k.basis, "paper": k.paper,
-             "check verdict": k.verdict, "claim verdict": c.verdict}
-            for i, c in enumerate(claims, 1) for k in (c.checks or [Check(c.missing, *[np.nan] * 3, "", "", "")])]
-    pd.DataFrame(rows).to_csv(rep.out / "tables" / "claims.csv", index=False, lineterminator="\n", float_format="%.6g")
+    rows = [
+        {
+            "claim": i,
+            "source": c.source,
+            "claim text": c.text(),
+            "check": k.what,
+            "estimate": k.estimate,
+            "ci_low": k.low,
+            "ci_high": k.high,
+            "unit": k.unit,
+            "interval over": k.basis,
+            "paper": k.paper,
+            "check verdict": k.verdict,
+            "claim verdict": c.verdict,
+        }
+        for i, c in enumerate(claims, 1)
+        for k in (c.checks or [Check(c.missing, *[np.nan] * 3, "", "", "")])
+    ]
+    pd.DataFrame(rows).to_csv(
+        rep.out / "tables" / "claims.csv", index=False, lineterminator="\n", float_format="%.6g"
+    )
     tally = [sum(c.verdict == v for c in claims) for v in VERDICTS]
     counts = ", ".join(f"{n} {v}" for n, v in zip(tally, VERDICTS) if n)
-    summary = pd.DataFrame([{"#": i, "where": c.source, "the paper": c.text(), "in our data": c.verdict}
-                            for i, c in enumerate(claims, 1)]).to_markdown(index=False)
+    summary = pd.DataFrame(
+        [
+            {"#": i, "where": c.source, "the paper": c.text(), "in our data": c.verdict}
+            for i, c in enumerate(claims, 1)
+        ]
+    ).to_markdown(index=False)
     details = "\n\n".join(
-        f"{i}. **{c.source}: {c.verdict}.** {c.text()}\n" +
-        ("\n".join(f"   - {k.text()}" for k in c.checks) if c.checks else f"   - not checked: {c.missing}")
-        for i, c in enumerate(claims, 1))
-    rep.add("## Claims of the paper against our data\n\n"
-            f"Generated from the records and the accuracy study's data files ({counts}). A check **holds** when its "
-            "95% interval lies on the claimed side of zero, **does not hold** when it lies on the other side and is "
-            "**not resolved** when it contains zero; \"comparable\" holds when the interval lies within the stated "
-            "margin, does not hold when it lies outside and is not resolved otherwise. "
-            "Differences in collisions are bootstrapped over run seeds (2000 resamples, seed 0), paired where the "
-            "cells share run seeds; a pooled row (the four substitution ways) is averaged per seed first. The runs "
-            "of a carried-over support set are one robot's consecutive experiments, not independent: their interval "
-            "treats them as if they were. Accuracy intervals are over the study's independent random draws, "
-            "conservative because its data files keep sums over draws, not each draw (they take the largest "
-            "spread the sums allow); with no substitution there is no draw and no interval. "
-            "Data: `tables/claims.csv`.\n\n"
-            f"{summary}\n\n{details}\n")
+        f"{i}. **{c.source}: {c.verdict}.** {c.text()}\n"
+        + (
+            "\n".join(f"   - {k.text()}" for k in c.checks)
+            if c.checks
+            else f"   - not checked: {c.missing}"
+        )
+        for i, c in enumerate(claims, 1)
+    )
+    rep.add(
+        "## Claims of the paper against our data\n\n"
+        f"Generated from the records and the accuracy study's data files ({counts}). A check **holds** when its "
+        "95% interval lies on the claimed side of zero, **does not hold** when it lies on the other side and is "
+        '**not resolved** when it contains zero; "comparable" holds when the interval lies within the stated '
+        "margin, does not hold when it lies outside and is not resolved otherwise. "
+        "Differences in collisions are bootstrapped over run seeds (2000 resamples, seed 0), paired where the "
+        "cells share run seeds; a pooled row (the four substitution ways) is averaged per seed first. The runs "
+        "of a carried-over support set are one robot's consecutive experiments, not independent: their interval "
+        "treats them as if they were. Accuracy intervals are over the study's independent random draws, "
+        "conservative because its data files keep sums over draws, not each draw (they take the largest "
+        "spread the sums allow); with no substitution there is no draw and no interval. "
+        "Data: `tables/claims.csv`.\n\n"
+        f"{summary}\n\n{details}\n"
+    )
     return claims

@@ -3,6 +3,7 @@ for the report. Only the MCAP records are read: each file embeds the config its 
 including ``experiment.name``, ``experiment.cells`` and ``experiment.report`` (how to present it,
 :class:`~pipeline.report.spec.ReportSpec`). Every folder of ``runs_dir`` with cell folders is an
 experiment; a folder of runs made without an experiment (a sweep) gets the default section."""
+
 from __future__ import annotations
 
 import json
@@ -25,14 +26,14 @@ from pipeline.world.layout_sets import expand
 class Cell:
     experiment: str
     name: str
-    info: dict              # method spec, maze, substitution, support (from the file's metadata)
+    info: dict  # method spec, maze, substitution, support (from the file's metadata)
     layout: list[str]
-    obstacles: dict         # run -> obstacle assignment
+    obstacles: dict  # run -> obstacle assignment
     episodes: pd.DataFrame  # run, episode, steps, collisions, ... (one row per episode)
     recognitions: pd.DataFrame
     substitutions: pd.DataFrame  # incl. one row per run (picture -1) with the initial support set
-    path: Path | None = None     # the records file
-    config: dict | None = None   # the config the cell ran with (as recorded)
+    path: Path | None = None  # the records file
+    config: dict | None = None  # the config the cell ran with (as recorded)
 
     @property
     def method(self) -> str:
@@ -56,7 +57,9 @@ class Cell:
 
     def collisions_by_episode(self) -> np.ndarray:
         """(runs, episodes): collisions of each run in each episode (NaN: episode not recorded)."""
-        wide = self.episodes.pivot_table(index="run", columns="episode", values="collisions", aggfunc="sum")
+        wide = self.episodes.pivot_table(
+            index="run", columns="episode", values="collisions", aggfunc="sum"
+        )
         wide = wide.reindex(columns=range(int(self.episodes["episode"].max()) + 1))
         return wide.to_numpy(dtype=float)
 
@@ -72,7 +75,7 @@ class Cell:
         for i, r in enumerate(runs):
             g = subs[subs["run"] == r].sort_values(["episode", "step", "picture"])
             for ep, acc in zip(g["episode"], g["support_accuracy"]):
-                out[i, int(ep):] = acc
+                out[i, int(ep) :] = acc
         return out
 
     def start_accuracy(self) -> float | None:
@@ -90,7 +93,9 @@ class Cell:
         for _, g in self.episodes.sort_values(["run", "episode"]).groupby("run"):
             ok = g["greedy_optimal"].to_numpy(bool)
             bad = np.flatnonzero(~ok)
-            out.append(0 if bad.size == 0 else (None if bad[-1] == ok.size - 1 else int(bad[-1] + 1)))
+            out.append(
+                0 if bad.size == 0 else (None if bad[-1] == ok.size - 1 else int(bad[-1] + 1))
+            )
         return out
 
 
@@ -98,11 +103,11 @@ class Cell:
 class Experiment:
     """One folder of ``runs_dir``: its recorded cells and how the report presents them."""
 
-    folder: str                  # the folder's name (names the tables and figures: unique)
-    name: str                    # ``experiment.name`` as recorded (the folder's name without one)
+    folder: str  # the folder's name (names the tables and figures: unique)
+    name: str  # ``experiment.name`` as recorded (the folder's name without one)
     spec: ReportSpec
-    cells: dict[str, Cell]       # recorded cells, by name
-    declared: list[str]          # the cells the recorded experiment has (sorted)
+    cells: dict[str, Cell]  # recorded cells, by name
+    declared: list[str]  # the cells the recorded experiment has (sorted)
     notes: list[str] = field(default_factory=list)  # what the report should say about the block
 
     @property
@@ -145,11 +150,15 @@ def _read_whole(path: Path):
         except UserError:
             raise
         except Exception as exc:  # the reader's errors for files it cannot read at all
-            raise ReportInputError(f"{path}: cannot read the records ({type(exc).__name__}: "
-                                   f"{(str(exc).splitlines() or [''])[0]})") from None
+            raise ReportInputError(
+                f"{path}: cannot read the records ({type(exc).__name__}: "
+                f"{(str(exc).splitlines() or [''])[0]})"
+            ) from None
     problems = [str(w.message) for w in caught if issubclass(w.category, RecordsWarning)]
     if problems:
-        raise ReportInputError(f"{problems[0]}; re-run its trials (the report uses complete records only)")
+        raise ReportInputError(
+            f"{problems[0]}; re-run its trials (the report uses complete records only)"
+        )
     return recs
 
 
@@ -157,7 +166,7 @@ def _read_whole(path: Path):
 SAME_SETUP = ("seed", "runs", "episodes", "profile")
 
 
-def check_same_setup(experiment: "Experiment") -> None:
+def check_same_setup(experiment: Experiment) -> None:
     """Cells recorded with another seed, run count, episode count or profile than the first cell
     are never put in one table: name the cell that differs."""
     cells = list(experiment.cells.values())
@@ -168,7 +177,8 @@ def check_same_setup(experiment: "Experiment") -> None:
             if a != b:
                 raise ReportInputError(
                     f"{experiment.folder}/{cell.name}: recorded with {key}={b!r}, but {first.name} with "
-                    f"{key}={a!r}; re-run the experiment so that its cells share one setup")
+                    f"{key}={a!r}; re-run the experiment so that its cells share one setup"
+                )
 
 
 def load_experiment(folder: Path) -> Experiment | None:
@@ -186,9 +196,18 @@ def load_experiment(folder: Path) -> Experiment | None:
             name = experiment.get("name", name)
             declared |= declared_cells(experiment)
             blocks[path.parent.name] = experiment.get("report")
-        cells[path.parent.name] = Cell(folder.name, path.parent.name, info, list(meta.maze["layout"]),
-                                       meta.obstacles, recs.episodes, recs.recognitions, recs.substitutions,
-                                       path, meta.config)
+        cells[path.parent.name] = Cell(
+            folder.name,
+            path.parent.name,
+            info,
+            list(meta.maze["layout"]),
+            meta.obstacles,
+            recs.episodes,
+            recs.recognitions,
+            recs.substitutions,
+            path,
+            meta.config,
+        )
     if not cells:
         return None
     spec, notes = ReportSpec(), []
@@ -197,16 +216,23 @@ def load_experiment(folder: Path) -> Experiment | None:
         text = {c: json.dumps(b, sort_keys=True) for c, b in blocks.items()}
         others = [c for c in blocks if text[c] != text[first]]
         if others:
-            notes.append(f"The cells' records hold different report blocks (cells {', '.join(others)} differ "
-                         f"from {first}); this section follows the one of {first}.")
+            notes.append(
+                f"The cells' records hold different report blocks (cells {', '.join(others)} differ "
+                f"from {first}); this section follows the one of {first}."
+            )
         try:
             spec = ReportSpec.from_dict(blocks[first])
         except ValueError as exc:
-            notes.append(f"The recorded report block cannot be read ({exc}); this is the default section.")
+            notes.append(
+                f"The recorded report block cannot be read ({exc}); this is the default section."
+            )
         problems = spec.problems(sorted(declared))
         if problems:
-            notes.append("The recorded report block names unknown cells: "
-                         + "; ".join(f"report.{k}: {p}" for k, p in problems) + ".")
+            notes.append(
+                "The recorded report block names unknown cells: "
+                + "; ".join(f"report.{k}: {p}" for k, p in problems)
+                + "."
+            )
     experiment = Experiment(folder.name, name, spec, cells, sorted(declared), notes)
     check_same_setup(experiment)
     return experiment
@@ -216,6 +242,10 @@ def load_all(runs_dir: Path) -> list[Experiment]:
     """Every experiment under ``runs_dir``, in the report's order (``report.order``, then name)."""
     if not runs_dir.is_dir():
         return []
-    found = [e for f in sorted(runs_dir.iterdir()) if f.is_dir() and not f.name.startswith(".")
-             if (e := load_experiment(f)) is not None]
+    found = [
+        e
+        for f in sorted(runs_dir.iterdir())
+        if f.is_dir() and not f.name.startswith(".")
+        if (e := load_experiment(f)) is not None
+    ]
     return sorted(found, key=lambda e: (e.spec.order, e.name, e.folder))

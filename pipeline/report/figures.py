@@ -3,6 +3,7 @@
 Every figure is drawn from recorded data by a pure function and saved without timestamps, so the
 same records give the same PNG bytes.
 """
+
 from __future__ import annotations
 
 import textwrap
@@ -13,8 +14,8 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
-from matplotlib.ticker import FuncFormatter  # noqa: E402
 import numpy as np  # noqa: E402
+from matplotlib.ticker import FuncFormatter  # noqa: E402
 
 from pipeline.report.stats import describe, mean_band  # noqa: E402
 from pipeline.world.maze import MOVES  # noqa: E402
@@ -51,8 +52,15 @@ def paper_marks(ax, paper) -> None:
         if value is None:
             continue
         label = f"paper ({ref.source}{', ' + ref.pools if ref.pools else ''})"
-        drawn[label] = ax.hlines(value, i - 0.42, i + 0.42, colors="red", linestyles="--" if ref.pools else "-",
-                                 lw=2, zorder=4)
+        drawn[label] = ax.hlines(
+            value,
+            i - 0.42,
+            i + 0.42,
+            colors="red",
+            linestyles="--" if ref.pools else "-",
+            lw=2,
+            zorder=4,
+        )
         last[(label, value)] = i
     for (_, value), i in last.items():  # the value once, at the last bar it marks
         ax.text(i + 0.42, value, f"{value:g}", color="red", fontsize=7, ha="right", va="bottom")
@@ -66,12 +74,14 @@ def bars(labels, samples, title, ylabel, path: Path, paper=None):
     paper's numbers where given (:func:`paper_marks`)."""
     fig, ax = plt.subplots(figsize=(1.3 * len(labels) + 2, 3.6))
     rng = np.random.default_rng(0)
-    for i, (label, v) in enumerate(zip(labels, samples)):
+    for i, (_label, v) in enumerate(zip(labels, samples)):
         d = describe(v)
         ax.bar(i, d["mean"], color="#9ecae1", edgecolor="#3182bd")
         ax.errorbar(i, d["mean"], yerr=d["std"], color="#555", capsize=4, lw=1)
         ax.vlines(i, d["ci_low"], d["ci_high"], color="black", lw=3)
-        ax.scatter(i + rng.uniform(-0.25, 0.25, len(v)), v, s=4, color="#3182bd", alpha=0.4, zorder=3)
+        ax.scatter(
+            i + rng.uniform(-0.25, 0.25, len(v)), v, s=4, color="#3182bd", alpha=0.4, zorder=3
+        )
         ax.text(i, d["mean"], f"{d['mean']:.1f}", ha="center", va="bottom", fontsize=8)
     paper_marks(ax, paper)
     ticks(ax, labels)
@@ -80,8 +90,13 @@ def bars(labels, samples, title, ylabel, path: Path, paper=None):
     return save(fig, path)
 
 
-def curves(series: dict[str, np.ndarray], title: str, path: Path, ylabel="collisions per episode",
-           xlabel: str = "episode"):
+def curves(
+    series: dict[str, np.ndarray],
+    title: str,
+    path: Path,
+    ylabel="collisions per episode",
+    xlabel: str = "episode",
+):
     """One line per label from x = 0: the mean over runs (rows of a runs x episodes array; a 1-D
     array is one run) with its 95% interval shaded (:func:`~pipeline.report.stats.mean_band`),
     drawn within the range of the values (collisions do not go below 0). Long runs get a
@@ -100,7 +115,11 @@ def curves(series: dict[str, np.ndarray], title: str, path: Path, ylabel="collis
     values = [np.asarray(v, dtype=float) for v in series.values()]
     notes = []
     plain = FuncFormatter(lambda v, _: f"{v:g}")
-    if values and all(np.nanmin(v, initial=0) >= 0 for v in values) and max(np.nanmax(v, initial=0) for v in values) > 4:
+    if (
+        values
+        and all(np.nanmin(v, initial=0) >= 0 for v in values)
+        and max(np.nanmax(v, initial=0) for v in values) > 4
+    ):
         # early episodes collide many times, later ones rarely: linear below 1, logarithmic above
         ax.set_yscale("symlog", linthresh=1.0, linscale=1.5)
         ax.set_ylim(bottom=0)
@@ -126,7 +145,13 @@ def long_term(series: dict[str, np.ndarray], title: str, path: Path, paper=None)
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 3.8), gridspec_kw={"width_ratios": [2.2, 1]})
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     for i, (label, values) in enumerate(series.items()):
-        ax1.plot(np.arange(1, len(values) + 1), values, label=label, lw=1.2, color=colours[i % len(colours)])
+        ax1.plot(
+            np.arange(1, len(values) + 1),
+            values,
+            label=label,
+            lw=1.2,
+            color=colours[i % len(colours)],
+        )
         d = describe(values)
         ax2.bar(i, d["mean"], color=colours[i % len(colours)], alpha=0.5)
         ax2.vlines(i, d["ci_low"], d["ci_high"], color="black", lw=3)
@@ -140,7 +165,9 @@ def long_term(series: dict[str, np.ndarray], title: str, path: Path, paper=None)
     return save(fig, path)
 
 
-def optimal_path(layout: list[str], obstacles: list[dict], path_cells: list[int], title: str, path: Path):
+def optimal_path(
+    layout: list[str], obstacles: list[dict], path_cells: list[int], title: str, path: Path
+):
     """Figure 7: the maze, obstacles coloured by category, and the learned path."""
     h, w = len(layout), len(layout[0])
     fig, ax = plt.subplots(figsize=(0.6 * w + 1.5, 0.6 * h + 0.8))
@@ -164,7 +191,9 @@ def optimal_path(layout: list[str], obstacles: list[dict], path_cells: list[int]
     if path_cells:
         rc = np.array([divmod(s, w) for s in path_cells])
         ax.plot(rc[:, 1], rc[:, 0], "o-", color="#1f77b4", ms=6)
-    handles = [matplotlib.patches.Patch(color=c, label=n) for c, n in zip(CATEGORY_COLOURS, CATEGORIES)]
+    handles = [
+        matplotlib.patches.Patch(color=c, label=n) for c, n in zip(CATEGORY_COLOURS, CATEGORIES)
+    ]
     ax.legend(handles=handles, fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1))
     ax.set_title(title, fontsize=9)
     return save(fig, path)
@@ -189,7 +218,9 @@ def modal_final_path(steps_df, width: int, goal: int) -> list[int]:
     return list(Counter(p for p in paths if len(p) == shortest).most_common(1)[0][0])
 
 
-def accuracy_curves(panels: list[dict], path: Path, marker: float | None = None, marker_label: str = ""):
+def accuracy_curves(
+    panels: list[dict], path: Path, marker: float | None = None, marker_label: str = ""
+):
     """One panel per maze: collisions per run against the recognition accuracy ``p``. Each panel:
     ``title``; ``curves`` (label -> ``(p, mean, ci_low, ci_high)`` arrays: a line with its band);
     ``references`` (label -> ``(mean, ci_low, ci_high)``: a horizontal line with its band);
@@ -206,9 +237,19 @@ def accuracy_curves(panels: list[dict], path: Path, marker: float | None = None,
             ax.axhline(mean, color="black", ls=("--", "-.", ":")[j % 3], lw=1, label=label)
             ax.axhspan(lo, hi, color="black", alpha=0.08, lw=0)
         for label, (x, mean, lo, hi) in panel.get("measured", {}).items():
-            ax.errorbar([x], [mean], yerr=[[mean - lo], [hi - mean]], fmt="*", ms=11, capsize=3,
-                        color=colour.get(label, "red"), mec="black", mew=0.5, zorder=5,
-                        label=f"{label}, Relation Network")
+            ax.errorbar(
+                [x],
+                [mean],
+                yerr=[[mean - lo], [hi - mean]],
+                fmt="*",
+                ms=11,
+                capsize=3,
+                color=colour.get(label, "red"),
+                mec="black",
+                mew=0.5,
+                zorder=5,
+                label=f"{label}, Relation Network",
+            )
         if marker is not None:
             ax.axvline(marker, color="red", ls=":", lw=1, label=marker_label)
         ax.set_ylim(bottom=0)
@@ -217,24 +258,44 @@ def accuracy_curves(panels: list[dict], path: Path, marker: float | None = None,
     axes[0][0].set_ylabel("collisions per run (mean, 95% CI)")
     legend = {}
     for ax in axes[0]:  # one legend below the panels, each label once
-        legend.update({label: handle for handle, label in zip(*ax.get_legend_handles_labels()) if label not in legend})
-    fig.legend(legend.values(), legend.keys(), fontsize=8, loc="upper center", bbox_to_anchor=(0.5, 0.0),
-               ncol=min(len(legend), 5), frameon=False)
+        legend.update(
+            {
+                label: handle
+                for handle, label in zip(*ax.get_legend_handles_labels())
+                if label not in legend
+            }
+        )
+    fig.legend(
+        legend.values(),
+        legend.keys(),
+        fontsize=8,
+        loc="upper center",
+        bbox_to_anchor=(0.5, 0.0),
+        ncol=min(len(legend), 5),
+        frameon=False,
+    )
     return save(fig, path)
 
 
 def layout_boxes(per_size: dict[str, dict[str, np.ndarray]], path: Path):
     """One panel per size: a box per method of its values over layouts (mean collisions per run of
     each layout), log scale (zeros drawn at the axis' floor)."""
-    fig, axes = plt.subplots(1, len(per_size), figsize=(4.6 * len(per_size), 4.2), squeeze=False, layout="constrained")
+    fig, axes = plt.subplots(
+        1, len(per_size), figsize=(4.6 * len(per_size), 4.2), squeeze=False, layout="constrained"
+    )
     for ax, (size, boxes) in zip(axes[0], per_size.items()):
         labels = list(boxes)
         values = [np.asarray(boxes[k], dtype=float) for k in labels]
         floor = min([v[v > 0].min() for v in values if (v > 0).any()] or [1.0]) / 2
         ax.boxplot([np.maximum(v, floor) for v in values], widths=0.6, flierprops={"markersize": 3})
         ax.set_yscale("log")
-        ax.set_xticks(range(1, len(labels) + 1), [textwrap.fill(k, 12) for k in labels], fontsize=7, rotation=45,
-                      ha="right")
+        ax.set_xticks(
+            range(1, len(labels) + 1),
+            [textwrap.fill(k, 12) for k in labels],
+            fontsize=7,
+            rotation=45,
+            ha="right",
+        )
         ax.set_title(f"{size}: {max((v.size for v in values), default=0)} layouts")
         ax.set_ylabel("mean collisions per run (log)")
         ax.grid(axis="y", alpha=0.3)
@@ -247,8 +308,13 @@ def feature_scatter(df, features: dict[str, str], path: Path, fit):
     method), one colour per method, with ``fit(x, y)``'s line (slope, intercept, ...) where it
     gives one; log y."""
     sizes = list(dict.fromkeys(df["size"]))
-    fig, axes = plt.subplots(len(sizes), len(features), figsize=(4.2 * len(features), 3.4 * len(sizes)),
-                             squeeze=False, layout="constrained")
+    fig, axes = plt.subplots(
+        len(sizes),
+        len(features),
+        figsize=(4.2 * len(features), 3.4 * len(sizes)),
+        squeeze=False,
+        layout="constrained",
+    )
     colours = plt.get_cmap("tab10")
     for i, size in enumerate(sizes):
         on = df[df["size"] == size]
@@ -257,7 +323,14 @@ def feature_scatter(df, features: dict[str, str], path: Path, fit):
             for k, method in enumerate(dict.fromkeys(on["method"])):
                 m = on[on["method"] == method]
                 x, y = m[feature].to_numpy(float), m["collisions_mean"].to_numpy(float)
-                ax.scatter(x, np.maximum(y, 0.05), s=6, alpha=0.5, color=colours(k), label=m["label"].iloc[0])
+                ax.scatter(
+                    x,
+                    np.maximum(y, 0.05),
+                    s=6,
+                    alpha=0.5,
+                    color=colours(k),
+                    label=m["label"].iloc[0],
+                )
                 line = fit(x, y)
                 if line is not None:
                     xs = np.linspace(x.min(), x.max(), 20)

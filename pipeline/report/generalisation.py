@@ -23,6 +23,7 @@ keep the layout's rows, from which the layout features are computed. Per size:
   ``unique`` layout is monotone: ``W+H-2`` moves) has no line.
 * ``tables/<folder>_data.csv``: one row per cell: size, layout, method, collisions, features.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -43,9 +44,11 @@ from pipeline.world.maze import bfs_distances, parse_layout
 METHODS = ("qlearning", "sarsa", "shield", "ssrl", "constrained", "fewshot", "fewshot_dss")
 
 #: Layout features (:func:`features`) and their axis labels.
-FEATURES = {"unsafe_pairs": "unsafe (state, action) pairs from reachable cells",
-            "obstacles_reachable": "obstacles next to a reachable cell",
-            "shortest_path": "shortest path (moves)"}
+FEATURES = {
+    "unsafe_pairs": "unsafe (state, action) pairs from reachable cells",
+    "obstacles_reachable": "obstacles next to a reachable cell",
+    "shortest_path": "shortest path (moves)",
+}
 
 
 @dataclass(frozen=True)
@@ -61,30 +64,60 @@ class LayoutClaim:
 
 def pairs(*more_less: tuple[str, str]):
     """Checks that the first method of each pair collides more than the second."""
+
     def make(data: Data, arm) -> list:
         return [fewer(data, f"{a} − {b}", arm(a), arm(b)) for a, b in more_less]
+
     return make
 
 
 #: The paper's claims that one layout can check (claims.py words them the same way).
 CLAIMS = (
-    LayoutClaim("Figure 8", "algorithms with the safety guarantee can significantly reduce the number of collisions "
-                "than the algorithm without a safety guarantee",
-                pairs(("qlearning", "shield"), ("qlearning", "ssrl"), ("qlearning", "fewshot"))),
-    LayoutClaim("Figure 8", "SSRL and few-shot reasoning (without a dynamic support set) [...] both of them have a "
-                "better performance in safety exploration than Q-learning with shield",
-                pairs(("shield", "ssrl"), ("shield", "fewshot"))),
-    LayoutClaim("Figure 8", "the performance of SSRL is slightly better than few-shot reasoning",
-                pairs(("fewshot", "ssrl"))),
-    LayoutClaim("Figure 8", "few-shot reasoning with the dynamic support set collides less than SSRL",
-                pairs(("ssrl", "fewshot_dss")), quoted=False),
-    LayoutClaim("Table 3", "Sarsa has more collisions than Q-learning", pairs(("sarsa", "qlearning"))),
-    LayoutClaim("Table 3", "our method, no matter with or without the dynamic support set, has fewer collisions "
-                "than constrained RL methods", pairs(("constrained", "fewshot"), ("constrained", "fewshot_dss"))),
-    LayoutClaim("Table 3", "collisions fall in the order of its rows: Sarsa, constrained RL, our method without, "
-                "with the dynamic support set", lambda data, arm: order_checks(data, arm), quoted=False),
-    LayoutClaim("Table 3", "the dynamic support set reduces collisions", pairs(("fewshot", "fewshot_dss")),
-                quoted=False),
+    LayoutClaim(
+        "Figure 8",
+        "algorithms with the safety guarantee can significantly reduce the number of collisions "
+        "than the algorithm without a safety guarantee",
+        pairs(("qlearning", "shield"), ("qlearning", "ssrl"), ("qlearning", "fewshot")),
+    ),
+    LayoutClaim(
+        "Figure 8",
+        "SSRL and few-shot reasoning (without a dynamic support set) [...] both of them have a "
+        "better performance in safety exploration than Q-learning with shield",
+        pairs(("shield", "ssrl"), ("shield", "fewshot")),
+    ),
+    LayoutClaim(
+        "Figure 8",
+        "the performance of SSRL is slightly better than few-shot reasoning",
+        pairs(("fewshot", "ssrl")),
+    ),
+    LayoutClaim(
+        "Figure 8",
+        "few-shot reasoning with the dynamic support set collides less than SSRL",
+        pairs(("ssrl", "fewshot_dss")),
+        quoted=False,
+    ),
+    LayoutClaim(
+        "Table 3", "Sarsa has more collisions than Q-learning", pairs(("sarsa", "qlearning"))
+    ),
+    LayoutClaim(
+        "Table 3",
+        "our method, no matter with or without the dynamic support set, has fewer collisions "
+        "than constrained RL methods",
+        pairs(("constrained", "fewshot"), ("constrained", "fewshot_dss")),
+    ),
+    LayoutClaim(
+        "Table 3",
+        "collisions fall in the order of its rows: Sarsa, constrained RL, our method without, "
+        "with the dynamic support set",
+        lambda data, arm: order_checks(data, arm),
+        quoted=False,
+    ),
+    LayoutClaim(
+        "Table 3",
+        "the dynamic support set reduces collisions",
+        pairs(("fewshot", "fewshot_dss")),
+        quoted=False,
+    ),
 )
 
 
@@ -100,8 +133,11 @@ def features(rows: list[str]) -> dict[str, int]:
     dist = bfs_distances(blocked, layout.height, layout.width, layout.start)
     reachable = dist >= 0
     hits = geometry.obstacle[reachable]
-    return {"unsafe_pairs": int((hits >= 0).sum()), "obstacles_reachable": int(np.unique(hits[hits >= 0]).size),
-            "shortest_path": int(dist[layout.goal])}
+    return {
+        "unsafe_pairs": int((hits >= 0).sum()),
+        "obstacles_reachable": int(np.unique(hits[hits >= 0]).size),
+        "shortest_path": int(dist[layout.goal]),
+    }
 
 
 @dataclass
@@ -121,7 +157,9 @@ class LayoutCells:
             if method not in self.cells:
                 raise Missing(f"no records of {method} on {self.maze}")
             cell = self.cells[method]
-            self._arms[method] = Arm(pd.Series(cell.collisions_per_run(), index=cell.runs()), [cell])
+            self._arms[method] = Arm(
+                pd.Series(cell.collisions_per_run(), index=cell.runs()), [cell]
+            )
         return self._arms[method]
 
     def mean(self, method: str) -> float:
@@ -140,7 +178,9 @@ def by_size(exp: Experiment) -> tuple[dict[str, list[LayoutCells]], list[str]]:
     notes = []
     for cell in exp.cells.values():
         if not is_spec(cell.maze):
-            notes.append(f"cell {cell.name} is not on a generated layout ({cell.maze}), so it is not shown")
+            notes.append(
+                f"cell {cell.name} is not on a generated layout ({cell.maze}), so it is not shown"
+            )
             continue
         spec = parse_spec(cell.maze)
         size = f"{spec.width}x{spec.height}"
@@ -177,7 +217,12 @@ def claim_rows(sizes: dict[str, list[LayoutCells]]) -> tuple[list[dict], list[di
         for claim in CLAIMS:
             verdicts, means_ok = [], []
             for lay in layouts:
-                c: Claim = checked(claim.source, claim.says, lambda: claim.make(NO_PAPER, lay.arm), quoted=claim.quoted)
+                c: Claim = checked(
+                    claim.source,
+                    claim.says,
+                    lambda claim=claim, lay=lay: claim.make(NO_PAPER, lay.arm),
+                    quoted=claim.quoted,
+                )
                 if c.verdict == "not checked":
                     continue
                 verdicts.append(c.verdict)
@@ -185,15 +230,38 @@ def claim_rows(sizes: dict[str, list[LayoutCells]]) -> tuple[list[dict], list[di
             n = len(verdicts)
             if not n:
                 continue
-            holds, fails, ordered = verdicts.count("holds"), verdicts.count("does not hold"), sum(means_ok)
+            holds, fails, ordered = (
+                verdicts.count("holds"),
+                verdicts.count("does not hold"),
+                sum(means_ok),
+            )
             text = c.text()
-            table.append({"size": size, "where": claim.source, "the paper": text, "layouts": n,
-                          "holds": share(holds, n), "does not hold": share(fails, n),
-                          "means in the claimed order": share(ordered, n)})
+            table.append(
+                {
+                    "size": size,
+                    "where": claim.source,
+                    "the paper": text,
+                    "layouts": n,
+                    "holds": share(holds, n),
+                    "does not hold": share(fails, n),
+                    "means in the claimed order": share(ordered, n),
+                }
+            )
             for what, k in (("holds", holds), ("does_not_hold", fails), ("means_ordered", ordered)):
                 low, high = wilson_ci(k / n, n)
-                data.append({"size": size, "source": claim.source, "claim": text, "outcome": what, "layouts": n,
-                             "count": k, "fraction": k / n, "ci_low": low, "ci_high": high})
+                data.append(
+                    {
+                        "size": size,
+                        "source": claim.source,
+                        "claim": text,
+                        "outcome": what,
+                        "layouts": n,
+                        "count": k,
+                        "fraction": k / n,
+                        "ci_low": low,
+                        "ci_high": high,
+                    }
+                )
     return table, data
 
 
@@ -209,10 +277,18 @@ def gains(sizes: dict[str, list[LayoutCells]]) -> tuple[list[dict], dict[str, np
         without = np.array([lay.mean("fewshot") for lay in ok])
         per_size[size] = g
         low, high = bootstrap_ci(g)
-        rows.append({"size": size, "layouts": len(ok), "few-shot without DSS (mean)": f"{without.mean():.2f}",
-                     "DSS gain (mean [95% CI])": f"{g.mean():.2f} [{low:.2f}, {high:.2f}]",
-                     "relative gain": f"{100 * g.mean() / without.mean():.1f}%" if without.mean() else "",
-                     "layouts with a gain": share(int((g > 0).sum()), len(ok))})
+        rows.append(
+            {
+                "size": size,
+                "layouts": len(ok),
+                "few-shot without DSS (mean)": f"{without.mean():.2f}",
+                "DSS gain (mean [95% CI])": f"{g.mean():.2f} [{low:.2f}, {high:.2f}]",
+                "relative gain": f"{100 * g.mean() / without.mean():.1f}%"
+                if without.mean()
+                else "",
+                "layouts with a gain": share(int((g > 0).sum()), len(ok)),
+            }
+        )
     return rows, per_size
 
 
@@ -224,8 +300,16 @@ def growth(per_size: dict[str, np.ndarray]) -> list[dict]:
     for small, large in zip(names, names[1:]):
         est, low, high = bootstrap_difference(per_size[large], per_size[small], paired=False)
         verdict = "holds" if low > 0 else "does not hold" if high < 0 else "not resolved"
-        out.append({"check": f"DSS gain on {large} − on {small}", "estimate [95% CI]": f"{est:.2f} [{low:.2f}, {high:.2f}]",
-                    "verdict": verdict, "estimate": est, "ci_low": low, "ci_high": high})
+        out.append(
+            {
+                "check": f"DSS gain on {large} − on {small}",
+                "estimate [95% CI]": f"{est:.2f} [{low:.2f}, {high:.2f}]",
+                "verdict": verdict,
+                "estimate": est,
+                "ci_low": low,
+                "ci_high": high,
+            }
+        )
     return out
 
 
@@ -249,10 +333,20 @@ def data_frame(sizes: dict[str, list[LayoutCells]]) -> pd.DataFrame:
             feats = features(lay.rows)
             for method in methods_of(layouts):
                 v = lay.arm(method).values.to_numpy()
-                rows.append({"size": size, "layout_seed": lay.seed, "maze": lay.maze, "method": method,
-                             "label": label(layouts, method), "cell": lay.cells[method].name, "runs": v.size,
-                             "collisions_mean": float(v.mean()), "collisions_std": float(v.std(ddof=1)) if v.size > 1 else 0.0,
-                             **feats})
+                rows.append(
+                    {
+                        "size": size,
+                        "layout_seed": lay.seed,
+                        "maze": lay.maze,
+                        "method": method,
+                        "label": label(layouts, method),
+                        "cell": lay.cells[method].name,
+                        "runs": v.size,
+                        "collisions_mean": float(v.mean()),
+                        "collisions_std": float(v.std(ddof=1)) if v.size > 1 else 0.0,
+                        **feats,
+                    }
+                )
     return pd.DataFrame(rows)
 
 
@@ -263,17 +357,29 @@ def no_line(x: np.ndarray) -> str:
 
 def feature_rows(df: pd.DataFrame) -> list[dict]:
     out = []
-    for (size, feature) in [(s, f) for s in dict.fromkeys(df["size"]) for f in FEATURES]:
+    for size, feature in [(s, f) for s in dict.fromkeys(df["size"]) for f in FEATURES]:
         on = df[df["size"] == size]
         for method in dict.fromkeys(on["method"]):
             m = on[on["method"] == method]
             x, y = m[feature].to_numpy(float), m["collisions_mean"].to_numpy(float)
             line = fit(x, y)
-            r = float(np.corrcoef(x, y)[0, 1]) if line is not None and np.ptp(y) > 0 else float("nan")
-            out.append({"size": size, "feature": feature, "method": m["label"].iloc[0],
-                        "slope (collisions per unit) [95% CI]": (f"{line[0]:.3g} [{line[2]:.3g}, {line[3]:.3g}]"
-                                                                 if line else no_line(x)),
-                        "r": "" if np.isnan(r) else f"{r:.2f}", "feature range": f"{int(x.min())}-{int(x.max())}"})
+            r = (
+                float(np.corrcoef(x, y)[0, 1])
+                if line is not None and np.ptp(y) > 0
+                else float("nan")
+            )
+            out.append(
+                {
+                    "size": size,
+                    "feature": feature,
+                    "method": m["label"].iloc[0],
+                    "slope (collisions per unit) [95% CI]": (
+                        f"{line[0]:.3g} [{line[2]:.3g}, {line[3]:.3g}]" if line else no_line(x)
+                    ),
+                    "r": "" if np.isnan(r) else f"{r:.2f}",
+                    "feature range": f"{int(x.min())}-{int(x.max())}",
+                }
+            )
     return out
 
 
@@ -286,43 +392,83 @@ def generalisation_section(rep, exp: Experiment) -> None:
         return
     runs = sorted({len(c.runs()) for c in exp.cells.values()})
     counts = ", ".join(f"{len(v)} on {s}" for s, v in sizes.items())
-    rep.add("Every method on generated layouts of the paper's sizes and obstacle counts (layouts of the paper's "
-            "kind: a single shortest path lined by obstacles; `pipeline/world/generate.py`), "
-            f"{'/'.join(map(str, runs))} runs per cell; layouts: {counts}. A claim is checked on each layout as "
-            "the claims section checks it on the paper's mazes (95% bootstrap interval over the layout's run seeds, "
-            "paired); the fractions are over layouts, with 95% Wilson intervals."
-            + "".join(f"\n\nNote: {n}." for n in notes) + "\n")
+    rep.add(
+        "Every method on generated layouts of the paper's sizes and obstacle counts (layouts of the paper's "
+        "kind: a single shortest path lined by obstacles; `pipeline/world/generate.py`), "
+        f"{'/'.join(map(str, runs))} runs per cell; layouts: {counts}. A claim is checked on each layout as "
+        "the claims section checks it on the paper's mazes (95% bootstrap interval over the layout's run seeds, "
+        "paired); the fractions are over layouts, with 95% Wilson intervals."
+        + "".join(f"\n\nNote: {n}." for n in notes)
+        + "\n"
+    )
     df = data_frame(sizes)
-    df.to_csv(rep.out / "tables" / f"{exp.folder}_data.csv", index=False, lineterminator="\n", float_format="%.6g")
+    df.to_csv(
+        rep.out / "tables" / f"{exp.folder}_data.csv",
+        index=False,
+        lineterminator="\n",
+        float_format="%.6g",
+    )
     name = f"{exp.folder}.png"
-    F.layout_boxes({s: {label(lays, m): df[(df["size"] == s) & (df["method"] == m)]["collisions_mean"].to_numpy()
-                        for m in methods_of(lays)} for s, lays in sizes.items()}, rep.out / "figures" / name)
-    rep.figure(f"figures/{name}", "Mean collisions per run on each generated layout, one box per method and size "
-                                  "(median, quartiles, whiskers to 1.5 IQR, layouts beyond as points; log scale). "
-                                  f"Data: `tables/{exp.folder}_data.csv`.")
+    F.layout_boxes(
+        {
+            s: {
+                label(lays, m): df[(df["size"] == s) & (df["method"] == m)][
+                    "collisions_mean"
+                ].to_numpy()
+                for m in methods_of(lays)
+            }
+            for s, lays in sizes.items()
+        },
+        rep.out / "figures" / name,
+    )
+    rep.figure(
+        f"figures/{name}",
+        "Mean collisions per run on each generated layout, one box per method and size "
+        "(median, quartiles, whiskers to 1.5 IQR, layouts beyond as points; log scale). "
+        f"Data: `tables/{exp.folder}_data.csv`.",
+    )
     table, data = claim_rows(sizes)
-    pd.DataFrame(data).to_csv(rep.out / "tables" / f"{exp.folder}_claims.csv", index=False, lineterminator="\n",
-                              float_format="%.6g")
-    rep.table(exp.folder, pd.DataFrame(table),
-              "The paper's claims on each generated layout: the layouts where the claim holds (every check's 95% "
-              "interval on the claimed side), where it does not hold (one on the other side; the rest are not "
-              "resolved) and where the layout's mean collisions lie in the claimed order; fraction of layouts with "
-              f"its 95% Wilson interval. Counts per claim and outcome: `tables/{exp.folder}_claims.csv`.")
+    pd.DataFrame(data).to_csv(
+        rep.out / "tables" / f"{exp.folder}_claims.csv",
+        index=False,
+        lineterminator="\n",
+        float_format="%.6g",
+    )
+    rep.table(
+        exp.folder,
+        pd.DataFrame(table),
+        "The paper's claims on each generated layout: the layouts where the claim holds (every check's 95% "
+        "interval on the claimed side), where it does not hold (one on the other side; the rest are not "
+        "resolved) and where the layout's mean collisions lie in the claimed order; fraction of layouts with "
+        f"its 95% Wilson interval. Counts per claim and outcome: `tables/{exp.folder}_claims.csv`.",
+    )
     gain_rows, per_size = gains(sizes)
     if gain_rows:
         grow = growth(per_size)
-        rep.table(f"{exp.folder}_dss_gain", pd.DataFrame(gain_rows),
-                  "The dynamic support set's gain (few-shot without minus with it, mean collisions per run) per size: "
-                  "mean over layouts with its 95% bootstrap interval over layouts (2000 resamples, seed 0).")
+        rep.table(
+            f"{exp.folder}_dss_gain",
+            pd.DataFrame(gain_rows),
+            "The dynamic support set's gain (few-shot without minus with it, mean collisions per run) per size: "
+            "mean over layouts with its 95% bootstrap interval over layouts (2000 resamples, seed 0).",
+        )
         if grow:
-            rep.table(f"{exp.folder}_dss_growth", pd.DataFrame(grow)[["check", "estimate [95% CI]", "verdict"]],
-                      "Table 3's reading \"the gain of the dynamic support set grows with the maze\" over layouts: "
-                      "the difference of two sizes' mean gains, 95% bootstrap interval over layouts (unpaired).")
+            rep.table(
+                f"{exp.folder}_dss_growth",
+                pd.DataFrame(grow)[["check", "estimate [95% CI]", "verdict"]],
+                'Table 3\'s reading "the gain of the dynamic support set grows with the maze" over layouts: '
+                "the difference of two sizes' mean gains, 95% bootstrap interval over layouts (unpaired).",
+            )
     name = f"{exp.folder}_features.png"
     F.feature_scatter(df, FEATURES, rep.out / "figures" / name, fit)
-    rep.figure(f"figures/{name}", "Mean collisions per run on each layout against its features, one colour per "
-                                  "method, with its least-squares line (none where the feature is constant over a "
-                                  "size's layouts); log scale.")
-    rep.table(f"{exp.folder}_features", pd.DataFrame(feature_rows(df)),
-              "Collisions against layout features: slope of the least-squares line of mean collisions per run over "
-              "the layouts of a size, with its 95% t interval, and the correlation r.")
+    rep.figure(
+        f"figures/{name}",
+        "Mean collisions per run on each layout against its features, one colour per "
+        "method, with its least-squares line (none where the feature is constant over a "
+        "size's layouts); log scale.",
+    )
+    rep.table(
+        f"{exp.folder}_features",
+        pd.DataFrame(feature_rows(df)),
+        "Collisions against layout features: slope of the least-squares line of mean collisions per run over "
+        "the layouts of a size, with its 95% t interval, and the correlation r.",
+    )

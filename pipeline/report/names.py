@@ -6,6 +6,7 @@ A row's name is its method's name followed by the settings that tell it apart fr
 of its section (``Few-shot + DSS, way 2``); settings that vary inside a row (the four ways a
 pooled row averages) are left out: the captions say what a row pools.
 """
+
 from __future__ import annotations
 
 #: Methods whose safety rule names them (``MethodSpec.safety``, ``pipeline.rl.rules.Safety``).
@@ -30,7 +31,9 @@ def method_name(method: dict) -> str:
     set), Few-shot + DSS."""
     safety = method.get("safety", "none")
     if safety == "fewshot":
-        return "Few-shot + DSS" if method.get("dynamic_support") else "Few-shot (static support set)"
+        return (
+            "Few-shot + DSS" if method.get("dynamic_support") else "Few-shot (static support set)"
+        )
     if safety in SAFETY_NAMES:
         return SAFETY_NAMES[safety]
     learner = "Sarsa" if method.get("learner") == "sarsa" else "Q-learning"
@@ -79,7 +82,11 @@ def row_names(rows: list[list[dict]]) -> list[str]:
         method = " / ".join(sorted(values["method"]))
         parts = [method]
         for key in [k for k in values if k != "method"]:
-            peers = per_row if key in TRIAL_SETTINGS else [v for v in per_row if v["method"] == values["method"]]
+            peers = (
+                per_row
+                if key in TRIAL_SETTINGS
+                else [v for v in per_row if v["method"] == values["method"]]
+            )
             if single(values, key) and len({single(v, key) for v in peers} - {None}) > 1:
                 parts.append(single(values, key))
         names.append(", ".join(parts))

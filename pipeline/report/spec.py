@@ -14,10 +14,12 @@ unknown keys and :func:`pipeline.schema.check` refuses a ``kind`` outside :data:
 ``choices`` in the field's metadata); :meth:`ReportSpec.problems` refuses cell names the experiment
 does not have. Plain dataclasses, no third-party imports.
 """
+
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass, field, fields
-from typing import Any, Dict, Iterable, List, Optional
+from typing import Any
 
 #: Section kinds. ``default``: table of collisions + learning curves (+ support-set accuracy).
 #: ``bars``: the same with a bar chart of collisions per run. ``long_term``: the runs are
@@ -41,9 +43,9 @@ class Group:
 
     key: str = field(default="", metadata={"nonempty": True})
     """Names the row in CSV files (the ``key`` column of the learning curves' table)."""
-    cells: List[str] = field(default_factory=list)
+    cells: list[str] = field(default_factory=list)
     """The cells whose runs count together."""
-    paper: Dict[str, str] = field(default_factory=dict)
+    paper: dict[str, str] = field(default_factory=dict)
     """The paper's figure for this row, by maze (``{5x5: 192.3, 7x7: not converged}``), as printed."""
 
 
@@ -52,11 +54,11 @@ class PathSpec:
     """A figure of the learned path (the paper's Figure 7): the most common path of the runs' last
     episodes, drawn on the maze of the first recorded cell of ``cells``."""
 
-    cells: List[str] = field(default_factory=list)
+    cells: list[str] = field(default_factory=list)
     """Candidate cells in order of preference; the first one with records is drawn."""
     title: str = "The learned path"
     """The heading of the path's own section."""
-    claim: Optional[str] = None
+    claim: str | None = None
     """What the paper says about it (quoted as ``Paper: ...``)."""
 
 
@@ -66,40 +68,42 @@ class ReportSpec:
 
     order: int = 100
     """Sections are sorted by ``order``, then by experiment name (the paper's use 1-4)."""
-    title: Optional[str] = None
+    title: str | None = None
     """The section's heading; default ``Experiment <name>``."""
     kind: str = field(default="default", metadata={"choices": KINDS})
     """One of :data:`KINDS`."""
-    claim: Optional[str] = None
+    claim: str | None = None
     """The paper's claim for this experiment, quoted as ``Paper: ...`` under the heading."""
     row_header: str = "cell"
     """Header of the tables' first column (``method``, ``support set``...)."""
-    cells: List[str] = field(default_factory=list)
+    cells: list[str] = field(default_factory=list)
     """Which cells, in which order, one row (and one curve) each; default: every cell, sorted by
     name (the records keep the config with sorted keys, so the file's order of cells is not
     kept). Give ``cells`` or ``groups``, not both."""
-    groups: List[Group] = field(default_factory=list)
+    groups: list[Group] = field(default_factory=list)
     """Rows that pool cells, in order (a list: order is kept in the records)."""
-    curves: Optional[bool] = None
+    curves: bool | None = None
     """Learning curves: collisions per episode, mean over runs with a 95% band, from episode 0
     (drawn unless false; a kind without learning curves refuses the key)."""
-    support_accuracy: Optional[bool] = None
+    support_accuracy: bool | None = None
     """The query accuracy of the support set over the run (rows whose cells have a recogniser;
     drawn unless false; a kind without it refuses the key)."""
-    path: Optional[PathSpec] = None
+    path: PathSpec | None = None
     """A learned-path figure in its own section before this one (the paper's Figure 7)."""
 
     # ------------------------------------------------------------------ reading and checking
     @classmethod
-    def from_dict(cls, data: dict[str, Any] | None) -> "ReportSpec":
+    def from_dict(cls, data: dict[str, Any] | None) -> ReportSpec:
         """The spec from a plain dict (the recorded config's ``experiment.report``); ``None``
         gives the default. Unknown keys and an unknown kind raise ``ValueError``."""
         if data is None:
             return cls()
         values = _known(cls, data, "report", LEGACY)
         if "groups" in values:
-            values["groups"] = [Group(**_known(Group, g, f"report.groups.{i}", LEGACY_GROUP))
-                                for i, g in enumerate(values["groups"])]
+            values["groups"] = [
+                Group(**_known(Group, g, f"report.groups.{i}", LEGACY_GROUP))
+                for i, g in enumerate(values["groups"])
+            ]
         if values.get("path") is not None:
             values["path"] = PathSpec(**_known(PathSpec, values["path"], "report.path"))
         spec = cls(**values)
@@ -123,10 +127,21 @@ class ReportSpec:
             need("cells", name)
         if self.kind in PER_CELL_KINDS:
             if self.groups:
-                out.append(("groups", f"the {self.kind} kind pools no cells (one point per cell); "
-                                      "give cells or nothing"))
-            out += [(key, f"the {self.kind} kind draws no learning curves or support-set accuracy over the run")
-                    for key in ("curves", "support_accuracy") if getattr(self, key) is not None]
+                out.append(
+                    (
+                        "groups",
+                        f"the {self.kind} kind pools no cells (one point per cell); "
+                        "give cells or nothing",
+                    )
+                )
+            out += [
+                (
+                    key,
+                    f"the {self.kind} kind draws no learning curves or support-set accuracy over the run",
+                )
+                for key in ("curves", "support_accuracy")
+                if getattr(self, key) is not None
+            ]
         seen = set()
         for i, group in enumerate(self.groups):
             if not group.key.strip():
@@ -145,7 +160,7 @@ class ReportSpec:
                 need("path.cells", name)
         return out
 
-    def rows(self, cells: Iterable[str]) -> list["Row"]:
+    def rows(self, cells: Iterable[str]) -> list[Row]:
         """The section's rows: its groups, or one row per cell (``cells`` of the block, else every
         cell of ``cells``, sorted by name)."""
         if self.groups:
@@ -160,8 +175,8 @@ class Row:
 
     key: str
     label: str
-    cells: List[str]
-    paper: Dict[str, str]
+    cells: list[str]
+    paper: dict[str, str]
 
 
 #: Keys of blocks recorded before rows were named from their cells (``labels``, a group's
@@ -175,5 +190,7 @@ def _known(cls, data: Any, where: str, legacy: tuple[str, ...] = ()) -> dict[str
     names = {f.name for f in fields(cls)}
     unknown = sorted(set(data) - names - set(legacy))
     if unknown:
-        raise ValueError(f"{where}: unknown key(s) {', '.join(unknown)} (known: {', '.join(sorted(names))})")
+        raise ValueError(
+            f"{where}: unknown key(s) {', '.join(unknown)} (known: {', '.join(sorted(names))})"
+        )
     return {k: v for k, v in data.items() if k in names}

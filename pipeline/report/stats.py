@@ -8,6 +8,7 @@ The independent unit of a trial is its run seed: the cells of an experiment (and
 recorded with the same seed and run count) share run ``r``'s obstacle placement and random
 streams, so a row that pools cells resamples run seeds (``clusters``), and a difference between
 cells is bootstrapped over run seeds, pairing run ``r`` of one cell with run ``r`` of the other."""
+
 from __future__ import annotations
 
 import warnings
@@ -15,7 +16,9 @@ import warnings
 import numpy as np
 
 
-def bootstrap_ci(values, *, level: float = 0.95, resamples: int = 2000, seed: int = 0) -> tuple[float, float]:
+def bootstrap_ci(
+    values, *, level: float = 0.95, resamples: int = 2000, seed: int = 0
+) -> tuple[float, float]:
     """Percentile bootstrap interval of the mean (seeded: the same data give the same interval)."""
     v = np.asarray(values, dtype=float)
     if v.size == 0:
@@ -32,7 +35,9 @@ def cluster_means(values, clusters) -> np.ndarray:
     """The mean of ``values`` per cluster id (in the order of the sorted ids)."""
     ids, index = np.unique(np.asarray(clusters), return_inverse=True)
     v = np.asarray(values, dtype=float)
-    return np.bincount(index, weights=v, minlength=ids.size) / np.bincount(index, minlength=ids.size)
+    return np.bincount(index, weights=v, minlength=ids.size) / np.bincount(
+        index, minlength=ids.size
+    )
 
 
 def describe(values, clusters=None) -> dict:
@@ -40,8 +45,13 @@ def describe(values, clusters=None) -> dict:
     value, e.g. the run seed of each pooled run) the CI resamples clusters, not values."""
     v = np.asarray(values, dtype=float)
     lo, hi = bootstrap_ci(v if clusters is None else cluster_means(v, clusters))
-    return {"n": int(v.size), "mean": float(v.mean()) if v.size else float("nan"),
-            "std": float(v.std(ddof=1)) if v.size > 1 else 0.0, "ci_low": lo, "ci_high": hi}
+    return {
+        "n": int(v.size),
+        "mean": float(v.mean()) if v.size else float("nan"),
+        "std": float(v.std(ddof=1)) if v.size > 1 else 0.0,
+        "ci_low": lo,
+        "ci_high": hi,
+    }
 
 
 def fmt(d: dict, digits: int = 2) -> str:
@@ -64,11 +74,11 @@ def t_quantile_975(df: int) -> float:
     if df <= len(_T975):
         return _T975[df - 1]
     z = 1.959963984540054
-    g1 = (z ** 3 + z) / 4
-    g2 = (5 * z ** 5 + 16 * z ** 3 + 3 * z) / 96
-    g3 = (3 * z ** 7 + 19 * z ** 5 + 17 * z ** 3 - 15 * z) / 384
-    g4 = (79 * z ** 9 + 776 * z ** 7 + 1482 * z ** 5 - 1920 * z ** 3 - 945 * z) / 92160
-    return z + g1 / df + g2 / df ** 2 + g3 / df ** 3 + g4 / df ** 4
+    g1 = (z**3 + z) / 4
+    g2 = (5 * z**5 + 16 * z**3 + 3 * z) / 96
+    g3 = (3 * z**7 + 19 * z**5 + 17 * z**3 - 15 * z) / 384
+    g4 = (79 * z**9 + 776 * z**7 + 1482 * z**5 - 1920 * z**3 - 945 * z) / 92160
+    return z + g1 / df + g2 / df**2 + g3 / df**3 + g4 / df**4
 
 
 def mean_band(values) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -81,12 +91,17 @@ def mean_band(values) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         warnings.simplefilter("ignore", RuntimeWarning)  # an episode no run reached: NaN
         mean = np.nanmean(v, axis=0) if v.size else np.zeros(v.shape[1])
         sd = np.nanstd(v, axis=0, ddof=1) if v.shape[0] > 1 else np.zeros(v.shape[1])
-        half = np.array([t_quantile_975(int(k) - 1) if k > 1 else 0.0 for k in n]) * np.nan_to_num(sd) / np.sqrt(np.maximum(n, 1))
+        half = (
+            np.array([t_quantile_975(int(k) - 1) if k > 1 else 0.0 for k in n])
+            * np.nan_to_num(sd)
+            / np.sqrt(np.maximum(n, 1))
+        )
     return mean, mean - half, mean + half
 
 
-def bootstrap_difference(a, b, *, paired: bool, level: float = 0.95, resamples: int = 2000,
-                         seed: int = 0) -> tuple[float, float, float]:
+def bootstrap_difference(
+    a, b, *, paired: bool, level: float = 0.95, resamples: int = 2000, seed: int = 0
+) -> tuple[float, float, float]:
     """``mean(a) - mean(b)`` and its percentile-bootstrap interval. ``paired``: ``a[i]`` and
     ``b[i]`` come from one run seed (resample seeds, the differences' mean); else the two are
     resampled independently."""
@@ -100,8 +115,9 @@ def bootstrap_difference(a, b, *, paired: bool, level: float = 0.95, resamples: 
     return (float(a.mean() - b.mean()), float(lo), float(hi))
 
 
-def break_even(levels, curve, reference, *, level: float = 0.95, resamples: int = 2000,
-               seed: int = 0) -> tuple[float, float, float]:
+def break_even(
+    levels, curve, reference, *, level: float = 0.95, resamples: int = 2000, seed: int = 0
+) -> tuple[float, float, float]:
     """The break-even level of a curve against a reference, and its percentile-bootstrap interval.
 
     ``levels`` (k, increasing) are the settings of the curve's points; ``curve`` (k x runs) holds

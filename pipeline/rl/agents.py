@@ -4,6 +4,7 @@ The agent's choices and updates are ``policy.select_action`` / ``policy.td_updat
 functions of the batched kernel; ``run_episode`` composes them with the environment in the same
 order as ``kernel.advance_run``, so a seed gives the identical trajectory through both doors.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -29,7 +30,9 @@ class TabularAgent:
         if self.method.constrained:
             self.epsilon = max(self.method.epsilon_min, self.epsilon - self.method.epsilon_decay)
 
-    def target(self, reward: float, next_state: int, terminated: bool, next_mask: np.ndarray) -> float:
+    def target(
+        self, reward: float, next_state: int, terminated: bool, next_mask: np.ndarray
+    ) -> float:
         """Q-learning's target of eq. 9 (bootstrap over Q', the actions outside A_d)."""
         if terminated:
             return reward
@@ -75,5 +78,9 @@ def run_episode(env, agent: TabularAgent, seed: int | None = None) -> dict:
         s, mask = s2, next_mask
         if terminated or truncated:
             break
-    return {"states": np.array(states, np.int32), "actions": np.array(actions, np.int8),
-            "rewards": np.array(rewards, np.float32), "flags": np.array(flags, np.uint8)}
+    return {
+        "states": np.array(states, np.int32),
+        "actions": np.array(actions, np.int8),
+        "rewards": np.array(rewards, np.float32),
+        "flags": np.array(flags, np.uint8),
+    }

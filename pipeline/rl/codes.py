@@ -9,6 +9,7 @@ flags are an IntEnum of bits, combined with ``|`` into plain ints.)
 Crossing from Python into numba, pass ``int(member)``: numba types an enum member argument far
 more slowly than an int (tens of microseconds a call), which shows in the Gymnasium loop.
 """
+
 from __future__ import annotations
 
 from enum import IntEnum
@@ -20,24 +21,28 @@ E = TypeVar("E", bound=IntEnum)
 class Learner(IntEnum):
     """The tabular learner's update (paper eqs. 6 and 9)."""
 
-    q = 0       #: Q-learning: bootstrap from the best allowed action (eq. 9)
-    sarsa = 1   #: Sarsa: bootstrap from the action actually chosen next
+    q = 0  #: Q-learning: bootstrap from the best allowed action (eq. 9)
+    sarsa = 1  #: Sarsa: bootstrap from the action actually chosen next
 
 
 class Outcome(IntEnum):
     """What one chosen action did (``rules.apply_action``)."""
 
-    moved = 0      #: the robot moved (or stayed put against the maze's border)
-    collided = 1   #: it ran into an obstacle (reward -1)
-    prevented = 2  #: the recogniser named the obstacle: not executed, reselect (Algorithm 1 lines 4-10)
+    moved = 0  #: the robot moved (or stayed put against the maze's border)
+    collided = 1  #: it ran into an obstacle (reward -1)
+    prevented = (
+        2  #: the recogniser named the obstacle: not executed, reselect (Algorithm 1 lines 4-10)
+    )
 
 
 class Status(IntEnum):
     """Why ``kernel.advance_run`` handed a run back to the runner."""
 
-    limit = 0       #: reached the requested episode limit (or finished all episodes)
-    substitute = 1  #: a misrecognised picture waits for the support set's substitution (Algorithm 1 line 20)
-    flush = 2       #: the step trace is full: emit the finished episodes, then resume
+    limit = 0  #: reached the requested episode limit (or finished all episodes)
+    substitute = (
+        1  #: a misrecognised picture waits for the support set's substitution (Algorithm 1 line 20)
+    )
+    flush = 2  #: the step trace is full: emit the finished episodes, then resume
 
 
 class Source(IntEnum):
@@ -45,8 +50,8 @@ class Source(IntEnum):
     (same names and values as ``pipeline.records.schema.SOURCE_NAMES``; a test checks)."""
 
     recognition = 0  #: the recogniser named the obstacle ahead (few-shot)
-    collision = 1    #: the robot collided from (s, a) (shield, SSRL, few-shot)
-    ssrl_rule = 2    #: SSRL's rule: a free neighbour of the obstacle hit, action toward it
+    collision = 1  #: the robot collided from (s, a) (shield, SSRL, few-shot)
+    ssrl_rule = 2  #: SSRL's rule: a free neighbour of the obstacle hit, action toward it
 
 
 class StepFlag(IntEnum):
@@ -54,9 +59,9 @@ class StepFlag(IntEnum):
     ``pipeline.records.schema.FLAG_NAMES``; a test checks)."""
 
     reselected = 1  #: the first choice was unsafe or prevented and the agent reselected
-    collided = 2    #: the step ran into an obstacle
-    recovered = 4   #: self-recovery reverted the robot to the previous safe state
-    goal = 8        #: the step reached the goal
+    collided = 2  #: the step ran into an obstacle
+    recovered = 4  #: self-recovery reverted the robot to the previous safe state
+    goal = 8  #: the step reached the goal
     truncated = 16  #: the episode hit its step limit (``max_steps``)
 
 

@@ -8,6 +8,7 @@ collision (dynamic methods, section 3.3) is recognised correctly for the rest of
 picture is now one of the shots of its category. With ``carry_over`` (long-term autonomy) a run
 starts from what the previous run of its slot ended with.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -15,14 +16,21 @@ import numpy as np
 from pipeline.rl.oracle import TRUE_CATEGORY
 from pipeline.world.pictures import N_CATEGORIES, N_PICTURES
 
-
-_ONE_HOT = np.eye(N_CATEGORIES, dtype=np.float32)  # category -> its scores (a row per call is a copy)
+_ONE_HOT = np.eye(
+    N_CATEGORIES, dtype=np.float32
+)  # category -> its scores (a row per call is a copy)
 
 
 class FixedAccuracyRecogniser:
     """``conf/recogniser/fixed_accuracy.yaml``: ``p`` in [0, 1], ``learn`` true/false."""
 
-    def __init__(self, p: float = 1.0, learn: bool = True, substitution_way: int = 0, carry_over: bool = False):
+    def __init__(
+        self,
+        p: float = 1.0,
+        learn: bool = True,
+        substitution_way: int = 0,
+        carry_over: bool = False,
+    ):
         if not 0.0 <= p <= 1.0:
             raise ValueError(f"p must lie in [0, 1], got {p}")
         self.p, self.learn = float(p), bool(learn)
@@ -35,7 +43,9 @@ class FixedAccuracyRecogniser:
         rng = np.random.default_rng(seed)
         right = rng.random(N_PICTURES) < self.p
         shift = rng.integers(1, N_CATEGORIES, size=N_PICTURES)
-        self._pred[run] = np.where(right, TRUE_CATEGORY, (TRUE_CATEGORY + shift) % N_CATEGORIES).astype(np.int8)
+        self._pred[run] = np.where(
+            right, TRUE_CATEGORY, (TRUE_CATEGORY + shift) % N_CATEGORIES
+        ).astype(np.int8)
 
     def predictions(self, run: int) -> np.ndarray:
         return self._pred[run].copy()

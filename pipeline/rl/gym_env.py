@@ -73,6 +73,7 @@ Registered configurations
     see ``pipeline/__init__.py``. Other methods and recognisers by keyword:
     ``gymnasium.make("SafeNav-5x5-v0", method="fewshot_dss", recogniser="oracle")``.
 """
+
 from __future__ import annotations
 
 from typing import Any, ClassVar
@@ -94,27 +95,41 @@ from pipeline.world.maze import Layout, load_layout
 from pipeline.world.pictures import N_PICTURES
 
 #: How to pass a recogniser, for the error messages.
-HOW_TO_PASS = ("pass recogniser=<name> to gymnasium.make or pipeline.envs.make_env (a file of "
-               "conf/recogniser/: relation_net, oracle, fixed_accuracy), or a Recogniser object "
-               "(pipeline.rl.recogniser) to SafeNavigationEnv")
+HOW_TO_PASS = (
+    "pass recogniser=<name> to gymnasium.make or pipeline.envs.make_env (a file of "
+    "conf/recogniser/: relation_net, oracle, fixed_accuracy), or a Recogniser object "
+    "(pipeline.rl.recogniser) to SafeNavigationEnv"
+)
 
 
 class SafeNavigationEnv(gym.Env):
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["ansi", "rgb_array"], "render_fps": 4}
 
-    def __init__(self, maze: str | Layout = "5x5", method: str | MethodSpec = "shield",
-                 recogniser: Recogniser | None = None, run: int = 0, render_mode: str | None = None,
-                 tile_size: int = 32):
+    def __init__(
+        self,
+        maze: str | Layout = "5x5",
+        method: str | MethodSpec = "shield",
+        recogniser: Recogniser | None = None,
+        run: int = 0,
+        render_mode: str | None = None,
+        tile_size: int = 32,
+    ):
         self.layout = maze if isinstance(maze, Layout) else load_layout(maze)
         self.method = method if isinstance(method, MethodSpec) else get_method(method)
         self._params = MethodParams.of(self.method)
         self._sees_pictures = reasons_with_pictures(self._params.safety)
         if isinstance(recogniser, str):
-            raise TypeError(f"SafeNavigationEnv takes a Recogniser object, not the name {recogniser!r}: {HOW_TO_PASS}")
+            raise TypeError(
+                f"SafeNavigationEnv takes a Recogniser object, not the name {recogniser!r}: {HOW_TO_PASS}"
+            )
         if self._sees_pictures and recogniser is None:
-            raise ValueError(f"method {self.method.name!r} reasons with pictures and needs a recogniser: {HOW_TO_PASS}")
+            raise ValueError(
+                f"method {self.method.name!r} reasons with pictures and needs a recogniser: {HOW_TO_PASS}"
+            )
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode={render_mode!r}: expected one of {', '.join(self.metadata['render_modes'])} or None")
+            raise ValueError(
+                f"render_mode={render_mode!r}: expected one of {', '.join(self.metadata['render_modes'])} or None"
+            )
         if int(tile_size) < 8:
             raise ValueError(f"tile_size={tile_size}: too small to draw, use 8 pixels or more")
         self.render_mode = render_mode
@@ -150,7 +165,9 @@ class SafeNavigationEnv(gym.Env):
             self._new_run(int(seed))
         self.state = self.layout.start
         self.t = 0
-        return self.state, self._info(prevented=False, collided=False, picture=-1, flags=0, added=[])
+        return self.state, self._info(
+            prevented=False, collided=False, picture=-1, flags=0, added=[]
+        )
 
     def step(self, action):
         a = int(action)
@@ -159,17 +176,45 @@ class SafeNavigationEnv(gym.Env):
         s = self.state
         p, g = self._params, self.geometry
         out, s2, reward, terminated, flags, picture, n_added = apply_action(
-            s, a, p.safety, p.recovery, p.constrained, g.next_cell, g.obstacle, g.ssrl_pairs, self.layout.goal,
-            self.world.pictures, self.world.true_category, self.predicted, self.unsafe, self._added)
+            s,
+            a,
+            p.safety,
+            p.recovery,
+            p.constrained,
+            g.next_cell,
+            g.obstacle,
+            g.ssrl_pairs,
+            self.layout.goal,
+            self.world.pictures,
+            self.world.true_category,
+            self.predicted,
+            self.unsafe,
+            self._added,
+        )
         added = [tuple(int(x) for x in self._added[k]) for k in range(n_added)]
         recognition = None
         if picture >= 0:
             o = self.geometry.obstacle[s, a]
-            recognition = {"picture": int(picture), "predicted": int(self.predicted[picture]),
-                           "true": int(self.world.true_category[o])}
+            recognition = {
+                "picture": int(picture),
+                "predicted": int(self.predicted[picture]),
+                "true": int(self.world.true_category[o]),
+            }
         if out == Outcome.prevented:
-            return s, 0.0, False, False, self._info(prevented=True, collided=False, picture=int(picture),
-                                                    recognition=recognition, flags=0, added=added)
+            return (
+                s,
+                0.0,
+                False,
+                False,
+                self._info(
+                    prevented=True,
+                    collided=False,
+                    picture=int(picture),
+                    recognition=recognition,
+                    flags=0,
+                    added=added,
+                ),
+            )
         collided = out == Outcome.collided
         if collided and self._params.dynamic and picture >= 0:
             self.recogniser.learn_from_collision(self.run_id, int(picture), recognition["true"])
@@ -179,15 +224,28 @@ class SafeNavigationEnv(gym.Env):
         truncated = (not terminated) and self.t >= self.method.max_steps
         if truncated:
             flags |= StepFlag.truncated
-        return self.state, float(reward), bool(terminated), bool(truncated), self._info(
-            prevented=False, collided=collided, picture=int(picture), recognition=recognition,
-            flags=int(flags), added=added)
+        return (
+            self.state,
+            float(reward),
+            bool(terminated),
+            bool(truncated),
+            self._info(
+                prevented=False,
+                collided=collided,
+                picture=int(picture),
+                recognition=recognition,
+                flags=int(flags),
+                added=added,
+            ),
+        )
 
     def render(self):
         """``rgb_array``: the top-down picture; ``ansi``: the text grid (see Render modes)."""
         if self.render_mode is None:
-            gym.logger.warn("render() without a render_mode: make the environment with "
-                            "render_mode='rgb_array' or 'ansi'")
+            gym.logger.warn(
+                "render() without a render_mode: make the environment with "
+                "render_mode='rgb_array' or 'ansi'"
+            )
             return None
         categories = self.world.true_category
         if self.render_mode == "rgb_array":

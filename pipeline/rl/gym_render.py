@@ -7,6 +7,7 @@ goal as a yellow oval, every pair (s, a) of A_d as a red bar along the edge of c
 side of ``a``, and the robot as a blue disc. The colours are constants so tests and viewers can
 look for them.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -30,7 +31,9 @@ def _disc(tile: int, rx: float, ry: float) -> np.ndarray:
     return (c[None, :] / rx) ** 2 + (c[:, None] / ry) ** 2 <= 1.0
 
 
-def rgb_frame(layout: Layout, categories: np.ndarray, unsafe: np.ndarray, robot: int, tile: int = 32) -> np.ndarray:
+def rgb_frame(
+    layout: Layout, categories: np.ndarray, unsafe: np.ndarray, robot: int, tile: int = 32
+) -> np.ndarray:
     """The maze seen from above, ``(height * tile, width * tile, 3)`` uint8.
 
     ``categories[o]`` is the category of obstacle ``o`` (the order of ``layout.obstacles``),
@@ -43,7 +46,7 @@ def rgb_frame(layout: Layout, categories: np.ndarray, unsafe: np.ndarray, robot:
 
     def cell_view(cell: int) -> np.ndarray:
         r, c = layout.cell(cell)
-        return img[r * tile:(r + 1) * tile, c * tile:(c + 1) * tile]
+        return img[r * tile : (r + 1) * tile, c * tile : (c + 1) * tile]
 
     for cell in range(layout.n_cells):
         cell_view(cell)[1:, 1:] = FREE_RGB  # row 0 and column 0 of each tile are its grid lines
@@ -52,14 +55,21 @@ def rgb_frame(layout: Layout, categories: np.ndarray, unsafe: np.ndarray, robot:
         cell_view(cell)[1:, 1:] = CATEGORY_RGB[int(categories[o])]
     cell_view(layout.goal)[_disc(tile, 0.38, 0.28)] = GOAL_RGB
     bar = max(2, tile // 8)
-    edges = (np.s_[1:1 + bar, 1:], np.s_[1:, tile - bar:], np.s_[tile - bar:, 1:], np.s_[1:, 1:1 + bar])  # N E S W
+    edges = (
+        np.s_[1 : 1 + bar, 1:],
+        np.s_[1:, tile - bar :],
+        np.s_[tile - bar :, 1:],
+        np.s_[1:, 1 : 1 + bar],
+    )  # N E S W
     for cell, a in np.argwhere(unsafe):
         cell_view(int(cell))[edges[int(a)]] = UNSAFE_RGB
     cell_view(robot)[_disc(tile, 0.3, 0.3)] = ROBOT_RGB
     return img
 
 
-def ansi_frame(layout: Layout, categories: np.ndarray, unsafe: np.ndarray, robot: int, step: int) -> str:
+def ansi_frame(
+    layout: Layout, categories: np.ndarray, unsafe: np.ndarray, robot: int, step: int
+) -> str:
     """The layout as text: ``R`` the robot, ``S`` start, ``G`` goal, ``.`` free, each obstacle as the
     digit of its category; then the step, |A_d| and the legend."""
     grid = [list(row.replace("X", "?")) for row in layout.rows]
@@ -69,6 +79,8 @@ def ansi_frame(layout: Layout, categories: np.ndarray, unsafe: np.ndarray, robot
     r, c = layout.cell(robot)
     grid[r][c] = "R"
     legend = ", ".join(f"{k} {name}" for k, name in enumerate(CATEGORIES))
-    return ("\n".join("".join(row) for row in grid)
-            + f"\nstep {step}  |A_d| = {int(unsafe.sum())}  actions {' '.join(ACTION_NAMES)}"
-            + f"\nobstacles: {legend}\n")
+    return (
+        "\n".join("".join(row) for row in grid)
+        + f"\nstep {step}  |A_d| = {int(unsafe.sum())}  actions {' '.join(ACTION_NAMES)}"
+        + f"\nobstacles: {legend}\n"
+    )

@@ -11,6 +11,7 @@ The step rules are ``rules.apply_action`` (the world and the safety layer) and
 ``policy.select_action`` / ``policy.td_update`` (the agent); nothing here re-implements them, and
 nothing here tells safety methods apart.
 """
+
 from __future__ import annotations
 
 import numba as nb
@@ -27,8 +28,9 @@ from pipeline.rl.rules import apply_action, empty_added
 
 
 @nb.njit(cache=True)
-def advance_run(r, ep_limit, method, maze, sights, state, results, trace, recognitions, additions,
-                substitution):
+def advance_run(  # noqa: PLR0915 (to split)
+    r, ep_limit, method, maze, sights, state, results, trace, recognitions, additions, substitution
+):
     """Advance run ``r`` until episode ``ep_limit`` or a pause; returns a ``Status``.
 
     ``method`` (``MethodParams``) and ``maze`` (``MazeArrays``) are shared by all runs; every
@@ -48,7 +50,11 @@ def advance_run(r, ep_limit, method, maze, sights, state, results, trace, recogn
     ur = state.unsafe[r]
     # the tables apply_action needs, unpacked once (it takes plain arrays: see there why)
     next_cell, obstacle, ssrl_pairs = maze.next_cell, maze.obstacle, maze.ssrl_pairs
-    pictures, true_category, predicted = sights.pictures[r], sights.true_category[r], sights.predicted[r]
+    pictures, true_category, predicted = (
+        sights.pictures[r],
+        sights.true_category[r],
+        sights.predicted[r],
+    )
     rng = state.rng
     sarsa = method.learner == Learner.sarsa
     # the run's scalars live in locals while it advances and go back to ``state`` when it pauses
@@ -69,8 +75,21 @@ def advance_run(r, ep_limit, method, maze, sights, state, results, trace, recogn
         pend = -1
         while True:
             out, s2, rew, term, flags, pic, n_added = apply_action(
-                s, a, method.safety, method.recovery, method.constrained, next_cell, obstacle, ssrl_pairs,
-                maze.goal, pictures, true_category, predicted, ur, added)
+                s,
+                a,
+                method.safety,
+                method.recovery,
+                method.constrained,
+                next_cell,
+                obstacle,
+                ssrl_pairs,
+                maze.goal,
+                pictures,
+                true_category,
+                predicted,
+                ur,
+                added,
+            )
             for k in range(n_added):
                 i = additions.length[r]
                 additions.episode[r, i] = ep
@@ -132,7 +151,8 @@ def advance_run(r, ep_limit, method, maze, sights, state, results, trace, recogn
             results.prevented[r, ep] = prev
             results.epsilon[r, ep] = e
             results.greedy_optimal[r, ep] = greedy_path_is_optimal(
-                qr, ur, next_cell, obstacle, maze.start, maze.goal, maze.optimal_length)
+                qr, ur, next_cell, obstacle, maze.start, maze.goal, maze.optimal_length
+            )
             ep += 1
             t = 0
             s = maze.start
@@ -153,10 +173,33 @@ def advance_run(r, ep_limit, method, maze, sights, state, results, trace, recogn
 
 
 @nb.njit(cache=True, parallel=True)
-def advance_batch(run_ids, ep_limit, status, method, maze, sights, state, results, trace,
-                  recognitions, additions, substitution):
+def advance_batch(
+    run_ids,
+    ep_limit,
+    status,
+    method,
+    maze,
+    sights,
+    state,
+    results,
+    trace,
+    recognitions,
+    additions,
+    substitution,
+):
     """``advance_run`` for every run in ``run_ids`` in parallel; writes its ``Status`` to ``status[r]``."""
     for k in nb.prange(run_ids.shape[0]):
         r = run_ids[k]
-        status[r] = advance_run(r, ep_limit, method, maze, sights, state, results, trace, recognitions,
-                                additions, substitution)
+        status[r] = advance_run(
+            r,
+            ep_limit,
+            method,
+            maze,
+            sights,
+            state,
+            results,
+            trace,
+            recognitions,
+            additions,
+            substitution,
+        )

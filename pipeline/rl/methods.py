@@ -20,6 +20,7 @@ fewshot_dss    Q         as fewshot, and each misrecognised picture   yes       
 reasoning; README "Where we differ from the paper", Collisions): with it a collision reverts the
 robot to the previous safe state and the episode goes on; without it the collision ends the episode.
 """
+
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, replace
@@ -74,7 +75,7 @@ class MethodSpec:
         """Whether its safety rule looks at pictures (``pipeline.rl.rules.reasons_with_pictures``)."""
         return bool(reasons_with_pictures(Safety[self.safety]))
 
-    def with_overrides(self, **kw) -> "MethodSpec":
+    def with_overrides(self, **kw) -> MethodSpec:
         return check_method(replace(self, **kw))
 
     def as_dict(self) -> dict[str, Any]:
@@ -91,19 +92,25 @@ def method_names() -> list[str]:
     return sorted(p.stem for p in METHOD_DIR.glob("*.yaml"))
 
 
-def load_method(name: str, overrides: dict[str, Any] | None = None, key: str = "method") -> MethodSpec:
+def load_method(
+    name: str, overrides: dict[str, Any] | None = None, key: str = "method"
+) -> MethodSpec:
     """``conf/method/<name>.yaml`` merged onto the base method, then ``overrides`` (field -> value),
     type- and range-checked by the schema; errors name ``key``."""
     path = METHOD_DIR / f"{name}.yaml"
     if not path.is_file():
-        raise ConfigError(f"config key '{key}': unknown method {name!r}; expected one of {', '.join(method_names())}")
+        raise ConfigError(
+            f"config key '{key}': unknown method {name!r}; expected one of {', '.join(method_names())}"
+        )
     try:
         node = OmegaConf.merge(OmegaConf.structured(MethodSpec), OmegaConf.load(path))
         for field, value in (overrides or {}).items():
             OmegaConf.update(node, field, value, merge=True)
         spec = OmegaConf.to_object(node)
     except OmegaConfBaseException as exc:
-        raise ConfigError(f"config key '{key}.{getattr(exc, 'full_key', '') or ''}': {str(exc).splitlines()[0]}") from None
+        raise ConfigError(
+            f"config key '{key}.{getattr(exc, 'full_key', '') or ''}': {str(exc).splitlines()[0]}"
+        ) from None
     return check_method(spec, key)
 
 

@@ -1,5 +1,6 @@
 """The oracle recogniser: always names the true category (the upper bound of few-shot reasoning:
 Algorithm 1 with no misrecognition, so no collision with an obstacle it can see)."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -26,7 +27,9 @@ class OracleRecogniser:
 
     def scores(self, run: int, picture_ids: np.ndarray) -> np.ndarray:
         out = np.zeros((len(picture_ids), N_CATEGORIES), dtype=np.float32)
-        out[np.arange(len(picture_ids)), TRUE_CATEGORY[np.asarray(picture_ids, dtype=np.int64)]] = 1.0
+        out[np.arange(len(picture_ids)), TRUE_CATEGORY[np.asarray(picture_ids, dtype=np.int64)]] = (
+            1.0
+        )
         return out
 
     def learn_from_collision(self, run: int, picture_id: int, true_category: int) -> int:

@@ -4,6 +4,7 @@ These numba functions are the single implementation of the agent's rules: the ba
 runner (``kernel.py``) and the Gymnasium agent (``agents.py``) both call them, so both front doors
 draw the same random numbers in the same order.
 """
+
 from __future__ import annotations
 
 import numba as nb

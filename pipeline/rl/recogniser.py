@@ -9,6 +9,7 @@ Each independent run owns its support set, so every call names the run. Predicti
 deterministic for a given support set, which lets the trial runner look them up in a table and
 ask again only after the support set changed (a substitution after a collision).
 """
+
 from __future__ import annotations
 
 from typing import Protocol, runtime_checkable

@@ -5,6 +5,7 @@ spawn key ``(run,)``: a run's results do not depend on how many runs are in the 
 stream is a splitmix64 generator whose 64-bit state lives in an array, so the numba kernels and the
 Gymnasium agent draw the very same numbers and a paused run resumes exactly where it stopped.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -24,8 +25,8 @@ _INV53 = 1.0 / 9007199254740992.0
 
 @dataclass(frozen=True)
 class RunSeeds:
-    placement: int   # numpy Generator seed for the obstacle placement
-    agent: int       # initial splitmix64 state of the agent's stream
+    placement: int  # numpy Generator seed for the obstacle placement
+    agent: int  # initial splitmix64 state of the agent's stream
     recogniser: int  # seed handed to Recogniser.start_run (support-set substitutions)
 
 

@@ -19,6 +19,7 @@ Given the robot in free cell ``s`` choosing ``a``:
 * otherwise the move happens (a move off the grid leaves the robot in place), reward +1 and the
   episode ends on reaching the goal, 0 else.
 """
+
 from __future__ import annotations
 
 from enum import IntEnum
@@ -28,16 +29,19 @@ import numpy as np
 
 from pipeline.rl.codes import Outcome, Source, StepFlag
 
+
 class Safety(IntEnum):
     """How a method's unsafe set A_d grows (paper section 3.2.2 and the baselines of 4.2.2).
 
     Each member's rule is a branch of ``rules.apply_action``; nothing else branches on these.
     """
 
-    none = 0     #: no safety layer (Q-learning, Sarsa, constrained RL)
-    shield = 1   #: online shield: a collision from (s, a) adds (s, a)
-    ssrl = 2     #: SSRL: a collision with o adds every (free neighbour of o, action toward o)
-    fewshot = 3  #: Algorithm 1: a recognised obstacle adds (s, a); a misrecognition collides and adds it
+    none = 0  #: no safety layer (Q-learning, Sarsa, constrained RL)
+    shield = 1  #: online shield: a collision from (s, a) adds (s, a)
+    ssrl = 2  #: SSRL: a collision with o adds every (free neighbour of o, action toward o)
+    fewshot = (
+        3  #: Algorithm 1: a recognised obstacle adds (s, a); a misrecognition collides and adds it
+    )
 
 
 #: The most pairs one step can add to A_d (SSRL: the pair itself and up to four neighbours').
@@ -72,8 +76,22 @@ def _add_unsafe(unsafe, s, a, source, added, n_added):
 # argument on each call (a tenth of the kernel's speed when paid every step), and types a tuple
 # argument from Python more slowly than scalars (the Gymnasium env calls this every step).
 @nb.njit(cache=True)
-def apply_action(s, a, safety, recovery, constrained, next_cell, obstacle, ssrl_pairs, goal, pictures,
-                 true_category, predicted, unsafe, added):
+def apply_action(
+    s,
+    a,
+    safety,
+    recovery,
+    constrained,
+    next_cell,
+    obstacle,
+    ssrl_pairs,
+    goal,
+    pictures,
+    true_category,
+    predicted,
+    unsafe,
+    added,
+):
     """Apply action ``a`` in cell ``s`` for a method with safety rule ``safety`` (a ``Safety``),
     ``recovery`` and ``constrained`` (``structs.MethodParams``).
 
@@ -106,7 +124,17 @@ def apply_action(s, a, safety, recovery, constrained, next_cell, obstacle, ssrl_
         for k in range(4):
             c = ssrl_pairs[o, k, 0]
             if c >= 0:
-                n_added = _add_unsafe(unsafe, c, ssrl_pairs[o, k, 1], Source.ssrl_rule, added, n_added)
+                n_added = _add_unsafe(
+                    unsafe, c, ssrl_pairs[o, k, 1], Source.ssrl_rule, added, n_added
+                )
     if recovery and not constrained:
-        return Outcome.collided.value, s, -1.0, False, StepFlag.collided | StepFlag.recovered, picture, n_added
+        return (
+            Outcome.collided.value,
+            s,
+            -1.0,
+            False,
+            StepFlag.collided | StepFlag.recovered,
+            picture,
+            n_added,
+        )
     return Outcome.collided.value, s, -1.0, True, StepFlag.collided, picture, n_added

@@ -6,6 +6,7 @@ Usage::
     result = run_trials(load_layout("5x5"), get_method("ssrl"), runs=100, episodes=500, seed=0)
     result.summary()["collisions"]["mean"]
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -20,15 +21,24 @@ from pipeline.rl.methods import MethodSpec
 from pipeline.rl.recogniser import Recogniser
 from pipeline.rl.rng import run_seeds
 from pipeline.rl.sink import EpisodeSink
-from pipeline.rl.structs import (Additions, MazeArrays, MethodParams, Recognitions, Results, RunState, Sights,
-                                 Substitution, Trace)
+from pipeline.rl.structs import (
+    Additions,
+    MazeArrays,
+    MethodParams,
+    Recognitions,
+    Results,
+    RunState,
+    Sights,
+    Substitution,
+    Trace,
+)
 from pipeline.world.geometry import Geometry, build_geometry
 from pipeline.world.maze import Layout
 from pipeline.world.pictures import N_PICTURES, picture_category
+from pipeline.world.placement import Placement, picture_table, random_placement
 
 #: True category of every query picture id.
 PICTURE_CATEGORY = np.array([picture_category(p) for p in range(N_PICTURES)], dtype=np.int8)
-from pipeline.world.placement import Placement, picture_table, random_placement
 
 #: Steps a run's trace holds (10 bytes a step): a run's episodes go to the sink when it is full and at the end
 #: of the trial, so a paper-scale 11x11 run (about 23,500 steps) is one batch (the recording costs per batch).
@@ -40,7 +50,7 @@ class RunWorld:
     """One run's obstacles and what the robot sees from each (cell, action)."""
 
     placement: Placement
-    pictures: np.ndarray       # (n_cells, 4) picture id or -1
+    pictures: np.ndarray  # (n_cells, 4) picture id or -1
     true_category: np.ndarray  # (n_obstacles,)
 
 
@@ -91,9 +101,14 @@ class TrialResult:
     def summary(self) -> dict:
         conv = self.converged_episode()
         runs = [
-            {"run": r, "collisions": int(self.collisions[r].sum()), "steps": int(self.steps[r].sum()),
-             "converged_episode": conv[r], "goals": int(self.reached_goal[r].sum()),
-             "prevented": int(self.prevented[r].sum())}
+            {
+                "run": r,
+                "collisions": int(self.collisions[r].sum()),
+                "steps": int(self.steps[r].sum()),
+                "converged_episode": conv[r],
+                "goals": int(self.reached_goal[r].sum()),
+                "prevented": int(self.prevented[r].sum()),
+            }
             for r in range(self.runs)
         ]
 
@@ -101,7 +116,11 @@ class TrialResult:
             v = np.asarray([x for x in values if x is not None], dtype=float)
             if v.size == 0:
                 return {"mean": None, "std": None, "n": 0}
-            return {"mean": float(v.mean()), "std": float(v.std(ddof=1)) if v.size > 1 else 0.0, "n": int(v.size)}
+            return {
+                "mean": float(v.mean()),
+                "std": float(v.std(ddof=1)) if v.size > 1 else 0.0,
+                "n": int(v.size),
+            }
 
         return {
             "maze": self.layout.name,
@@ -117,25 +136,41 @@ class TrialResult:
         }
 
 
-def _emit(sink, r, run_id, first_ep, last_ep, results, trace, recognitions, additions, scores, cursors):
+def _emit(
+    sink, r, run_id, first_ep, last_ep, results, trace, recognitions, additions, scores, cursors
+):
     """Hand episodes ``first_ep..last_ep-1`` of run ``r`` to the sink as one columnar batch."""
     if last_ep > first_ep:
         eps = slice(first_ep, last_ep)
         steps = results.steps[r, eps]
-        n = int(steps.sum()) if trace.record else 0  # a sink without steps (records_steps False) gets none
+        n = (
+            int(steps.sum()) if trace.record else 0
+        )  # a sink without steps (records_steps False) gets none
         lo = cursors["rec"][r]  # recognitions and additions of the finished episodes only
-        hi = lo + int(np.searchsorted(recognitions.episode[r, lo:int(recognitions.length[r])], last_ep))
+        hi = lo + int(
+            np.searchsorted(recognitions.episode[r, lo : int(recognitions.length[r])], last_ep)
+        )
         rec = slice(lo, hi)
         table = scores["table"]  # relation scores of run r's recognitions, when asked for
-        sc = table[r, lo:hi].copy() if table is not None and scores["done"][r] >= hi else np.zeros((hi - lo, 0), np.float32)
+        sc = (
+            table[r, lo:hi].copy()
+            if table is not None and scores["done"][r] >= hi
+            else np.zeros((hi - lo, 0), np.float32)
+        )
         alo = cursors["add"][r]
-        ahi = alo + int(np.searchsorted(additions.episode[r, alo:int(additions.length[r])], last_ep))
+        ahi = alo + int(
+            np.searchsorted(additions.episode[r, alo : int(additions.length[r])], last_ep)
+        )
         add = slice(alo, ahi)
         cursors["rec"][r], cursors["add"][r] = hi, ahi
         sink.episodes(
-            run=run_id, episode=np.arange(first_ep, last_ep, dtype=np.int32), steps=steps.astype(np.int32),
-            states=trace.states[r, :n].copy(), actions=trace.actions[r, :n].copy(),
-            rewards=trace.rewards[r, :n].copy(), flags=trace.flags[r, :n].copy(),
+            run=run_id,
+            episode=np.arange(first_ep, last_ep, dtype=np.int32),
+            steps=steps.astype(np.int32),
+            states=trace.states[r, :n].copy(),
+            actions=trace.actions[r, :n].copy(),
+            rewards=trace.rewards[r, :n].copy(),
+            flags=trace.flags[r, :n].copy(),
             recognitions={
                 "episode": recognitions.episode[r, rec].astype(np.int32),
                 "step": recognitions.step[r, rec].astype(np.int32),
@@ -143,26 +178,43 @@ def _emit(sink, r, run_id, first_ep, last_ep, results, trace, recognitions, addi
                 "action": recognitions.action[r, rec].astype(np.int8),
                 "picture": recognitions.picture[r, rec].astype(np.int16),
                 "predicted": recognitions.predicted[r, rec].astype(np.int8),
-                "true": recognitions.true[r, rec].astype(np.int8), "scores": sc,
+                "true": recognitions.true[r, rec].astype(np.int8),
+                "scores": sc,
             },
             unsafe_added={
-                "episode": additions.episode[r, add].astype(np.int32), "step": additions.step[r, add].astype(np.int32),
-                "state": additions.state[r, add].astype(np.int32), "action": additions.action[r, add].astype(np.int8),
+                "episode": additions.episode[r, add].astype(np.int32),
+                "step": additions.step[r, add].astype(np.int32),
+                "state": additions.state[r, add].astype(np.int32),
+                "action": additions.action[r, add].astype(np.int8),
                 "source": additions.source[r, add].astype(np.int8),
             },
             summary={
-                "collisions": results.collisions[r, eps].copy(), "return_": results.returns[r, eps].copy(),
-                "reached_goal": results.reached_goal[r, eps].copy(), "prevented": results.prevented[r, eps].copy(),
-                "epsilon": results.epsilon[r, eps].copy(), "greedy_optimal": results.greedy_optimal[r, eps].copy(),
+                "collisions": results.collisions[r, eps].copy(),
+                "return_": results.returns[r, eps].copy(),
+                "reached_goal": results.reached_goal[r, eps].copy(),
+                "prevented": results.prevented[r, eps].copy(),
+                "epsilon": results.epsilon[r, eps].copy(),
+                "greedy_optimal": results.greedy_optimal[r, eps].copy(),
             },
         )
     trace.length[r] = 0
 
 
-def run_trials(layout: Layout, method: MethodSpec, runs: int, episodes: int, seed: int = 0, *,
-               recogniser: Recogniser | None = None, sink: EpisodeSink | None = None,
-               run_offset: int = 0, progress: bool = True, chunk_episodes: int = 100,
-               trace_capacity: int = TRACE_CAPACITY, shared_support: bool = False) -> TrialResult:
+def run_trials(  # noqa: PLR0915 (to split)
+    layout: Layout,
+    method: MethodSpec,
+    runs: int,
+    episodes: int,
+    seed: int = 0,
+    *,
+    recogniser: Recogniser | None = None,
+    sink: EpisodeSink | None = None,
+    run_offset: int = 0,
+    progress: bool = True,
+    chunk_episodes: int = 100,
+    trace_capacity: int = TRACE_CAPACITY,
+    shared_support: bool = False,
+) -> TrialResult:
     """Run ``runs`` independent runs (ids ``run_offset ..``) of ``episodes`` episodes each.
 
     Run ``r`` draws its obstacle placement, its agent's random stream and its recogniser seed from
@@ -192,8 +244,11 @@ def run_trials(layout: Layout, method: MethodSpec, runs: int, episodes: int, see
     worlds = [make_run_world(geometry, seed, run_offset + r) for r in range(runs)]
     sights = Sights(
         pictures=np.stack([w.pictures for w in worlds]).astype(np.int16),
-        true_category=np.stack([w.true_category for w in worlds]).astype(np.int8) if n_obs else np.zeros((runs, 1), np.int8),
-        predicted=np.zeros((runs, N_PICTURES), dtype=np.int8))
+        true_category=np.stack([w.true_category for w in worlds]).astype(np.int8)
+        if n_obs
+        else np.zeros((runs, 1), np.int8),
+        predicted=np.zeros((runs, N_PICTURES), dtype=np.int8),
+    )
     predicted = sights.predicted
     rng = np.array([run_seeds(seed, run_offset + r).agent for r in range(runs)], dtype=np.uint64)
     uses_recogniser = recogniser is not None and reasons_with_pictures
@@ -209,16 +264,28 @@ def run_trials(layout: Layout, method: MethodSpec, runs: int, episodes: int, see
             recogniser.start_run(slot(r), run_seeds(seed, run_offset + r).recogniser)
             predicted[r] = recogniser.predictions(slot(r))
             if sink is not None:
-                sink.substitution(run=run_offset + r, episode=0, step=0, picture=-1, category=-1,
-                                  position=-1, support_accuracy=support_accuracy(r))
+                sink.substitution(
+                    run=run_offset + r,
+                    episode=0,
+                    step=0,
+                    picture=-1,
+                    category=-1,
+                    position=-1,
+                    support_accuracy=support_accuracy(r),
+                )
 
     state = RunState.fresh(runs, layout.n_cells, layout.start, method.epsilon, rng)
     results = Results.zeros(runs, episodes)
-    trace = Trace.empty(runs, max(trace_capacity, method.max_steps) if trace_steps else 1, trace_steps)
+    trace = Trace.empty(
+        runs, max(trace_capacity, method.max_steps) if trace_steps else 1, trace_steps
+    )
     recognitions = Recognitions.empty(runs, n_dangerous)
     additions = Additions.empty(runs, n_dangerous)
     substitution = Substitution.empty(runs)
-    scores = {"table": None, "done": [0] * runs}  # (runs, n_dangerous, n_categories) and rows filled a run
+    scores = {
+        "table": None,
+        "done": [0] * runs,
+    }  # (runs, n_dangerous, n_categories) and rows filled a run
     cursors = {"rec": [0] * runs, "add": [0] * runs}
     emitted = [0] * runs
     status = np.zeros(runs, np.int64)
@@ -229,7 +296,10 @@ def run_trials(layout: Layout, method: MethodSpec, runs: int, episodes: int, see
             return
         lo, hi = scores["done"][r], int(recognitions.length[r])
         if hi > lo:
-            got = np.asarray(recogniser.scores(slot(r), recognitions.picture[r, lo:hi].astype(np.int64)), np.float32)
+            got = np.asarray(
+                recogniser.scores(slot(r), recognitions.picture[r, lo:hi].astype(np.int64)),
+                np.float32,
+            )
             if scores["table"] is None:
                 scores["table"] = np.zeros((runs, n_dangerous, got.shape[1]), np.float32)
             scores["table"][r, lo:hi], scores["done"][r] = got, hi
@@ -237,27 +307,61 @@ def run_trials(layout: Layout, method: MethodSpec, runs: int, episodes: int, see
     def emit(r: int) -> None:
         score_pending(r)
         done = int(state.episode[r])
-        _emit(sink, r, run_offset + r, emitted[r], done, results, trace, recognitions, additions, scores, cursors)
+        _emit(
+            sink,
+            r,
+            run_offset + r,
+            emitted[r],
+            done,
+            results,
+            trace,
+            recognitions,
+            additions,
+            scores,
+            cursors,
+        )
         emitted[r] = done
 
     def advance(pending: np.ndarray, limit: int) -> None:
         while pending.size:
-            kernel.advance_batch(pending, limit, status, params, maze, sights, state, results, trace,
-                                 recognitions, additions, substitution)
+            kernel.advance_batch(
+                pending,
+                limit,
+                status,
+                params,
+                maze,
+                sights,
+                state,
+                results,
+                trace,
+                recognitions,
+                additions,
+                substitution,
+            )
             again = []
             for r in pending:
                 r = int(r)
-                why = int(status[r])  # numpy compares its ints with an IntEnum member slowly (~8 us)
+                why = int(
+                    status[r]
+                )  # numpy compares its ints with an IntEnum member slowly (~8 us)
                 if why == Status.substitute:
-                    score_pending(r)  # the recognitions so far, under the support set they were made with
+                    score_pending(
+                        r
+                    )  # the recognitions so far, under the support set they were made with
                     ep, step = int(substitution.episode[r]), int(substitution.step[r])
                     pic, cat = int(substitution.picture[r]), int(substitution.category[r])
                     position = recogniser.learn_from_collision(slot(r), pic, cat)
                     predicted[r] = recogniser.predictions(slot(r))
                     if sink is not None:
-                        sink.substitution(run=run_offset + r, episode=ep, step=step, picture=pic,
-                                          category=cat, position=int(position),
-                                          support_accuracy=support_accuracy(r))
+                        sink.substitution(
+                            run=run_offset + r,
+                            episode=ep,
+                            step=step,
+                            picture=pic,
+                            category=cat,
+                            position=int(position),
+                            support_accuracy=support_accuracy(r),
+                        )
                     again.append(r)
                 elif why == Status.flush:
                     emit(r)
@@ -265,18 +369,29 @@ def run_trials(layout: Layout, method: MethodSpec, runs: int, episodes: int, see
             pending = np.array(again, dtype=np.int64)
 
     limits = list(range(min(chunk_episodes, episodes), episodes, chunk_episodes)) + [episodes]
-    bar = tqdm(total=runs * episodes, disable=not progress, unit="ep",
-               desc=f"{method.name} {layout.name}", leave=False)
-    groups = [np.array([r], np.int64) for r in range(runs)] if shared_support else [np.arange(runs, dtype=np.int64)]
+    bar = tqdm(
+        total=runs * episodes,
+        disable=not progress,
+        unit="ep",
+        desc=f"{method.name} {layout.name}",
+        leave=False,
+    )
+    groups = (
+        [np.array([r], np.int64) for r in range(runs)]
+        if shared_support
+        else [np.arange(runs, dtype=np.int64)]
+    )
     try:
         for group in groups:
             for r in group:
                 start(int(r))
-            for limit in ([episodes] if shared_support else limits):
+            for limit in [episodes] if shared_support else limits:
                 before = int(state.episode[group].sum())
                 advance(group, limit)
                 bar.update(int(state.episode[group].sum()) - before)
-                if record and (limit == episodes or not trace_steps):  # else when the trace is full (flush)
+                if record and (
+                    limit == episodes or not trace_steps
+                ):  # else when the trace is full (flush)
                     for r in group:
                         emit(int(r))
     except Exception:
@@ -289,6 +404,16 @@ def run_trials(layout: Layout, method: MethodSpec, runs: int, episodes: int, see
         raise
     finally:
         bar.close()
-    return TrialResult(layout, method, seed, results.steps, results.collisions, results.returns,
-                       results.reached_goal, results.prevented, results.greedy_optimal, results.epsilon,
-                       [w.placement for w in worlds])
+    return TrialResult(
+        layout,
+        method,
+        seed,
+        results.steps,
+        results.collisions,
+        results.returns,
+        results.reached_goal,
+        results.prevented,
+        results.greedy_optimal,
+        results.epsilon,
+        [w.placement for w in worlds],
+    )

@@ -32,6 +32,7 @@ Batch fields (numpy arrays):
                                  end of the episode), greedy_optimal bool (the greedy policy
                                  walks an optimal path after this episode)
 """
+
 from __future__ import annotations
 
 from typing import Any, Protocol
@@ -42,8 +43,17 @@ import numpy as np
 class EpisodeSink(Protocol):
     def episodes(self, **batch: Any) -> None: ...
 
-    def substitution(self, *, run: int, episode: int, step: int, picture: int, category: int,
-                     position: int, support_accuracy: float) -> None:
+    def substitution(
+        self,
+        *,
+        run: int,
+        episode: int,
+        step: int,
+        picture: int,
+        category: int,
+        position: int,
+        support_accuracy: float,
+    ) -> None:
         """The run's support set changed: ``picture`` entered ``category`` at ``position``; the
         support set now recognises ``support_accuracy`` of the query pictures. At the start of a
         run with a recogniser, one call with ``picture = position = -1`` gives the initial accuracy."""
@@ -60,12 +70,18 @@ def split_batch(batch: dict) -> list[dict]:
         sl = slice(int(starts[i]), int(ends[i]))
         rsel = rec["episode"] == ep
         asel = add["episode"] == ep
-        out.append({
-            "run": int(batch["run"]), "episode": int(ep), "steps": int(batch["steps"][i]),
-            "states": batch["states"][sl], "actions": batch["actions"][sl],
-            "rewards": batch["rewards"][sl], "flags": batch["flags"][sl],
-            "recognitions": {k: v[rsel] for k, v in rec.items()},
-            "unsafe_added": {k: v[asel] for k, v in add.items()},
-            "summary": {k: v[i].item() for k, v in summ.items()},
-        })
+        out.append(
+            {
+                "run": int(batch["run"]),
+                "episode": int(ep),
+                "steps": int(batch["steps"][i]),
+                "states": batch["states"][sl],
+                "actions": batch["actions"][sl],
+                "rewards": batch["rewards"][sl],
+                "flags": batch["flags"][sl],
+                "recognitions": {k: v[rsel] for k, v in rec.items()},
+                "unsafe_added": {k: v[asel] for k, v in add.items()},
+                "summary": {k: v[i].item() for k, v in summ.items()},
+            }
+        )
     return out

@@ -14,6 +14,7 @@ its module's ``written(cfg, result)``, or, for a stage without one, the path its
 A stage's one-line description (``python -m pipeline --help``, ``<stage> --help``) is the first
 line of its module's docstring.
 """
+
 from __future__ import annotations
 
 import ast
@@ -21,9 +22,10 @@ import importlib
 import importlib.util
 import signal
 import sys
+from collections.abc import Callable
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
@@ -43,9 +45,15 @@ def one_line(exc: BaseException) -> str:
     cause = exc
     while cause.__cause__ is not None and not isinstance(cause, OmegaConfBaseException):
         cause = cause.__cause__
-    message = str(cause).split("Config search path")[0]  # hydra's missing-option message lists its search path
-    text = " ".join(line.strip() for line in message.splitlines() if line.strip()
-                    and not line.strip().startswith(("full_key:", "object_type=", "reference_type=")))
+    message = str(cause).split("Config search path")[
+        0
+    ]  # hydra's missing-option message lists its search path
+    text = " ".join(
+        line.strip()
+        for line in message.splitlines()
+        if line.strip()
+        and not line.strip().startswith(("full_key:", "object_type=", "reference_type="))
+    )
     key = getattr(cause, "full_key", None)
     if isinstance(cause, OmegaConfBaseException) and key:
         return f"config key '{key}': {text}"
@@ -175,14 +183,16 @@ def sweep_points(args: list[str]) -> list[list[str]]:
         if o.key_or_group.startswith("hydra"):
             continue
         if o.is_sweep_override():
-            swept.append((f"{prefix.get(o.type, '')}{o.key_or_group}", list(o.sweep_string_iterator())))
+            swept.append(
+                (f"{prefix.get(o.type, '')}{o.key_or_group}", list(o.sweep_string_iterator()))
+            )
         else:
             fixed.append(o.input_line)
     first = [f"{k}={values[0]}" for k, values in swept]
     points = [fixed + first]
     for i, (key, values) in enumerate(swept):
         for v in values[1:]:
-            points.append(fixed + first[:i] + [f"{key}={v}"] + first[i + 1:])
+            points.append(fixed + first[:i] + [f"{key}={v}"] + first[i + 1 :])
     return points
 
 
@@ -200,7 +210,9 @@ def _hydra_main(config_name: str, run: Runner, args: list[str]) -> None:
     @hydra.main(config_path=CONF_DIR, config_name=config_name, version_base="1.3")
     def task(cfg: DictConfig) -> Any:
         with user_facing():
-            return _run_and_say(config_name, run, typed(cfg), list(HydraConfig.get().overrides.task))
+            return _run_and_say(
+                config_name, run, typed(cfg), list(HydraConfig.get().overrides.task)
+            )
 
     sys.argv = [sys.argv[0], *args, *_help_header(config_name, args)]
     task()

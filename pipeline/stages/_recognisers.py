@@ -5,13 +5,15 @@ protocol whose keyword arguments include ``substitution_way`` and ``carry_over``
 fills those from the cell). The callable's signature is its schema: the yaml's other keys must be
 its parameters, with values of their annotated types. Adding a recogniser: its module and its yaml.
 """
+
 from __future__ import annotations
 
 import dataclasses
 import inspect
 import typing
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 from hydra.utils import get_method
 from omegaconf import OmegaConf
@@ -35,11 +37,15 @@ def _config_type(hint: Any) -> Any:
 def _target(node: dict, key: str) -> Callable:
     target = node.get("_target_")
     if not target:
-        raise ConfigError(f"config key '{key}._target_': missing; choose a recogniser: {key}=relation_net|protonet|oracle|fixed_accuracy")
+        raise ConfigError(
+            f"config key '{key}._target_': missing; choose a recogniser: {key}=relation_net|protonet|oracle|fixed_accuracy"
+        )
     try:
         return get_method(str(target))
     except Exception as exc:  # hydra raises ImportError/ValueError/InstantiationException variants
-        raise ConfigError(f"config key '{key}._target_': cannot import {target!r} ({str(exc).splitlines()[0]})") from None
+        raise ConfigError(
+            f"config key '{key}._target_': cannot import {target!r} ({str(exc).splitlines()[0]})"
+        ) from None
 
 
 def recogniser_arguments(node: dict, key: str = "recogniser") -> tuple[Callable, dict[str, Any]]:
@@ -47,10 +53,23 @@ def recogniser_arguments(node: dict, key: str = "recogniser") -> tuple[Callable,
     target = _target(node, key)
     sig = inspect.signature(target)
     hints = typing.get_type_hints(target.__init__ if inspect.isclass(target) else target)
-    params = {n: p for n, p in sig.parameters.items() if n not in FILLED_BY_STAGE and n != "self"
-              and p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)}
-    spec = [(n, _config_type(hints.get(n, Any)), dataclasses.field(default=p.default) if p.default is not p.empty
-             else dataclasses.field(default="???")) for n, p in params.items()]
+    params = {
+        n: p
+        for n, p in sig.parameters.items()
+        if n not in FILLED_BY_STAGE
+        and n != "self"
+        and p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)
+    }
+    spec = [
+        (
+            n,
+            _config_type(hints.get(n, Any)),
+            dataclasses.field(default=p.default)
+            if p.default is not p.empty
+            else dataclasses.field(default="???"),
+        )
+        for n, p in params.items()
+    ]
     schema = dataclasses.make_dataclass("RecogniserArgs", spec)
     given = {k: v for k, v in node.items() if k != "_target_"}
     try:
@@ -58,12 +77,16 @@ def recogniser_arguments(node: dict, key: str = "recogniser") -> tuple[Callable,
         args = OmegaConf.to_container(merged, resolve=True, throw_on_missing=True)
     except OmegaConfBaseException as exc:
         where = getattr(exc, "full_key", "") or ""
-        raise ConfigError(f"config key '{key}.{where}': {str(exc).splitlines()[0]} "
-                          f"(parameters of {node['_target_']}: {', '.join(params)})") from None
+        raise ConfigError(
+            f"config key '{key}.{where}': {str(exc).splitlines()[0]} "
+            f"(parameters of {node['_target_']}: {', '.join(params)})"
+        ) from None
     return target, args
 
 
-def build_recogniser(node: dict, *, substitution_way: int, carry_over: bool, key: str = "recogniser"):
+def build_recogniser(
+    node: dict, *, substitution_way: int, carry_over: bool, key: str = "recogniser"
+):
     target, args = recogniser_arguments(node, key)
     try:
         return target(**args, substitution_way=substitution_way, carry_over=carry_over)

@@ -7,10 +7,11 @@ are typed through their parent's field: ``method`` by :class:`~pipeline.rl.metho
 ``profile`` by :class:`Profile`, ``experiment`` by :class:`Experiment`; a recogniser is typed by the
 signature of its ``_target_`` (``pipeline.stages._recognisers``).
 """
+
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field, replace
-from typing import Any, Dict, List, Optional
+from typing import Any
 
 from hydra.core.config_store import ConfigStore
 from omegaconf import II, MISSING
@@ -84,16 +85,16 @@ class Cell:
 
     method: str = setting(nonempty=True)
     """A method of ``conf/method/``."""
-    maze: Optional[str] = None
-    substitution: Optional[int] = setting(None, choices=SUBSTITUTION_WAYS)
-    support: Optional[str] = setting(None, choices=SUPPORT_MODES)
-    params: Dict[str, Any] = field(default_factory=dict)
+    maze: str | None = None
+    substitution: int | None = setting(None, choices=SUBSTITUTION_WAYS)
+    support: str | None = setting(None, choices=SUPPORT_MODES)
+    params: dict[str, Any] = field(default_factory=dict)
     """Method fields this cell pins (``{alpha: 0.05}``); the command line does not change them."""
-    recogniser: Dict[str, Any] = field(default_factory=dict)
+    recogniser: dict[str, Any] = field(default_factory=dict)
     """Recogniser arguments this cell pins (``{p: 0.3}``) over the top level's recogniser
     (``recogniser=<name>``, ``recogniser.<arg>=``), checked against that recogniser's parameters;
     only for methods that recognise pictures. The command line does not change them."""
-    recogniser_group: Optional[str] = None
+    recogniser_group: str | None = None
     """A recogniser of ``conf/recogniser/`` (``protonet``) this cell runs instead of the top level's;
     the top level's recogniser arguments do not reach it, its own ``recogniser`` pins do."""
 
@@ -118,8 +119,8 @@ class Layouts:
     """Cell templates crossed with sets of generated layouts: cell ``<template>_<size>_L<seed>`` is
     the template on the layout of ``size`` with that seed."""
 
-    sizes: List[LayoutSet] = field(default_factory=list)
-    cells: Dict[str, Cell] = field(default_factory=dict)
+    sizes: list[LayoutSet] = field(default_factory=list)
+    cells: dict[str, Cell] = field(default_factory=dict)
     """Templates: cells without a maze (each generated cell gets its layout's)."""
 
 
@@ -128,11 +129,11 @@ class Experiment:
     """``conf/experiment/<name>.yaml``: the cells, and how the report presents them."""
 
     name: str = setting(nonempty=True)
-    cells: Dict[str, Cell] = field(default_factory=dict)
-    layouts: Optional[Layouts] = None
+    cells: dict[str, Cell] = field(default_factory=dict)
+    layouts: Layouts | None = None
     """Cells over generated layouts (``experiment.layouts``), besides the ``cells`` listed by hand."""
 
-    def all_cells(self) -> Dict[str, Cell]:
+    def all_cells(self) -> dict[str, Cell]:
         """The cells listed by hand, then those of ``layouts`` (in set, layout, template order);
         a set that cannot be met, a template that pins a maze or a name given twice is refused
         (:class:`~pipeline.errors.ConfigError` naming the key)."""
@@ -140,14 +141,20 @@ class Experiment:
             return dict(self.cells)
         for name, template in self.layouts.cells.items():
             if template.maze is not None:
-                raise ConfigError(f"config key 'experiment.layouts.cells.{name}.maze': the layout sets give "
-                                  "each generated cell its maze; leave maze out of the template")
+                raise ConfigError(
+                    f"config key 'experiment.layouts.cells.{name}.maze': the layout sets give "
+                    "each generated cell its maze; leave maze out of the template"
+                )
         if not self.layouts.cells:
-            raise ConfigError("config key 'experiment.layouts.cells': no templates; name at least one "
-                              "(e.g. {ssrl: {method: ssrl}})")
+            raise ConfigError(
+                "config key 'experiment.layouts.cells': no templates; name at least one "
+                "(e.g. {ssrl: {method: ssrl}})"
+            )
         if not self.layouts.sizes:
-            raise ConfigError("config key 'experiment.layouts.sizes': no layout sets; give at least one "
-                              "(e.g. {size: 5x5, obstacles: 9, count: 100})")
+            raise ConfigError(
+                "config key 'experiment.layouts.sizes': no layout sets; give at least one "
+                "(e.g. {size: 5x5, obstacles: 9, count: 100})"
+            )
         try:
             generated = expand([asdict(s) for s in self.layouts.sizes], list(self.layouts.cells))
         except LayoutSetError as exc:
@@ -155,11 +162,14 @@ class Experiment:
         out = dict(self.cells)
         for name, g in generated.items():
             if name in out:
-                raise ConfigError(f"config key 'experiment.cells.{name}': the layout sets generate a cell of "
-                                  "that name; rename it")
+                raise ConfigError(
+                    f"config key 'experiment.cells.{name}': the layout sets generate a cell of "
+                    "that name; rename it"
+                )
             out[name] = replace(self.layouts.cells[g.template], maze=g.maze)
         return out
-    report: Optional[ReportSpec] = None
+
+    report: ReportSpec | None = None
     """How the report presents the experiment (``pipeline/report/spec.py``); none: the default section."""
 
 
@@ -170,9 +180,9 @@ class TrialsConfig:
 
     profile: Profile = field(default_factory=Profile)
     method: MethodSpec = field(default_factory=MethodSpec)
-    recogniser: Dict[str, Any] = field(default_factory=dict)
+    recogniser: dict[str, Any] = field(default_factory=dict)
     """The recogniser group (``conf/recogniser/``): ``_target_`` and its arguments."""
-    experiment: Optional[Experiment] = None
+    experiment: Experiment | None = None
     maze: str = setting(nonempty=True)
     """A built-in layout (``conf/mazes/<name>.txt``), a path to a layout file, or a generated layout
     ``random:<W>x<H>:<obstacles>:<seed>[:unique]`` (``pipeline/world/generate.py``)."""
@@ -180,7 +190,7 @@ class TrialsConfig:
     """Dynamic support set: substitution way 1-4 (section 3.3); used by methods with dynamic_support."""
     support: str = setting(choices=SUPPORT_MODES)
     """``restore`` the support set before each run, or ``carry`` it over (long-term autonomy)."""
-    images_dir: Optional[str] = None
+    images_dir: str | None = None
     """Rendered pictures (the render stage's folder) whose query pictures and initial support set the
     records keep, for recognisers without pictures of their own (oracle, fixed_accuracy); relation_net
     records those of its ``recogniser.images_dir``."""
@@ -191,8 +201,8 @@ class TrialsConfig:
     overwrite: bool = MISSING
     """Replace results already in ``out``; without it such an ``out`` is refused (unless ``dvc.yaml``
     declares it: DVC keeps its outs in its cache)."""
-    metrics_file: Optional[str] = None
-    timing_file: Optional[str] = None
+    metrics_file: str | None = None
+    timing_file: str | None = None
     record: str = setting(choices=RECORD_LEVELS)
     """What the MCAP records hold (docs/records.md "Record levels"): ``steps`` every step, ``episodes``
     per-episode summaries and every recognition, substitution and unsafe pair, ``none`` no record file."""
@@ -218,8 +228,8 @@ class MazeCameraConfig:
 @dataclass
 class CatalogueCameraConfig:
     fovy: float = setting(gt=0, lt=180)
-    elevation: List[float] = MISSING
-    turn: List[float] = MISSING
+    elevation: list[float] = MISSING
+    turn: list[float] = MISSING
     fill: float = setting(gt=0, le=1)
 
 
@@ -239,7 +249,7 @@ class RenderConfig:
     size: int = setting(ge=8)
     seed: int = setting(ge=0)
     workers: int = setting(II("profile.render.workers"), ge=1)
-    categories: List[str] = MISSING
+    categories: list[str] = MISSING
     n_train_classes: int = setting(II("profile.render.n_train_classes"), ge=0)
     n_val_classes: int = setting(II("profile.render.n_val_classes"), ge=0)
     per_class: int = setting(II("profile.render.per_class"), ge=1)
@@ -262,9 +272,9 @@ class DataConfig:
     (:func:`pipeline.fewshot.data.load_folder`), such as miniImageNet's."""
 
     source: str = setting(choices=DATA_SOURCES)
-    train_dir: Optional[str] = None
+    train_dir: str | None = None
     """``data=folder``: the training classes, ``<train_dir>/<class>/<picture>``."""
-    val_dir: Optional[str] = None
+    val_dir: str | None = None
     """``data=folder``: the validation classes (model selection and the reported accuracy)."""
 
 
@@ -285,7 +295,7 @@ class MetaTrainConfig:
 @dataclass
 class AccuracyConfig:
     profile: Profile = field(default_factory=Profile)
-    recogniser: Dict[str, Any] = field(default_factory=dict)
+    recogniser: dict[str, Any] = field(default_factory=dict)
     """The recogniser group (``conf/recogniser/``), as in the trials."""
     out_dir: str = setting(nonempty=True)
     threads: int = setting(ge=1)
@@ -300,7 +310,7 @@ class ReplayConfig:
     run: int = setting(ge=0)
     episode: int = setting(ge=0)
     whole_run: bool = MISSING
-    out: Optional[str] = None
+    out: str | None = None
     viewer: str = setting(choices=VIEWERS)
     bind: str = setting(nonempty=True)
     """IP address the web viewer listens on; off the loopback only with ``allow_remote``."""
@@ -329,8 +339,14 @@ class ReportConfig:
 
 
 #: Stage name -> its schema (``conf/<stage>.yaml`` lists ``<stage>_schema`` first in its defaults).
-SCHEMAS = {"trials": TrialsConfig, "render": RenderConfig, "meta_train": MetaTrainConfig,
-           "accuracy": AccuracyConfig, "replay": ReplayConfig, "report": ReportConfig}
+SCHEMAS = {
+    "trials": TrialsConfig,
+    "render": RenderConfig,
+    "meta_train": MetaTrainConfig,
+    "accuracy": AccuracyConfig,
+    "replay": ReplayConfig,
+    "report": ReportConfig,
+}
 
 
 def register() -> None:

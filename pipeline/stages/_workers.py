@@ -11,14 +11,15 @@ Workers are started with ``spawn`` (torch's and numba's thread pools are not saf
 ``fork``); numba's compiled kernels come from its on-disk cache. Each worker uses ``threads``
 numba and torch threads (``threads=0``: the cores divided among the workers).
 """
+
 from __future__ import annotations
 
 import multiprocessing
 import os
+from collections.abc import Iterator
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import replace
 from pathlib import Path
-from typing import Iterator
 
 #: Per worker process: recognisers by :func:`~pipeline.stages.trials.recogniser_key`, pictures by folder.
 _BUILT: dict = {}
@@ -33,6 +34,7 @@ def threads_per_worker(threads: int, workers: int) -> int:
 def _start_worker(threads: int) -> None:
     import numba
     import torch
+
     numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
     torch.set_num_threads(threads)
 
@@ -40,23 +42,38 @@ def _start_worker(threads: int) -> None:
 def _run_one(cell, folder: str) -> tuple[dict, float]:
     """In a worker: give ``cell`` its recogniser and pictures (built once per process), run it."""
     from pipeline.stages import trials
+
     recogniser = trials.make_recogniser(cell.config, built=_BUILT)
     shown = trials.pictures_dir(cell.config) if cell.config.record != "none" else None
     if shown not in _PICTURES:
         _PICTURES[shown] = trials.recorded_pictures(cell.config)
-    return trials.run_cell(replace(cell, recogniser=recogniser, pictures=_PICTURES[shown][0],
-                                   support=_PICTURES[shown][1]), Path(folder), progress=False)
+    return trials.run_cell(
+        replace(
+            cell, recogniser=recogniser, pictures=_PICTURES[shown][0], support=_PICTURES[shown][1]
+        ),
+        Path(folder),
+        progress=False,
+    )
 
 
-def run_parallel(cells: list, folders: list[Path], workers: int, threads: int) -> Iterator[tuple[int, dict, float]]:
+def run_parallel(
+    cells: list, folders: list[Path], workers: int, threads: int
+) -> Iterator[tuple[int, dict, float]]:
     """``(index, summary, seconds)`` of every cell as it completes, run in ``workers`` processes.
     An error in a cell stops the others and is raised here; so is an interrupt."""
     light = [replace(c, recogniser=None, pictures={}, support={}) for c in cells]
     context = multiprocessing.get_context("spawn")
-    pool = ProcessPoolExecutor(workers, mp_context=context, initializer=_start_worker,
-                               initargs=(threads_per_worker(threads, workers),))
+    pool = ProcessPoolExecutor(
+        workers,
+        mp_context=context,
+        initializer=_start_worker,
+        initargs=(threads_per_worker(threads, workers),),
+    )
     try:
-        pending = {pool.submit(_run_one, cell, str(folder)): i for i, (cell, folder) in enumerate(zip(light, folders))}
+        pending = {
+            pool.submit(_run_one, cell, str(folder)): i
+            for i, (cell, folder) in enumerate(zip(light, folders))
+        }
         while pending:
             done, _ = wait(pending, return_when=FIRST_COMPLETED)
             for future in done:
@@ -78,5 +95,6 @@ def stop(pool: ProcessPoolExecutor) -> None:
             process.terminate()
     for process in processes:
         process.join(timeout=5)
-    pool.shutdown(wait=True)  # joins the pool's manager thread, which else fails at the interpreter's exit
-
+    pool.shutdown(
+        wait=True
+    )  # joins the pool's manager thread, which else fails at the interpreter's exit

@@ -7,6 +7,7 @@ On the rendered query and support pictures with the meta-trained checkpoint (doc
 Writes ``out_dir``/baseline.csv, table1.csv, table2.csv and summary.json (with the colour test:
 the query pictures hue-turned by each of ``study.hue_shifts``, ``pipeline.fewshot.colour``) for the report stage.
 """
+
 from __future__ import annotations
 
 import inspect
@@ -28,7 +29,9 @@ from pipeline.stages._schema import AccuracyConfig
 from pipeline.world.pictures import CATEGORIES, N_PICTURES, picture_category
 
 
-def _hue_turned_predictions(cfg: AccuracyConfig, overrides: list[str]) -> dict[float, np.ndarray] | None:
+def _hue_turned_predictions(
+    cfg: AccuracyConfig, overrides: list[str]
+) -> dict[float, np.ndarray] | None:
     """The colour test's predictions (``pipeline.fewshot.colour``), per hue shift, for a recogniser
     that reads pictures (its target takes ``query_hue_shift``); None for the others, which refuse
     ``study.hue_shifts`` (before the study runs)."""
@@ -36,13 +39,19 @@ def _hue_turned_predictions(cfg: AccuracyConfig, overrides: list[str]) -> dict[f
     target, _ = recogniser_arguments(cfg.recogniser)
     if "query_hue_shift" not in inspect.signature(target).parameters:
         if shifts and any(o.lstrip("+~").startswith("study.hue_shifts") for o in overrides):
-            raise ConfigError(f"config key 'study.hue_shifts': the colour test turns query pictures, and "
-                              f"{cfg.recogniser['_target_']} reads none; use recogniser=relation_net|protonet")
+            raise ConfigError(
+                f"config key 'study.hue_shifts': the colour test turns query pictures, and "
+                f"{cfg.recogniser['_target_']} reads none; use recogniser=relation_net|protonet"
+            )
         return None
     base = float(cfg.recogniser.get("query_hue_shift", 0.0))
     shifted = {}
     for shift in shifts:
-        rec = build_recogniser({**cfg.recogniser, "query_hue_shift": base + shift}, substitution_way=0, carry_over=False)
+        rec = build_recogniser(
+            {**cfg.recogniser, "query_hue_shift": base + shift},
+            substitution_way=0,
+            carry_over=False,
+        )
         rec.start_run(0, cfg.study.seed)
         shifted[shift] = rec.predictions(0)
     return shifted
@@ -63,21 +72,30 @@ def run(cfg: AccuracyConfig, overrides: list[str] = ()) -> dict:
     table1_frame(result, config.repeats).to_csv(out / "table1.csv", index=False)
     table2_frame(result).to_csv(out / "table2.csv", index=False)
     data = summary(result, names)
-    data["colour_test"] = None if turned is None else colour_test(result.baseline_predictions, turned, categories)
+    data["colour_test"] = (
+        None if turned is None else colour_test(result.baseline_predictions, turned, categories)
+    )
     data["config"] = {"recogniser": dict(cfg.recogniser), **asdict(config)}
     if hasattr(recogniser, "checkpoint"):
         data["checkpoint_metrics"] = recogniser.checkpoint["metrics"]
-    write_json_atomic(out / "summary.json", data, sort_keys=True)  # no wall-clock figures: the same inputs give the same bytes
+    write_json_atomic(
+        out / "summary.json", data, sort_keys=True
+    )  # no wall-clock figures: the same inputs give the same bytes
     print(
         f"query accuracy, original support set: {result.baseline_correct.sum()}/{result.per_category_total.sum()} "
         f"({100 * result.baseline_accuracy:.1f}%; paper 42.5%); per category "
-        + ", ".join(f"{n} {c}/{t}" for n, c, t in zip(names, result.baseline_correct, result.per_category_total))
+        + ", ".join(
+            f"{n} {c}/{t}"
+            for n, c, t in zip(names, result.baseline_correct, result.per_category_total)
+        )
     )
     colour = data["colour_test"]
     if colour and colour["shifts_deg"]:
         n = colour["pictures"] * len(colour["shifts_deg"])
-        print(f"colour test, hue-turned query pictures: {sum(colour['correct_per_shift'])}/{n} "
-              f"({100 * sum(colour['correct_per_shift']) / n:.1f}%) against {colour['correct_original']}/{colour['pictures']}")
+        print(
+            f"colour test, hue-turned query pictures: {sum(colour['correct_per_shift'])}/{n} "
+            f"({100 * sum(colour['correct_per_shift']) / n:.1f}%) against {colour['correct_original']}/{colour['pictures']}"
+        )
     for n, (w, ns) in sorted(result.table2.items()):
         print(f"  {n} substitution(s): {100 * w:.2f}%  (no same picture {100 * ns:.2f}%)")
     print(f"accuracy study in {time.perf_counter() - start:.1f} s")

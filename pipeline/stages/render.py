@@ -7,27 +7,33 @@ atomically: a manifest exists only for a complete render), then contact sheets u
 ``figures_dir``. The science is in ``pipeline.world`` (obstacle_models, metaset, scenes, camera,
 renderer, render_plan, render_runner); this file validates the config and does the I/O.
 """
+
 from __future__ import annotations
 
 import csv
 import io
 import shutil
 import time
-from pathlib import Path
-
 from dataclasses import asdict
+from pathlib import Path
 
 from tqdm import tqdm
 
 from pipeline.errors import ConfigError
+from pipeline.files import write_atomic
 from pipeline.stages._common import stage_main
 from pipeline.stages._schema import RenderConfig
 from pipeline.world.contact_sheet import contact_sheet, save_png_atomic
 from pipeline.world.obstacle_models import category_index
 from pipeline.world.pictures import CATEGORIES
-from pipeline.world.render_plan import (MANIFEST_COLUMNS, SPLITS, CatalogueCamera, MazeCamera, PlanConfig,
-                                        make_plan)
-from pipeline.files import write_atomic
+from pipeline.world.render_plan import (
+    MANIFEST_COLUMNS,
+    SPLITS,
+    CatalogueCamera,
+    MazeCamera,
+    PlanConfig,
+    make_plan,
+)
 from pipeline.world.render_runner import render_all
 from pipeline.world.renderer_env import RendererUnavailable, backend_problem
 
@@ -46,19 +52,39 @@ def plan_config(cfg: RenderConfig) -> PlanConfig:
         raise ConfigError(f"config key 'categories': repeats a category: {cfg.categories}")
     out = Path(cfg.out_dir)
     if not out.resolve().parent.is_dir():
-        raise ConfigError(f"config key 'out_dir': the parent folder of {str(out)!r} does not exist "
-                          f"({out.resolve().parent}); create it or choose another out_dir")
+        raise ConfigError(
+            f"config key 'out_dir': the parent folder of {str(out)!r} does not exist "
+            f"({out.resolve().parent}); create it or choose another out_dir"
+        )
     fig = Path(cfg.figures_dir)
     inside_out = fig.resolve().is_relative_to(out.resolve())
     if cfg.contact_sheets and not inside_out and not fig.resolve().parent.is_dir():
-        raise ConfigError(f"config key 'figures_dir': the parent folder of {str(fig)!r} does not exist")
+        raise ConfigError(
+            f"config key 'figures_dir': the parent folder of {str(fig)!r} does not exist"
+        )
     for key in ("elevation", "turn"):
         if len(getattr(cfg.catalogue, key)) != 2:
-            raise ConfigError(f"config key 'catalogue.{key}': give [low, high]; got {getattr(cfg.catalogue, key)}")
+            raise ConfigError(
+                f"config key 'catalogue.{key}': give [low, high]; got {getattr(cfg.catalogue, key)}"
+            )
     mz = MazeCamera(**asdict(cfg.maze))
-    cc = CatalogueCamera(cfg.catalogue.fovy, tuple(cfg.catalogue.elevation), tuple(cfg.catalogue.turn), cfg.catalogue.fill)
-    return PlanConfig(cfg.seed, tuple(cfg.categories), cfg.n_train_classes, cfg.n_val_classes,
-                      cfg.per_class, cfg.views_per_instance, cfg.support_per_category, mz, cc)
+    cc = CatalogueCamera(
+        cfg.catalogue.fovy,
+        tuple(cfg.catalogue.elevation),
+        tuple(cfg.catalogue.turn),
+        cfg.catalogue.fill,
+    )
+    return PlanConfig(
+        cfg.seed,
+        tuple(cfg.categories),
+        cfg.n_train_classes,
+        cfg.n_val_classes,
+        cfg.per_class,
+        cfg.views_per_instance,
+        cfg.support_per_category,
+        mz,
+        cc,
+    )
 
 
 def manifest_bytes(rows: list[dict]) -> bytes:
@@ -69,7 +95,9 @@ def manifest_bytes(rows: list[dict]) -> bytes:
     return buf.getvalue().encode()
 
 
-def write_contact_sheets(rows: list[dict], out: Path, figures: Path, tile: int, n_classes: int, per_class: int) -> list[Path]:
+def write_contact_sheets(
+    rows: list[dict], out: Path, figures: Path, tile: int, n_classes: int, per_class: int
+) -> list[Path]:
     written = []
     q = [r for r in rows if r["split"] == "query"]
     sheet_rows = []
@@ -80,8 +108,10 @@ def write_contact_sheets(rows: list[dict], out: Path, figures: Path, tile: int, 
         save_png_atomic(contact_sheet(sheet_rows, tile), figures / "contact_query.png")
         written.append(figures / "contact_query.png")
     s = [r for r in rows if r["split"] == "support"]
-    sheet_rows = [(CATEGORIES[c], [out / r["file"] for r in s if r["category"] == c])
-                  for c in sorted({r["category"] for r in s})]
+    sheet_rows = [
+        (CATEGORIES[c], [out / r["file"] for r in s if r["category"] == c])
+        for c in sorted({r["category"] for r in s})
+    ]
     if sheet_rows:
         save_png_atomic(contact_sheet(sheet_rows, tile), figures / "contact_support.png")
         written.append(figures / "contact_support.png")
@@ -92,9 +122,13 @@ def write_contact_sheets(rows: list[dict], out: Path, figures: Path, tile: int, 
         for c in classes:
             rs = [r for r in t if r["category"] == c]
             step = max(1, len(rs) // per_class)
-            sheet_rows.append((rs[0]["class_name"], [out / r["file"] for r in rs[::step][:per_class]]))
+            sheet_rows.append(
+                (rs[0]["class_name"], [out / r["file"] for r in rs[::step][:per_class]])
+            )
         if sheet_rows:
-            save_png_atomic(contact_sheet(sheet_rows, tile, label_width=190), figures / f"contact_{split}.png")
+            save_png_atomic(
+                contact_sheet(sheet_rows, tile, label_width=190), figures / f"contact_{split}.png"
+            )
             written.append(figures / f"contact_{split}.png")
     return written
 
@@ -116,9 +150,18 @@ def run(cfg: RenderConfig, overrides: list[str] = ()) -> dict:
     def bar(it, n):
         return tqdm(it, total=n, desc="render batches", unit="batch")
 
-    n = render_all(batches, str(out), cfg.size, cfg.workers, cfg.quality.offsamples,
-                   cfg.quality.shadow_size, cfg.maze.cell, cfg.quality.supersample,
-                   cfg.quality.studio_shadows, progress=bar)
+    n = render_all(
+        batches,
+        str(out),
+        cfg.size,
+        cfg.workers,
+        cfg.quality.offsamples,
+        cfg.quality.shadow_size,
+        cfg.maze.cell,
+        cfg.quality.supersample,
+        cfg.quality.studio_shadows,
+        progress=bar,
+    )
     missing = [r["file"] for r in rows if not (out / r["file"]).is_file()]
     if missing:
         raise RuntimeError(f"{len(missing)} pictures missing after rendering, e.g. {missing[:3]}")
@@ -126,10 +169,21 @@ def run(cfg: RenderConfig, overrides: list[str] = ()) -> dict:
     seconds = time.perf_counter() - t0
     sheets = []
     if cfg.contact_sheets:
-        sheets = write_contact_sheets(rows, out, Path(cfg.figures_dir), cfg.contact_tile,
-                                      cfg.contact_train_classes, cfg.contact_per_class)
-    figures = {"pictures": n, "seconds": round(seconds, 2), "pictures_per_second": round(n / seconds, 1),
-               "manifest": str(out / MANIFEST), "contact_sheets": [str(p) for p in sheets]}
+        sheets = write_contact_sheets(
+            rows,
+            out,
+            Path(cfg.figures_dir),
+            cfg.contact_tile,
+            cfg.contact_train_classes,
+            cfg.contact_per_class,
+        )
+    figures = {
+        "pictures": n,
+        "seconds": round(seconds, 2),
+        "pictures_per_second": round(n / seconds, 1),
+        "manifest": str(out / MANIFEST),
+        "contact_sheets": [str(p) for p in sheets],
+    }
     print(f"[render] {n} pictures in {seconds:.1f} s ({n / seconds:.1f}/s)")
     return figures
 

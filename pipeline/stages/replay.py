@@ -13,6 +13,7 @@ command: Ctrl-C or SIGTERM stop it, and so does the command's death on Linux (pa
 Both ports are checked before any work (a busy one is a config error naming its key; port 0 picks a
 free one), and a bind address off the loopback needs ``allow_remote=true``.
 """
+
 from __future__ import annotations
 
 import ctypes
@@ -58,15 +59,23 @@ def write_replay(path: Path, cfg: ReplayConfig) -> Path:
     from pipeline.records import RecordsWarning
     from pipeline.replay import ReplayError, build_replay, replay_stem
 
-    out = cfg.out or f"replays/{replay_stem(path, cfg.run, None if cfg.whole_run else cfg.episode)}.rrd"
+    out = (
+        cfg.out
+        or f"replays/{replay_stem(path, cfg.run, None if cfg.whole_run else cfg.episode)}.rrd"
+    )
     out = Path(out).resolve()
     if out.suffix != ".rrd":
         raise ConfigError(f"config key 'out': must end in .rrd, got {out}")
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", RecordsWarning)
-            rrd = build_replay(path, cfg.run, None if cfg.whole_run else cfg.episode, out=out,
-                               whole_run=cfg.whole_run)
+            rrd = build_replay(
+                path,
+                cfg.run,
+                None if cfg.whole_run else cfg.episode,
+                out=out,
+                whole_run=cfg.whole_run,
+            )
     except ReplayError as exc:
         keys = "key 'file'" if exc.key == "file" else "keys 'run'/'episode'"
         raise ConfigError(f"config {keys}: {exc}") from None
@@ -80,6 +89,7 @@ def write_replay(path: Path, cfg: ReplayConfig) -> Path:
 @dataclass(frozen=True)
 class WebAddress:
     """Where the web viewer listens (``bind``) and the address a browser opens (``host``)."""
+
     bind: str
     host: str
     web_port: int
@@ -97,8 +107,13 @@ def web_address(cfg: ReplayConfig) -> WebAddress:
     port is a :class:`ConfigError` naming its key, port 0 becomes a free port (the two differ)."""
     ip = bind_address(cfg.bind, cfg.allow_remote)
     if cfg.web_port and cfg.web_port == cfg.grpc_port:
-        raise ConfigError(f"config keys 'web_port'/'grpc_port': both are {cfg.web_port}; give two ports")
-    with _bound(ip, cfg.web_port, "web_port") as web, _bound(ip, cfg.grpc_port, "grpc_port") as grpc:
+        raise ConfigError(
+            f"config keys 'web_port'/'grpc_port': both are {cfg.web_port}; give two ports"
+        )
+    with (
+        _bound(ip, cfg.web_port, "web_port") as web,
+        _bound(ip, cfg.grpc_port, "grpc_port") as grpc,
+    ):
         ports = web.getsockname()[1], grpc.getsockname()[1]
     host = "127.0.0.1" if ip.is_unspecified else f"[{ip}]" if ip.version == 6 else str(ip)
     return WebAddress(str(ip), host, *ports)
@@ -109,14 +124,22 @@ def bind_address(bind: str, allow_remote: bool) -> ipaddress.IPv4Address | ipadd
     try:
         ip = ipaddress.ip_address("127.0.0.1" if bind == "localhost" else bind)
     except ValueError:
-        raise ConfigError(f"config key 'bind': not an IP address: {bind!r} (127.0.0.1 keeps it local)") from None
+        raise ConfigError(
+            f"config key 'bind': not an IP address: {bind!r} (127.0.0.1 keeps it local)"
+        ) from None
     if ip.is_loopback:
         return ip
     if not allow_remote:
-        raise ConfigError(f"config key 'bind': {bind} is reachable from other machines; keep 127.0.0.1, "
-                          "or add allow_remote=true to serve the recording to the network")
-    print(f"warning: bind={bind}: the viewer and the recording are served to every machine that can reach "
-          "this one, without authentication (allow_remote=true)", file=sys.stderr, flush=True)
+        raise ConfigError(
+            f"config key 'bind': {bind} is reachable from other machines; keep 127.0.0.1, "
+            "or add allow_remote=true to serve the recording to the network"
+        )
+    print(
+        f"warning: bind={bind}: the viewer and the recording are served to every machine that can reach "
+        "this one, without authentication (allow_remote=true)",
+        file=sys.stderr,
+        flush=True,
+    )
     return ip
 
 
@@ -124,22 +147,37 @@ def bind_address(bind: str, allow_remote: bool) -> ipaddress.IPv4Address | ipadd
 def _bound(ip, port: int, key: str) -> Iterator[socket.socket]:
     """A socket bound to ``(ip, port)`` (with the server's own ``SO_REUSEADDR``): the port is free;
     port 0 picks one."""
-    with socket.socket(socket.AF_INET6 if ip.version == 6 else socket.AF_INET, socket.SOCK_STREAM) as sock:
+    with socket.socket(
+        socket.AF_INET6 if ip.version == 6 else socket.AF_INET, socket.SOCK_STREAM
+    ) as sock:
         sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         try:
             sock.bind((str(ip), port))
         except OSError as exc:
             hint = f" (another viewer? {key}=0 picks a free port)" if port else ""
-            raise ConfigError(f"config key '{key}': cannot listen on {ip} port {port}: {exc.strerror}{hint}") from None
+            raise ConfigError(
+                f"config key '{key}': cannot listen on {ip} port {port}: {exc.strerror}{hint}"
+            ) from None
         yield sock
 
 
 def serve_web(rrd: str | Path, web: WebAddress) -> None:
     """Serve ``rrd`` at ``web`` until Ctrl-C, SIGTERM (through the stage's handler) or the server's
     end; the server never outlives this call."""
-    cmd = rerun_command() + ["--serve-web", "--bind", web.bind, "--web-viewer-port", str(web.web_port),
-                             "--port", str(web.grpc_port), str(rrd)]
-    env = {"RUST_LOG": "warn", **os.environ}  # Rerun's own log repeats the address without the recording
+    cmd = rerun_command() + [
+        "--serve-web",
+        "--bind",
+        web.bind,
+        "--web-viewer-port",
+        str(web.web_port),
+        "--port",
+        str(web.grpc_port),
+        str(rrd),
+    ]
+    env = {
+        "RUST_LOG": "warn",
+        **os.environ,
+    }  # Rerun's own log repeats the address without the recording
     # preexec_fn: this stage starts no threads, so the fork-unsafety it warns of does not apply
     proc = subprocess.Popen(cmd, env=env, start_new_session=True, preexec_fn=_die_with_parent)  # noqa: PLW1509
     try:
@@ -158,10 +196,14 @@ def _wait_listening(proc: subprocess.Popen, web: WebAddress) -> None:
     deadline = time.monotonic() + START_TIMEOUT
     while not all(_accepts(web.host.strip("[]"), port) for port in (web.grpc_port, web.web_port)):
         if proc.poll() is not None:
-            raise ConfigError(f"config keys 'web_port'/'grpc_port': the Rerun viewer ended at start "
-                              f"(status {proc.returncode}; its log is above)")
+            raise ConfigError(
+                f"config keys 'web_port'/'grpc_port': the Rerun viewer ended at start "
+                f"(status {proc.returncode}; its log is above)"
+            )
         if time.monotonic() > deadline:
-            raise SystemExit(f"error: the Rerun viewer did not listen on {web.host} in {START_TIMEOUT:.0f} s")
+            raise SystemExit(
+                f"error: the Rerun viewer did not listen on {web.host} in {START_TIMEOUT:.0f} s"
+            )
         time.sleep(0.1)
 
 

@@ -1,7 +1,8 @@
 """Stage ``report``: tables and figures of the paper, ours beside the paper's, from the records.
 
-    python -m pipeline report [out=reports]
+python -m pipeline report [out=reports]
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -15,15 +16,26 @@ from pipeline.stages._schema import ReportConfig
 def run(cfg: ReportConfig, overrides: list[str] = ()) -> Path:
     if Path(cfg.out).resolve() == Path.cwd().resolve():
         raise ConfigError("config key 'out': must not be the working folder (it is rebuilt)")
-    inputs = Inputs(Path(cfg.runs_dir), Path(cfg.accuracy_dir), Path(cfg.model_metrics), Path(cfg.contact_dir),
-                    Path(cfg.out), experiments_dir=Path(CONF_DIR) / "experiment", allow_missing=cfg.allow_missing,
-                    beside={"Prototypical Network": (Path(cfg.protonet_accuracy_dir), Path(cfg.protonet_metrics))})
+    inputs = Inputs(
+        Path(cfg.runs_dir),
+        Path(cfg.accuracy_dir),
+        Path(cfg.model_metrics),
+        Path(cfg.contact_dir),
+        Path(cfg.out),
+        experiments_dir=Path(CONF_DIR) / "experiment",
+        allow_missing=cfg.allow_missing,
+        beside={
+            "Prototypical Network": (Path(cfg.protonet_accuracy_dir), Path(cfg.protonet_metrics))
+        },
+    )
     try:
         index = build_report(inputs)
     except FileNotFoundError as exc:
         raise ConfigError(f"config key 'runs_dir': {exc}") from None
     except OSError as exc:
-        raise ConfigError(f"config key 'out': cannot write the report into {cfg.out} ({exc.strerror})") from None
+        raise ConfigError(
+            f"config key 'out': cannot write the report into {cfg.out} ({exc.strerror})"
+        ) from None
     return index
 
 

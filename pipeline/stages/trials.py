@@ -10,6 +10,7 @@ results is refused unless ``overwrite=true`` is given or ``dvc.yaml`` declares i
 removes a stage's outs before it runs it, and keeps them in its cache). Everything is built in
 ``<out>/.staging-<pid>/`` and moved in only when complete.
 """
+
 from __future__ import annotations
 
 import copy
@@ -17,9 +18,10 @@ import json
 import os
 import shutil
 import time
+from collections.abc import Iterator
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any
 
 import numba
 import yaml
@@ -87,21 +89,32 @@ def experiment_cells(cfg: TrialsConfig, overrides: list[str]) -> dict[str, Trial
     given = parse_overrides(overrides)
     methods = sorted({c.method for c in declared.values()})
     if "method" in given:
-        raise ConfigError(f"config key 'method': experiment {exp.name} chooses the method of each cell "
-                          f"({', '.join(methods)}), so the override cannot apply; override a method field instead (method.alpha=...), "
-                          f"or run method={given['method']} without +experiment")
-    method_over = {k.removeprefix("method."): v for k, v in given.items() if k.startswith("method.")}
+        raise ConfigError(
+            f"config key 'method': experiment {exp.name} chooses the method of each cell "
+            f"({', '.join(methods)}), so the override cannot apply; override a method field instead (method.alpha=...), "
+            f"or run method={given['method']} without +experiment"
+        )
+    method_over = {
+        k.removeprefix("method."): v for k, v in given.items() if k.startswith("method.")
+    }
     for key in [*CELL_KEYS, *method_over]:
         if key not in given and f"method.{key}" not in given:
             continue
-        pinned = [n for n, c in declared.items()
-                  if (getattr(c, key) is not None if key in CELL_KEYS else key in c.params)]
+        pinned = [
+            n
+            for n, c in declared.items()
+            if (getattr(c, key) is not None if key in CELL_KEYS else key in c.params)
+        ]
         if len(pinned) == len(declared):
             full = key if key in CELL_KEYS else f"method.{key}"
-            raise ConfigError(f"config key '{full}': every cell of experiment {exp.name} pins it "
-                              f"(experiment.cells.*.{key if key in CELL_KEYS else 'params.' + key}); "
-                              "the override cannot apply")
-    loaded: dict[str, MethodSpec] = {}  # one load per (method, fields): 2,100 generated cells share seven
+            raise ConfigError(
+                f"config key '{full}': every cell of experiment {exp.name} pins it "
+                f"(experiment.cells.*.{key if key in CELL_KEYS else 'params.' + key}); "
+                "the override cannot apply"
+            )
+    loaded: dict[
+        str, MethodSpec
+    ] = {}  # one load per (method, fields): 2,100 generated cells share seven
 
     def method_of(name: str, cell) -> MethodSpec:
         fields = {**method_over, **cell.params}
@@ -118,12 +131,29 @@ def experiment_cells(cfg: TrialsConfig, overrides: list[str]) -> dict[str, Trial
         if group and group not in groups:
             groups[group] = recogniser_group(group, f"experiment.cells.{name}.recogniser_group")
         base = groups[group] if group else cfg.recogniser
-        cells[name] = replace(cfg, method=methods[name], recogniser={**base, **cell.recogniser},
-                              **{k: getattr(cell, k) if getattr(cell, k) is not None
-                                 else getattr(cfg, k) for k in CELL_KEYS})
-        shape = json.dumps([cell.method, cell.params, cell.recogniser, cell.recogniser_group, cell.substitution,
-                            cell.support], default=str)
-        if shape not in checked:  # the ranges of a config that differs from one checked only by its maze
+        cells[name] = replace(
+            cfg,
+            method=methods[name],
+            recogniser={**base, **cell.recogniser},
+            **{
+                k: getattr(cell, k) if getattr(cell, k) is not None else getattr(cfg, k)
+                for k in CELL_KEYS
+            },
+        )
+        shape = json.dumps(
+            [
+                cell.method,
+                cell.params,
+                cell.recogniser,
+                cell.recogniser_group,
+                cell.substitution,
+                cell.support,
+            ],
+            default=str,
+        )
+        if (
+            shape not in checked
+        ):  # the ranges of a config that differs from one checked only by its maze
             check(cells[name])
             checked.add(shape)
     problems = exp.report.problems(declared) if exp.report is not None else []
@@ -143,8 +173,9 @@ def recogniser_group(name: str, key: str) -> dict[str, Any]:
     return OmegaConf.to_container(OmegaConf.load(path), resolve=True)
 
 
-def refuse_idle_recogniser_pins(exp: Experiment, declared: dict, methods: dict[str, MethodSpec],
-                                given: dict[str, Any]) -> None:
+def refuse_idle_recogniser_pins(
+    exp: Experiment, declared: dict, methods: dict[str, MethodSpec], given: dict[str, Any]
+) -> None:
     """Recogniser arguments would change nothing where no recogniser runs: a cell that pins them
     (or its own recogniser group) for a method that sees no pictures is refused, and so is a
     command-line ``recogniser=<name>`` or ``recogniser.<arg>`` that no cell with a recogniser takes
@@ -152,25 +183,40 @@ def refuse_idle_recogniser_pins(exp: Experiment, declared: dict, methods: dict[s
     for name, cell in declared.items():
         for field_name in ("recogniser", "recogniser_group"):
             if getattr(cell, field_name) and not methods[name].uses_recogniser:
-                raise ConfigError(f"config key 'experiment.cells.{name}.{field_name}': method {methods[name].name} "
-                                  "recognises no pictures, so the recogniser's arguments cannot apply")
+                raise ConfigError(
+                    f"config key 'experiment.cells.{name}.{field_name}': method {methods[name].name} "
+                    "recognises no pictures, so the recogniser's arguments cannot apply"
+                )
     seeing = [name for name in declared if methods[name].uses_recogniser]
     for key in given:
         if key != "recogniser" and not key.startswith("recogniser."):
             continue
         arg = key.removeprefix("recogniser").removeprefix(".")
-        if seeing and all(declared[n].recogniser_group or (arg and arg in declared[n].recogniser) for n in seeing):
-            raise ConfigError(f"config key '{key}': every cell of experiment {exp.name} with a recogniser pins it "
-                              f"(experiment.cells.*.recogniser.{arg or '<arg>'}) or runs its own "
-                              "(experiment.cells.*.recogniser_group); the override cannot apply")
+        if seeing and all(
+            declared[n].recogniser_group or (arg and arg in declared[n].recogniser) for n in seeing
+        ):
+            raise ConfigError(
+                f"config key '{key}': every cell of experiment {exp.name} with a recogniser pins it "
+                f"(experiment.cells.*.recogniser.{arg or '<arg>'}) or runs its own "
+                "(experiment.cells.*.recogniser_group); the override cannot apply"
+            )
 
 
 #: Command-line keys that only some methods read: (what uses it, test on the cell's method).
 ONLY_FOR = {
-    "recogniser": ("methods that recognise pictures (safety: fewshot)", lambda m: m.uses_recogniser),
+    "recogniser": (
+        "methods that recognise pictures (safety: fewshot)",
+        lambda m: m.uses_recogniser,
+    ),
     "support": ("methods that recognise pictures (safety: fewshot)", lambda m: m.uses_recogniser),
-    "substitution": ("methods with a dynamic support set (dynamic_support: true)", lambda m: m.dynamic_support),
-    "images_dir": ("methods that recognise pictures (safety: fewshot)", lambda m: m.uses_recogniser),
+    "substitution": (
+        "methods with a dynamic support set (dynamic_support: true)",
+        lambda m: m.dynamic_support,
+    ),
+    "images_dir": (
+        "methods that recognise pictures (safety: fewshot)",
+        lambda m: m.uses_recogniser,
+    ),
 }
 
 
@@ -182,8 +228,10 @@ def refuse_inapplicable(configs: dict[str, TrialsConfig], given: dict[str, Any])
             who, uses = ONLY_FOR[head]
             if not any(uses(c.method) for c in configs.values()):
                 names = ", ".join(sorted({c.method.name for c in configs.values()}))
-                raise ConfigError(f"config key '{key}': read only by {who}; this run has {names}: "
-                                  "the override cannot apply")
+                raise ConfigError(
+                    f"config key '{key}': read only by {who}; this run has {names}: "
+                    "the override cannot apply"
+                )
 
 
 def resolve_cells(cfg: TrialsConfig, overrides: list[str]) -> list[CellRun]:
@@ -247,7 +295,9 @@ def make_recogniser(cfg: TrialsConfig, key: str = "recogniser", built: dict | No
     if share is not None and share in built:
         return built[share]
     way = cfg.substitution if method.dynamic_support else 0
-    recogniser = build_recogniser(cfg.recogniser, substitution_way=way, carry_over=cfg.support == "carry", key=key)
+    recogniser = build_recogniser(
+        cfg.recogniser, substitution_way=way, carry_over=cfg.support == "carry", key=key
+    )
     if share is not None:
         built[share] = recogniser
     return recogniser
@@ -260,8 +310,10 @@ def pictures_dir(cfg: TrialsConfig) -> str | None:
     if not cfg.method.uses_recogniser or not (own or cfg.images_dir):
         return None
     if own and cfg.images_dir and Path(own).resolve() != Path(cfg.images_dir).resolve():
-        raise ConfigError(f"config key 'images_dir': the recogniser reads its pictures from recogniser.images_dir="
-                          f"{own}, and the records keep those; leave images_dir out")
+        raise ConfigError(
+            f"config key 'images_dir': the recogniser reads its pictures from recogniser.images_dir="
+            f"{own}, and the records keep those; leave images_dir out"
+        )
     return own or cfg.images_dir
 
 
@@ -283,7 +335,9 @@ def support_pictures(images_dir: str) -> dict[int, list[bytes]]:
     Relation Network's support set holds it (the order of :func:`pipeline.fewshot.data.load_split`)."""
     from pipeline.fewshot.data import load_split
 
-    support = load_split(images_dir, "support", 8)  # the order and categories; the pixels are read below
+    support = load_split(
+        images_dir, "support", 8
+    )  # the order and categories; the pixels are read below
     shots: dict[int, list[bytes]] = {}
     for category, file in zip(support.labels.tolist(), support.files):
         shots.setdefault(category, []).append((Path(images_dir) / file).read_bytes())
@@ -293,12 +347,15 @@ def support_pictures(images_dir: str) -> dict[int, list[bytes]]:
 def query_pictures(images_dir: str) -> dict[int, bytes]:
     """PNG bytes of the query pictures by picture id, from the render stage's manifest."""
     import pandas as pd
+
     manifest = Path(images_dir) / "manifest.csv"
     if not manifest.exists():
         return {}
     df = pd.read_csv(manifest)
     df = df[df["split"] == "query"]
-    return {int(p): (Path(images_dir) / f).read_bytes() for p, f in zip(df["picture_id"], df["file"])}
+    return {
+        int(p): (Path(images_dir) / f).read_bytes() for p, f in zip(df["picture_id"], df["file"])
+    }
 
 
 #: Recorded configs by everything but the maze (cells over generated layouts differ only there;
@@ -317,7 +374,10 @@ def recorded_config(cell: CellRun) -> dict:
     if key not in _RECORDED:
         whole = OmegaConf.to_container(OmegaConf.structured(rest), resolve=True)
         _RECORDED[key] = {k: v for k, v in whole.items() if k not in NOT_RECORDED}
-    return {k: (cell.config.maze if k == "maze" else copy.deepcopy(v)) for k, v in _RECORDED[key].items()}
+    return {
+        k: (cell.config.maze if k == "maze" else copy.deepcopy(v))
+        for k, v in _RECORDED[key].items()
+    }
 
 
 def run_cell(cell: CellRun, folder: Path, progress: bool | None = None) -> tuple[dict, float]:
@@ -329,30 +389,67 @@ def run_cell(cell: CellRun, folder: Path, progress: bool | None = None) -> tuple
     writer = None
     if cfg.record != "none":
         from pipeline.records.writer import RecordWriter
+
         geometry = build_geometry(layout)
-        placements = [make_run_world(geometry, seed, r).placement.as_records(layout.obstacles) for r in range(runs)]
+        placements = [
+            make_run_world(geometry, seed, r).placement.as_records(layout.obstacles)
+            for r in range(runs)
+        ]
         writer = RecordWriter(
             folder / "records.mcap",
-            metadata={"config": recorded_config(cell),
-                      "seeds": {"seed": seed, "runs": {r: asdict(run_seeds(seed, r)) for r in range(runs)}},
-                      "info": {"cell": name, "method": method.as_dict(), "maze": layout.name,
-                               "substitution": cfg.substitution, "support": cfg.support,
-                               "recogniser": recogniser.describe() if hasattr(recogniser, "describe") else None}},
-            maze={"layout": list(layout.rows), "name": layout.name, "categories": list(CATEGORIES),
-                  "actions": ACTION_NAMES, "moves": MOVES},
-            runs=placements, pictures=cell.pictures, support_pictures=cell.support, flush_every=cfg.flush_every,
-            steps=cfg.record == "steps")
+            metadata={
+                "config": recorded_config(cell),
+                "seeds": {
+                    "seed": seed,
+                    "runs": {r: asdict(run_seeds(seed, r)) for r in range(runs)},
+                },
+                "info": {
+                    "cell": name,
+                    "method": method.as_dict(),
+                    "maze": layout.name,
+                    "substitution": cfg.substitution,
+                    "support": cfg.support,
+                    "recogniser": recogniser.describe()
+                    if hasattr(recogniser, "describe")
+                    else None,
+                },
+            },
+            maze={
+                "layout": list(layout.rows),
+                "name": layout.name,
+                "categories": list(CATEGORIES),
+                "actions": ACTION_NAMES,
+                "moves": MOVES,
+            },
+            runs=placements,
+            pictures=cell.pictures,
+            support_pictures=cell.support,
+            flush_every=cfg.flush_every,
+            steps=cfg.record == "steps",
+        )
     t0 = time.perf_counter()
     try:
-        result = run_trials(layout, method, runs, episodes, seed, recogniser=recogniser, sink=writer,
-                            progress=cfg.progress if progress is None else progress,
-                            shared_support=cfg.support == "carry")
+        result = run_trials(
+            layout,
+            method,
+            runs,
+            episodes,
+            seed,
+            recogniser=recogniser,
+            sink=writer,
+            progress=cfg.progress if progress is None else progress,
+            shared_support=cfg.support == "carry",
+        )
     except (KeyboardInterrupt, Interrupted) as exc:
         code = exc.code if isinstance(exc, Interrupted) else 130
         if writer is None:
-            raise Interrupted(code, f"interrupted; nothing recorded (record=none); {folder} left as it was") from None
+            raise Interrupted(
+                code, f"interrupted; nothing recorded (record=none); {folder} left as it was"
+            ) from None
         path = writer.close(complete=False)
-        raise Interrupted(code, f"interrupted; partial records at {path}: {writer.n_episodes} episodes") from None
+        raise Interrupted(
+            code, f"interrupted; partial records at {path}: {writer.n_episodes} episodes"
+        ) from None
     except BaseException:
         if writer is not None:
             writer.close(complete=False)
@@ -361,9 +458,17 @@ def run_cell(cell: CellRun, folder: Path, progress: bool | None = None) -> tuple
         writer.close()
     seconds = time.perf_counter() - t0
     summary = result.summary()
-    summary.update({"cell": name, "method_spec": method.as_dict(), "substitution": cfg.substitution,
-                    "support": cfg.support})
-    write_json_atomic(folder / "summary.json", summary)  # no wall-clock figures: same seed, same bytes
+    summary.update(
+        {
+            "cell": name,
+            "method_spec": method.as_dict(),
+            "substitution": cfg.substitution,
+            "support": cfg.support,
+        }
+    )
+    write_json_atomic(
+        folder / "summary.json", summary
+    )  # no wall-clock figures: same seed, same bytes
     return summary, seconds
 
 
@@ -371,7 +476,12 @@ def memory_estimate(cfg: TrialsConfig, layout: Layout) -> int:
     """Bytes the runner's arrays take for one cell (``pipeline.rl.runner.run_trials``): per-episode
     results (22 bytes a run-episode), Q and A_d (36 bytes a run-cell-action), the step trace when
     recording steps (10 bytes x ``TRACE_CAPACITY`` steps a run) and the per-run summaries."""
-    per_run = cfg.episodes * 22 + layout.n_cells * 4 * 9 + (TRACE_CAPACITY * 10 if cfg.record == "steps" else 0) + 2048
+    per_run = (
+        cfg.episodes * 22
+        + layout.n_cells * 4 * 9
+        + (TRACE_CAPACITY * 10 if cfg.record == "steps" else 0)
+        + 2048
+    )
     return cfg.runs * per_run
 
 
@@ -388,12 +498,16 @@ def available_memory() -> int:
 
 def refuse_what_does_not_fit(cfg: TrialsConfig, cells: list[CellRun]) -> None:
     if cfg.threads > numba.config.NUMBA_NUM_THREADS:
-        raise ConfigError(f"config key 'threads': at most {numba.config.NUMBA_NUM_THREADS} on this machine; got {cfg.threads}")
+        raise ConfigError(
+            f"config key 'threads': at most {numba.config.NUMBA_NUM_THREADS} on this machine; got {cfg.threads}"
+        )
     need = max(memory_estimate(c.config, c.layout) for c in cells)
     have = available_memory()
     if need > 0.8 * have:
-        raise ConfigError(f"config keys 'runs'/'episodes': {cfg.runs} runs x {cfg.episodes} episodes need about "
-                          f"{need / 2**30:,.1f} GiB; this machine has {have / 2**30:,.1f} GiB available")
+        raise ConfigError(
+            f"config keys 'runs'/'episodes': {cfg.runs} runs x {cfg.episodes} episodes need about "
+            f"{need / 2**30:,.1f} GiB; this machine has {have / 2**30:,.1f} GiB available"
+        )
 
 
 def run(cfg: TrialsConfig, overrides: list[str]) -> dict:
@@ -417,7 +531,11 @@ def written(cfg: TrialsConfig, index: dict) -> list[Path | str]:
     """``out`` (an experiment) or its files (one cell), and the experiment's metrics and timing files."""
     out = Path(cfg.out)
     if cfg.experiment is None:
-        return [out / "summary.json", *([out / "records.mcap"] if cfg.record != "none" else []), *filter(None, [cfg.timing_file])]
+        return [
+            out / "summary.json",
+            *([out / "records.mcap"] if cfg.record != "none" else []),
+            *filter(None, [cfg.timing_file]),
+        ]
     return [out, *filter(None, [cfg.metrics_file, cfg.timing_file])]
 
 
@@ -442,8 +560,10 @@ def refuse_overwrite(cfg: TrialsConfig, out: Path) -> None:
     if not held or cfg.overwrite or out.resolve() in dvc_outs(DVC_YAML):
         return
     shown = ", ".join(held[:3]) + (", ..." if len(held) > 3 else "")
-    raise ConfigError(f"config key 'out': {out} already holds results ({shown}); give overwrite=true to "
-                      "replace them, or choose another out")
+    raise ConfigError(
+        f"config key 'out': {out} already holds results ({shown}); give overwrite=true to "
+        "replace them, or choose another out"
+    )
 
 
 #: Above this many cells an experiment's progress is a bar (or a line per tenth), not a line per cell.
@@ -453,22 +573,32 @@ COMPACT_AT = 30
 def cell_line(cfg: TrialsConfig, cell: CellRun, summary: dict, seconds: float) -> str:
     c = summary["collisions"]
     label = f"{cell.name}: " if cell.name else ""
-    return (f"{label}{cell.method.name} on {cell.layout.name}: collisions {c['mean']:.2f} +- {c['std']:.2f} over "
-            f"{cfg.runs} runs, converged runs {summary['converged_runs']} ({seconds:.1f} s)")
+    return (
+        f"{label}{cell.method.name} on {cell.layout.name}: collisions {c['mean']:.2f} +- {c['std']:.2f} over "
+        f"{cfg.runs} runs, converged runs {summary['converged_runs']} ({seconds:.1f} s)"
+    )
 
 
-def results(cfg: TrialsConfig, cells: list[CellRun], out: Path, progress: bool) -> Iterator[tuple[int, dict, float]]:
+def results(
+    cfg: TrialsConfig, cells: list[CellRun], out: Path, progress: bool
+) -> Iterator[tuple[int, dict, float]]:
     """``(index, summary, seconds)`` of every cell as it completes: one after another, or in
     ``cfg.workers`` processes (:mod:`pipeline.stages._workers`, without per-episode bars);
     ``progress``: each cell's per-episode bar."""
     folders = [out / c.name if c.name else out for c in cells]
     if cfg.workers > 1 and len(cells) > 1:
         from pipeline.stages._workers import run_parallel
+
         try:
             yield from run_parallel(cells, folders, min(cfg.workers, len(cells)), cfg.threads)
-        except (KeyboardInterrupt, Interrupted) as exc:  # the workers are stopped: say where the records are
+        except (
+            KeyboardInterrupt,
+            Interrupted,
+        ) as exc:  # the workers are stopped: say where the records are
             code = exc.code if isinstance(exc, Interrupted) else 130
-            raise Interrupted(code, f"interrupted; the finished cells' records are under {out}") from None
+            raise Interrupted(
+                code, f"interrupted; the finished cells' records are under {out}"
+            ) from None
         return
     for i, (cell, folder) in enumerate(zip(cells, folders)):
         yield i, *run_cell(cell, folder, progress)
@@ -482,8 +612,12 @@ def run_cells(cfg: TrialsConfig, cells: list[CellRun], out: Path) -> dict:
     by_index: dict[int, tuple[dict, float]] = {}
     compact = len(cells) > COMPACT_AT
     t0 = time.perf_counter()
-    bar = tqdm(total=len(cells), unit="cell", desc=cfg.experiment.name if cfg.experiment else "trials",
-               disable=None if (compact and cfg.progress) else True)
+    bar = tqdm(
+        total=len(cells),
+        unit="cell",
+        desc=cfg.experiment.name if cfg.experiment else "trials",
+        disable=None if (compact and cfg.progress) else True,
+    )
     tenth = max(1, len(cells) // 10)
     with bar:
         for i, summary, seconds in results(cfg, cells, out, cfg.progress and not compact):
@@ -491,28 +625,54 @@ def run_cells(cfg: TrialsConfig, cells: list[CellRun], out: Path) -> dict:
             if not compact:
                 print(cell_line(cfg, cells[i], summary, seconds))
             elif bar.disable and (len(by_index) % tenth == 0 or len(by_index) == len(cells)):
-                print(f"{len(by_index)}/{len(cells)} cells ({time.perf_counter() - t0:.0f} s)", flush=True)
+                print(
+                    f"{len(by_index)}/{len(cells)} cells ({time.perf_counter() - t0:.0f} s)",
+                    flush=True,
+                )
             bar.update()
     summaries = {cells[i].name: by_index[i][0] for i in range(len(cells))}
     timing = {cells[i].name: by_index[i][1] for i in range(len(cells))}
     if compact:
         steps = sum(r["steps"] for s in summaries.values() for r in s["runs"])
         wall = time.perf_counter() - t0
-        print(f"{len(cells)} cells x {cfg.runs} runs x {cfg.episodes} episodes: {steps:,} agent steps in {wall:.1f} s "
-              f"({steps / max(wall, 1e-9):,.0f} steps/s, {cfg.workers} worker{'s' if cfg.workers > 1 else ''})")
+        print(
+            f"{len(cells)} cells x {cfg.runs} runs x {cfg.episodes} episodes: {steps:,} agent steps in {wall:.1f} s "
+            f"({steps / max(wall, 1e-9):,.0f} steps/s, {cfg.workers} worker{'s' if cfg.workers > 1 else ''})"
+        )
     if cfg.timing_file:
         write_json_atomic(cfg.timing_file, {n: round(t, 3) for n, t in timing.items()})
     if "" in summaries:
         return summaries[""]
-    index = {"experiment": cfg.experiment.name, "cells": {
-        n: {k: s[k] for k in ("method", "maze", "substitution", "support", "collisions", "converged_runs")}
-        for n, s in summaries.items()}}
+    index = {
+        "experiment": cfg.experiment.name,
+        "cells": {
+            n: {
+                k: s[k]
+                for k in (
+                    "method",
+                    "maze",
+                    "substitution",
+                    "support",
+                    "collisions",
+                    "converged_runs",
+                )
+            }
+            for n, s in summaries.items()
+        },
+    }
     write_json_atomic(out / "summary.json", index)
     if cfg.metrics_file:
-        write_json_atomic(cfg.metrics_file, {n: {"collisions_mean": s["collisions"]["mean"],
-                                                 "collisions_std": s["collisions"]["std"],
-                                                 "converged_runs": s["converged_runs"]}
-                                             for n, s in summaries.items()})
+        write_json_atomic(
+            cfg.metrics_file,
+            {
+                n: {
+                    "collisions_mean": s["collisions"]["mean"],
+                    "collisions_std": s["collisions"]["std"],
+                    "converged_runs": s["converged_runs"],
+                }
+                for n, s in summaries.items()
+            },
+        )
     return index
 
 

@@ -7,6 +7,7 @@ looking down). World axes: x east, y north, z up.
 Query pictures (paper eq. 1, ``d0 = 4``): the robot stands in the neighbouring cell on world side
 ``side`` (0 N, 1 E, 2 S, 3 W) at a constant distance and looks at the obstacle.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -37,8 +38,9 @@ def side_azimuth(side: int) -> float:
     return float((-90.0 - 90.0 * side) % 360.0)
 
 
-def robot_camera(side: int, distance: float, camera_height: float, target_height: float,
-                 fovy: float) -> CameraPose:
+def robot_camera(
+    side: int, distance: float, camera_height: float, target_height: float, fovy: float
+) -> CameraPose:
     """The robot's camera on ``side`` at horizontal ``distance``, at ``camera_height``, aimed at
     the point ``target_height`` above the obstacle's foot."""
     elevation = float(np.rad2deg(np.arctan2(target_height - camera_height, distance)))

@@ -28,6 +28,7 @@ its canonical form (``random:5x5:9:1``); the trials stage records its rows like 
 layout's. A spec that cannot be met raises :class:`~pipeline.world.maze.MazeError` naming the
 spec and the reason.
 """
+
 from __future__ import annotations
 
 import re
@@ -78,17 +79,23 @@ def parse_spec(text: str) -> LayoutSpec:
     """The :class:`LayoutSpec` of ``text``; :class:`MazeError` if malformed or impossible."""
     match = SPEC_PATTERN.fullmatch(text)
     if match is None:
-        raise MazeError(f"maze {text!r}: malformed; expected {SPEC_FORM} (whole numbers), "
-                        "e.g. random:11x11:49:7:unique")
+        raise MazeError(
+            f"maze {text!r}: malformed; expected {SPEC_FORM} (whole numbers), "
+            "e.g. random:11x11:49:7:unique"
+        )
     width, height, obstacles, seed = (int(g) for g in match.groups()[:4])
     spec = LayoutSpec(width, height, obstacles, seed, unique=match.group(5) is not None)
     if not (1 <= width <= MAX_SIDE and 1 <= height <= MAX_SIDE and width * height >= 2):
-        raise MazeError(f"maze {text!r}: a {width}x{height} grid; width and height must be 1 to "
-                        f"{MAX_SIDE} with at least 2 cells (start and goal)")
+        raise MazeError(
+            f"maze {text!r}: a {width}x{height} grid; width and height must be 1 to "
+            f"{MAX_SIDE} with at least 2 cells (start and goal)"
+        )
     if obstacles > spec.max_obstacles:
-        raise MazeError(f"maze {text!r}: too many obstacles for the grid: a {width}x{height} grid holds at "
-                        f"most {spec.max_obstacles} with a path from start to goal ({width + height - 1} "
-                        f"free cells); got {obstacles}")
+        raise MazeError(
+            f"maze {text!r}: too many obstacles for the grid: a {width}x{height} grid holds at "
+            f"most {spec.max_obstacles} with a path from start to goal ({width + height - 1} "
+            f"free cells); got {obstacles}"
+        )
     return spec
 
 
@@ -166,7 +173,7 @@ def lined_path(spec: LayoutSpec, rng: np.random.Generator) -> np.ndarray | None:
     if blocked.sum() > spec.obstacles:
         return None
     rest = order[~blocked[order]]
-    blocked[rest[:spec.obstacles - int(blocked.sum())]] = True
+    blocked[rest[: spec.obstacles - int(blocked.sum())]] = True
     return blocked
 
 
@@ -174,18 +181,24 @@ def rows_of(blocked: np.ndarray, width: int, height: int) -> tuple[str, ...]:
     """The text rows of an obstacle mask, ``S`` top-left and ``G`` bottom-right."""
     chars = np.where(blocked, "X", ".").astype("<U1")
     chars[0], chars[-1] = "S", "G"
-    return tuple("".join(chars[r * width:(r + 1) * width]) for r in range(height))
+    return tuple("".join(chars[r * width : (r + 1) * width]) for r in range(height))
 
 
 def generate(spec: LayoutSpec) -> Layout:
     """The layout of ``spec`` (module docstring), checked by the layout parser like a file."""
-    rng = np.random.default_rng([spec.seed, spec.width, spec.height, spec.obstacles, int(spec.unique)])
+    rng = np.random.default_rng(
+        [spec.seed, spec.width, spec.height, spec.obstacles, int(spec.unique)]
+    )
     if spec.unique:
-        blocked = next((b for _ in range(UNIQUE_DRAWS) if (b := lined_path(spec, rng)) is not None), None)
+        blocked = next(
+            (b for _ in range(UNIQUE_DRAWS) if (b := lined_path(spec, rng)) is not None), None
+        )
         if blocked is None:
-            raise MazeError(f"maze {spec.name!r}: no layout with a unique shortest path found in {UNIQUE_DRAWS} "
-                            f"draws: closing the other shortest paths took more than {spec.obstacles} obstacles "
-                            "each time; give more obstacles")
+            raise MazeError(
+                f"maze {spec.name!r}: no layout with a unique shortest path found in {UNIQUE_DRAWS} "
+                f"draws: closing the other shortest paths took more than {spec.obstacles} obstacles "
+                "each time; give more obstacles"
+            )
     else:
         blocked = scatter(spec, rng)
     text = "\n".join(rows_of(blocked, spec.width, spec.height))

@@ -2,6 +2,7 @@
 
 Everything here depends on the layout only, not on which obstacle stands where.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass

@@ -14,6 +14,7 @@ expands the recorded sets into the experiment's declared cells (the records keep
 2,100 cells). A set that cannot be met raises :class:`LayoutSetError` with the key that is wrong
 (relative to the set: ``size``, ``obstacles``, ``count``) and the reason.
 """
+
 from __future__ import annotations
 
 import re
@@ -44,7 +45,9 @@ class GeneratedCell:
     maze: str
 
 
-def layout_mazes(size: str, obstacles: int, count: int, seed: int = 0, unique: bool = True) -> list[str]:
+def layout_mazes(
+    size: str, obstacles: int, count: int, seed: int = 0, unique: bool = True
+) -> list[str]:
     """The maze specs of one set, in order: ``random:<size>:<obstacles>:<seed + k>[:unique]``."""
     match = SIZE.fullmatch(str(size))
     if match is None:
@@ -74,12 +77,17 @@ def expand(sets: list[dict], templates: list[str]) -> dict[str, GeneratedCell]:
     sizes: dict[str, int] = {}
     for i, s in enumerate(sets):
         try:
-            mazes = layout_mazes(s["size"], s["obstacles"], s["count"], s.get("seed", 0), s.get("unique", True))
+            mazes = layout_mazes(
+                s["size"], s["obstacles"], s["count"], s.get("seed", 0), s.get("unique", True)
+            )
         except LayoutSetError as exc:
             raise LayoutSetError(f"{i}.{exc.key}", str(exc)) from None
         if s["size"] in sizes:
-            raise LayoutSetError(f"{i}.size", f"size {s['size']} is already set {sizes[s['size']]}: one set per size "
-                                              "(cell names carry the size), raise its count instead")
+            raise LayoutSetError(
+                f"{i}.size",
+                f"size {s['size']} is already set {sizes[s['size']]}: one set per size "
+                "(cell names carry the size), raise its count instead",
+            )
         sizes[s["size"]] = i
         for k, maze in enumerate(mazes):
             for t in templates:

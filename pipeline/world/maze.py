@@ -5,6 +5,7 @@ generated layout instead of a file (:mod:`pipeline.world.generate`). Blank lines
 the file and trailing whitespace are ignored; ``#`` starts a comment line. Cells are numbered
 ``row * width + col``; actions are 0 N, 1 E, 2 S, 3 W, one cell a step.
 """
+
 from __future__ import annotations
 
 from collections import deque
@@ -73,7 +74,9 @@ class Layout:
 
     @property
     def name(self) -> str:
-        return Path(self.source).stem if self.source != "<string>" else f"{self.height}x{self.width}"
+        return (
+            Path(self.source).stem if self.source != "<string>" else f"{self.height}x{self.width}"
+        )
 
     def is_obstacle(self) -> np.ndarray:
         """Boolean mask over cells."""
@@ -126,7 +129,9 @@ def bfs_distances(blocked: np.ndarray, h: int, w: int, source: int) -> np.ndarra
 
 def shortest_path_length(layout: Layout) -> int | None:
     """Breadth-first search from start to goal around obstacles; None if the goal is unreachable."""
-    n = int(bfs_distances(layout.is_obstacle(), layout.height, layout.width, layout.start)[layout.goal])
+    n = int(
+        bfs_distances(layout.is_obstacle(), layout.height, layout.width, layout.start)[layout.goal]
+    )
     return None if n < 0 else n
 
 
@@ -178,22 +183,31 @@ def parse_layout(text: str, source: str = "<string>") -> Layout:
             raise MazeError(f"{source}:{number}: blank line inside the layout")
         if len(row) != width:
             raise MazeError(
-                f"{source}:{number}: ragged row: {len(row)} cells where line {line_numbers[0]} has {width}")
+                f"{source}:{number}: ragged row: {len(row)} cells where line {line_numbers[0]} has {width}"
+            )
         if not set(row) <= LAYOUT_CHARS:
-            col, ch = next((col, ch) for col, ch in enumerate(row, start=1) if ch not in LAYOUT_CHARS)
+            col, ch = next(
+                (col, ch) for col, ch in enumerate(row, start=1) if ch not in LAYOUT_CHARS
+            )
             raise MazeError(f"{source}:{number}:{col}: unknown character {ch!r} (allowed: S G X .)")
         for ch in counts:
             if ch in row:
-                counts[ch] += [f"line {number} column {col}" for col, x in enumerate(row, start=1) if x == ch]
+                counts[ch] += [
+                    f"line {number} column {col}" for col, x in enumerate(row, start=1) if x == ch
+                ]
     for ch, what in (("S", "start"), ("G", "goal")):
         if not counts[ch]:
             raise MazeError(f"{source}: no {what} cell {ch!r}")
         if len(counts[ch]) > 1:
-            raise MazeError(f"{source}: {len(counts[ch])} {what} cells {ch!r} (at {', '.join(counts[ch])}); exactly one allowed")
+            raise MazeError(
+                f"{source}: {len(counts[ch])} {what} cells {ch!r} (at {', '.join(counts[ch])}); exactly one allowed"
+            )
     layout = Layout(rows=tuple(rows), source=source)
     if shortest_path_length(layout) is None:
         r, c = layout.cell(layout.goal)
-        raise MazeError(f"{source}:{line_numbers[r]}:{c + 1}: the goal is unreachable from the start")
+        raise MazeError(
+            f"{source}:{line_numbers[r]}:{c + 1}: the goal is unreachable from the start"
+        )
     return layout
 
 
@@ -210,15 +224,19 @@ def load_layout(spec: str | Path) -> Layout:
         builtin = BUILTIN_DIR / f"{spec}.txt"
         if not builtin.exists():
             names = sorted(p.stem for p in BUILTIN_DIR.glob("*.txt"))
-            raise MazeError(f"maze {str(spec)!r}: neither a file nor a built-in maze ({', '.join(names)})")
+            raise MazeError(
+                f"maze {str(spec)!r}: neither a file nor a built-in maze ({', '.join(names)})"
+            )
         path = builtin
     if not path.exists():
         raise MazeError(f"{path}: maze file not found")
     if not path.is_file():
         raise MazeError(f"{path}: a folder, not a layout file")
     if path.stat().st_size > MAX_LAYOUT_BYTES:
-        raise MazeError(f"{path}: {path.stat().st_size:,} bytes; layouts up to {MAX_LAYOUT_BYTES:,} bytes "
-                        "(about 2000 x 2000 cells) are accepted")
+        raise MazeError(
+            f"{path}: {path.stat().st_size:,} bytes; layouts up to {MAX_LAYOUT_BYTES:,} bytes "
+            "(about 2000 x 2000 cells) are accepted"
+        )
     try:
         text = path.read_text(encoding="utf-8")
     except UnicodeDecodeError as exc:

@@ -22,6 +22,7 @@ instances). No two families share a *signature* (allowed tier kinds, leg style, 
 The grammar never uses the obstacle builders of ``obstacle_models.py``, so none of the five
 query categories (chair, kettle, carton, basin, basket) is a meta-training class.
 """
+
 from __future__ import annotations
 
 import colorsys
@@ -30,20 +31,34 @@ from dataclasses import dataclass
 import numpy as np
 
 from pipeline.world.obstacle_models import hsv
-from pipeline.world.shapes import ObjectModel, Part, frustum, quat_from_axis_angle, rod, tube_arc, vessel
+from pipeline.world.shapes import (
+    ObjectModel,
+    Part,
+    frustum,
+    quat_from_axis_angle,
+    rod,
+    tube_arc,
+    vessel,
+)
 
 TIER_KINDS = ("box", "cylinder", "sphere", "ellipsoid", "capsule", "cone", "torus", "bowl", "disc")
 FINISH_CHOICES = ("matte", "plastic", "metal", "speckle", "stripes", "weave")
 FINISH_WEIGHTS = (0.3, 0.3, 0.15, 0.1, 0.1, 0.05)
 LEG_STYLES = ("none", "pedestal", "ring")
-SCALE = (0.8, 1.25)        # an instance's overall scale
-PROPORTION = (0.65, 1.5)   # an instance's factor on every width and height
-OPTIONAL_TIER_P = 0.4      # an optional tier is left out of this share of instances
-SECOND_KIND_P = 0.55       # share of a family's tiers that allow a second part kind
-ALTERNATIVES = {           # a tier's second kind, if it has one: a part of similar bulk
-    "box": ("cylinder", "disc"), "cylinder": ("box", "capsule", "cone"), "sphere": ("ellipsoid",),
-    "ellipsoid": ("sphere", "capsule"), "capsule": ("cylinder", "ellipsoid"), "cone": ("cylinder", "bowl"),
-    "torus": ("disc",), "bowl": ("cone", "sphere"), "disc": ("torus", "box"),
+SCALE = (0.8, 1.25)  # an instance's overall scale
+PROPORTION = (0.65, 1.5)  # an instance's factor on every width and height
+OPTIONAL_TIER_P = 0.4  # an optional tier is left out of this share of instances
+SECOND_KIND_P = 0.55  # share of a family's tiers that allow a second part kind
+ALTERNATIVES = {  # a tier's second kind, if it has one: a part of similar bulk
+    "box": ("cylinder", "disc"),
+    "cylinder": ("box", "capsule", "cone"),
+    "sphere": ("ellipsoid",),
+    "ellipsoid": ("sphere", "capsule"),
+    "capsule": ("cylinder", "ellipsoid"),
+    "cone": ("cylinder", "bowl"),
+    "torus": ("disc",),
+    "bowl": ("cone", "sphere"),
+    "disc": ("torus", "box"),
 }
 
 
@@ -52,9 +67,9 @@ class TierSpec:
     """One tier of a family: the part kinds it may take and its typical size."""
 
     kinds: tuple[str, ...]
-    width: float    # typical half-width (radius) in metres
-    height: float   # typical full height in metres (spheres: 2 x width; tori: tube diameter)
-    taper: float    # top/bottom radius ratio (cones), depth ratio (boxes)
+    width: float  # typical half-width (radius) in metres
+    height: float  # typical full height in metres (spheres: 2 x width; tori: tube diameter)
+    taper: float  # top/bottom radius ratio (cones), depth ratio (boxes)
     optional: bool  # some instances leave it out (never every tier of an instance)
 
 
@@ -64,7 +79,7 @@ class Family:
 
     name: str
     tiers: tuple[TierSpec, ...]
-    leg_style: str               # LEG_STYLES
+    leg_style: str  # LEG_STYLES
     leg_counts: tuple[int, ...]  # ring: the counts an instance may have
     leg_height: float
     leg_spread: float
@@ -75,7 +90,12 @@ class Family:
     n_colours: int
 
     def signature(self) -> tuple:
-        return (tuple(t.kinds for t in self.tiers), self.leg_style, self.arm_counts != (0,), self.handle)
+        return (
+            tuple(t.kinds for t in self.tiers),
+            self.leg_style,
+            self.arm_counts != (0,),
+            self.handle,
+        )
 
 
 def _tier_size(rng: np.random.Generator, kind: str) -> tuple[float, float]:
@@ -92,7 +112,9 @@ def _tier_size(rng: np.random.Generator, kind: str) -> tuple[float, float]:
 def _tier_spec(rng: np.random.Generator, optional: bool) -> TierSpec:
     first = str(rng.choice(TIER_KINDS))
     kinds = (first,)
-    if rng.random() < SECOND_KIND_P:  # a second kind of similar bulk: round <-> square, cone <-> cylinder ...
+    if (
+        rng.random() < SECOND_KIND_P
+    ):  # a second kind of similar bulk: round <-> square, cone <-> cylinder ...
         second = str(rng.choice(ALTERNATIVES[first]))
         kinds = tuple(sorted((first, second)))
     width, height = _tier_size(rng, first)
@@ -102,21 +124,40 @@ def _tier_spec(rng: np.random.Generator, optional: bool) -> TierSpec:
 
 def make_family(rng: np.random.Generator, index: int) -> Family:
     n_tiers = int(rng.choice([1, 2, 3, 4], p=[0.2, 0.35, 0.3, 0.15]))
-    tiers = tuple(_tier_spec(rng, optional=n_tiers > 1 and k > 0 and rng.random() < 0.3) for k in range(n_tiers))
+    tiers = tuple(
+        _tier_spec(rng, optional=n_tiers > 1 and k > 0 and rng.random() < 0.3)
+        for k in range(n_tiers)
+    )
     leg_style = str(rng.choice(LEG_STYLES, p=[0.5, 0.15, 0.35]))
     low = int(rng.integers(3, 6))
-    leg_counts = {"none": (0,), "pedestal": (1,), "ring": tuple(range(low, low + int(rng.integers(1, 3))))}[leg_style]
+    leg_counts = {
+        "none": (0,),
+        "pedestal": (1,),
+        "ring": tuple(range(low, low + int(rng.integers(1, 3)))),
+    }[leg_style]
     arm_counts = (0,)
     if rng.random() < 0.35:
         low = int(rng.integers(2, 6))
         arm_counts = tuple(range(low, low + int(rng.integers(1, 4))))
     handle = bool(rng.random() < 0.15)
     kinds = "-".join("|".join(t.kinds) + ("?" if t.optional else "") for t in tiers)
-    extra = {"none": "", "pedestal": "+pedestal", "ring": "+legs"}[leg_style] + ("+arms" if arm_counts != (0,) else "")
+    extra = {"none": "", "pedestal": "+pedestal", "ring": "+legs"}[leg_style] + (
+        "+arms" if arm_counts != (0,) else ""
+    )
     extra += "+handle" if handle else ""
-    return Family(f"f{index:03d}_{kinds}{extra}", tiers, leg_style, leg_counts, float(rng.uniform(0.1, 0.45)),
-                  float(rng.uniform(0.4, 1.0)), arm_counts, float(rng.uniform(0.08, 0.25)),
-                  int(rng.integers(0, n_tiers)), handle, int(rng.integers(2, 4)))
+    return Family(
+        f"f{index:03d}_{kinds}{extra}",
+        tiers,
+        leg_style,
+        leg_counts,
+        float(rng.uniform(0.1, 0.45)),
+        float(rng.uniform(0.4, 1.0)),
+        arm_counts,
+        float(rng.uniform(0.08, 0.25)),
+        int(rng.integers(0, n_tiers)),
+        handle,
+        int(rng.integers(2, 4)),
+    )
 
 
 def make_families(n: int, seed: int) -> list[Family]:
@@ -139,30 +180,54 @@ def make_families(n: int, seed: int) -> list[Family]:
     return out
 
 
-def _tier_part(kind: str, w: float, h: float, taper: float, z: float, slot: int, finish: str) -> tuple[Part, float]:
+def _tier_part(
+    kind: str, w: float, h: float, taper: float, z: float, slot: int, finish: str
+) -> tuple[Part, float]:
     """The part of one tier of kind ``kind`` (half-width ``w``, height ``h``) standing at height ``z``."""
     if kind == "box":
-        return Part("box", (w, w * taper, h / 2), (0.0, 0.0, z + h / 2), slot=slot, finish=finish), h
+        return Part(
+            "box", (w, w * taper, h / 2), (0.0, 0.0, z + h / 2), slot=slot, finish=finish
+        ), h
     if kind == "cylinder":
         return Part("cylinder", (w, h / 2), (0.0, 0.0, z + h / 2), slot=slot, finish=finish), h
     if kind == "disc":
         h = min(h, 0.05)
-        return Part("cylinder", (w * 1.3, h / 2), (0.0, 0.0, z + h / 2), slot=slot, finish=finish), h
+        return Part(
+            "cylinder", (w * 1.3, h / 2), (0.0, 0.0, z + h / 2), slot=slot, finish=finish
+        ), h
     if kind == "sphere":
         return Part("sphere", (w,), (0.0, 0.0, z + w), slot=slot, finish=finish), 2 * w
     if kind == "ellipsoid":
-        return Part("ellipsoid", (w, w * 0.7, h / 2), (0.0, 0.0, z + h / 2), slot=slot, finish=finish), h
+        return Part(
+            "ellipsoid", (w, w * 0.7, h / 2), (0.0, 0.0, z + h / 2), slot=slot, finish=finish
+        ), h
     if kind == "capsule":
         r = min(w, h / 2) * 0.8
         half = max(h / 2 - r, 0.005)
-        return Part("capsule", (r, half), (0.0, 0.0, z + r + half), slot=slot, finish=finish), 2 * (r + half)
+        return Part("capsule", (r, half), (0.0, 0.0, z + r + half), slot=slot, finish=finish), 2 * (
+            r + half
+        )
     if kind == "cone":
-        return Part("mesh", (), (0.0, 0.0, z), slot=slot, finish=finish, mesh=frustum(w, w * taper * 0.5, h, 24)), h
+        return Part(
+            "mesh",
+            (),
+            (0.0, 0.0, z),
+            slot=slot,
+            finish=finish,
+            mesh=frustum(w, w * taper * 0.5, h, 24),
+        ), h
     if kind == "torus":
         tube = min(h, w * 0.5) / 2
         ring = tube_arc(w, tube, 0, 360, segments=32)
-        return Part("mesh", (), (0.0, 0.0, z + tube), quat_from_axis_angle((1.0, 0.0, 0.0), np.pi / 2),
-                    slot=slot, finish=finish, mesh=ring), 2 * tube
+        return Part(
+            "mesh",
+            (),
+            (0.0, 0.0, z + tube),
+            quat_from_axis_angle((1.0, 0.0, 0.0), np.pi / 2),
+            slot=slot,
+            finish=finish,
+            mesh=ring,
+        ), 2 * tube
     assert kind == "bowl"
     m = vessel([(w * 0.5, 0.0), (w * 0.9, h * 0.6), (w, h)], 0.01, 28)
     return Part("mesh", (), (0.0, 0.0, z), slot=slot, finish=finish, mesh=m), h
@@ -171,12 +236,15 @@ def _tier_part(kind: str, w: float, h: float, taper: float, z: float, slot: int,
 def _palette(rng: np.random.Generator, n: int) -> tuple[tuple[float, float, float], ...]:
     """An instance's colours: any hue; neighbouring slots apart in hue so the parts stay distinct."""
     h0 = rng.uniform(0, 1)
-    return tuple(hsv(h0 + k * rng.uniform(0.15, 0.5), rng.uniform(0.15, 0.95), rng.uniform(0.3, 0.95))
-                 for k in range(n))
+    return tuple(
+        hsv(h0 + k * rng.uniform(0.15, 0.5), rng.uniform(0.15, 0.95), rng.uniform(0.3, 0.95))
+        for k in range(n)
+    )
 
 
 def build_meta_instance(fam: Family, rng: np.random.Generator) -> ObjectModel:
     """One instance of ``fam`` (module docstring: what varies between instances)."""
+
     def vary() -> float:
         return float(rng.uniform(*PROPORTION))
 
@@ -191,8 +259,15 @@ def build_meta_instance(fam: Family, rng: np.random.Generator) -> ObjectModel:
         lh = fam.leg_height * scale * vary()
         if fam.leg_style == "pedestal":
             parts.append(rod((0, 0, 0), (0, 0, lh), 0.02 * vary(), slot=first_slot, finish="metal"))
-            parts.append(Part("cylinder", (max(top_w * 0.7 * vary(), 0.05), 0.01), (0.0, 0.0, 0.01),
-                              slot=first_slot, finish="metal"))
+            parts.append(
+                Part(
+                    "cylinder",
+                    (max(top_w * 0.7 * vary(), 0.05), 0.01),
+                    (0.0, 0.0, 0.01),
+                    slot=first_slot,
+                    finish="metal",
+                )
+            )
         else:
             n_legs = int(rng.choice(fam.leg_counts))
             spread = fam.leg_spread * top_w * vary()
@@ -200,7 +275,15 @@ def build_meta_instance(fam: Family, rng: np.random.Generator) -> ObjectModel:
             for k in range(n_legs):
                 a = 2 * np.pi * k / n_legs + np.pi / n_legs
                 x, y = spread * np.cos(a), spread * np.sin(a)
-                parts.append(rod((x * 1.15, y * 1.15, 0), (x, y, lh), 0.015 * vary(), slot=first_slot, finish=finish))
+                parts.append(
+                    rod(
+                        (x * 1.15, y * 1.15, 0),
+                        (x, y, lh),
+                        0.015 * vary(),
+                        slot=first_slot,
+                        finish=finish,
+                    )
+                )
         z = lh
     tier_z = []
     for k, (t, here) in enumerate(zip(fam.tiers, present)):
@@ -211,7 +294,9 @@ def build_meta_instance(fam: Family, rng: np.random.Generator) -> ObjectModel:
         h = 2 * w if kind == "sphere" else t.height * scale * vary()
         taper = float(np.clip(t.taper * vary(), 0.15, 1.0))
         slot = (first_slot + k) % fam.n_colours
-        part, h = _tier_part(kind, w, h, taper, z, slot, str(rng.choice(FINISH_CHOICES, p=FINISH_WEIGHTS)))
+        part, h = _tier_part(
+            kind, w, h, taper, z, slot, str(rng.choice(FINISH_CHOICES, p=FINISH_WEIGHTS))
+        )
         tier_z.append((z, h, w, slot, k))
         parts.append(part)
         z += h
@@ -231,16 +316,27 @@ def build_meta_instance(fam: Family, rng: np.random.Generator) -> ObjectModel:
     if fam.handle:
         z0, h, w, slot, _ = tier_z[0]
         hr = max(h * 0.35, 0.04)
-        parts.append(Part("mesh", (), (w, 0.0, z0 + h / 2), slot=(slot + 1) % fam.n_colours,
-                          finish="plastic", mesh=tube_arc(hr, 0.012, -90, 90)))
+        parts.append(
+            Part(
+                "mesh",
+                (),
+                (w, 0.0, z0 + h / 2),
+                slot=(slot + 1) % fam.n_colours,
+                finish="plastic",
+                mesh=tube_arc(hr, 0.012, -90, 90),
+            )
+        )
     return ObjectModel(fam.name, tuple(parts), palette)
 
 
-def jitter_palette(palette: tuple[tuple[float, float, float], ...], rng: np.random.Generator
-                   ) -> tuple[tuple[float, float, float], ...]:
+def jitter_palette(
+    palette: tuple[tuple[float, float, float], ...], rng: np.random.Generator
+) -> tuple[tuple[float, float, float], ...]:
     """Per-picture colours: an instance's palette with small hue, saturation and value jitter."""
     out = []
     for rgb in palette:
         h, s, v = colorsys.rgb_to_hsv(*rgb)
-        out.append(hsv(h + rng.normal(0, 0.025), s * rng.uniform(0.8, 1.15), v * rng.uniform(0.75, 1.15)))
+        out.append(
+            hsv(h + rng.normal(0, 0.025), s * rng.uniform(0.8, 1.15), v * rng.uniform(0.75, 1.15))
+        )
     return tuple(out)

@@ -9,6 +9,7 @@ then clockwise: 1 east, 2 south, 3 west). An obstacle standing in the maze with 
 
     picture_id = category * 8 + instance * 4 + face
 """
+
 from __future__ import annotations
 
 CATEGORIES: tuple[str, ...] = ("chair", "kettle", "carton", "basin", "basket")
@@ -22,8 +23,14 @@ N_PICTURES = N_PHYSICAL_OBSTACLES * N_FACES  # 40
 
 def picture_id(category: int, instance: int, face: int) -> int:
     """Query-picture id of ``face`` of ``instance`` of ``category``."""
-    if not (0 <= category < N_CATEGORIES and 0 <= instance < INSTANCES_PER_CATEGORY and 0 <= face < N_FACES):
-        raise ValueError(f"no query picture for category={category} instance={instance} face={face}")
+    if not (
+        0 <= category < N_CATEGORIES
+        and 0 <= instance < INSTANCES_PER_CATEGORY
+        and 0 <= face < N_FACES
+    ):
+        raise ValueError(
+            f"no query picture for category={category} instance={instance} face={face}"
+        )
     return (category * INSTANCES_PER_CATEGORY + instance) * N_FACES + face
 
 

@@ -6,6 +6,7 @@ maze's obstacle cells at random, without repetition while there are enough (the 
 uses nine of the ten), and in balanced rounds of fresh permutations otherwise; each cell gets a
 random orientation (quarter turns), so the face a robot sees from a side depends on the run.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -20,8 +21,8 @@ from pipeline.world.pictures import INSTANCES_PER_CATEGORY, N_FACES, N_PHYSICAL_
 class Placement:
     """One run's obstacles. Arrays are indexed by obstacle index (order of ``layout.obstacles``)."""
 
-    physical: np.ndarray      # int16, 0..9
-    orientation: np.ndarray   # int8, quarter turns clockwise
+    physical: np.ndarray  # int16, 0..9
+    orientation: np.ndarray  # int8, quarter turns clockwise
 
     @property
     def category(self) -> np.ndarray:
@@ -33,15 +34,22 @@ class Placement:
 
     def as_records(self, obstacle_cells) -> list[dict]:
         return [
-            {"cell": int(cell), "physical": int(p), "category": int(p // INSTANCES_PER_CATEGORY),
-             "instance": int(p % INSTANCES_PER_CATEGORY), "orientation": int(r)}
+            {
+                "cell": int(cell),
+                "physical": int(p),
+                "category": int(p // INSTANCES_PER_CATEGORY),
+                "instance": int(p % INSTANCES_PER_CATEGORY),
+                "orientation": int(r),
+            }
             for cell, p, r in zip(obstacle_cells, self.physical, self.orientation)
         ]
 
 
 def random_placement(n_obstacles: int, rng: np.random.Generator) -> Placement:
     rounds = -(-n_obstacles // N_PHYSICAL_OBSTACLES)
-    physical = np.concatenate([np.empty(0, np.int64)] + [rng.permutation(N_PHYSICAL_OBSTACLES) for _ in range(rounds)])[:n_obstacles]
+    physical = np.concatenate(
+        [np.empty(0, np.int64)] + [rng.permutation(N_PHYSICAL_OBSTACLES) for _ in range(rounds)]
+    )[:n_obstacles]
     orientation = rng.integers(0, N_FACES, size=n_obstacles)
     return Placement(physical.astype(np.int16), orientation.astype(np.int8))
 
@@ -55,7 +63,9 @@ def picture_table(geometry: Geometry, placement: Placement) -> np.ndarray:
     table = np.full(geometry.obstacle.shape, -1, dtype=np.int16)
     s, a = np.nonzero(geometry.obstacle >= 0)
     o = geometry.obstacle[s, a]
-    faces = np.array([face_seen(int(d), int(r)) for d, r in zip(geometry.side[s, a], placement.orientation[o])],
-                     dtype=np.int16)
+    faces = np.array(
+        [face_seen(int(d), int(r)) for d, r in zip(geometry.side[s, a], placement.orientation[o])],
+        dtype=np.int16,
+    )
     table[s, a] = placement.physical[o].astype(np.int16) * N_FACES + faces
     return table

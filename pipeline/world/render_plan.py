@@ -14,6 +14,7 @@
 Every random draw comes from a ``SeedSequence`` keyed by (seed, purpose, indices), so a picture
 does not depend on which worker renders it or in which order.
 """
+
 from __future__ import annotations
 
 import math
@@ -29,7 +30,16 @@ from pipeline.world.renderer import Background, Lighting, Shot
 from pipeline.world.scenes import BACKGROUND_MATERIALS
 from pipeline.world.shapes import ObjectModel
 
-MANIFEST_COLUMNS = ("split", "category", "class_name", "instance", "face", "orientation_deg", "picture_id", "file")
+MANIFEST_COLUMNS = (
+    "split",
+    "category",
+    "class_name",
+    "instance",
+    "face",
+    "orientation_deg",
+    "picture_id",
+    "file",
+)
 SPLITS = ("query", "support", "train", "val")
 QUERY_ORIENTATIONS_DEG = (0.0, 45.0)  # instance 1 = instance 0 turned 45 degrees clockwise
 
@@ -80,8 +90,21 @@ def _rng(*key: int) -> np.random.Generator:
 
 
 def _row(split, category, class_name, instance, face, orientation, pid, file) -> dict:
-    return dict(zip(MANIFEST_COLUMNS, (split, int(category), class_name, int(instance), int(face),
-                                       round(float(orientation), 3), int(pid), file)))
+    return dict(
+        zip(
+            MANIFEST_COLUMNS,
+            (
+                split,
+                int(category),
+                class_name,
+                int(instance),
+                int(face),
+                round(float(orientation), 3),
+                int(pid),
+                file,
+            ),
+        )
+    )
 
 
 def query_batch(cfg: PlanConfig) -> tuple[Batch, list[dict]]:
@@ -93,7 +116,9 @@ def query_batch(cfg: PlanConfig) -> tuple[Batch, list[dict]]:
         for inst in range(INSTANCES_PER_CATEGORY):
             orient = QUERY_ORIENTATIONS_DEG[inst]
             for face in range(N_FACES):
-                cam = robot_camera(face, mz.camera_distance, mz.camera_height, mz.target_height, mz.fovy)
+                cam = robot_camera(
+                    face, mz.camera_distance, mz.camera_height, mz.target_height, mz.fovy
+                )
                 pid = picture_id(c, inst, face)
                 f = f"query/{CATEGORIES[c]}/q{pid:02d}_i{inst}_f{face}.png"
                 batch.shots.append(Shot(k, -orient, objs[k].palette, cam))
@@ -114,12 +139,24 @@ def support_batch(cfg: PlanConfig) -> tuple[Batch, list[dict]]:
             r = _rng(cfg.seed, 4, c, inst)
             turn = float(r.uniform(*cc.turn)) * (1 if r.random() < 0.5 else -1)
             h, rad = obj.extent()
-            cam = CameraPose((0.0, 0.0, h * 0.45), framing_distance(h, rad, cc.fovy, cc.fill),
-                             -90.0 + float(r.uniform(-5, 5)), float(r.uniform(*cc.elevation)), cc.fovy)
+            cam = CameraPose(
+                (0.0, 0.0, h * 0.45),
+                framing_distance(h, rad, cc.fovy, cc.fill),
+                -90.0 + float(r.uniform(-5, 5)),
+                float(r.uniform(*cc.elevation)),
+                cc.fovy,
+            )
             bg = hsv(r.uniform(0, 1), r.uniform(0.0, 0.12), r.uniform(0.85, 1.0))
-            shot = Shot(len(batch.objects) - 1, turn, obj.palette, cam,
-                        Lighting((float(r.uniform(-0.3, 0.3)), 0.6, -1.0), (0.8, 0.8, 0.8), (0.5, 0.5, 0.5)),
-                        Background(bg, "bg_plain", bg, "bg_plain"))
+            shot = Shot(
+                len(batch.objects) - 1,
+                turn,
+                obj.palette,
+                cam,
+                Lighting(
+                    (float(r.uniform(-0.3, 0.3)), 0.6, -1.0), (0.8, 0.8, 0.8), (0.5, 0.5, 0.5)
+                ),
+                Background(bg, "bg_plain", bg, "bg_plain"),
+            )
             f = f"support/{CATEGORIES[c]}/s_i{inst}.png"
             batch.shots.append(shot)
             batch.files.append(f)
@@ -148,10 +185,12 @@ def meta_batch(cfg: PlanConfig, split: str, index: int, fam: Family) -> tuple[Ba
         tint = hsv(r.uniform(0, 1), r.uniform(0, 0.25), 1.0)
         amb = float(r.uniform(0.3, 0.5))
         light = Lighting(key, tuple(inten * t for t in tint), (amb, amb, amb))
-        bgr = Background(hsv(r.uniform(0, 1), r.uniform(0, 0.6), r.uniform(0.2, 0.95)),
-                         str(r.choice(BACKGROUND_MATERIALS)),
-                         hsv(r.uniform(0, 1), r.uniform(0, 0.6), r.uniform(0.2, 0.95)),
-                         str(r.choice(BACKGROUND_MATERIALS)))
+        bgr = Background(
+            hsv(r.uniform(0, 1), r.uniform(0, 0.6), r.uniform(0.2, 0.95)),
+            str(r.choice(BACKGROUND_MATERIALS)),
+            hsv(r.uniform(0, 1), r.uniform(0, 0.6), r.uniform(0.2, 0.95)),
+            str(r.choice(BACKGROUND_MATERIALS)),
+        )
         batch.shots.append(Shot(i, yaw, jitter_palette(objs[i].palette, r), cam, light, bgr))
         f = f"{split}/c{index:03d}/p{k:03d}.png"
         batch.files.append(f)
@@ -161,10 +200,18 @@ def meta_batch(cfg: PlanConfig, split: str, index: int, fam: Family) -> tuple[Ba
 
 def make_plan(cfg: PlanConfig) -> tuple[list[Batch], list[dict]]:
     """All batches and the manifest rows (in manifest order: query, support, train, val)."""
-    for key in ("n_train_classes", "n_val_classes", "per_class", "views_per_instance", "support_per_category"):
+    for key in (
+        "n_train_classes",
+        "n_val_classes",
+        "per_class",
+        "views_per_instance",
+        "support_per_category",
+    ):
         v = getattr(cfg, key)
         if not isinstance(v, (int, np.integer)) or v < (0 if key.startswith("n_") else 1):
-            raise ValueError(f"{key} must be a {'non-negative' if key.startswith('n_') else 'positive'} integer, got {v!r}")
+            raise ValueError(
+                f"{key} must be a {'non-negative' if key.startswith('n_') else 'positive'} integer, got {v!r}"
+            )
     if not cfg.categories:
         raise ValueError("categories must name at least one category")
     for c in cfg.categories:
@@ -175,8 +222,10 @@ def make_plan(cfg: PlanConfig) -> tuple[list[Batch], list[dict]]:
         batches.append(b)
         rows += r
     families = make_families(cfg.n_train_classes + cfg.n_val_classes, cfg.seed)
-    for split, lo, hi in (("train", 0, cfg.n_train_classes),
-                          ("val", cfg.n_train_classes, cfg.n_train_classes + cfg.n_val_classes)):
+    for split, lo, hi in (
+        ("train", 0, cfg.n_train_classes),
+        ("val", cfg.n_train_classes, cfg.n_train_classes + cfg.n_val_classes),
+    ):
         for idx, fam in enumerate(families[lo:hi]):
             b, r = meta_batch(cfg, split, idx, fam)
             batches.append(b)

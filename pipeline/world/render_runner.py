@@ -7,6 +7,7 @@ render leaves either a complete picture or none (plus, at worst, a ``*.tmp`` fil
 manifest names). Worker processes are spawned, not forked, so no OpenGL state is inherited;
 pixels are identical whichever worker renders a batch.
 """
+
 from __future__ import annotations
 
 import io
@@ -31,12 +32,26 @@ def png_bytes(img: np.ndarray) -> bytes:
     return buf.getvalue()
 
 
-def render_batch(batch: Batch, out_dir: str, size: int, offsamples: int = 0, shadow_size: int = 512,
-                 cell: float = 1.0, supersample: int = 2, studio_shadows: bool = False) -> int:
+def render_batch(
+    batch: Batch,
+    out_dir: str,
+    size: int,
+    offsamples: int = 0,
+    shadow_size: int = 512,
+    cell: float = 1.0,
+    supersample: int = 2,
+    studio_shadows: bool = False,
+) -> int:
     """Render every shot of ``batch`` into ``out_dir``; returns the number of pictures."""
     shadows = batch.setting != "studio" or studio_shadows
-    spec, layout = build_scene(batch.setting, batch.objects, cell=cell, shadow_size=shadow_size,
-                               offsamples=offsamples, shadows=shadows)
+    spec, layout = build_scene(
+        batch.setting,
+        batch.objects,
+        cell=cell,
+        shadow_size=shadow_size,
+        offsamples=offsamples,
+        shadows=shadows,
+    )
     root = Path(out_dir)
     with SceneRenderer(spec, layout, size, supersample) as r:
         for shot, rel in zip(batch.shots, batch.files):
@@ -48,26 +63,41 @@ def _worker_init(threads: int) -> None:
     os.environ.setdefault("LP_NUM_THREADS", str(threads))
 
 
-def render_all(batches: list[Batch], out_dir: str, size: int, workers: int = 2, offsamples: int = 0,
-               shadow_size: int = 512, cell: float = 1.0, supersample: int = 2, studio_shadows: bool = False,
-               progress: Callable[[Iterable, int], Iterable] | None = None) -> int:
+def render_all(
+    batches: list[Batch],
+    out_dir: str,
+    size: int,
+    workers: int = 2,
+    offsamples: int = 0,
+    shadow_size: int = 512,
+    cell: float = 1.0,
+    supersample: int = 2,
+    studio_shadows: bool = False,
+    progress: Callable[[Iterable, int], Iterable] | None = None,
+) -> int:
     """Render all batches (largest first, for load balance) with ``workers`` processes."""
     order = sorted(range(len(batches)), key=lambda i: -len(batches[i].shots))
     total = sum(len(b.shots) for b in batches)
-    kw = dict(offsamples=offsamples, shadow_size=shadow_size, cell=cell, supersample=supersample,
-              studio_shadows=studio_shadows)
+    kw = dict(
+        offsamples=offsamples,
+        shadow_size=shadow_size,
+        cell=cell,
+        supersample=supersample,
+        studio_shadows=studio_shadows,
+    )
     done = 0
     if workers <= 1:
         it = (render_batch(batches[i], out_dir, size, **kw) for i in order)
-        for n in (progress(it, len(order)) if progress else it):
+        for n in progress(it, len(order)) if progress else it:
             done += n
         return done
     ctx = mp.get_context("spawn")
-    with ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_worker_init,
-                             initargs=(1,)) as pool:
+    with ProcessPoolExecutor(
+        max_workers=workers, mp_context=ctx, initializer=_worker_init, initargs=(1,)
+    ) as pool:
         futs = [pool.submit(render_batch, batches[i], out_dir, size, **kw) for i in order]
         it = as_completed(futs)
-        for fut in (progress(it, len(futs)) if progress else it):
+        for fut in progress(it, len(futs)) if progress else it:
             done += fut.result()
     assert done == total
     return done

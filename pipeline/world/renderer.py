@@ -5,6 +5,7 @@ stands and how the scene is lit; :meth:`SceneRenderer.render` changes only model
 MuJoCo reads at draw time (colours, body poses, lights, materials), so no recompilation and no
 new OpenGL context per picture. Creating a renderer costs 150-700 ms; a picture about 5-30 ms.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -99,7 +100,9 @@ class SceneRenderer:
     def render(self, shot: Shot) -> np.ndarray:
         m = self.model
         if not 0 <= shot.obj < len(self._bodies):
-            raise ValueError(f"scene has {len(self._bodies)} objects, shot asks for object {shot.obj}")
+            raise ValueError(
+                f"scene has {len(self._bodies)} objects, shot asks for object {shot.obj}"
+            )
         m.geom_rgba[self._all, 3] = 0.0  # hidden: MuJoCo skips fully transparent geoms
         ids, slots = self._geoms[shot.obj], self._slots[shot.obj]
         colours = np.asarray(shot.colours, dtype=float)
@@ -127,7 +130,11 @@ class SceneRenderer:
                 m.geom_matid[self._backdrop] = self._mat(bg.backdrop_material)
             a = np.deg2rad(cam.azimuth)
             behind = 2.5 + 0.5 * cam.distance
-            m.body_pos[self._backdrop_body] = [cam.lookat[0] + behind * np.cos(a), cam.lookat[1] + behind * np.sin(a), 0.0]
+            m.body_pos[self._backdrop_body] = [
+                cam.lookat[0] + behind * np.cos(a),
+                cam.lookat[1] + behind * np.sin(a),
+                0.0,
+            ]
             m.body_quat[self._backdrop_body] = yaw_quat(cam.azimuth - 90.0)
         m.vis.global_.fovy = cam.fovy
         self._cam.lookat[:] = cam.lookat

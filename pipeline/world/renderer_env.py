@@ -3,11 +3,13 @@
 ``MUJOCO_GL`` defaults to ``egl`` (Mesa's software EGL, llvmpipe) when unset; it must be set
 before ``mujoco`` is imported, so every module of the package imports ``mujoco`` from here.
 """
+
 from __future__ import annotations
 
 import ctypes.util
 import os
 import sys
+
 from pipeline.errors import UserError
 
 # mujoco reads MUJOCO_GL once, at import: remember whether someone imported it before us unset
@@ -19,7 +21,9 @@ if os.environ["MUJOCO_GL"] in ("egl", "osmesa"):
 try:
     import mujoco  # noqa: E402
 except ImportError as exc:  # pragma: no cover - the venv always has it
-    raise ImportError("the renderer needs the Python package 'mujoco' (pip install mujoco)") from exc
+    raise ImportError(
+        "the renderer needs the Python package 'mujoco' (pip install mujoco)"
+    ) from exc
 
 _HINTS = {
     "egl": ("EGL", "apt-get install -y libegl1 libegl-mesa0 libgl1-mesa-dri"),
@@ -36,8 +40,10 @@ def backend_problem() -> str | None:
     """A description of a missing system library for the chosen ``MUJOCO_GL``, or None."""
     gl = os.environ.get("MUJOCO_GL", "")
     if gl not in _HINTS:
-        return (f"MUJOCO_GL={gl!r} is not a known offscreen backend; set MUJOCO_GL=egl "
-                f"(or osmesa) before running")
+        return (
+            f"MUJOCO_GL={gl!r} is not a known offscreen backend; set MUJOCO_GL=egl "
+            f"(or osmesa) before running"
+        )
     lib, fix = _HINTS[gl]
     if gl in ("egl", "osmesa") and ctypes.util.find_library(lib) is None:
         return f"MUJOCO_GL={gl} needs the system library lib{lib} which was not found; install it: {fix}"
@@ -58,10 +64,12 @@ def make_renderer(model, height: int, width: int):
             raise RendererUnavailable(
                 "mujoco was imported before MUJOCO_GL was set, so it chose a windowed backend "
                 f"({type(exc).__name__}: {exc}). Set MUJOCO_GL=egl in the environment (export MUJOCO_GL=egl) "
-                "or import pipeline.world.renderer_env before mujoco.") from exc
+                "or import pipeline.world.renderer_env before mujoco."
+            ) from exc
         raise RendererUnavailable(
             f"could not start MuJoCo's offscreen renderer with MUJOCO_GL={gl} ({type(exc).__name__}: {exc}). "
-            f"Install the system packages: {fix}; or try MUJOCO_GL=osmesa with libosmesa6.") from exc
+            f"Install the system packages: {fix}; or try MUJOCO_GL=osmesa with libosmesa6."
+        ) from exc
 
 
 __all__ = ["mujoco", "RendererUnavailable", "backend_problem", "make_renderer"]

@@ -13,6 +13,7 @@ A scene holds several objects at the origin; a picture shows exactly one of them
 made fully transparent, which MuJoCo skips when drawing), so one compiled model and one renderer
 serve many pictures. Materials are shared by name (:data:`FINISHES`).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -37,15 +38,26 @@ class SceneLayout:
     has_backdrop: bool
 
 
-def _texture(spec, name: str, builtin, rgb1, rgb2, size: int = 64, mark=None, markrgb=(0, 0, 0), random=0.0):
-    kw = dict(name=name, type=mujoco.mjtTexture.mjTEXTURE_2D, builtin=builtin, width=size, height=size,
-              rgb1=list(rgb1), rgb2=list(rgb2))
+def _texture(
+    spec, name: str, builtin, rgb1, rgb2, size: int = 64, mark=None, markrgb=(0, 0, 0), random=0.0
+):
+    kw = dict(
+        name=name,
+        type=mujoco.mjtTexture.mjTEXTURE_2D,
+        builtin=builtin,
+        width=size,
+        height=size,
+        rgb1=list(rgb1),
+        rgb2=list(rgb2),
+    )
     if mark is not None:
         kw.update(mark=mark, markrgb=list(markrgb), random=random)
     return spec.add_texture(**kw)
 
 
-def _material(spec, name: str, texture: str | None = None, texrepeat=(1.0, 1.0), texuniform=False, **kw):
+def _material(
+    spec, name: str, texture: str | None = None, texrepeat=(1.0, 1.0), texuniform=False, **kw
+):
     mat = spec.add_material(name=name, texrepeat=list(texrepeat), texuniform=texuniform, **kw)
     if texture is not None:
         mat.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = texture
@@ -57,12 +69,14 @@ def _weave_texture(spec) -> None:
     n = 32
     y, x = np.mgrid[0:n, 0:n]
     cell = ((x // 8) + (y // 8)) % 2
-    strand = np.where(cell == 0, np.abs(((y % 8) - 3.5)) / 3.5, np.abs(((x % 8) - 3.5)) / 3.5)
-    v = 1.0 - 0.55 * strand ** 2
-    gaps = ((x % 8 == 0) | (y % 8 == 0))
+    strand = np.where(cell == 0, np.abs((y % 8) - 3.5) / 3.5, np.abs((x % 8) - 3.5) / 3.5)
+    v = 1.0 - 0.55 * strand**2
+    gaps = (x % 8 == 0) | (y % 8 == 0)
     v = np.where(gaps, 0.35, v)
     img = np.clip(np.stack([v, v, v], axis=-1) * 255, 0, 255).astype(np.uint8)
-    tex = spec.add_texture(name="weave", type=mujoco.mjtTexture.mjTEXTURE_2D, width=n, height=n, nchannel=3)
+    tex = spec.add_texture(
+        name="weave", type=mujoco.mjtTexture.mjTEXTURE_2D, width=n, height=n, nchannel=3
+    )
     tex.data = img.tobytes()
 
 
@@ -70,18 +84,52 @@ def _add_materials(spec) -> None:
     """Object finishes (shared by every setting) and background materials."""
     B = mujoco.mjtBuiltin
     _weave_texture(spec)
-    _texture(spec, "speckle", B.mjBUILTIN_FLAT, (1, 1, 1), (1, 1, 1), 64, mujoco.mjtMark.mjMARK_RANDOM,
-             (0.75, 0.75, 0.75), 0.08)
+    _texture(
+        spec,
+        "speckle",
+        B.mjBUILTIN_FLAT,
+        (1, 1, 1),
+        (1, 1, 1),
+        64,
+        mujoco.mjtMark.mjMARK_RANDOM,
+        (0.75, 0.75, 0.75),
+        0.08,
+    )
     _texture(spec, "stripes", B.mjBUILTIN_GRADIENT, (1, 1, 1), (0.55, 0.55, 0.55), 32)
     _material(spec, "matte", specular=0.05, shininess=0.1)
     _material(spec, "plastic", specular=0.45, shininess=0.6)
     _material(spec, "metal", specular=0.9, shininess=0.9)
     _material(spec, "weave", "weave", texrepeat=(1.0, 6.0), specular=0.05, shininess=0.1)
-    _material(spec, "speckle", "speckle", texrepeat=(2.0, 2.0), texuniform=True, specular=0.05, shininess=0.1)
-    _material(spec, "stripes", "stripes", texrepeat=(4.0, 4.0), texuniform=True, specular=0.2, shininess=0.3)
+    _material(
+        spec,
+        "speckle",
+        "speckle",
+        texrepeat=(2.0, 2.0),
+        texuniform=True,
+        specular=0.05,
+        shininess=0.1,
+    )
+    _material(
+        spec,
+        "stripes",
+        "stripes",
+        texrepeat=(4.0, 4.0),
+        texuniform=True,
+        specular=0.2,
+        shininess=0.3,
+    )
     _texture(spec, "bg_checker", B.mjBUILTIN_CHECKER, (1, 1, 1), (0.6, 0.6, 0.6), 64)
-    _texture(spec, "bg_speckle", B.mjBUILTIN_FLAT, (1, 1, 1), (1, 1, 1), 128, mujoco.mjtMark.mjMARK_RANDOM,
-             (0.5, 0.5, 0.5), 0.15)
+    _texture(
+        spec,
+        "bg_speckle",
+        B.mjBUILTIN_FLAT,
+        (1, 1, 1),
+        (1, 1, 1),
+        128,
+        mujoco.mjtMark.mjMARK_RANDOM,
+        (0.5, 0.5, 0.5),
+        0.15,
+    )
     _texture(spec, "bg_stripes", B.mjBUILTIN_GRADIENT, (1, 1, 1), (0.5, 0.5, 0.5), 32)
     _material(spec, "bg_plain", specular=0.0, shininess=0.0)
     _material(spec, "bg_checker", "bg_checker", texrepeat=(2.0, 2.0), texuniform=True, specular=0.0)
@@ -91,26 +139,48 @@ def _add_materials(spec) -> None:
 
 def _add_part(spec, body, part: Part, name: str, mesh_name: str) -> None:
     G = mujoco.mjtGeom
-    kw = dict(name=name, pos=list(part.pos), quat=list(part.quat), material=part.finish,
-              rgba=[1.0, 1.0, 1.0, 1.0], contype=0, conaffinity=0, group=1)
+    kw = dict(
+        name=name,
+        pos=list(part.pos),
+        quat=list(part.quat),
+        material=part.finish,
+        rgba=[1.0, 1.0, 1.0, 1.0],
+        contype=0,
+        conaffinity=0,
+        group=1,
+    )
     if part.kind == "mesh":
         m = part.mesh
         assert m is not None
-        mesh = spec.add_mesh(name=mesh_name, uservert=m.vertices.astype(float).ravel().tolist(),
-                             userface=m.faces.astype(int).ravel().tolist())
+        mesh = spec.add_mesh(
+            name=mesh_name,
+            uservert=m.vertices.astype(float).ravel().tolist(),
+            userface=m.faces.astype(int).ravel().tolist(),
+        )
         if m.texcoords is not None:
             mesh.usertexcoord = m.texcoords.astype(float).ravel().tolist()
         mesh.inertia = mujoco.mjtMeshInertia.mjMESH_INERTIA_SHELL
         body.add_geom(type=G.mjGEOM_MESH, meshname=mesh_name, **kw)
         return
     size = list(part.size) + [0.0] * (3 - len(part.size))
-    gtype = {"box": G.mjGEOM_BOX, "cylinder": G.mjGEOM_CYLINDER, "capsule": G.mjGEOM_CAPSULE,
-             "sphere": G.mjGEOM_SPHERE, "ellipsoid": G.mjGEOM_ELLIPSOID}[part.kind]
+    gtype = {
+        "box": G.mjGEOM_BOX,
+        "cylinder": G.mjGEOM_CYLINDER,
+        "capsule": G.mjGEOM_CAPSULE,
+        "sphere": G.mjGEOM_SPHERE,
+        "ellipsoid": G.mjGEOM_ELLIPSOID,
+    }[part.kind]
     body.add_geom(type=gtype, size=size, **kw)
 
 
-def build_scene(setting: str, objects: list[ObjectModel], cell: float = 1.0, shadow_size: int = 512,
-                offsamples: int = 0, shadows: bool = True):
+def build_scene(
+    setting: str,
+    objects: list[ObjectModel],
+    cell: float = 1.0,
+    shadow_size: int = 512,
+    offsamples: int = 0,
+    shadows: bool = True,
+):
     """``(MjSpec, SceneLayout)`` of ``objects`` (all at the origin) in ``setting``; ``shadows``
     says whether the key light casts shadows (they double the drawing time on llvmpipe)."""
     if setting not in SETTINGS:
@@ -125,41 +195,124 @@ def build_scene(setting: str, objects: list[ObjectModel], cell: float = 1.0, sha
     _add_materials(spec)
     B, G = mujoco.mjtBuiltin, mujoco.mjtGeom
     wb = spec.worldbody
-    sky = {"maze": ((0.35, 0.33, 0.30), (0.12, 0.12, 0.12)), "catalogue": ((1.0, 1.0, 1.0), (0.85, 0.85, 0.88)),
-           "studio": ((0.6, 0.65, 0.7), (0.2, 0.2, 0.22))}[setting]
-    spec.add_texture(name="sky", type=mujoco.mjtTexture.mjTEXTURE_SKYBOX, builtin=B.mjBUILTIN_GRADIENT,
-                     width=64, height=64, rgb1=list(sky[0]), rgb2=list(sky[1]))
+    sky = {
+        "maze": ((0.35, 0.33, 0.30), (0.12, 0.12, 0.12)),
+        "catalogue": ((1.0, 1.0, 1.0), (0.85, 0.85, 0.88)),
+        "studio": ((0.6, 0.65, 0.7), (0.2, 0.2, 0.22)),
+    }[setting]
+    spec.add_texture(
+        name="sky",
+        type=mujoco.mjtTexture.mjTEXTURE_SKYBOX,
+        builtin=B.mjBUILTIN_GRADIENT,
+        width=64,
+        height=64,
+        rgb1=list(sky[0]),
+        rgb2=list(sky[1]),
+    )
     if setting == "maze":
-        _texture(spec, "tiles", B.mjBUILTIN_CHECKER, (0.62, 0.60, 0.55), (0.55, 0.53, 0.49), 128,
-                 mujoco.mjtMark.mjMARK_EDGE, (0.25, 0.25, 0.25))
-        _material(spec, "tiles", "tiles", texrepeat=(0.5 / cell, 0.5 / cell), texuniform=True, specular=0.1)
-        wb.add_geom(name="floor", type=G.mjGEOM_PLANE, size=[3 * cell, 3 * cell, 0.1], material="tiles",
-                    pos=[0.0, 0.0, 0.0])
+        _texture(
+            spec,
+            "tiles",
+            B.mjBUILTIN_CHECKER,
+            (0.62, 0.60, 0.55),
+            (0.55, 0.53, 0.49),
+            128,
+            mujoco.mjtMark.mjMARK_EDGE,
+            (0.25, 0.25, 0.25),
+        )
+        _material(
+            spec,
+            "tiles",
+            "tiles",
+            texrepeat=(0.5 / cell, 0.5 / cell),
+            texuniform=True,
+            specular=0.1,
+        )
+        wb.add_geom(
+            name="floor",
+            type=G.mjGEOM_PLANE,
+            size=[3 * cell, 3 * cell, 0.1],
+            material="tiles",
+            pos=[0.0, 0.0, 0.0],
+        )
         half, hw, wh = 2.5 * cell, 0.05, 0.6
         wall_rgba = [0.78, 0.80, 0.84, 1.0]
-        for k, (x, y, sx, sy) in enumerate([(0, half, half, hw), (0, -half, half, hw), (half, 0, hw, half),
-                                            (-half, 0, hw, half)]):
-            wb.add_geom(name=f"wall{k}", type=G.mjGEOM_BOX, size=[sx + hw, sy + hw, wh / 2],
-                        pos=[x, y, wh / 2], rgba=wall_rgba, material="bg_plain")
+        for k, (x, y, sx, sy) in enumerate(
+            [(0, half, half, hw), (0, -half, half, hw), (half, 0, hw, half), (-half, 0, hw, half)]
+        ):
+            wb.add_geom(
+                name=f"wall{k}",
+                type=G.mjGEOM_BOX,
+                size=[sx + hw, sy + hw, wh / 2],
+                pos=[x, y, wh / 2],
+                rgba=wall_rgba,
+                material="bg_plain",
+            )
         for k, (cx, cy) in enumerate([(-2, 1), (1, -2), (2, 2)]):  # other obstacles: dark blocks
-            wb.add_geom(name=f"block{k}", type=G.mjGEOM_BOX, size=[0.35 * cell, 0.35 * cell, 0.3],
-                        pos=[cx * cell, cy * cell, 0.3], rgba=[0.12, 0.12, 0.13, 1.0], material="bg_plain")
-        wb.add_light(name="key", type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL, pos=[0, 0, 3], dir=[-0.35, -0.25, -1],
-                     diffuse=[0.70, 0.63, 0.52], specular=[0.2, 0.2, 0.2], ambient=[0.36, 0.34, 0.32],
-                     castshadow=True)
-        wb.add_light(name="fill", type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL, pos=[0, 0, 3], dir=[0.3, 0.5, -0.7],
-                     diffuse=[0.22, 0.22, 0.25], specular=[0.0, 0.0, 0.0], castshadow=False)
+            wb.add_geom(
+                name=f"block{k}",
+                type=G.mjGEOM_BOX,
+                size=[0.35 * cell, 0.35 * cell, 0.3],
+                pos=[cx * cell, cy * cell, 0.3],
+                rgba=[0.12, 0.12, 0.13, 1.0],
+                material="bg_plain",
+            )
+        wb.add_light(
+            name="key",
+            type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL,
+            pos=[0, 0, 3],
+            dir=[-0.35, -0.25, -1],
+            diffuse=[0.70, 0.63, 0.52],
+            specular=[0.2, 0.2, 0.2],
+            ambient=[0.36, 0.34, 0.32],
+            castshadow=True,
+        )
+        wb.add_light(
+            name="fill",
+            type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL,
+            pos=[0, 0, 3],
+            dir=[0.3, 0.5, -0.7],
+            diffuse=[0.22, 0.22, 0.25],
+            specular=[0.0, 0.0, 0.0],
+            castshadow=False,
+        )
         has_backdrop = False
     else:
-        wb.add_geom(name="floor", type=G.mjGEOM_PLANE, size=[6.0, 6.0, 0.1], material="bg_plain",
-                    rgba=[0.92, 0.92, 0.92, 1.0])
+        wb.add_geom(
+            name="floor",
+            type=G.mjGEOM_PLANE,
+            size=[6.0, 6.0, 0.1],
+            material="bg_plain",
+            rgba=[0.92, 0.92, 0.92, 1.0],
+        )
         bd = wb.add_body(name="backdrop", pos=[0.0, -3.0, 0.0])
-        bd.add_geom(name="backdrop", type=G.mjGEOM_BOX, size=[6.0, 0.05, 3.0], pos=[0.0, 0.0, 3.0],
-                    material="bg_plain", rgba=[0.95, 0.95, 0.95, 1.0])
-        wb.add_light(name="key", type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL, pos=[0, 0, 4], dir=[0.3, -0.5, -1],
-                     diffuse=[0.7, 0.7, 0.7], specular=[0.3, 0.3, 0.3], ambient=[0.35, 0.35, 0.35], castshadow=True)
-        wb.add_light(name="fill", type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL, pos=[0, 0, 4], dir=[-0.4, 0.5, -0.6],
-                     diffuse=[0.3, 0.3, 0.3], specular=[0.0, 0.0, 0.0], castshadow=False)
+        bd.add_geom(
+            name="backdrop",
+            type=G.mjGEOM_BOX,
+            size=[6.0, 0.05, 3.0],
+            pos=[0.0, 0.0, 3.0],
+            material="bg_plain",
+            rgba=[0.95, 0.95, 0.95, 1.0],
+        )
+        wb.add_light(
+            name="key",
+            type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL,
+            pos=[0, 0, 4],
+            dir=[0.3, -0.5, -1],
+            diffuse=[0.7, 0.7, 0.7],
+            specular=[0.3, 0.3, 0.3],
+            ambient=[0.35, 0.35, 0.35],
+            castshadow=True,
+        )
+        wb.add_light(
+            name="fill",
+            type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL,
+            pos=[0, 0, 4],
+            dir=[-0.4, 0.5, -0.6],
+            diffuse=[0.3, 0.3, 0.3],
+            specular=[0.0, 0.0, 0.0],
+            castshadow=False,
+        )
         has_backdrop = True
     for light in spec.lights:
         light.castshadow = bool(shadows) and light.name == "key"

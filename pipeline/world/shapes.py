@@ -5,6 +5,7 @@ front, face 0 of ``pictures.py``; z up, the floor at z = 0) plus a colour palett
 palette slot and a surface finish instead of a colour, so that one shape can be repainted per
 picture without rebuilding the MuJoCo model. Pure data and numpy; no MuJoCo import here.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -80,9 +81,22 @@ class ObjectModel:
         f = float(factor)
         parts = []
         for p in self.parts:
-            mesh = None if p.mesh is None else Mesh(p.mesh.vertices * f, p.mesh.faces, p.mesh.texcoords)
-            parts.append(Part(p.kind, tuple(v * f for v in p.size), tuple(v * f for v in p.pos), p.quat,
-                              p.slot, p.finish, mesh))
+            mesh = (
+                None
+                if p.mesh is None
+                else Mesh(p.mesh.vertices * f, p.mesh.faces, p.mesh.texcoords)
+            )
+            parts.append(
+                Part(
+                    p.kind,
+                    tuple(v * f for v in p.size),
+                    tuple(v * f for v in p.pos),
+                    p.quat,
+                    p.slot,
+                    p.finish,
+                    mesh,
+                )
+            )
         return ObjectModel(self.name, tuple(parts), self.palette)
 
     def extent(self) -> tuple[float, float]:
@@ -94,7 +108,10 @@ class ObjectModel:
 
 # --------------------------------------------------------------------------- orientation helpers
 
-def quat_from_axis_angle(axis: tuple[float, float, float], angle: float) -> tuple[float, float, float, float]:
+
+def quat_from_axis_angle(
+    axis: tuple[float, float, float], angle: float
+) -> tuple[float, float, float, float]:
     a = np.asarray(axis, dtype=float)
     a = a / np.linalg.norm(a)
     h = 0.5 * angle
@@ -115,11 +132,15 @@ def quat_z_to(direction: np.ndarray) -> tuple[float, float, float, float]:
     return quat_from_axis_angle(tuple(axis), float(np.arccos(c)))
 
 
-def rod(p0, p1, radius: float, kind: str = "cylinder", slot: int = 0, finish: str = "matte") -> Part:
+def rod(
+    p0, p1, radius: float, kind: str = "cylinder", slot: int = 0, finish: str = "matte"
+) -> Part:
     """A cylinder or capsule from point ``p0`` to point ``p1``."""
     a, b = np.asarray(p0, float), np.asarray(p1, float)
     half = float(np.linalg.norm(b - a)) / 2
-    return Part(kind, (radius, half), tuple(float(v) for v in (a + b) / 2), quat_z_to(b - a), slot, finish)
+    return Part(
+        kind, (radius, half), tuple(float(v) for v in (a + b) / 2), quat_z_to(b - a), slot, finish
+    )
 
 
 def yaw_quat(deg: float) -> tuple[float, float, float, float]:
@@ -129,7 +150,10 @@ def yaw_quat(deg: float) -> tuple[float, float, float, float]:
 
 # --------------------------------------------------------------------------- mesh makers
 
-def revolve(profile: np.ndarray, sections: int = 32, u_repeat: float = 1.0, scale_y: float = 1.0) -> Mesh:
+
+def revolve(
+    profile: np.ndarray, sections: int = 32, u_repeat: float = 1.0, scale_y: float = 1.0
+) -> Mesh:
     """Surface of revolution of ``profile`` (rows ``(r, z)``, in order along the surface) about z.
 
     Open surfaces (bowls, baskets, lamp shades) are fine: MuJoCo renders both sides of a face
@@ -157,8 +181,13 @@ def revolve(profile: np.ndarray, sections: int = 32, u_repeat: float = 1.0, scal
     return Mesh(verts, np.asarray(faces, dtype=np.int64), tex)
 
 
-def vessel(radii_heights: list[tuple[float, float]], thickness: float, sections: int = 32,
-           u_repeat: float = 1.0, scale_y: float = 1.0) -> Mesh:
+def vessel(
+    radii_heights: list[tuple[float, float]],
+    thickness: float,
+    sections: int = 32,
+    u_repeat: float = 1.0,
+    scale_y: float = 1.0,
+) -> Mesh:
     """Open-topped vessel: outer wall through the given (r, z) points from the bottom centre up to
     the rim, then back down inside (offset by ``thickness``) to the inner floor."""
     outer = [(0.0, 0.0), *radii_heights]
@@ -173,16 +202,23 @@ def frustum(r_bottom: float, r_top: float, height: float, sections: int = 32) ->
     return revolve(prof, sections)
 
 
-def tube_arc(radius: float, tube: float, start_deg: float, stop_deg: float,
-             segments: int = 20, sides: int = 8) -> Mesh:
+def tube_arc(
+    radius: float,
+    tube: float,
+    start_deg: float,
+    stop_deg: float,
+    segments: int = 20,
+    sides: int = 8,
+) -> Mesh:
     """Part of a torus in the x-z plane (centre at the origin): handles and hoops."""
     t = np.deg2rad(np.linspace(start_deg, stop_deg, segments + 1))
     p = np.linspace(0, 2 * np.pi, sides + 1)[:-1]
     centre = np.stack([radius * np.cos(t), np.zeros_like(t), radius * np.sin(t)], axis=1)
     radial = np.stack([np.cos(t), np.zeros_like(t), np.sin(t)], axis=1)
     ey = np.array([0.0, 1.0, 0.0])
-    verts = (centre[:, None, :] + tube * (np.cos(p)[None, :, None] * radial[:, None, :]
-                                          + np.sin(p)[None, :, None] * ey[None, None, :]))
+    verts = centre[:, None, :] + tube * (
+        np.cos(p)[None, :, None] * radial[:, None, :] + np.sin(p)[None, :, None] * ey[None, None, :]
+    )
     verts = verts.reshape(-1, 3)
     faces = []
     for i in range(segments):
