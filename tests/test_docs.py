@@ -39,6 +39,19 @@ def tracked_files() -> list[Path]:
     return [ROOT / n for n in names.splitlines()]
 
 
+#: Docs teach; measurements live in benchmark outputs and history in CHANGELOG.md, so each page stays short.
+MAX_DOC_CHARS = 12_000
+
+
+@pytest.mark.parametrize("doc", DOCS, ids=lambda p: p.relative_to(ROOT).as_posix())
+def test_each_doc_is_under_the_size_limit(doc):
+    n = len(doc.read_text())
+    assert n < MAX_DOC_CHARS, (
+        f"{doc.relative_to(ROOT)}: {n:,} characters, the limit is {MAX_DOC_CHARS:,}: move "
+        "measurements to a benchmark output and history to CHANGELOG.md"
+    )
+
+
 def test_no_doc_points_outside_the_repository():
     found = []
     for path in tracked_files():
