@@ -95,6 +95,34 @@ def test_references_to_readme_sections_name_its_headings():
     assert not wrong, "\n".join(wrong)
 
 
+def test_references_to_doc_sections_name_their_headings():
+    """``docs/<page>.md "Heading"`` in code, configs and docs names a heading of that page."""
+    headings = {
+        doc.name: [
+            line.lstrip("#").strip()
+            for line in doc.read_text().splitlines()
+            if line.startswith("#")
+        ]
+        for doc in DOCS[1:]
+    }
+    wrong = []
+    for path in tracked_files():
+        rel = path.relative_to(ROOT).as_posix()
+        if (
+            rel.startswith(NOT_DOCS)
+            or path.suffix not in (".py", ".md", ".yaml", "")
+            or not path.is_file()
+        ):
+            continue
+        text = " ".join(path.read_text().split())
+        for page, name in re.findall(r'docs/(\w+\.md),? "([^"]+)"', text):
+            if page not in headings:
+                wrong.append(f"{rel}: no page docs/{page}")
+            elif not any(h.startswith(name) for h in headings[page]):
+                wrong.append(f"{rel}: docs/{page} {name!r}")
+    assert not wrong, "\n".join(wrong)
+
+
 @cache
 def defaults(stage: str) -> dict:
     return OmegaConf.to_container(compose(stage, []), resolve=True, throw_on_missing=False)
