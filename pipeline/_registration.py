@@ -1,10 +1,10 @@
 """The Gymnasium ids of the safe-navigation environment, registered by ``import pipeline``.
 
-Only the standard library is imported here: ``import pipeline`` runs this module, and every stage
-and worker imports ``pipeline``. Importing Gymnasium (with numpy) costs about 0.35 s, so the ids are
-registered when Gymnasium is imported anyway: at once if it already is, otherwise by a one-shot
-finder on ``sys.meta_path`` that lets the normal finders load ``gymnasium.envs.registration`` and
-registers right after that module has run, then removes itself. The entry points are strings, so
+Only the standard library is imported here: ``import pipeline`` runs this module, every stage and
+worker imports ``pipeline``, and importing Gymnasium (with numpy) would slow each of them. So the
+ids are registered when Gymnasium is imported anyway: at once if it already is, otherwise by a
+one-shot finder on ``sys.meta_path`` that lets the normal finders load
+``gymnasium.envs.registration`` and registers right after that module has run, then removes itself. The entry points are strings, so
 registering imports neither the environment nor torch nor ``fewshot``; ``gymnasium.make`` imports
 ``pipeline.envs`` when it builds an environment.
 

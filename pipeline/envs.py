@@ -61,7 +61,7 @@ def make_recogniser(
 ) -> Recogniser:
     """The recogniser ``conf/recogniser/<name>.yaml``, with ``options`` overriding its keys, built
     as the trials stage builds it. Bad names and values raise ``ValueError`` (``ConfigError``)."""
-    # Hydra (about 0.2 s to import) only when a recogniser is built, not for every environment
+    # Hydra (slow to import) only when a recogniser is built, not for every environment
     from pipeline.stages._recognisers import build_recogniser
 
     node = OmegaConf.to_container(OmegaConf.load(_check_name(name)), resolve=True)

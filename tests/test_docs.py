@@ -39,6 +39,19 @@ def tracked_files() -> list[Path]:
     return [ROOT / n for n in names.splitlines()]
 
 
+#: Docs teach; measurements live in benchmark outputs and history in CHANGELOG.md, so each page stays short.
+MAX_DOC_CHARS = 12_000
+
+
+@pytest.mark.parametrize("doc", DOCS, ids=lambda p: p.relative_to(ROOT).as_posix())
+def test_each_doc_is_under_the_size_limit(doc):
+    n = len(doc.read_text())
+    assert n < MAX_DOC_CHARS, (
+        f"{doc.relative_to(ROOT)}: {n:,} characters, the limit is {MAX_DOC_CHARS:,}: move "
+        "measurements to a benchmark output and history to CHANGELOG.md"
+    )
+
+
 def test_no_doc_points_outside_the_repository():
     found = []
     for path in tracked_files():
@@ -79,6 +92,34 @@ def test_references_to_readme_sections_name_its_headings():
             for name in re.findall(r'README "([^"]+)"', text)
             if not any(h.startswith(name) for h in headings)
         ]
+    assert not wrong, "\n".join(wrong)
+
+
+def test_references_to_doc_sections_name_their_headings():
+    """``docs/<page>.md "Heading"`` in code, configs and docs names a heading of that page."""
+    headings = {
+        doc.name: [
+            line.lstrip("#").strip()
+            for line in doc.read_text().splitlines()
+            if line.startswith("#")
+        ]
+        for doc in DOCS[1:]
+    }
+    wrong = []
+    for path in tracked_files():
+        rel = path.relative_to(ROOT).as_posix()
+        if (
+            rel.startswith(NOT_DOCS)
+            or path.suffix not in (".py", ".md", ".yaml", "")
+            or not path.is_file()
+        ):
+            continue
+        text = " ".join(path.read_text().split())
+        for page, name in re.findall(r'docs/(\w+\.md),? "([^"]+)"', text):
+            if page not in headings:
+                wrong.append(f"{rel}: no page docs/{page}")
+            elif not any(h.startswith(name) for h in headings[page]):
+                wrong.append(f"{rel}: docs/{page} {name!r}")
     assert not wrong, "\n".join(wrong)
 
 

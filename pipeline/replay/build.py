@@ -1,7 +1,7 @@
 """Replay a recorded episode (or a whole run) in Rerun from the MCAP records alone (the entities:
 docs/records.md "Replay it in Rerun"); timelines ``step`` (global across the replayed episodes)
 and ``episode``. Moves, action and category names come from the file's maze metadata; a file
-without moves (written before the writer recorded them) gets :data:`NESW`, here and nowhere else.
+without moves (its writer was given none) gets :data:`NESW`, here and nowhere else.
 """
 
 from __future__ import annotations

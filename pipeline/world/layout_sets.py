@@ -1,6 +1,6 @@
 """Sets of generated layouts for an experiment: ``experiment.layouts`` crosses cell templates with
-``count`` generated layouts of each size (issue 14, "does it generalise beyond the paper's three
-mazes?").
+``count`` generated layouts of each size, to ask whether the paper's claims hold beyond its three
+mazes.
 
 The paper (section 4.2.2, Table 3) reports one layout per size: 5x5 with 9 obstacles, 7x7 with 16
 and 11x11 with 49. A layout set ``{size: 5x5, obstacles: 9, count: 100, seed: 0, unique: true}``

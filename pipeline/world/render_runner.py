@@ -1,7 +1,7 @@
 """Render batches to PNG files, on one or several worker processes, atomically per file.
 
-Each batch gets one compiled scene and one ``mujoco.Renderer`` (creating one costs 150-700 ms,
-so it is reused for every picture of the batch, then closed). A picture is written to a
+Each batch gets one compiled scene and one ``mujoco.Renderer`` (creating one costs far more
+than a picture, so it is reused for every picture of the batch, then closed). A picture is written to a
 temporary name in its final folder and moved into place with ``os.replace``: an interrupted
 render leaves either a complete picture or none (plus, at worst, a ``*.tmp`` file that no
 manifest names). Worker processes are spawned, not forked, so no OpenGL state is inherited;

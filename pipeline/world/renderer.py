@@ -3,7 +3,8 @@
 A :class:`Shot` says which object is shown, how it is turned and painted, where the camera
 stands and how the scene is lit; :meth:`SceneRenderer.render` changes only model arrays that
 MuJoCo reads at draw time (colours, body poses, lights, materials), so no recompilation and no
-new OpenGL context per picture. Creating a renderer costs 150-700 ms; a picture about 5-30 ms.
+new OpenGL context per picture: creating a renderer costs far more than drawing a picture
+(``python -m benchmarks.render`` measures both).
 """
 
 from __future__ import annotations
