@@ -1,5 +1,7 @@
 """dvc.yaml against conf/: one trials stage per experiment file, config declared as params (keys
-that exist), code and data as deps, and a DVC site cache that does not depend on the cwd."""
+that exist, and every method and recogniser file a trial may read), code and data as deps, and a
+DVC site cache that does not depend on the cwd. The lists DVC forces are checked here, each
+failure naming what to add or remove."""
 
 import configparser
 import os
@@ -8,7 +10,12 @@ from pathlib import Path
 import pytest
 import yaml
 
+from pipeline.rl.methods import METHOD_DIR
+from pipeline.stages._common import CONF_DIR
+from pipeline.stages._recognisers import RECOGNISER_DIR
+
 ROOT = Path(__file__).resolve().parents[1]
+EXPERIMENT_DIR = Path(CONF_DIR) / "experiment"
 DVC = yaml.safe_load((ROOT / "dvc.yaml").read_text())
 STAGES = DVC["stages"]
 EXPERIMENTS = STAGES["trials"]["foreach"]
@@ -40,30 +47,58 @@ def params_entries(stage: dict) -> list[tuple[str, list[str]]]:
     return out
 
 
+def in_dvc(folder: Path) -> list[str]:
+    """The yaml files of a conf folder as dvc.yaml names them (relative to the repository)."""
+    return sorted(p.relative_to(ROOT).as_posix() for p in folder.glob("*.yaml"))
+
+
+def differences(listed, wanted, where: str) -> list[str]:
+    """What ``where`` lacks and what it lists in vain, in words (empty when they agree)."""
+    listed, wanted = set(listed), set(wanted)
+    out = [f"add {x} to {where}" for x in sorted(wanted - listed)]
+    return out + [f"remove {x} from {where} (no such file)" for x in sorted(listed - wanted)]
+
+
 def test_trials_foreach_is_every_experiment_file():
-    files = sorted(p.stem for p in (ROOT / "conf" / "experiment").glob("*.yaml"))
-    assert sorted(EXPERIMENTS) == files, (
-        "list every conf/experiment/*.yaml in dvc.yaml's trials foreach"
-    )
-    assert len(set(EXPERIMENTS)) == len(EXPERIMENTS)
+    files = sorted(p.stem for p in EXPERIMENT_DIR.glob("*.yaml"))
+    problems = differences(EXPERIMENTS, files, "dvc.yaml's trials foreach")
+    assert not problems, "; ".join(problems)
+    assert len(set(EXPERIMENTS)) == len(EXPERIMENTS), "dvc.yaml's trials foreach repeats an item"
 
 
 def test_report_depends_on_every_experiment():
-    assert {f"datasets/runs/{e}" for e in EXPERIMENTS} <= set(STAGES["report"]["deps"])
+    deps = [d for d in STAGES["report"]["deps"] if d.startswith("datasets/runs/")]
+    problems = differences(deps, [f"datasets/runs/{e}" for e in EXPERIMENTS], "the report's deps")
+    assert not problems, "; ".join(problems)
 
 
 @pytest.mark.parametrize("exp", EXPERIMENTS)
-def test_each_trials_stage_tracks_its_experiment_and_every_method(exp):
+def test_each_trials_stage_tracks_its_experiment_and_every_method_and_recogniser(exp):
+    """A trial may run any method and any recogniser (a cell's ``method``, ``recogniser_group``, or
+    the command line's), and DVC cannot list per item the files an item reads: every item tracks
+    every method and recogniser file whole, so changing one reruns the trials."""
     stage = expanded("trials", exp)
     files = dict(params_entries(stage))
-    assert files[f"conf/experiment/{exp}.yaml"] == []  # the whole file
-    methods = {f"conf/method/{p.name}" for p in (ROOT / "conf" / "method").glob("*.yaml")}
-    assert methods <= {f for f, keys in files.items() if keys == []}
+    assert files[f"{EXPERIMENT_DIR.relative_to(ROOT).as_posix()}/{exp}.yaml"] == []  # whole file
+    whole = [f for f, keys in files.items() if keys == []]
+    for folder in (METHOD_DIR, RECOGNISER_DIR):
+        prefix = folder.relative_to(ROOT).as_posix() + "/"
+        listed = [f for f in whole if f.startswith(prefix)]
+        problems = differences(listed, in_dvc(folder), "dvc.yaml's trials params (whole file)")
+        assert not problems, "; ".join(problems)
     assert (
         f"+experiment={exp} " in stage["cmd"]
         and f"metrics_file=datasets/metrics/{exp}.json" in stage["cmd"]
     )
     assert stage["outs"] == [f"datasets/runs/{exp}"]
+
+
+def test_differences_name_what_is_missing_and_what_is_extra():
+    assert differences(["a.yaml", "c.yaml"], ["a.yaml", "b.yaml"], "params") == [
+        "add b.yaml to params",
+        "remove c.yaml from params (no such file)",
+    ]
+    assert differences(["a"], ["a"], "params") == []
 
 
 def _get(data: dict, dotted: str):

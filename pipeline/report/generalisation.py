@@ -34,14 +34,11 @@ import pandas as pd
 from pipeline.report import figures as F
 from pipeline.report.claims import Arm, Claim, Data, Missing, checked, fewer, order_checks
 from pipeline.report.experiments import Cell, Experiment
-from pipeline.report.names import method_name
+from pipeline.report.names import method_colour, method_name, method_order
 from pipeline.report.stats import bootstrap_ci, bootstrap_difference, t_quantile_975, wilson_ci
 from pipeline.world.generate import is_spec, parse_spec
 from pipeline.world.geometry import build_geometry
 from pipeline.world.maze import bfs_distances, parse_layout
-
-#: The methods in the order of the tables and boxes (the paper's Figure 8, then Table 3's rows).
-METHODS = ("qlearning", "sarsa", "shield", "ssrl", "constrained", "fewshot", "fewshot_dss")
 
 #: Layout features (:func:`features`) and their axis labels.
 FEATURES = {
@@ -194,13 +191,25 @@ def by_size(exp: Experiment) -> tuple[dict[str, list[LayoutCells]], list[str]]:
 
 
 def methods_of(layouts: list[LayoutCells]) -> list[str]:
-    """The methods every layout of a size has, in :data:`METHODS` order (others after)."""
+    """The methods every layout of a size has, in their declared order (``METHODS`` of
+    :mod:`pipeline.rl.rules`; undeclared methods after, by name)."""
     common = set.intersection(*(set(lay.cells) for lay in layouts)) if layouts else set()
-    return [m for m in METHODS if m in common] + sorted(common - set(METHODS))
+    return sorted(common, key=lambda m: (method_order(m), m))
 
 
 def label(layouts: list[LayoutCells], method: str) -> str:
     return method_name(layouts[0].cells[method].info["method"])
+
+
+def colours(sizes: dict[str, list[LayoutCells]]) -> dict[str, str]:
+    """The declared colour of each method that has one, by method."""
+    found = {
+        m: method_colour(lay.cells[m].info["method"])
+        for layouts in sizes.values()
+        for lay in layouts[:1]
+        for m in methods_of(layouts)
+    }
+    return {m: c for m, c in found.items() if c}
 
 
 # ------------------------------------------------------------------------------------ claims
@@ -459,7 +468,7 @@ def generalisation_section(rep, exp: Experiment) -> None:
                 "the difference of two sizes' mean gains, 95% bootstrap interval over layouts (unpaired).",
             )
     name = f"{exp.folder}_features.png"
-    F.feature_scatter(df, FEATURES, rep.out / "figures" / name, fit)
+    F.feature_scatter(df, FEATURES, rep.out / "figures" / name, fit, colours(sizes))
     rep.figure(
         f"figures/{name}",
         "Mean collisions per run on each layout against its features, one colour per "

@@ -39,7 +39,7 @@ from pipeline.records import read_records
 from pipeline.report import figures as F
 from pipeline.report.accuracy_curve import accuracy_curve_kind
 from pipeline.report.experiments import Cell, Experiment
-from pipeline.report.names import settings
+from pipeline.report.names import row_colours, settings
 from pipeline.report.spec import PER_CELL_KINDS, Row
 from pipeline.report.stats import describe, fmt, mean_band
 
@@ -219,6 +219,13 @@ def paper_values(exp: Experiment, experiments: list[Experiment]) -> dict[str, Pa
     return {key: value for key, value in found.items() if value is not None}
 
 
+def colours_of(rows: list[tuple[Row, list[Cell]]]) -> dict[str, str]:
+    """The rows' colours by label where each row is one declared method (its colour in every
+    figure: :func:`~pipeline.report.names.row_colours`); empty otherwise."""
+    found = row_colours([[c.info for c in cells] for _, cells in rows])
+    return {rows[i][0].label: colour for i, colour in found.items()}
+
+
 def safe(name: str) -> str:
     """A maze name (or a layout file's name) as part of a file name."""
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", name)
@@ -287,6 +294,7 @@ def curves_part(
         {row.label: a for row, a in series},
         f"Collisions per episode{where}: mean over runs, 95% band",
         rep.out / "figures" / name,
+        colours=colours_of(rows),
     )
     pooled_rows = (
         " (a row that pools cells: their mean per seed)" if any(len(c) > 1 for _, c in rows) else ""
@@ -322,7 +330,11 @@ def support_part(
     name = f"{exp.folder}_support_accuracy{'' if maze is None else '_' + safe(maze)}.png"
     title = f"Query accuracy of the run's support set over the run{where}"
     scales = F.curves(
-        series, title, rep.out / "figures" / name, ylabel="query accuracy of the support set"
+        series,
+        title,
+        rep.out / "figures" / name,
+        ylabel="query accuracy of the support set",
+        colours=colours_of(rows),
     )
     starts = {
         row.label: [s for c in cells if (s := c.start_accuracy()) is not None]
