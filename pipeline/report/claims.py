@@ -31,7 +31,8 @@ import pandas as pd
 from pipeline.report.accuracy import Estimate, Study
 from pipeline.report.experiments import Cell, Experiment
 from pipeline.report.names import method_name
-from pipeline.report.sections import paper_for, same_seeds
+from pipeline.report.paper_numbers import paper_for
+from pipeline.report.pooling import same_seeds
 from pipeline.report.stats import bootstrap_difference, bounded_sd, wilson_ci
 
 VERDICTS = ("holds", "does not hold", "not resolved", "not checked")

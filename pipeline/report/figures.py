@@ -43,7 +43,7 @@ def ticks(ax, labels) -> None:
 
 
 def paper_marks(ax, paper) -> None:
-    """The paper's numbers (``paper``: per bar a :class:`~pipeline.report.sections.PaperValue` or
+    """The paper's numbers (``paper``: per bar a :class:`~pipeline.report.paper_numbers.PaperValue` or
     None) as red dashes over the bars, dashed where the paper's number pools more cells, with
     the value beside; a legend names them."""
     drawn, last = {}, {}
