@@ -10,7 +10,7 @@ import inspect
 import pytest
 from omegaconf import OmegaConf
 
-from pipeline.report.generalisation import LayoutCells, methods_of
+from pipeline.report.layout_cells import LayoutCells, methods_of
 from pipeline.report.names import (
     method_colour,
     method_name,
