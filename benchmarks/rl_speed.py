@@ -24,6 +24,7 @@ from pipeline.rl.gym_env import SafeNavigationEnv
 from pipeline.rl.methods import get_method
 from pipeline.rl.oracle import OracleRecogniser
 from pipeline.rl.rng import run_seeds
+from pipeline.rl.rules import METHODS
 from pipeline.rl.runner import run_trials
 from pipeline.world.maze import load_layout
 
@@ -89,7 +90,7 @@ def main() -> None:
         f"{'method':<13}{'steps':>11}{'1 thread M/s':>14}{f'{all_threads} threads M/s':>15}{'gym k/s':>10}"
         f"{'x gym (1 thr)':>15}{f'x gym ({all_threads} thr)':>15}"
     )
-    for name in ("qlearning", "sarsa", "shield", "ssrl", "constrained", "fewshot", "fewshot_dss"):
+    for name in [m.name for m in METHODS]:
         method = get_method(name)
         steps, t1 = time_batched(layout, method, args.runs, args.episodes, 1)
         _, tn = time_batched(layout, method, args.runs, args.episodes, all_threads)

@@ -5,6 +5,7 @@ or refuse it; the recorded config is the config that ran."""
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 from dataclasses import fields
@@ -20,6 +21,7 @@ from pipeline.rl.fixed_accuracy import FixedAccuracyRecogniser
 from pipeline.rl.methods import METHOD_DIR, MethodSpec, get_method, method_names
 from pipeline.rl.oracle import TRUE_CATEGORY
 from pipeline.stages._common import load_config, run_stage
+from pipeline.stages._recognisers import recogniser_names
 from pipeline.stages._schema import SCHEMAS
 from pipeline.stages.trials import experiment_cells
 
@@ -408,8 +410,8 @@ def test_a_cell_pins_recogniser_arguments_and_its_records_say_so(tmp_path):
         (
             {"a": {"method": "fewshot", "recogniser_group": "nope"}, "b": {"method": "fewshot"}},
             [],
-            r"config key 'experiment.cells.a.recogniser_group': no recogniser 'nope' \(conf/recogniser/: fixed_accuracy, "
-            r"oracle, protonet, relation_net\)",
+            r"config key 'experiment.cells.a.recogniser_group': no recogniser 'nope' "
+            + re.escape(f"(conf/recogniser/: {', '.join(recogniser_names())})"),
         ),
         (
             {"a": {"method": "fewshot", "recogniser_group": "oracle"}, "s": {"method": "ssrl"}},

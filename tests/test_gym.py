@@ -15,6 +15,7 @@ from gymnasium.utils.env_checker import check_env, data_equivalence
 
 import pipeline
 from pipeline import _registration
+from pipeline.envs import recogniser_names
 from pipeline.errors import ConfigError
 from pipeline.rl import gym_render
 from pipeline.rl.codes import StepFlag
@@ -251,13 +252,14 @@ def test_recognisers_by_name_and_as_objects():
 def test_recogniser_errors_say_what_to_pass():
     with pytest.raises(
         ValueError,
-        match=r"unknown recogniser 'relnet'; expected one of fixed_accuracy, oracle, protonet, relation_net",
+        match=r"unknown recogniser 'relnet'; expected one of " + ", ".join(recogniser_names()),
     ):
         gym.make("SafeNav-5x5-v0", method="fewshot", recogniser="relnet")
     with pytest.raises(
         ValueError,
         match=r"'fewshot' reasons with pictures and needs a recogniser: pass recogniser=<name>.*"
-        r"fixed_accuracy, oracle, protonet, relation_net.*recogniser='oracle'",
+        + ", ".join(recogniser_names())
+        + ".*recogniser='oracle'",
     ):
         gym.make("SafeNav-5x5-v0", method="fewshot")
     with pytest.raises(TypeError, match="not the name 'oracle'.*gymnasium.make"):

@@ -260,7 +260,7 @@ def test_band_is_a_t_interval():
 
 
 def test_start_accuracy_note_names_each_recogniser_when_they_differ():
-    from pipeline.report.sections import start_accuracy_note
+    from pipeline.report.parts import start_accuracy_note
 
     same = {"Few-shot": [0.55, 0.55], "Few-shot + DSS": [0.55]}
     assert (

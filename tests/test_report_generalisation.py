@@ -4,7 +4,8 @@ the fitted lines and the DSS gain's growth, pinned on small exact cases."""
 import numpy as np
 import pytest
 
-from pipeline.report.generalisation import CLAIMS, features, fit, growth, no_line
+from pipeline.report.generalisation import CLAIMS, growth
+from pipeline.report.layout_cells import features, fit, no_line
 from pipeline.report.stats import t_quantile_975
 
 ROWS_5X5 = ["SXX..", "..X..", "X..XX", ".X..X", "..X.G"]  # conf/mazes/5x5.txt

@@ -64,6 +64,9 @@ class SupportSetRecogniser(abc.ABC):
     """
 
     kind = ""
+    """The model's name in checkpoints and records (``describe()``)."""
+    display_name = ""
+    """The report's name for it (``pipeline.report.names``); never recorded."""
 
     def __init__(
         self,
@@ -309,6 +312,7 @@ class RelationRecogniser(SupportSetRecogniser):
     the rest of g_phi on every picture's query half. Scores are relation scores in [0, 1]."""
 
     kind = "relation_net"
+    display_name = "Relation Network"
 
     @classmethod
     def from_files(
@@ -362,6 +366,7 @@ class ProtoRecogniser(SupportSetRecogniser):
     squared distance to it; a picture's scores are the softmax of its row, p(category | picture)."""
 
     kind = "protonet"
+    display_name = "Prototypical Network"
 
     @classmethod
     def from_files(

@@ -32,7 +32,7 @@ import pandas as pd
 from pipeline.report import figures as F
 from pipeline.report.accuracy import query_accuracy
 from pipeline.report.experiments import Cell, Experiment
-from pipeline.report.names import method_name
+from pipeline.report.names import method_colour, method_name
 from pipeline.report.stats import break_even, describe, fmt
 
 
@@ -183,7 +183,12 @@ def panels(parts: Split) -> list[dict]:
             for (m, label), cell in parts.references.items()
             if m == maze
         }
-        out.append({"title": maze, "curves": curves, "references": references})
+        colours = {
+            c.label: colour
+            for c in parts.curves
+            if c.maze == maze and (colour := method_colour(c.cells[0].info["method"]))
+        }
+        out.append({"title": maze, "curves": curves, "references": references, "colours": colours})
     return out
 
 

@@ -43,7 +43,7 @@ def ticks(ax, labels) -> None:
 
 
 def paper_marks(ax, paper) -> None:
-    """The paper's numbers (``paper``: per bar a :class:`~pipeline.report.sections.PaperValue` or
+    """The paper's numbers (``paper``: per bar a :class:`~pipeline.report.paper_numbers.PaperValue` or
     None) as red dashes over the bars, dashed where the paper's number pools more cells, with
     the value beside; a legend names them."""
     drawn, last = {}, {}
@@ -96,17 +96,20 @@ def curves(
     path: Path,
     ylabel="collisions per episode",
     xlabel: str = "episode",
+    colours: dict[str, str] | None = None,
 ):
     """One line per label from x = 0: the mean over runs (rows of a runs x episodes array; a 1-D
     array is one run) with its 95% interval shaded (:func:`~pipeline.report.stats.mean_band`),
     drawn within the range of the values (collisions do not go below 0). Long runs get a
     logarithmic episode axis beyond episode 10, collisions a logarithmic axis above 1 where early
-    episodes collide many times; returns a note saying so for the caption ("" if linear)."""
+    episodes collide many times; returns a note saying so for the caption ("" if linear).
+    ``colours``: by label (the methods' declared colours); others take the next of the cycle."""
     fig, ax = plt.subplots(figsize=(6.4, 3.6))
     for label, values in series.items():
         mean, lo, hi = mean_band(values)
         x = np.arange(mean.size)
-        (line,) = ax.plot(x, mean, label=label, lw=1.2)
+        given = {"color": colours[label]} if colours and label in colours else {}
+        (line,) = ax.plot(x, mean, label=label, lw=1.2, **given)
         v = np.atleast_2d(np.asarray(values, dtype=float))
         if v.shape[0] > 1 and np.isfinite(v).any():
             lo, hi = np.clip(lo, np.nanmin(v), None), np.clip(hi, None, np.nanmax(v))
@@ -225,11 +228,17 @@ def accuracy_curves(
     ``title``; ``curves`` (label -> ``(p, mean, ci_low, ci_high)`` arrays: a line with its band);
     ``references`` (label -> ``(mean, ci_low, ci_high)``: a horizontal line with its band);
     ``measured`` (curve label -> ``(x, mean, ci_low, ci_high)``: a star with its interval, in the
-    colour of that curve). ``marker``: a vertical line at that accuracy, named ``marker_label``."""
+    colour of that curve); ``colours`` (curve label -> colour: the methods' declared colours;
+    others take the cycle's by position). ``marker``: a vertical line at that accuracy, named
+    ``marker_label``."""
     fig, axes = plt.subplots(1, len(panels), figsize=(4.3 * len(panels), 3.8), squeeze=False)
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     for ax, panel in zip(axes[0], panels):
-        colour = {label: colours[i % len(colours)] for i, label in enumerate(panel["curves"])}
+        given = panel.get("colours", {})
+        colour = {
+            label: given.get(label) or colours[i % len(colours)]
+            for i, label in enumerate(panel["curves"])
+        }
         for label, (x, mean, lo, hi) in panel["curves"].items():
             ax.plot(x, mean, "o-", color=colour[label], label=label, ms=3, lw=1.2)
             ax.fill_between(x, lo, hi, color=colour[label], alpha=0.2, lw=0)
@@ -303,10 +312,11 @@ def layout_boxes(per_size: dict[str, dict[str, np.ndarray]], path: Path):
     return save(fig, path)
 
 
-def feature_scatter(df, features: dict[str, str], path: Path, fit):
+def feature_scatter(df, features: dict[str, str], path: Path, fit, colours: dict[str, str]):
     """Rows: sizes, columns: layout features; points: mean collisions per run of each (layout,
-    method), one colour per method, with ``fit(x, y)``'s line (slope, intercept, ...) where it
-    gives one; log y."""
+    method), one colour per method (``colours``: by ``df["method"]``, the declared colours; a
+    method without one takes tab10's by position), with ``fit(x, y)``'s line (slope, intercept,
+    ...) where it gives one; log y."""
     sizes = list(dict.fromkeys(df["size"]))
     fig, axes = plt.subplots(
         len(sizes),
@@ -315,12 +325,13 @@ def feature_scatter(df, features: dict[str, str], path: Path, fit):
         squeeze=False,
         layout="constrained",
     )
-    colours = plt.get_cmap("tab10")
+    cycle = plt.get_cmap("tab10")
     for i, size in enumerate(sizes):
         on = df[df["size"] == size]
         for j, (feature, xlabel) in enumerate(features.items()):
             ax = axes[i][j]
             for k, method in enumerate(dict.fromkeys(on["method"])):
+                colour = colours.get(method) or cycle(k)
                 m = on[on["method"] == method]
                 x, y = m[feature].to_numpy(float), m["collisions_mean"].to_numpy(float)
                 ax.scatter(
@@ -328,13 +339,13 @@ def feature_scatter(df, features: dict[str, str], path: Path, fit):
                     np.maximum(y, 0.05),
                     s=6,
                     alpha=0.5,
-                    color=colours(k),
+                    color=colour,
                     label=m["label"].iloc[0],
                 )
                 line = fit(x, y)
                 if line is not None:
                     xs = np.linspace(x.min(), x.max(), 20)
-                    ax.plot(xs, np.maximum(line[1] + line[0] * xs, 0.05), color=colours(k), lw=1.2)
+                    ax.plot(xs, np.maximum(line[1] + line[0] * xs, 0.05), color=colour, lw=1.2)
             ax.set_yscale("log")
             ax.set_xlabel(xlabel, fontsize=8)
             ax.set_title(size, fontsize=9)

@@ -9,10 +9,10 @@ keep the layout's rows, from which the layout features are computed. Per size:
 * ``figures/<folder>.png``: the distribution over layouts of mean collisions per run, one box per
   method (log scale).
 * ``tables/<folder>.md|csv``: for each claim, the fraction of layouts where it **holds** (every
-  check's 95% interval on the claimed side: the checks of :mod:`pipeline.report.claims`, bootstrap
+  check's 95% interval on the claimed side: the checks of :mod:`pipeline.report.checks`, bootstrap
   over the layout's run seeds, paired), where it **does not hold** and where the claimed order holds
   for the means alone, each with a 95% Wilson interval over layouts (the layouts are independent
-  draws of the generator). Table 3's order is :func:`pipeline.report.claims.order_checks`.
+  draws of the generator). Table 3's order is :func:`pipeline.report.checks.order_checks`.
 * ``tables/<folder>_dss_gain.md|csv``: the gain of the dynamic support set (few-shot without minus
   with it) per size, mean over layouts with a 95% bootstrap interval over layouts, and whether it
   grows with the size (difference of the sizes' mean gains, bootstrap over layouts, unpaired: the
@@ -26,35 +26,32 @@ keep the layout's rows, from which the layout features are computed. Per size:
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
 
 from pipeline.report import figures as F
-from pipeline.report.claims import Arm, Claim, Data, Missing, checked, fewer, order_checks
-from pipeline.report.experiments import Cell, Experiment
-from pipeline.report.names import method_name
-from pipeline.report.stats import bootstrap_ci, bootstrap_difference, t_quantile_975, wilson_ci
-from pipeline.world.generate import is_spec, parse_spec
-from pipeline.world.geometry import build_geometry
-from pipeline.world.maze import bfs_distances, parse_layout
-
-#: The methods in the order of the tables and boxes (the paper's Figure 8, then Table 3's rows).
-METHODS = ("qlearning", "sarsa", "shield", "ssrl", "constrained", "fewshot", "fewshot_dss")
-
-#: Layout features (:func:`features`) and their axis labels.
-FEATURES = {
-    "unsafe_pairs": "unsafe (state, action) pairs from reachable cells",
-    "obstacles_reachable": "obstacles next to a reachable cell",
-    "shortest_path": "shortest path (moves)",
-}
+from pipeline.report.checks import Claim, Data, checked, fewer, order_checks
+from pipeline.report.experiments import Experiment
+from pipeline.report.layout_cells import (
+    FEATURES,
+    LayoutCells,
+    by_size,
+    colours,
+    data_frame,
+    feature_rows,
+    fit,
+    label,
+    methods_of,
+)
+from pipeline.report.stats import bootstrap_ci, bootstrap_difference, wilson_ci
 
 
 @dataclass(frozen=True)
 class LayoutClaim:
     """A claim checked on each layout: ``make(data, arm)`` gives its checks, where ``arm(method)``
-    is the layout's :class:`~pipeline.report.claims.Arm` of a method."""
+    is the layout's :class:`~pipeline.report.checks.Arm` of a method."""
 
     source: str
     says: str
@@ -121,89 +118,11 @@ CLAIMS = (
 )
 
 
-# ------------------------------------------------------------------------------------ layouts
-def features(rows: list[str]) -> dict[str, int]:
-    """Features of a layout (its text rows): unsafe (state, action) pairs whose state the robot
-    can reach (eq. 4's dangerous pairs it can meet), obstacles next to a reachable cell (the
-    obstacles it can collide with) and the shortest start-goal path in moves."""
-    layout = parse_layout("\n".join(rows), source="records")
-    geometry = build_geometry(layout)
-    blocked = np.zeros(layout.n_cells, dtype=np.bool_)
-    blocked[list(layout.obstacles)] = True
-    dist = bfs_distances(blocked, layout.height, layout.width, layout.start)
-    reachable = dist >= 0
-    hits = geometry.obstacle[reachable]
-    return {
-        "unsafe_pairs": int((hits >= 0).sum()),
-        "obstacles_reachable": int(np.unique(hits[hits >= 0]).size),
-        "shortest_path": int(dist[layout.goal]),
-    }
-
-
-@dataclass
-class LayoutCells:
-    """The cells run on one generated layout, by method (``conf/method/`` name)."""
-
-    size: str
-    maze: str
-    seed: int
-    rows: list[str]
-    cells: dict[str, Cell] = field(default_factory=dict)
-    _arms: dict[str, Arm] = field(default_factory=dict)
-
-    def arm(self, method: str) -> Arm:
-        """The method's collisions per run by run index (read once: 2,100 cells' frames add up)."""
-        if method not in self._arms:
-            if method not in self.cells:
-                raise Missing(f"no records of {method} on {self.maze}")
-            cell = self.cells[method]
-            self._arms[method] = Arm(
-                pd.Series(cell.collisions_per_run(), index=cell.runs()), [cell]
-            )
-        return self._arms[method]
-
-    def mean(self, method: str) -> float:
-        return float(self.arm(method).values.mean())
-
-
 #: The claims' view of the records for a layout's checks: the paper prints no numbers for
 #: generated layouts, so no experiment to look them up in.
 NO_PAPER = Data([])
 
 
-def by_size(exp: Experiment) -> tuple[dict[str, list[LayoutCells]], list[str]]:
-    """The experiment's generated layouts grouped by size (sizes by their number of cells,
-    layouts by seed), and notes on cells that are not on a generated layout."""
-    found: dict[str, LayoutCells] = {}
-    notes = []
-    for cell in exp.cells.values():
-        if not is_spec(cell.maze):
-            notes.append(
-                f"cell {cell.name} is not on a generated layout ({cell.maze}), so it is not shown"
-            )
-            continue
-        spec = parse_spec(cell.maze)
-        size = f"{spec.width}x{spec.height}"
-        layout = found.setdefault(cell.maze, LayoutCells(size, cell.maze, spec.seed, cell.layout))
-        layout.cells[cell.method] = cell
-    sizes: dict[str, list[LayoutCells]] = {}
-    for layout in sorted(found.values(), key=lambda lay: lay.seed):
-        sizes.setdefault(layout.size, []).append(layout)
-    order = sorted(sizes, key=lambda s: (np.prod([int(x) for x in s.split("x")]), s))
-    return {s: sizes[s] for s in order}, notes
-
-
-def methods_of(layouts: list[LayoutCells]) -> list[str]:
-    """The methods every layout of a size has, in :data:`METHODS` order (others after)."""
-    common = set.intersection(*(set(lay.cells) for lay in layouts)) if layouts else set()
-    return [m for m in METHODS if m in common] + sorted(common - set(METHODS))
-
-
-def label(layouts: list[LayoutCells], method: str) -> str:
-    return method_name(layouts[0].cells[method].info["method"])
-
-
-# ------------------------------------------------------------------------------------ claims
 def share(k: int, n: int) -> str:
     low, high = wilson_ci(k / n, n) if n else (float("nan"), float("nan"))
     return f"{k}/{n} = {100 * k / n:.0f}% [{100 * low:.0f}, {100 * high:.0f}]" if n else ""
@@ -313,77 +232,6 @@ def growth(per_size: dict[str, np.ndarray]) -> list[dict]:
     return out
 
 
-# ------------------------------------------------------------------------------------ features
-def fit(x: np.ndarray, y: np.ndarray) -> tuple[float, float, float, float] | None:
-    """Least-squares line ``y = a + b x``: ``(b, a, b_low, b_high)`` with a 95% t interval of the
-    slope; None when ``x`` takes one value (or there are fewer than three points)."""
-    if x.size < 3 or np.ptp(x) == 0:
-        return None
-    b, a = np.polyfit(x, y, 1)
-    resid = y - (a + b * x)
-    se = np.sqrt(resid @ resid / (x.size - 2) / ((x - x.mean()) @ (x - x.mean())))
-    half = t_quantile_975(x.size - 2) * se
-    return float(b), float(a), float(b - half), float(b + half)
-
-
-def data_frame(sizes: dict[str, list[LayoutCells]]) -> pd.DataFrame:
-    rows = []
-    for size, layouts in sizes.items():
-        for lay in layouts:
-            feats = features(lay.rows)
-            for method in methods_of(layouts):
-                v = lay.arm(method).values.to_numpy()
-                rows.append(
-                    {
-                        "size": size,
-                        "layout_seed": lay.seed,
-                        "maze": lay.maze,
-                        "method": method,
-                        "label": label(layouts, method),
-                        "cell": lay.cells[method].name,
-                        "runs": v.size,
-                        "collisions_mean": float(v.mean()),
-                        "collisions_std": float(v.std(ddof=1)) if v.size > 1 else 0.0,
-                        **feats,
-                    }
-                )
-    return pd.DataFrame(rows)
-
-
-def no_line(x: np.ndarray) -> str:
-    """Why a feature has no fitted line: constant over the layouts, or too few of them."""
-    return f"constant ({int(x[0])})" if np.ptp(x) == 0 else f"no line: {x.size} layouts"
-
-
-def feature_rows(df: pd.DataFrame) -> list[dict]:
-    out = []
-    for size, feature in [(s, f) for s in dict.fromkeys(df["size"]) for f in FEATURES]:
-        on = df[df["size"] == size]
-        for method in dict.fromkeys(on["method"]):
-            m = on[on["method"] == method]
-            x, y = m[feature].to_numpy(float), m["collisions_mean"].to_numpy(float)
-            line = fit(x, y)
-            r = (
-                float(np.corrcoef(x, y)[0, 1])
-                if line is not None and np.ptp(y) > 0
-                else float("nan")
-            )
-            out.append(
-                {
-                    "size": size,
-                    "feature": feature,
-                    "method": m["label"].iloc[0],
-                    "slope (collisions per unit) [95% CI]": (
-                        f"{line[0]:.3g} [{line[2]:.3g}, {line[3]:.3g}]" if line else no_line(x)
-                    ),
-                    "r": "" if np.isnan(r) else f"{r:.2f}",
-                    "feature range": f"{int(x.min())}-{int(x.max())}",
-                }
-            )
-    return out
-
-
-# ------------------------------------------------------------------------------------ the section
 def generalisation_section(rep, exp: Experiment) -> None:
     """The section (module docstring)."""
     sizes, notes = by_size(exp)
@@ -459,7 +307,7 @@ def generalisation_section(rep, exp: Experiment) -> None:
                 "the difference of two sizes' mean gains, 95% bootstrap interval over layouts (unpaired).",
             )
     name = f"{exp.folder}_features.png"
-    F.feature_scatter(df, FEATURES, rep.out / "figures" / name, fit)
+    F.feature_scatter(df, FEATURES, rep.out / "figures" / name, fit, colours(sizes))
     rep.figure(
         f"figures/{name}",
         "Mean collisions per run on each layout against its features, one colour per "

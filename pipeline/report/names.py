@@ -1,6 +1,8 @@
 """Display names of methods and report rows, derived from what each record file says its cell ran
 (the method's fields, maze, substitution way, support set, recogniser): the one mapping from a
 cell to the words in tables, legends and the claims, so config ids (``dss_way1_5x5``) never show.
+A method's display name and colour come from its declaration (:data:`pipeline.rl.rules.METHODS`),
+a recogniser's from its class (``display_name`` beside its ``kind``); nothing here lists them.
 
 A row's name is its method's name followed by the settings that tell it apart from the other rows
 of its section (``Few-shot + DSS, way 2``); settings that vary inside a row (the four ways a
@@ -9,37 +11,78 @@ pooled row averages) are left out: the captions say what a row pools.
 
 from __future__ import annotations
 
-#: Methods whose safety rule names them (``MethodSpec.safety``, ``pipeline.rl.rules.Safety``).
-SAFETY_NAMES = {"shield": "Shield", "ssrl": "SSRL"}
+from functools import cache
+
+from pipeline.rl.methods import declaration
+from pipeline.rl.rules import METHODS, Safety, reasons_with_pictures
 
 #: Words for the values of trial settings that are not numbers.
 SUPPORT_NAMES = {"restore": "support set restored", "carry": "support set carried over"}
-
-#: Words for the recognisers (``describe()["kind"]`` in the records).
-RECOGNISER_NAMES = {"relation_net": "Relation Network", "protonet": "Prototypical Network"}
-
-#: Fields of the method that its name says (the rest show as ``alpha 0.05`` where rows differ).
-NAMED_FIELDS = ("name", "learner", "safety", "constrained", "dynamic_support")
 
 #: Settings of a trial rather than of its method.
 TRIAL_SETTINGS = ("maze", "way", "support", "recogniser")
 
 
 def method_name(method: dict) -> str:
-    """The method's display name from its recorded fields (``conf/method/*.yaml`` over
-    ``MethodSpec``): Q-learning, Sarsa, Shield, SSRL, Constrained RL, Few-shot (static support
-    set), Few-shot + DSS."""
-    safety = method.get("safety", "none")
-    if safety == "fewshot":
-        return (
-            "Few-shot + DSS" if method.get("dynamic_support") else "Few-shot (static support set)"
-        )
-    if safety in SAFETY_NAMES:
-        return SAFETY_NAMES[safety]
-    learner = "Sarsa" if method.get("learner") == "sarsa" else "Q-learning"
-    if method.get("constrained"):
-        return "Constrained RL" if learner == "Q-learning" else f"Constrained {learner}"
-    return learner
+    """The method's display name from its recorded fields: its declaration's
+    (:data:`pipeline.rl.rules.METHODS`, found by :func:`pipeline.rl.methods.declaration`), or its
+    recorded name when nothing declares it."""
+    found = declaration(method)
+    return found.display if found is not None else str(method.get("name") or "unnamed method")
+
+
+def method_colour(method: dict) -> str | None:
+    """The method's declared colour (None when nothing declares it)."""
+    found = declaration(method)
+    return found.colour if found is not None else None
+
+
+def method_order(name: str) -> int:
+    """Where a method (its config name) stands in tables: its place in
+    :data:`pipeline.rl.rules.METHODS`, undeclared methods after."""
+    order = [m.name for m in METHODS]
+    return order.index(name) if name in order else len(order)
+
+
+def row_colours(rows: list[list[dict]]) -> dict[int, str]:
+    """Colours of rows (each a list of its cells' ``info``) by row index, where each row is one
+    declared method and no two rows share it: a method has its colour in every figure. Empty
+    otherwise (rows that are ways or support sets of one method take colours by position)."""
+    methods = [{method_name(info["method"]) for info in infos} for infos in rows]
+    colours = [
+        method_colour(infos[0]["method"]) if len(m) == 1 else None
+        for infos, m in zip(rows, methods)
+    ]
+    if None in colours or len({next(iter(m)) for m in methods}) < len(rows):
+        return {}
+    return dict(enumerate(colours))
+
+
+def sees_pictures(method: dict) -> bool:
+    """Whether the recorded method's safety rule looks at pictures (so it ran a recogniser)."""
+    safety = method.get("safety")
+    return safety in Safety.__members__ and bool(reasons_with_pictures(Safety[safety]))
+
+
+@cache
+def recogniser_names() -> dict[str, str]:
+    """Display names of the recognisers that record a ``kind`` (``describe()`` in the records),
+    by kind: each declares its own as ``display_name`` beside its ``kind``
+    (:class:`pipeline.fewshot.recogniser.SupportSetRecogniser`'s subclasses)."""
+    from pipeline.fewshot.recogniser import SupportSetRecogniser
+
+    found, todo = {}, [SupportSetRecogniser]
+    while todo:
+        cls = todo.pop()
+        todo += cls.__subclasses__()
+        if getattr(cls, "kind", "") and getattr(cls, "display_name", ""):
+            found[cls.kind] = cls.display_name
+    return found
+
+
+def recogniser_name(kind: str) -> str:
+    """A recorded recogniser kind's display name (the kind itself when nothing declares one)."""
+    return recogniser_names().get(kind, kind)
 
 
 def settings(info: dict) -> dict[str, str]:
@@ -51,12 +94,11 @@ def settings(info: dict) -> dict[str, str]:
     recogniser = info.get("recogniser") or {}
     if recogniser:
         out["support"] = SUPPORT_NAMES.get(info.get("support"), f"support {info.get('support')}")
-        kind = recogniser.get("kind")
-        out["recogniser"] = f"{RECOGNISER_NAMES.get(kind, kind)} recogniser"
-    elif method.get("safety") == "fewshot":  # oracle, fixed_accuracy: they record no description
+        out["recogniser"] = f"{recogniser_name(recogniser.get('kind'))} recogniser"
+    elif sees_pictures(method):  # oracle, fixed_accuracy: they record no description
         out["recogniser"] = "recogniser without a model"
     for key, value in sorted(method.items()):
-        if key not in NAMED_FIELDS:
+        if key != "name":  # shown where it tells rows of one method apart (row_names)
             out[key] = f"{key.replace('_', ' ')} {value}"
     return out
 

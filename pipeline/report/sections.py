@@ -19,7 +19,8 @@ Rows are named from their cells (:mod:`pipeline.report.names`). A row that pools
 four substitution ways) counts each run seed once in its intervals: the cells share run seeds, so
 its per-episode curve averages the cells per seed and its CI resamples seeds. Where another
 section prints the paper's number for the same setting (Table 3's 5x5 column for Figures 8-10),
-the tables and bar charts show it beside ours (:func:`paper_values`).
+the tables and bar charts show it beside ours (:mod:`pipeline.report.paper_numbers`); the parts of
+a section are in :mod:`pipeline.report.parts`, the pooling of cells in :mod:`pipeline.report.pooling`.
 
 ``rep`` is the report being written (:class:`pipeline.report.build.Report`): ``add``, ``table``,
 ``figure``, ``out`` and ``accuracy_dir``.
@@ -27,23 +28,24 @@ the tables and bar charts show it beside ours (:func:`paper_values`).
 
 from __future__ import annotations
 
-import json
-import re
-import warnings
-from dataclasses import dataclass
-
-import numpy as np
 import pandas as pd
 
 from pipeline.records import read_records
 from pipeline.report import figures as F
 from pipeline.report.accuracy_curve import accuracy_curve_kind
 from pipeline.report.experiments import Cell, Experiment
-from pipeline.report.names import settings
-from pipeline.report.spec import PER_CELL_KINDS, Row
-from pipeline.report.stats import describe, fmt, mean_band
-
-COLLISIONS = "collisions (mean ± s.d. [95% CI])"
+from pipeline.report.generalisation import generalisation_section
+from pipeline.report.paper_numbers import PaperValue, paper_values
+from pipeline.report.parts import (
+    COLLISIONS,
+    collision_row,
+    curves_part,
+    support_part,
+    write_curves_table,
+)
+from pipeline.report.pooling import collisions, convergence, describe_runs, pool_note, pooled
+from pipeline.report.spec import PER_CELL_KINDS
+from pipeline.report.stats import describe, fmt
 
 
 def section(rep, exp: Experiment, experiments: list[Experiment] = ()) -> list[str]:
@@ -66,289 +68,6 @@ def section(rep, exp: Experiment, experiments: list[Experiment] = ()) -> list[st
     per_cell = exp.spec.kind in PER_CELL_KINDS  # no rows to put the paper's numbers beside
     KINDS[exp.spec.kind](rep, exp, {} if per_cell else paper_values(exp, experiments))
     return missing
-
-
-# ------------------------------------------------------------------------------------ pooling
-def pooled(cells: list[Cell], what) -> np.ndarray:
-    """(runs, x): the arrays ``what(cell)`` of ``cells`` (padded with NaN), averaged over the cells
-    per run seed, so that each seed counts once in a band; cells whose ``what`` is None are left
-    out. Cells with other run seeds (another seed or run count) are stacked as independent runs."""
-    found = [(c, a) for c in cells if (a := what(c)) is not None]
-    if not found:
-        return np.empty((0, 0))
-    width = max(a.shape[1] for _, a in found)
-    arrays = [
-        np.pad(a.astype(float), ((0, 0), (0, width - a.shape[1])), constant_values=np.nan)
-        for _, a in found
-    ]
-    if len(found) > 1 and same_seeds([c for c, _ in found]):
-        with np.errstate(invalid="ignore"), warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)  # an episode no cell reached: NaN
-            return np.nanmean(np.stack(arrays), axis=0)
-    return np.vstack(arrays)
-
-
-def same_seeds(cells: list[Cell]) -> bool:
-    """Whether run ``r`` of every cell has the same seed (one seed, the same run indices)."""
-    first = cells[0]
-    return all(c.seed == first.seed and np.array_equal(c.runs(), first.runs()) for c in cells)
-
-
-def collisions(cells: list[Cell]) -> np.ndarray:
-    return np.concatenate([c.collisions_per_run() for c in cells])
-
-
-def describe_runs(cells: list[Cell]) -> dict:
-    """:func:`describe` of the collisions per run of ``cells``; pooled cells that share run seeds
-    get a CI that resamples seeds."""
-    clusters = (
-        np.concatenate([c.runs() for c in cells]) if len(cells) > 1 and same_seeds(cells) else None
-    )
-    return describe(collisions(cells), clusters)
-
-
-def convergence(cells: list[Cell]) -> list[int | None]:
-    return [e for c in cells for e in c.converged_episode()]
-
-
-def pool_note(rows: list[tuple[Row, list[Cell]]], per_maze: bool = False) -> str:
-    """Which rows pool several cells (for a table's caption)."""
-    parts = []
-    for row, cells in rows:
-        if per_maze:
-            counts = sorted({sum(c.maze == m for c in cells) for m in {c.maze for c in cells}})
-            if counts[-1] > 1:
-                each = f"{counts[0]}" if len(counts) == 1 else f"{counts[0]}-{counts[-1]}"
-                parts.append(
-                    f"row '{row.label}' pools the runs of {each} cells per maze ({pooled_settings(cells)})"
-                )
-        elif len(cells) > 1:
-            parts.append(
-                f"row '{row.label}' pools the runs of {len(cells)} cells ({pooled_settings(cells)})"
-            )
-    if not parts:
-        return ""
-    return (
-        " The "
-        + "; the ".join(parts)
-        + "; its interval resamples run seeds, which the pooled cells share "
-        "(each seed's runs averaged)."
-    )
-
-
-def pooled_settings(cells: list[Cell]) -> str:
-    """What differs between pooled cells besides the maze, in words (``way 1, way 2``)."""
-    words = [settings(c.info) for c in cells]
-    keys = [k for k in words[0] if k != "maze" and len({w.get(k) for w in words}) > 1]
-    return (
-        ", ".join(dict.fromkeys(" ".join(w[k] for k in keys) for w in words)) or "the same setting"
-    )
-
-
-@dataclass
-class PaperValue:
-    """The paper's number for a row, printed in another section for the same setting."""
-
-    value: str  # as printed
-    source: str  # the section's name ("Table 3")
-    pools: str = ""  # what the paper's number pools beyond the row ("ways 1-4 pooled")
-
-    def text(self) -> str:
-        return f"{self.value} ({self.source}{', ' + self.pools if self.pools else ''})"
-
-    def number(self) -> float | None:
-        try:
-            return float(self.value)
-        except ValueError:
-            return None
-
-
-def setting_key(cell: Cell) -> str:
-    """What a cell ran, except its substitution way: method, maze, episodes, support set and
-    recogniser (JSON, to compare cells of different experiments)."""
-    info = cell.info
-    recogniser = (info.get("recogniser") or {}).get("kind")
-    return json.dumps(
-        [
-            info["method"],
-            info["maze"],
-            (cell.config or {}).get("episodes"),
-            recogniser,
-            info.get("support") if recogniser else None,
-        ],
-        sort_keys=True,
-    )
-
-
-def way(cell: Cell):
-    return cell.info.get("substitution") if cell.info["method"].get("dynamic_support") else None
-
-
-def paper_for(cells: list[Cell], experiments: list[Experiment]) -> PaperValue | None:
-    """The paper's number for ``cells`` (one setting, any substitution ways) from a group of any
-    section that gives one for the same :func:`setting_key` on their maze, the group's ways
-    including theirs; None if there is none."""
-    keys, ways = {setting_key(c) for c in cells}, {way(c) for c in cells}
-    if len(keys) != 1:
-        return None
-    for other in experiments:
-        if not any(group.paper for group in other.spec.groups):
-            continue  # only groups carry the paper's numbers (and naming 2,100 rows is slow)
-        source = (other.spec.title or other.name).split(":")[0]
-        for group, group_cells in other.rows():
-            for maze, value in group.paper.items():
-                on = [c for c in group_cells if c.maze == maze]
-                if on and {setting_key(c) for c in on} == keys and ways <= {way(c) for c in on}:
-                    wider = sorted({way(c) for c in on} - {None})
-                    if not wider or ways == set(wider):
-                        return PaperValue(str(value), source)
-                    together = (
-                        f"{wider[0]}-{wider[-1]}"
-                        if wider == list(range(wider[0], wider[-1] + 1))
-                        else ", ".join(map(str, wider))
-                    )
-                    return PaperValue(str(value), source, f"ways {together} pooled")
-    return None
-
-
-def paper_values(exp: Experiment, experiments: list[Experiment]) -> dict[str, PaperValue]:
-    """By row key of ``exp`` (rows without their own ``paper``): :func:`paper_for` the row's
-    cells. The paper prints no numbers for Figures 8-10; its Table 3 does for their 5x5 setting
-    (the DSS row as the mean of the four ways)."""
-    found = {row.key: paper_for(cells, experiments) for row, cells in exp.rows() if not row.paper}
-    return {key: value for key, value in found.items() if value is not None}
-
-
-def safe(name: str) -> str:
-    """A maze name (or a layout file's name) as part of a file name."""
-    return re.sub(r"[^A-Za-z0-9_.-]+", "_", name)
-
-
-# ------------------------------------------------------------------------------------ parts
-def collision_row(
-    exp: Experiment, row: Row, cells: list[Cell], paper: dict[str, PaperValue]
-) -> dict:
-    """A table row: the row's name, the collisions per run and the convergence of its runs, the
-    paper's number where there is one (``paper``: by row key)."""
-    d = describe_runs(cells)
-    out = {exp.spec.row_header: row.label, "runs": d["n"], COLLISIONS: fmt(d)}
-    conv = convergence(cells)
-    if conv:
-        ok = [c for c in conv if c is not None]
-        out["converged runs"] = f"{len(ok)}/{len(conv)}"
-        out["converged episode (mean)"] = f"{np.mean(ok):.0f}" if ok else "not converged"
-    if paper:
-        out["paper"] = paper[row.key].text() if row.key in paper else ""
-    return out
-
-
-def curves_part(
-    rep,
-    exp: Experiment,
-    rows: list[tuple[Row, list[Cell]]],
-    maze: str | None = None,
-    table: dict | None = None,
-) -> None:
-    """Learning curves of ``rows``: collisions per episode, mean over run seeds with a 95% band;
-    their data go to ``table`` (a list of frames) when given, else to
-    ``tables/<folder>_learning_curves.csv``."""
-    series = [
-        (row, a) for row, cells in rows if (a := pooled(cells, Cell.collisions_by_episode)).size
-    ]
-    if not series:
-        return
-    own = table is None
-    table = [] if own else table
-    for row, a in series:
-        mean, lo, hi = mean_band(a)
-        name, key = (
-            (row.label, row.key)
-            if maze is None
-            else (f"{row.label} ({maze})", f"{row.key}_{safe(maze)}")
-        )
-        table.append(
-            pd.DataFrame(
-                {
-                    "series": name,
-                    "key": key,
-                    "episode": np.arange(mean.size),
-                    "mean": mean,
-                    "ci_low": lo,
-                    "ci_high": hi,
-                }
-            )
-        )
-    if own:
-        write_curves_table(rep, exp, table)
-    where = "" if maze is None else f", {maze}"
-    name = f"{exp.folder}_learning_curves{'' if maze is None else '_' + safe(maze)}.png"
-    n_runs = sorted({a.shape[0] for _, a in series})
-    scales = F.curves(
-        {row.label: a for row, a in series},
-        f"Collisions per episode{where}: mean over runs, 95% band",
-        rep.out / "figures" / name,
-    )
-    pooled_rows = (
-        " (a row that pools cells: their mean per seed)" if any(len(c) > 1 for _, c in rows) else ""
-    )
-    scales = f" ({scales})" if scales else ""
-    rep.figure(
-        f"figures/{name}",
-        f"Learning curves{where}: collisions per episode from episode 0, mean over "
-        f"{'/'.join(map(str, n_runs))} run seeds{pooled_rows} with its 95% t interval shaded"
-        f"{scales}; data: `tables/{exp.folder}_learning_curves.csv`.",
-    )
-
-
-def write_curves_table(rep, exp: Experiment, frames: list[pd.DataFrame]) -> None:
-    if frames:
-        pd.concat(frames, ignore_index=True).to_csv(
-            rep.out / "tables" / f"{exp.folder}_learning_curves.csv",
-            index=False,
-            lineterminator="\n",
-            float_format="%.6g",
-        )
-
-
-def support_part(
-    rep, exp: Experiment, rows: list[tuple[Row, list[Cell]]], maze: str | None = None
-) -> None:
-    """The query accuracy of the rows' support sets over the run (rows with a recogniser)."""
-    series = {row.label: pooled(cells, Cell.support_accuracy) for row, cells in rows}
-    series = {k: a for k, a in series.items() if a.size}
-    if not series:
-        return
-    where = "" if maze is None else f", {maze}"
-    name = f"{exp.folder}_support_accuracy{'' if maze is None else '_' + safe(maze)}.png"
-    title = f"Query accuracy of the run's support set over the run{where}"
-    scales = F.curves(
-        series, title, rep.out / "figures" / name, ylabel="query accuracy of the support set"
-    )
-    starts = {
-        row.label: [s for c in cells if (s := c.start_accuracy()) is not None]
-        for row, cells in rows
-    }
-    rep.figure(
-        f"figures/{name}",
-        f"{title}: mean over run seeds at the end of each episode, 95% t band"
-        f"{' (' + scales + ')' if scales else ''}{start_accuracy_note(starts)}.",
-    )
-
-
-def start_accuracy_note(starts: dict[str, list[float]]) -> str:
-    """What the rows' original support sets recognise at the start of a run: one figure when the
-    rows agree (one recogniser), else one per row (rows with other recognisers differ); "" without any."""
-    means = {label: float(np.mean(v)) for label, v in starts.items() if v}
-    shown = {f"{100 * m:.1f}%" for m in means.values()}
-    if not means:
-        return ""
-    if len(shown) == 1:
-        return f"; at the start of a run the support set recognises {shown.pop()} of the query pictures"
-    return (
-        "; at the start of a run the support set recognises "
-        + ", ".join(f"{100 * m:.1f}% ({label})" for label, m in means.items())
-        + " of the query pictures"
-    )
 
 
 # ------------------------------------------------------------------------------------ kinds
@@ -508,10 +227,7 @@ def by_maze_kind(rep, exp: Experiment, paper: dict[str, PaperValue]) -> None:
 
 
 def generalisation_kind(rep, exp: Experiment, paper: dict[str, PaperValue]) -> None:
-    """:mod:`pipeline.report.generalisation` (imported here: it checks claims with
-    :mod:`pipeline.report.claims`, which imports this module)."""
-    from pipeline.report.generalisation import generalisation_section
-
+    """:mod:`pipeline.report.generalisation`."""
     generalisation_section(rep, exp)
 
 

@@ -24,6 +24,7 @@ robot to the previous safe state and the episode goes on; without it the collisi
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, replace
+from functools import cache
 from pathlib import Path
 from typing import Any
 
@@ -32,7 +33,7 @@ from omegaconf.errors import OmegaConfBaseException
 
 from pipeline.errors import ConfigError
 from pipeline.rl.codes import Learner
-from pipeline.rl.rules import Safety, reasons_with_pictures
+from pipeline.rl.rules import METHODS, Method, Safety, reasons_with_pictures
 from pipeline.schema import check, setting
 
 #: ``conf/method/<name>.yaml``: each file holds only what differs from :class:`MethodSpec`'s defaults.
@@ -90,6 +91,36 @@ def check_method(spec: MethodSpec, key: str = "method") -> MethodSpec:
 def method_names() -> list[str]:
     """The methods of ``conf/method/``, sorted."""
     return sorted(p.stem for p in METHOD_DIR.glob("*.yaml"))
+
+
+#: The fields that make a method what it is (its display name says them); the others
+#: (``alpha``, ``recovery``, ...) are settings a cell may change.
+IDENTITY = ("learner", "safety", "constrained", "dynamic_support")
+
+
+@cache
+def declared_fields() -> dict[str, dict[str, Any]]:
+    """The fields of every declared method (:data:`pipeline.rl.rules.METHODS`) that has a file
+    in ``conf/method/``, by name, in the declared order."""
+    return {m.name: load_method(m.name).as_dict() for m in METHODS if m.name in method_names()}
+
+
+def declaration(method: dict[str, Any]) -> Method | None:
+    """The declaration (:data:`pipeline.rl.rules.METHODS`) of a method as recorded (its
+    ``MethodSpec`` fields), found by its ``name``; when its :data:`IDENTITY` fields are not that
+    method's but another declared method's, that one (``method=qlearning method.learner=sarsa``
+    ran Sarsa). None for a name nothing declares: the caller shows the recorded name."""
+    fields = declared_fields()
+    own = next((m for m in METHODS if m.name == method.get("name") and m.name in fields), None)
+    if own is None:
+        return None
+
+    def same(name: str) -> bool:
+        return all(method.get(k) == fields[name][k] for k in IDENTITY)
+
+    if same(own.name):
+        return own
+    return next((m for m in METHODS if m.name in fields and same(m.name)), own)
 
 
 def load_method(

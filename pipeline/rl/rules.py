@@ -4,8 +4,10 @@ README "Where we differ from the paper").
 
 ``apply_action`` is the single implementation of these rules; the batched kernel and the
 Gymnasium environment both call it. It is also the only code that tells safety methods apart
-(:class:`Safety`, defined here): adding one means a member and a branch in this file (and a line in
-``reasons_with_pictures`` if it looks at pictures), its yaml, a test and a docs line (docs/extending.md).
+(:class:`Safety`, defined here) and the one place that declares the methods of ``conf/method/``
+(:data:`METHODS`: display name, colour, order). Adding a method means a member and a branch in this
+file if its rule is new (and a line in ``reasons_with_pictures`` if it looks at pictures), its entry
+in :data:`METHODS`, its yaml and a test (docs/extending.md).
 
 Given the robot in free cell ``s`` choosing ``a``:
 
@@ -22,6 +24,7 @@ Given the robot in free cell ``s`` choosing ``a``:
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from enum import IntEnum
 
 import numba as nb
@@ -42,6 +45,33 @@ class Safety(IntEnum):
     fewshot = (
         3  #: Algorithm 1: a recognised obstacle adds (s, a); a misrecognition collides and adds it
     )
+
+
+@dataclass(frozen=True)
+class Method:
+    """What the rest of the code knows of a method of ``conf/method/`` beyond its fields: how the
+    report names and draws it. Never recorded (the records keep ``MethodSpec``'s fields only), so
+    changing a display name or a colour changes the report, not the records."""
+
+    name: str
+    """Its config name: ``conf/method/<name>.yaml`` and ``MethodSpec.name``."""
+    display: str
+    """Its name in tables, legends and the claims."""
+    colour: str
+    """Its colour in every figure where a series is one method (a matplotlib colour)."""
+
+
+#: Every method of ``conf/method/``, in the order of the report's tables and figures (the paper's
+#: Figure 8, then Table 3's rows); ``tests/test_declarations.py`` checks it against the yaml files.
+METHODS = (
+    Method("qlearning", "Q-learning", "#7f7f7f"),
+    Method("sarsa", "Sarsa", "#bcbd22"),
+    Method("shield", "Shield", "#2ca02c"),
+    Method("ssrl", "SSRL", "#d62728"),
+    Method("constrained", "Constrained RL", "#9467bd"),
+    Method("fewshot", "Few-shot (static support set)", "#1f77b4"),
+    Method("fewshot_dss", "Few-shot + DSS", "#ff7f0e"),
+)
 
 
 #: The most pairs one step can add to A_d (SSRL: the pair itself and up to four neighbours').

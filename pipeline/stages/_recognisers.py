@@ -3,7 +3,8 @@
 A recogniser is any callable returning an object of the ``pipeline.rl.recogniser.Recogniser``
 protocol whose keyword arguments include ``substitution_way`` and ``carry_over`` (the trial stage
 fills those from the cell). The callable's signature is its schema: the yaml's other keys must be
-its parameters, with values of their annotated types. Adding a recogniser: its module and its yaml.
+its parameters, with values of their annotated types. Adding a recogniser: its module, its yaml
+and a test; the lists of recognisers (in messages, in tests) come from ``conf/recogniser/``.
 """
 
 from __future__ import annotations
@@ -20,8 +21,27 @@ from omegaconf import OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
 from pipeline.errors import ConfigError, UserError
+from pipeline.stages._common import CONF_DIR
 
 FILLED_BY_STAGE = ("substitution_way", "carry_over")
+
+#: ``conf/recogniser/<name>.yaml``: one file per recogniser, the group ``recogniser=<name>`` chooses.
+RECOGNISER_DIR = Path(CONF_DIR) / "recogniser"
+
+
+def recogniser_names() -> list[str]:
+    """The recognisers of ``conf/recogniser/``, sorted."""
+    return sorted(p.stem for p in RECOGNISER_DIR.glob("*.yaml"))
+
+
+def recognisers_taking(parameter: str) -> list[str]:
+    """The recognisers (of :func:`recogniser_names`) whose ``_target_`` takes ``parameter``."""
+    out = []
+    for name in recogniser_names():
+        node = OmegaConf.to_container(OmegaConf.load(RECOGNISER_DIR / f"{name}.yaml"))
+        if parameter in inspect.signature(_target(node, f"recogniser {name}")).parameters:
+            out.append(name)
+    return out
 
 
 def _config_type(hint: Any) -> Any:
@@ -38,7 +58,8 @@ def _target(node: dict, key: str) -> Callable:
     target = node.get("_target_")
     if not target:
         raise ConfigError(
-            f"config key '{key}._target_': missing; choose a recogniser: {key}=relation_net|protonet|oracle|fixed_accuracy"
+            f"config key '{key}._target_': missing; choose a recogniser: "
+            f"{key}={'|'.join(recogniser_names())}"
         )
     try:
         return get_method(str(target))

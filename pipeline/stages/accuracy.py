@@ -2,7 +2,7 @@
 
 On the rendered query and support pictures with the meta-trained checkpoint (docs/fewshot.md).
 
-    python -m pipeline accuracy [recogniser=relation_net|protonet|oracle|fixed_accuracy] [recogniser.checkpoint=...] [study.repeats=...]
+    python -m pipeline accuracy [recogniser=<name of conf/recogniser/>] [recogniser.checkpoint=...] [study.repeats=...]
 
 Writes ``out_dir``/baseline.csv, table1.csv, table2.csv and summary.json (with the colour test:
 the query pictures hue-turned by each of ``study.hue_shifts``, ``pipeline.fewshot.colour``) for the report stage.
@@ -24,7 +24,11 @@ from pipeline.fewshot.colour import colour_test
 from pipeline.fewshot.study_tables import baseline_frame, summary, table1_frame, table2_frame
 from pipeline.files import write_json_atomic
 from pipeline.stages._common import stage_main
-from pipeline.stages._recognisers import build_recogniser, recogniser_arguments
+from pipeline.stages._recognisers import (
+    build_recogniser,
+    recogniser_arguments,
+    recognisers_taking,
+)
 from pipeline.stages._schema import AccuracyConfig
 from pipeline.world.pictures import CATEGORIES, N_PICTURES, picture_category
 
@@ -41,7 +45,8 @@ def _hue_turned_predictions(
         if shifts and any(o.lstrip("+~").startswith("study.hue_shifts") for o in overrides):
             raise ConfigError(
                 f"config key 'study.hue_shifts': the colour test turns query pictures, and "
-                f"{cfg.recogniser['_target_']} reads none; use recogniser=relation_net|protonet"
+                f"{cfg.recogniser['_target_']} reads none; use recogniser="
+                + "|".join(recognisers_taking("query_hue_shift"))
             )
         return None
     base = float(cfg.recogniser.get("query_hue_shift", 0.0))

@@ -1,0 +1,164 @@
+"""The parts every section kind is built of: a row of the collisions table, the learning curves
+(collisions per episode, mean over run seeds with a 95% band, and their long-format table), the
+support set's query accuracy over the run. ``rep`` is the report being written
+(:class:`pipeline.report.build.Report`)."""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pandas as pd
+
+from pipeline.report import figures as F
+from pipeline.report.experiments import Cell, Experiment
+from pipeline.report.names import row_colours
+from pipeline.report.paper_numbers import PaperValue
+from pipeline.report.pooling import convergence, describe_runs, pooled
+from pipeline.report.spec import Row
+from pipeline.report.stats import fmt, mean_band
+
+COLLISIONS = "collisions (mean ± s.d. [95% CI])"
+
+
+def colours_of(rows: list[tuple[Row, list[Cell]]]) -> dict[str, str]:
+    """The rows' colours by label where each row is one declared method (its colour in every
+    figure: :func:`~pipeline.report.names.row_colours`); empty otherwise."""
+    found = row_colours([[c.info for c in cells] for _, cells in rows])
+    return {rows[i][0].label: colour for i, colour in found.items()}
+
+
+def safe(name: str) -> str:
+    """A maze name (or a layout file's name) as part of a file name."""
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", name)
+
+
+def collision_row(
+    exp: Experiment, row: Row, cells: list[Cell], paper: dict[str, PaperValue]
+) -> dict:
+    """A table row: the row's name, the collisions per run and the convergence of its runs, the
+    paper's number where there is one (``paper``: by row key)."""
+    d = describe_runs(cells)
+    out = {exp.spec.row_header: row.label, "runs": d["n"], COLLISIONS: fmt(d)}
+    conv = convergence(cells)
+    if conv:
+        ok = [c for c in conv if c is not None]
+        out["converged runs"] = f"{len(ok)}/{len(conv)}"
+        out["converged episode (mean)"] = f"{np.mean(ok):.0f}" if ok else "not converged"
+    if paper:
+        out["paper"] = paper[row.key].text() if row.key in paper else ""
+    return out
+
+
+def curves_part(
+    rep,
+    exp: Experiment,
+    rows: list[tuple[Row, list[Cell]]],
+    maze: str | None = None,
+    table: dict | None = None,
+) -> None:
+    """Learning curves of ``rows``: collisions per episode, mean over run seeds with a 95% band;
+    their data go to ``table`` (a list of frames) when given, else to
+    ``tables/<folder>_learning_curves.csv``."""
+    series = [
+        (row, a) for row, cells in rows if (a := pooled(cells, Cell.collisions_by_episode)).size
+    ]
+    if not series:
+        return
+    own = table is None
+    table = [] if own else table
+    for row, a in series:
+        mean, lo, hi = mean_band(a)
+        name, key = (
+            (row.label, row.key)
+            if maze is None
+            else (f"{row.label} ({maze})", f"{row.key}_{safe(maze)}")
+        )
+        table.append(
+            pd.DataFrame(
+                {
+                    "series": name,
+                    "key": key,
+                    "episode": np.arange(mean.size),
+                    "mean": mean,
+                    "ci_low": lo,
+                    "ci_high": hi,
+                }
+            )
+        )
+    if own:
+        write_curves_table(rep, exp, table)
+    where = "" if maze is None else f", {maze}"
+    name = f"{exp.folder}_learning_curves{'' if maze is None else '_' + safe(maze)}.png"
+    n_runs = sorted({a.shape[0] for _, a in series})
+    scales = F.curves(
+        {row.label: a for row, a in series},
+        f"Collisions per episode{where}: mean over runs, 95% band",
+        rep.out / "figures" / name,
+        colours=colours_of(rows),
+    )
+    pooled_rows = (
+        " (a row that pools cells: their mean per seed)" if any(len(c) > 1 for _, c in rows) else ""
+    )
+    scales = f" ({scales})" if scales else ""
+    rep.figure(
+        f"figures/{name}",
+        f"Learning curves{where}: collisions per episode from episode 0, mean over "
+        f"{'/'.join(map(str, n_runs))} run seeds{pooled_rows} with its 95% t interval shaded"
+        f"{scales}; data: `tables/{exp.folder}_learning_curves.csv`.",
+    )
+
+
+def write_curves_table(rep, exp: Experiment, frames: list[pd.DataFrame]) -> None:
+    if frames:
+        pd.concat(frames, ignore_index=True).to_csv(
+            rep.out / "tables" / f"{exp.folder}_learning_curves.csv",
+            index=False,
+            lineterminator="\n",
+            float_format="%.6g",
+        )
+
+
+def support_part(
+    rep, exp: Experiment, rows: list[tuple[Row, list[Cell]]], maze: str | None = None
+) -> None:
+    """The query accuracy of the rows' support sets over the run (rows with a recogniser)."""
+    series = {row.label: pooled(cells, Cell.support_accuracy) for row, cells in rows}
+    series = {k: a for k, a in series.items() if a.size}
+    if not series:
+        return
+    where = "" if maze is None else f", {maze}"
+    name = f"{exp.folder}_support_accuracy{'' if maze is None else '_' + safe(maze)}.png"
+    title = f"Query accuracy of the run's support set over the run{where}"
+    scales = F.curves(
+        series,
+        title,
+        rep.out / "figures" / name,
+        ylabel="query accuracy of the support set",
+        colours=colours_of(rows),
+    )
+    starts = {
+        row.label: [s for c in cells if (s := c.start_accuracy()) is not None]
+        for row, cells in rows
+    }
+    rep.figure(
+        f"figures/{name}",
+        f"{title}: mean over run seeds at the end of each episode, 95% t band"
+        f"{' (' + scales + ')' if scales else ''}{start_accuracy_note(starts)}.",
+    )
+
+
+def start_accuracy_note(starts: dict[str, list[float]]) -> str:
+    """What the rows' original support sets recognise at the start of a run: one figure when the
+    rows agree (one recogniser), else one per row (rows with other recognisers differ); "" without any."""
+    means = {label: float(np.mean(v)) for label, v in starts.items() if v}
+    shown = {f"{100 * m:.1f}%" for m in means.values()}
+    if not means:
+        return ""
+    if len(shown) == 1:
+        return f"; at the start of a run the support set recognises {shown.pop()} of the query pictures"
+    return (
+        "; at the start of a run the support set recognises "
+        + ", ".join(f"{100 * m:.1f}% ({label})" for label, m in means.items())
+        + " of the query pictures"
+    )

@@ -1,0 +1,98 @@
+"""One declaration per thing: the methods' declarations (``METHODS`` in ``pipeline/rl/rules.py``)
+match ``conf/method/``, the report's names, colours and orders come from them, a method nothing
+declares keeps its recorded name, and every recogniser that records a kind declares its display
+name. Each failure names what to add."""
+
+from __future__ import annotations
+
+import inspect
+
+import pytest
+from omegaconf import OmegaConf
+
+from pipeline.report.layout_cells import LayoutCells, methods_of
+from pipeline.report.names import (
+    method_colour,
+    method_name,
+    recogniser_name,
+    row_colours,
+    row_names,
+    settings,
+)
+from pipeline.rl.methods import declaration, get_method, method_names
+from pipeline.rl.rules import METHODS
+from pipeline.stages._recognisers import RECOGNISER_DIR, _target, recogniser_names
+
+
+def recorded(name: str, **fields) -> dict:
+    """A method's fields as a record keeps them (``MethodSpec.as_dict()``)."""
+    return get_method(name, **fields).as_dict()
+
+
+def test_every_method_file_has_one_declaration_and_every_declaration_a_file():
+    declared = [m.name for m in METHODS]
+    assert len(set(declared)) == len(declared), "a method is declared twice in rules.METHODS"
+    missing = sorted(set(method_names()) - set(declared))
+    assert not missing, f"declare {missing} in pipeline/rl/rules.py METHODS (display, colour)"
+    orphans = sorted(set(declared) - set(method_names()))
+    assert not orphans, f"rules.METHODS declares {orphans}, which have no conf/method/<name>.yaml"
+
+
+def test_display_names_and_colours_tell_methods_apart():
+    assert len({m.display for m in METHODS}) == len(METHODS)
+    assert len({m.colour.lower() for m in METHODS}) == len(METHODS)
+
+
+@pytest.mark.parametrize("method", METHODS, ids=lambda m: m.name)
+def test_the_report_names_and_colours_each_method_as_declared(method):
+    fields = recorded(method.name)
+    assert declaration(fields) is method
+    assert method_name(fields) == method.display
+    assert method_colour(fields) == method.colour
+    assert settings({"method": fields, "maze": "5x5"})["method"] == method.display
+
+
+def test_a_variant_is_named_by_what_it_ran_and_says_how_it_differs():
+    # the fields of another declared method: that method's name
+    assert method_name(recorded("qlearning", learner="sarsa")) == "Sarsa"
+    # fields no declaration has: its own name, and the field that differs shows as a setting
+    variant = recorded("sarsa", constrained=True)
+    assert method_name(variant) == "Sarsa"
+    names = row_names(
+        [[{"method": recorded("sarsa"), "maze": "5x5"}], [{"method": variant, "maze": "5x5"}]]
+    )
+    assert names == ["Sarsa, constrained False", "Sarsa, constrained True"]
+
+
+def test_a_method_nothing_declares_keeps_its_recorded_name():
+    mine = {**recorded("shield"), "name": "mine"}
+    assert declaration(mine) is None
+    assert method_name(mine) == "mine" and method_colour(mine) is None
+    rows = [[{"method": mine, "maze": "5x5"}], [{"method": recorded("qlearning"), "maze": "5x5"}]]
+    assert row_names(rows) == ["mine", "Q-learning"]
+    assert row_colours(rows) == {}  # positional colours when a row has no declared colour
+
+
+def test_rows_of_distinct_methods_take_their_declared_colours():
+    rows = [[{"method": recorded(m.name), "maze": "5x5"}] for m in METHODS[:3]]
+    assert row_colours(rows) == {i: m.colour for i, m in enumerate(METHODS[:3])}
+    same = [[{"method": recorded("fewshot_dss"), "maze": "5x5", "substitution": w}] for w in (1, 2)]
+    assert row_colours(same) == {}  # rows that are ways of one method
+
+
+def test_generalisation_orders_methods_as_declared():
+    layout = LayoutCells("5x5", "random:5x5:4:0:unique", 0, [])
+    layout.cells = {name: None for name in ["zeta", *reversed(method_names()), "alpha"]}
+    assert methods_of([layout]) == [m.name for m in METHODS] + ["alpha", "zeta"]
+
+
+@pytest.mark.parametrize("name", recogniser_names())
+def test_every_recogniser_that_records_a_kind_declares_its_display_name(name):
+    node = OmegaConf.to_container(OmegaConf.load(RECOGNISER_DIR / f"{name}.yaml"))
+    target = _target(node, f"recogniser {name}")
+    cls = getattr(target, "__self__", target)  # ``Class.from_files``: the class
+    assert inspect.isclass(cls)
+    if getattr(cls, "kind", ""):
+        assert cls.display_name, f"{cls.__name__} records kind {cls.kind!r}: give it a display_name"
+        assert recogniser_name(cls.kind) == cls.display_name
+    assert recogniser_name("unheard_of") == "unheard_of"
