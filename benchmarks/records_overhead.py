@@ -447,7 +447,7 @@ def main() -> None:
     from pipeline.rl.fixed_accuracy import FixedAccuracyRecogniser
     from pipeline.rl.methods import get_method
     from pipeline.rl.runner import run_trials
-    from pipeline.stages.trials import query_pictures
+    from pipeline.fewshot.picture_bytes import query_pictures
     from pipeline.world.maze import load_layout
 
     layout, method = load_layout(args.maze), get_method("fewshot_dss")
