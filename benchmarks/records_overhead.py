@@ -443,11 +443,11 @@ def main() -> None:
 
     numba.set_num_threads(1)
     torch.set_num_threads(1)
+    from pipeline.fewshot.picture_bytes import query_pictures
     from pipeline.records import RecordWriter
     from pipeline.rl.fixed_accuracy import FixedAccuracyRecogniser
     from pipeline.rl.methods import get_method
     from pipeline.rl.runner import run_trials
-    from pipeline.stages.trials import query_pictures
     from pipeline.world.maze import load_layout
 
     layout, method = load_layout(args.maze), get_method("fewshot_dss")

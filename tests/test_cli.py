@@ -4,9 +4,11 @@ stage wrote, and an ``out`` with results refused unless ``overwrite=true``."""
 import hashlib
 import subprocess
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
+import yaml
 
 from pipeline.__main__ import available_stages
 from pipeline.errors import ConfigError
@@ -89,29 +91,39 @@ def test_an_out_with_only_hidden_entries_is_not_refused(tmp_path):
     trials.refuse_overwrite(load_config("trials", [f"out={tmp_path}"]), tmp_path)
 
 
-def test_the_outs_dvc_yaml_declares_are_replaced(tmp_path, monkeypatch):
+def test_an_out_that_dvc_yaml_declares_is_refused_like_any_other(tmp_path, monkeypatch):
+    """Nothing at run time reads ``dvc.yaml``: under ``dvc repro`` the out is already empty (DVC
+    deletes a stage's outs before it runs it), so a declared out that holds results is refused too."""
     (tmp_path / "dvc.yaml").write_text(
-        "stages:\n  t:\n    foreach: [a, b]\n    do:\n      cmd: x\n      outs:\n"
-        "        - runs/${item}\n        - runs/${item}.json:\n            cache: false\n"
+        "stages:\n  t:\n    cmd: python -m pipeline trials out=runs/a\n    outs:\n      - runs/a\n"
     )
-    assert trials.dvc_outs(tmp_path / "dvc.yaml") == {
-        tmp_path / f"runs/{n}" for n in ("a", "b", "a.json", "b.json")
-    }
-    monkeypatch.setattr(trials, "DVC_YAML", tmp_path / "dvc.yaml")
-    for name in ("a", "c"):
-        (tmp_path / "runs" / name).mkdir(parents=True)
-        (tmp_path / "runs" / name / "summary.json").write_text("{}")
-    cfg = load_config("trials", [f"out={tmp_path}/runs/a"])
-    trials.refuse_overwrite(cfg, tmp_path / "runs" / "a")
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "runs" / "a").mkdir(parents=True)
+    (tmp_path / "runs" / "a" / "summary.json").write_text("{}")
+    cfg = load_config("trials", ["out=runs/a"])
     with pytest.raises(ConfigError, match="overwrite=true"):
-        trials.refuse_overwrite(cfg, tmp_path / "runs" / "c")
+        trials.refuse_overwrite(cfg, Path("runs/a"))
+    trials.refuse_overwrite(replace(cfg, overwrite=True), Path("runs/a"))
 
 
-def test_the_pipelines_trials_outs_are_declared():
-    declared = trials.dvc_outs(trials.DVC_YAML)
-    for name in ("fig8", "fig9", "fig10", "table3", "accuracy_curve"):
-        assert (ROOT / "datasets" / "runs" / name).resolve() in declared
-    assert (ROOT / "datasets" / "runs" / "adhoc").resolve() not in declared
+def test_each_trials_stage_writes_into_the_out_dvc_deletes_before_it_runs():
+    """The ``out`` a trials stage's command composes is the stage's declared out, which DVC deletes
+    before running the command: so ``dvc repro`` never meets the refusal of an ``out`` with results."""
+    stages = yaml.safe_load((ROOT / "dvc.yaml").read_text())["stages"]
+    trials_stage = stages["trials"]
+    for item in trials_stage["foreach"]:
+        cmd = trials_stage["do"]["cmd"].replace("${item}", item).split()
+        assert cmd[:4] == ["python", "-m", "pipeline", "trials"], cmd
+        cfg = load_config("trials", cmd[4:])
+        declared = trials_stage["do"]["outs"]  # a plain path, or {path: {persist: ...}}
+        outs = [
+            (o if isinstance(o, str) else next(iter(o))).replace("${item}", item) for o in declared
+        ]
+        assert outs == [cfg.out] and not cfg.overwrite, (item, outs, cfg.out)
+        kept = [
+            o for o in declared if isinstance(o, dict) and next(iter(o.values())).get("persist")
+        ]
+        assert not kept, f"{kept}: DVC keeps a persist out, so the stage would refuse it"
 
 
 @pytest.mark.parametrize("args", [["--help"], ["trials", "--help"]])

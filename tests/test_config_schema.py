@@ -20,10 +20,10 @@ from pipeline.errors import ConfigError
 from pipeline.rl.fixed_accuracy import FixedAccuracyRecogniser
 from pipeline.rl.methods import METHOD_DIR, MethodSpec, get_method, method_names
 from pipeline.rl.oracle import TRUE_CATEGORY
+from pipeline.stages._cell_plan import experiment_cells
 from pipeline.stages._common import load_config, run_stage
 from pipeline.stages._recognisers import recogniser_names
 from pipeline.stages._schema import SCHEMAS
-from pipeline.stages.trials import experiment_cells
 
 ROOT = Path(__file__).resolve().parents[1]
 SMOKE = ["profile=smoke", "progress=false"]

@@ -199,8 +199,8 @@ class TrialsConfig:
     seed: int = setting(ge=0)
     out: str = setting(nonempty=True)
     overwrite: bool = MISSING
-    """Replace results already in ``out``; without it such an ``out`` is refused (unless ``dvc.yaml``
-    declares it: DVC keeps its outs in its cache)."""
+    """Replace results already in ``out``; without it such an ``out`` is refused (``dvc repro``
+    deletes a stage's outs before running it, so there the ``out`` is empty)."""
     metrics_file: str | None = None
     timing_file: str | None = None
     record: str = setting(choices=RECORD_LEVELS)

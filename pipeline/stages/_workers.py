@@ -1,9 +1,10 @@
-"""Running an experiment's cells side by side in worker processes (the trials key ``workers``).
+"""Running an experiment's cells one after another, or side by side in worker processes (the
+trials key ``workers``).
 
 The cells of an experiment are independent: each has its own seed-derived runs and writes only
 its own folder, so running them in any order, in any process, gives the same bytes. The parent
 sends each worker the cell's config and layout (not its recogniser: a worker builds each
-recogniser it needs once, :func:`pipeline.stages.trials.make_recogniser`, and reads the recorded
+recogniser it needs once, :func:`pipeline.stages._cell_run.make_recogniser`, and reads the recorded
 pictures once); it collects each cell's summary, and the stage writes the experiment's index and
 metrics in cell order, as with one process.
 
@@ -21,7 +22,16 @@ from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import replace
 from pathlib import Path
 
-#: Per worker process: recognisers by :func:`~pipeline.stages.trials.recogniser_key`, pictures by folder.
+from pipeline.errors import Interrupted
+from pipeline.stages._cell_run import (
+    CellRun,
+    make_recogniser,
+    pictures_dir,
+    recorded_pictures,
+    run_cell,
+)
+
+#: Per worker process: recognisers by :func:`~pipeline.stages._cell_run.recogniser_key`, pictures by folder.
 _BUILT: dict = {}
 _PICTURES: dict = {}
 
@@ -41,13 +51,11 @@ def _start_worker(threads: int) -> None:
 
 def _run_one(cell, folder: str) -> tuple[dict, float]:
     """In a worker: give ``cell`` its recogniser and pictures (built once per process), run it."""
-    from pipeline.stages import trials
-
-    recogniser = trials.make_recogniser(cell.config, built=_BUILT)
-    shown = trials.pictures_dir(cell.config) if cell.config.record != "none" else None
+    recogniser = make_recogniser(cell.config, built=_BUILT)
+    shown = pictures_dir(cell.config) if cell.config.record != "none" else None
     if shown not in _PICTURES:
-        _PICTURES[shown] = trials.recorded_pictures(cell.config)
-    return trials.run_cell(
+        _PICTURES[shown] = recorded_pictures(cell.config)
+    return run_cell(
         replace(
             cell, recogniser=recogniser, pictures=_PICTURES[shown][0], support=_PICTURES[shown][1]
         ),
@@ -56,8 +64,28 @@ def _run_one(cell, folder: str) -> tuple[dict, float]:
     )
 
 
+def cell_results(
+    cells: list[CellRun], out: Path, workers: int, threads: int, progress: bool
+) -> Iterator[tuple[int, dict, float]]:
+    """``(index, summary, seconds)`` of every cell into ``out`` (``<out>/<cell>/``, or ``out``
+    itself for the one unnamed cell) as it completes: one after another, or in ``workers``
+    processes (without per-episode bars); ``progress``: each cell's per-episode bar."""
+    folders = [out / c.name if c.name else out for c in cells]
+    if workers > 1 and len(cells) > 1:
+        try:
+            yield from run_parallel(cells, folders, workers, threads)
+        except (KeyboardInterrupt, Interrupted) as exc:  # the workers are stopped: say where
+            code = exc.code if isinstance(exc, Interrupted) else 130
+            raise Interrupted(
+                code, f"interrupted; the finished cells' records are under {out}"
+            ) from None
+        return
+    for i, (cell, folder) in enumerate(zip(cells, folders)):
+        yield i, *run_cell(cell, folder, progress)
+
+
 def run_parallel(
-    cells: list, folders: list[Path], workers: int, threads: int
+    cells: list[CellRun], folders: list[Path], workers: int, threads: int
 ) -> Iterator[tuple[int, dict, float]]:
     """``(index, summary, seconds)`` of every cell as it completes, run in ``workers`` processes.
     An error in a cell stops the others and is raised here; so is an interrupt."""

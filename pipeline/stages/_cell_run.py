@@ -1,0 +1,224 @@
+"""One cell of a trials run: what it runs with (its config, layout, recogniser and the pictures its
+records keep) and running it into its folder (``records.mcap``, ``summary.json``).
+
+The stage (:mod:`pipeline.stages.trials`) and its worker processes (:mod:`pipeline.stages._workers`)
+both run cells through :func:`run_cell`. Here the runner (``pipeline/rl``) meets the record writer
+(``pipeline/records``): the runner writes through the ``EpisodeSink`` protocol and knows no file
+format, the writer knows no runner, so the stage joins them.
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import time
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+from omegaconf import OmegaConf
+
+from pipeline.errors import ConfigError, Interrupted, UserError
+from pipeline.files import write_json_atomic
+from pipeline.rl.methods import MethodSpec
+from pipeline.rl.rng import run_seeds
+from pipeline.rl.runner import make_run_world, run_trials
+from pipeline.stages._common import one_line
+from pipeline.stages._recognisers import build_recogniser
+from pipeline.stages._schema import TrialsConfig
+from pipeline.world.geometry import build_geometry
+from pipeline.world.maze import ACTION_NAMES, MOVES, Layout
+from pipeline.world.pictures import CATEGORIES
+
+
+@dataclass
+class CellRun:
+    """One cell as it runs: its full single-cell config (what the records embed) and its layout."""
+
+    name: str
+    config: TrialsConfig
+    layout: Layout
+    recogniser: Any = None
+    """Built before any cell runs, so a broken checkpoint is refused up front."""
+    pictures: dict[int, bytes] = field(default_factory=dict)
+    """The query pictures the records keep, by picture id (read up front, like the recogniser)."""
+    support: dict[int, list[bytes]] = field(default_factory=dict)
+    """The initial support set the records keep: category -> its K shots in position order."""
+
+    @property
+    def method(self) -> MethodSpec:
+        return self.config.method
+
+
+def recogniser_key(cfg: TrialsConfig) -> str | None:
+    """What makes two cells' recognisers interchangeable: the recogniser's arguments and the
+    substitution way. None where a recogniser must not be shared: no recogniser, or a support set
+    carried over from run to run (it is state of the cell's own runs)."""
+    method = cfg.method
+    if not method.uses_recogniser or cfg.support == "carry":
+        return None
+    way = cfg.substitution if method.dynamic_support else 0
+    return json.dumps([cfg.recogniser, way], sort_keys=True, default=str)
+
+
+def make_recogniser(cfg: TrialsConfig, key: str = "recogniser", built: dict | None = None):
+    """The cell's recogniser (``conf/recogniser/``), or None for methods that see no pictures;
+    ``key`` names the config key in an error (a cell's own when it pins recogniser arguments).
+
+    ``built`` (:func:`recogniser_key` -> recogniser) shares one recogniser among cells: each run
+    restores its own support set from the original at its start (``start_run``), so a recogniser
+    that served other cells' runs gives the same answers (loading the Relation Network once instead
+    of once per cell: 600 times in the generalisation experiment)."""
+    method = cfg.method
+    if not method.uses_recogniser:
+        return None
+    share = recogniser_key(cfg) if built is not None else None
+    if share is not None and share in built:
+        return built[share]
+    way = cfg.substitution if method.dynamic_support else 0
+    recogniser = build_recogniser(
+        cfg.recogniser, substitution_way=way, carry_over=cfg.support == "carry", key=key
+    )
+    if share is not None:
+        built[share] = recogniser
+    return recogniser
+
+
+def pictures_dir(cfg: TrialsConfig) -> str | None:
+    """The rendered pictures the records keep, for methods that recognise pictures: the recogniser's
+    own ``images_dir`` (relation_net), else the trials key ``images_dir`` (oracle, fixed_accuracy)."""
+    own = cfg.recogniser.get("images_dir")
+    if not cfg.method.uses_recogniser or not (own or cfg.images_dir):
+        return None
+    if own and cfg.images_dir and Path(own).resolve() != Path(cfg.images_dir).resolve():
+        raise ConfigError(
+            f"config key 'images_dir': the recogniser reads its pictures from recogniser.images_dir="
+            f"{own}, and the records keep those; leave images_dir out"
+        )
+    return own or cfg.images_dir
+
+
+def recorded_pictures(cfg: TrialsConfig) -> tuple[dict[int, bytes], dict[int, list[bytes]]]:
+    """The query pictures and the initial support set the records keep (none without ``record`` or
+    a :func:`pictures_dir`); a folder that is not a rendered dataset is refused, naming the key."""
+    images_dir = pictures_dir(cfg) if cfg.record != "none" else None
+    if images_dir is None:
+        return {}, {}
+    from pipeline.fewshot.picture_bytes import query_pictures, support_pictures
+
+    try:
+        return query_pictures(images_dir), support_pictures(images_dir)
+    except (UserError, OSError) as exc:  # no manifest, missing or unreadable pictures
+        key = "images_dir" if cfg.images_dir else "recogniser.images_dir"
+        raise ConfigError(f"config key '{key}': {one_line(exc)}") from None
+
+
+#: Recorded configs by everything but the maze (cells over generated layouts differ only there;
+#: building a structured config takes about 0.1 s, 2,100 times would take minutes).
+_RECORDED: dict[str, dict] = {}
+
+#: Keys that say how cells were run, not what: left out of the records, so the records of a cell
+#: are the same bytes whether it ran alone or beside others.
+NOT_RECORDED = ("workers",)
+
+
+def recorded_config(cell: CellRun) -> dict:
+    """The config embedded in the records: the cell's own, as it ran (without :data:`NOT_RECORDED`)."""
+    rest = replace(cell.config, maze="")
+    key = repr(rest)
+    if key not in _RECORDED:
+        whole = OmegaConf.to_container(OmegaConf.structured(rest), resolve=True)
+        _RECORDED[key] = {k: v for k, v in whole.items() if k not in NOT_RECORDED}
+    return {
+        k: (cell.config.maze if k == "maze" else copy.deepcopy(v))
+        for k, v in _RECORDED[key].items()
+    }
+
+
+def open_records(cell: CellRun, folder: Path):
+    """The record writer of ``folder / records.mcap`` (docs/records.md): the config, seeds and cell
+    as metadata, the maze, each run's obstacle placement and the pictures the records keep."""
+    from pipeline.records.writer import RecordWriter
+
+    cfg, layout, runs, seed = cell.config, cell.layout, cell.config.runs, cell.config.seed
+    geometry = build_geometry(layout)
+    describe = getattr(cell.recogniser, "describe", None)
+    return RecordWriter(
+        folder / "records.mcap",
+        metadata={
+            "config": recorded_config(cell),
+            "seeds": {"seed": seed, "runs": {r: asdict(run_seeds(seed, r)) for r in range(runs)}},
+            "info": {
+                "cell": cell.name,
+                "method": cell.method.as_dict(),
+                "maze": layout.name,
+                "substitution": cfg.substitution,
+                "support": cfg.support,
+                "recogniser": describe() if describe is not None else None,
+            },
+        },
+        maze={
+            "layout": list(layout.rows),
+            "name": layout.name,
+            "categories": list(CATEGORIES),
+            "actions": ACTION_NAMES,
+            "moves": MOVES,
+        },
+        runs=[
+            make_run_world(geometry, seed, r).placement.as_records(layout.obstacles)
+            for r in range(runs)
+        ],
+        pictures=cell.pictures,
+        support_pictures=cell.support,
+        flush_every=cfg.flush_every,
+        steps=cfg.record == "steps",
+    )
+
+
+def run_cell(cell: CellRun, folder: Path, progress: bool | None = None) -> tuple[dict, float]:
+    """Run one cell into ``folder`` (records, ``summary.json``); its summary and trial seconds.
+    ``progress``: the runner's per-episode bar (default ``cfg.progress``)."""
+    cfg, method = cell.config, cell.method
+    writer = open_records(cell, folder) if cfg.record != "none" else None
+    t0 = time.perf_counter()
+    try:
+        result = run_trials(
+            cell.layout,
+            method,
+            cfg.runs,
+            cfg.episodes,
+            cfg.seed,
+            recogniser=cell.recogniser,
+            sink=writer,
+            progress=cfg.progress if progress is None else progress,
+            shared_support=cfg.support == "carry",
+        )
+    except (KeyboardInterrupt, Interrupted) as exc:
+        code = exc.code if isinstance(exc, Interrupted) else 130
+        if writer is None:
+            raise Interrupted(
+                code, f"interrupted; nothing recorded (record=none); {folder} left as it was"
+            ) from None
+        path = writer.close(complete=False)
+        raise Interrupted(
+            code, f"interrupted; partial records at {path}: {writer.n_episodes} episodes"
+        ) from None
+    except BaseException:
+        if writer is not None:
+            writer.close(complete=False)
+        raise
+    if writer is not None:
+        writer.close()
+    seconds = time.perf_counter() - t0
+    summary = result.summary()
+    summary.update(
+        {
+            "cell": cell.name,
+            "method_spec": method.as_dict(),
+            "substitution": cfg.substitution,
+            "support": cfg.support,
+        }
+    )
+    # no wall-clock figures: same seed, same bytes
+    write_json_atomic(folder / "summary.json", summary)
+    return summary, seconds
