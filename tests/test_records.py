@@ -265,7 +265,8 @@ def _odd_batches(seed: int, n: int = 30):
 
 def test_the_batch_encoder_matches_protobuf_byte_for_byte():
     """The raw-view encoding equals the real class filled through the runtime, byte for byte."""
-    from pipeline.records.codec import check_batch, encode_batch
+    from pipeline.records.batch_check import check_batch
+    from pipeline.records.codec import encode_batch
 
     for b in _odd_batches(2):
         checked = check_batch(b)
@@ -273,7 +274,7 @@ def test_the_batch_encoder_matches_protobuf_byte_for_byte():
 
 
 def test_bad_input_is_refused_with_a_message_naming_it(tmp_path):
-    from pipeline.records.codec import check_batch
+    from pipeline.records.batch_check import check_batch
 
     with pytest.raises(ValueError, match="end in .mcap"):
         RecordWriter(tmp_path / "x.bin")
@@ -714,6 +715,7 @@ def test_rewards_are_stored_in_one_byte_when_whole_and_small_and_read_back_exact
     file that mixes the two, through the fast path and the Protobuf runtime, and encode byte for byte
     as the runtime does."""
     from pipeline.records import codec
+    from pipeline.records.batch_check import check_batch
     from pipeline.records.scan import scan
 
     groups = [b for b, _ in batches(LAYOUT_5X5, batch_size=3, runs=1, episodes_per_run=6, seed=5)]
@@ -729,7 +731,7 @@ def test_rewards_are_stored_in_one_byte_when_whole_and_small_and_read_back_exact
         assert (len(steps.small_rewards), len(steps.rewards)) == (
             (len(b["rewards"]), 0) if b is not groups[1] or small else (0, len(b["rewards"]))
         )
-        assert d == _encode_with_the_runtime(codec.check_batch(b))
+        assert d == _encode_with_the_runtime(check_batch(b))
     want = np.concatenate([b["rewards"] for b in groups])
     np.testing.assert_array_equal(
         read_records(tmp_path / "r.mcap").steps["reward"].to_numpy(), want

@@ -97,7 +97,76 @@ def build_network(config: TrainConfig) -> Network:
     return PrototypicalNetwork(shape) if config.model == "protonet" else RelationNetwork(shape)
 
 
-def meta_train(  # noqa: PLR0915 (to split)
+def _train_step(network: Network, optimiser, scheduler, rng, x_train, by_train, labels, config):
+    """One meta-training episode: sample it, (optionally) flip pictures, one Adam step; returns
+    the episode's loss."""
+    network.train()
+    ep = sample_episode(rng, by_train, config.n_way, config.k_shot, config.n_query)
+    idx = torch.from_numpy(np.concatenate([ep.support.reshape(-1), ep.query]))
+    images = x_train[idx]
+    if config.flip:
+        flip = torch.from_numpy(rng.random(len(idx)) < 0.5)
+        images = torch.where(flip.view(-1, 1, 1, 1), images.flip(3), images)
+    images = _format(images, config.channels_last)
+    n_support = config.n_way * config.k_shot
+    support = images[:n_support].unflatten(0, (config.n_way, config.k_shot))
+    scores = network(support, images[n_support:])
+    loss = network.loss(scores, labels)
+    optimiser.zero_grad(set_to_none=True)
+    loss.backward()
+    optimiser.step()
+    scheduler.step()
+    return float(loss.detach())
+
+
+@dataclass
+class _Selection:
+    """Checkpoint selection on the validation classes: the best accuracy so far, its episode and
+    weights, the validation history and when the target accuracy was first reached."""
+
+    val_accuracy: float = -1.0
+    episode: int = 0
+    state: dict | None = None
+    history: list[dict[str, float]] = field(default_factory=list)
+    time_to_goal: float | None = None
+
+    def check(
+        self,
+        network: Network,
+        accuracy: float,
+        *,
+        done: int,
+        loss: float,
+        elapsed: float,
+        lr: float,
+        target: float,
+    ) -> None:
+        """Record one validation of the network after ``done`` episodes; keep it if it is best."""
+        self.history.append(
+            {
+                "episode": done,
+                "loss": loss,
+                "val_accuracy": accuracy,
+                "elapsed_s": elapsed,
+                "lr": lr,
+            }
+        )
+        if accuracy > self.val_accuracy:
+            self.val_accuracy, self.episode = accuracy, done
+            self.state = copy.deepcopy(network.state_dict())
+        if self.time_to_goal is None and accuracy >= target:
+            self.time_to_goal = elapsed
+        log.info(
+            "episode %d: loss %.4f, selection accuracy %.4f (best %.4f), %.0f s",
+            done,
+            loss,
+            accuracy,
+            self.val_accuracy,
+            elapsed,
+        )
+
+
+def meta_train(
     train: PictureSet, val: PictureSet, config: TrainConfig, progress: bool = True
 ) -> TrainResult:
     """Meta-train on ``train``'s classes and select the checkpoint on ``val``'s classes."""
@@ -123,32 +192,16 @@ def meta_train(  # noqa: PLR0915 (to split)
     scheduler = torch.optim.lr_scheduler.LambdaLR(optimiser, _lr_lambda(config))
     labels = torch.from_numpy(np.repeat(np.arange(config.n_way), config.n_query))
 
-    best = {"val_accuracy": -1.0, "episode": 0, "state": None}
-    history: list[dict[str, float]] = []
-    time_to_goal = None
+    best = _Selection()
     losses: list[float] = []
     start = time.perf_counter()
     budget = config.max_minutes * 60.0
     done = 0
     bar = tqdm(range(config.episodes), desc="meta-train", disable=not progress, mininterval=2.0)
     for step in bar:
-        network.train()
-        ep = sample_episode(rng, by_train, config.n_way, config.k_shot, config.n_query)
-        idx = torch.from_numpy(np.concatenate([ep.support.reshape(-1), ep.query]))
-        images = x_train[idx]
-        if config.flip:
-            flip = torch.from_numpy(rng.random(len(idx)) < 0.5)
-            images = torch.where(flip.view(-1, 1, 1, 1), images.flip(3), images)
-        images = _format(images, config.channels_last)
-        n_support = config.n_way * config.k_shot
-        support = images[:n_support].unflatten(0, (config.n_way, config.k_shot))
-        scores = network(support, images[n_support:])
-        loss = network.loss(scores, labels)
-        optimiser.zero_grad(set_to_none=True)
-        loss.backward()
-        optimiser.step()
-        scheduler.step()
-        losses.append(float(loss.detach()))
+        losses.append(
+            _train_step(network, optimiser, scheduler, rng, x_train, by_train, labels, config)
+        )
         done = step + 1
         out_of_time = time.perf_counter() - start > budget
         if done % config.val_every == 0 or done == config.episodes or out_of_time:
@@ -157,44 +210,53 @@ def meta_train(  # noqa: PLR0915 (to split)
                     network, embed_all(network, x_val, config.channels_last), select_eps
                 ).mean()
             )
-            elapsed = time.perf_counter() - start
-            history.append(
-                {
-                    "episode": done,
-                    "loss": float(np.mean(losses[-config.val_every :])),
-                    "val_accuracy": acc,
-                    "elapsed_s": elapsed,
-                    "lr": scheduler.get_last_lr()[0],
-                }
-            )
-            if acc > best["val_accuracy"]:
-                best = {
-                    "val_accuracy": acc,
-                    "episode": done,
-                    "state": copy.deepcopy(network.state_dict()),
-                }
-            if time_to_goal is None and acc >= config.target_accuracy:
-                time_to_goal = elapsed
-            log.info(
-                "episode %d: loss %.4f, selection accuracy %.4f (best %.4f), %.0f s",
-                done,
-                history[-1]["loss"],
+            loss = float(np.mean(losses[-config.val_every :]))
+            best.check(
+                network,
                 acc,
-                best["val_accuracy"],
-                elapsed,
+                done=done,
+                loss=loss,
+                elapsed=time.perf_counter() - start,
+                lr=scheduler.get_last_lr()[0],
+                target=config.target_accuracy,
             )
-            bar.set_postfix(
-                loss=f"{history[-1]['loss']:.4f}",
-                val=f"{acc:.3f}",
-                best=f"{best['val_accuracy']:.3f}",
-            )
+            bar.set_postfix(loss=f"{loss:.4f}", val=f"{acc:.3f}", best=f"{best.val_accuracy:.3f}")
         if out_of_time:
             break
     bar.close()
     train_seconds = time.perf_counter() - start
-
-    network.load_state_dict(best["state"])
+    network.load_state_dict(best.state)
     network.eval()
+    val_accuracy, val_ci95, eval_seconds = _final_evaluation(network, x_val, by_val, config)
+    metrics = {
+        "val_accuracy": val_accuracy,
+        "val_ci95": val_ci95,
+        "val_episodes": config.eval_episodes,
+        "selection_val_accuracy": best.val_accuracy,
+        "selected_episode": best.episode,
+        "episodes_trained": done,
+        "stopped_by_time_budget": done < config.episodes,
+        "train_seconds": train_seconds,
+        "eval_seconds": eval_seconds,
+        "time_to_target_s": best.time_to_goal,
+        "target_accuracy": config.target_accuracy,
+        "n_train_classes": train.n_classes,
+        "n_val_classes": val.n_classes,
+        "torch_threads": torch.get_num_threads(),
+        "model": config.model,
+    }
+    network = network.to(memory_format=torch.contiguous_format)
+    return TrainResult(
+        network=network,
+        normalisation={"mean": mean, "std": std},
+        metrics=metrics,
+        history=best.history,
+    )
+
+
+def _final_evaluation(network: Network, x_val, by_val, config: TrainConfig):
+    """The selected network's mean accuracy on ``eval_episodes`` fresh validation episodes
+    (another seed than the selection episodes), its 95% interval and the seconds it took."""
     t0 = time.perf_counter()
     eval_eps = sample_episodes(
         config.seed + 2,
@@ -206,27 +268,7 @@ def meta_train(  # noqa: PLR0915 (to split)
     )
     acc = evaluate(network, embed_all(network, x_val, config.channels_last), eval_eps)
     mean_acc, ci95 = mean_and_ci95(acc)
-    metrics = {
-        "val_accuracy": mean_acc,
-        "val_ci95": ci95,
-        "val_episodes": config.eval_episodes,
-        "selection_val_accuracy": best["val_accuracy"],
-        "selected_episode": best["episode"],
-        "episodes_trained": done,
-        "stopped_by_time_budget": done < config.episodes,
-        "train_seconds": train_seconds,
-        "eval_seconds": time.perf_counter() - t0,
-        "time_to_target_s": time_to_goal,
-        "target_accuracy": config.target_accuracy,
-        "n_train_classes": train.n_classes,
-        "n_val_classes": val.n_classes,
-        "torch_threads": torch.get_num_threads(),
-        "model": config.model,
-    }
-    network = network.to(memory_format=torch.contiguous_format)
-    return TrainResult(
-        network=network, normalisation={"mean": mean, "std": std}, metrics=metrics, history=history
-    )
+    return mean_acc, ci95, time.perf_counter() - t0
 
 
 def config_dict(config: TrainConfig) -> dict[str, Any]:

@@ -7,11 +7,10 @@ object per element, no hand-written wire code. A code column with a value of 128
 cells: varints of several bytes) is written and read by the real classes, that column alone. A message the views
 do not read exactly (an unknown field, a column split in two) is re-serialized by the real classes first. Same
 bytes, same columns as the runtime (tested). A file of another record format is refused (:func:`check_schema`).
-Measured (``benchmarks.records_overhead``, this 2-core machine, CPU, best of 5): the paper-scale 11x11
-``fewshot_dss`` trial's 102 batches (table lookup, 2.35 M steps, 11.6 MB) decode in 12 ms through the views and
-134 ms through the real classes (``read_records`` of its file 0.21 s against 0.77 s), which is why the views are
-kept. For varints of several bytes the runtime is as fast to write and faster to read: a million 2-byte values in
-77-86 ms and 12-13 ms through it, in 75-106 and 37-52 ms through vectorised numpy, which is why there is none.
+The views are kept because they decode an order of magnitude faster than the real classes; multi-byte
+varints go through the runtime because it is as fast to write and faster to read than vectorised numpy
+(``python -m benchmarks.records_overhead`` prints both comparisons). A batch is checked before it is
+encoded by :func:`.batch_check.check_batch`.
 """
 
 from __future__ import annotations
@@ -23,7 +22,7 @@ import numpy as np
 from google.protobuf import descriptor_pb2
 
 from . import schema as S
-from .schema import BOOL, CODE, F32, F64, I32, MESSAGES, SMALL, U32, Field
+from .schema import CODE, F32, F64, I32, MESSAGES, SMALL, U32, Field
 
 SUBS = {
     f.name: f.type for f in MESSAGES["EpisodeBatch"] if isinstance(f.type, str)
@@ -33,22 +32,9 @@ COLUMNS = {
     for m, fs in MESSAGES.items()
     if m != "Substitution"
 }  # the messages of a batch
-OPTIONAL = frozenset({"q_values", "substitutions"})  # sink batch keys that may be left out
-BATCH_KEYS = frozenset(
-    {f.name for f in MESSAGES["EpisodeBatch"]} - {"n_actions"} - OPTIONAL
-    | {f.key or f.name for f in COLUMNS["Steps"]}
-)
 REWARDS, SMALL_REWARDS = (
     f for f in COLUMNS["Steps"] if f.column == "reward"
 )  # one of the two per batch
-_RANGE = {
-    S.I32: (-(2**31), 2**31),
-    S.U32: (0, 2**31),
-    CODE: (0, 2**32),
-}  # of the integer fields' values
-_LIMITS = {
-    np.dtype(t): (int(np.iinfo(t).min), int(np.iinfo(t).max)) for t in np.typecodes["AllInteger"]
-}
 FIXED = {
     F32: "<f4",
     F64: "<f8",
@@ -57,123 +43,6 @@ FIXED = {
 }  # fixed-width fields -> little-endian dtype; others varints
 OUR_SCHEMA = S.file_descriptor_set(S.EpisodeBatch)
 VIEWS = S.message_classes(view=True)
-
-
-def _column(a: Any, f: Field, n: int | None, where: str) -> np.ndarray:
-    """``a`` checked (1-D, length ``n``, integers or booleans in the field's range for integer fields) as the
-    field's payload dtype (code columns: any integer dtype, for :func:`varints`); a range is checked only where
-    the dtype allows values outside it."""
-    a = np.asarray(a)
-    if a.ndim != 1 or (n is not None and len(a) != n):
-        raise ValueError(
-            f"{where}: "
-            + (
-                f"length {len(a)}, expected {n}"
-                if a.ndim == 1
-                else f"expected a 1-D array, got shape {a.shape}"
-            )
-        )
-    if f.type in (F32, F64):
-        return a.astype(FIXED[f.type], copy=False)
-    if a.dtype.kind not in "biu":
-        raise ValueError(f"{where}: integer fields must hold integers or booleans, got {a.dtype}")
-    if f.type == BOOL:
-        return (a != 0).view(np.uint8)
-    a = a.view(np.uint8) if a.dtype.kind == "b" else a
-    (lo, hi), (low, high) = _RANGE[f.type], _LIMITS.get(a.dtype, (-(2**64), 2**64))  # of the dtype
-    if len(a) and (low < lo and int(a.min()) < lo or high >= hi and int(a.max()) >= hi):
-        raise ValueError(f"{where}: values {int(a.min())}..{int(a.max())} outside {lo}..{hi - 1}")
-    return a if f.type == CODE else a.astype(FIXED[f.type], copy=False)
-
-
-def check_batch(batch: Mapping[str, Any], *, with_steps: bool = True) -> dict[str, Any]:
-    """Check a sink batch at the boundary and return ``run``, ``episode`` and ``cols`` (message ->
-    field -> payload array) and ``scalars`` (message -> field -> int). Raises TypeError / ValueError
-    naming the bad field (missing or unknown fields, lengths, dtypes, ranges, episode ids).
-    ``with_steps=False`` (``record=episodes``): the step columns are left out, whatever the batch holds."""
-    missing, unknown = BATCH_KEYS - batch.keys(), batch.keys() - BATCH_KEYS - OPTIONAL
-    if missing or unknown:
-        raise TypeError(
-            f"episode batch: missing fields {sorted(missing)}, unknown fields {sorted(unknown)} "
-            "(see pipeline/rl/sink.py)"
-        )
-    run = int(batch["run"])
-    where = f"episode batch of run {run}"
-    summary, keys = batch["summary"], [f.name for f in COLUMNS["EpisodeSummaries"][1:]]
-    if set(keys) != summary.keys():
-        raise ValueError(
-            f"{where}.summary: missing {sorted(set(keys) - summary.keys())}, unknown "
-            f"{sorted(summary.keys() - set(keys))}; expected {keys}"
-        )
-    ep = _column(batch["episode"], COLUMNS["EpisodeBatch"][0], None, f"{where}.episode")
-    steps = _column(batch["steps"], COLUMNS["EpisodeSummaries"][0], len(ep), f"{where}.steps")
-    e, t = len(ep), int(steps.sum())
-    if e and (int(ep[-1]) - int(ep[0]) != e - 1 or (np.diff(ep.astype(np.int64)) != 1).any()):
-        raise ValueError(f"{where}: episode ids must be consecutive, got {ep.tolist()}")
-    cols = {"EpisodeBatch": {"episode": ep}, "EpisodeSummaries": {"steps": steps}}
-    cols["EpisodeSummaries"] |= {
-        f.name: _column(summary[f.name], f, e, f"{where}.summary.{f.name}")
-        for f in COLUMNS["EpisodeSummaries"][1:]
-    }
-    cols["Steps"] = {
-        f.name: _column(batch[f.name], f, t, f"{where}.{f.name}")
-        for f in COLUMNS["Steps"]
-        if with_steps and f.column != "reward"
-    }
-    if with_steps:
-        r = _column(batch["rewards"], REWARDS, t, f"{where}.rewards")
-        with np.errstate(
-            invalid="ignore"
-        ):  # NaN, inf, huge: not whole and small, the floats keep them
-            small = r.astype(np.int8)
-        whole = (
-            not len(r) or (small == r).all() and -64 <= int(small.min()) and int(small.max()) <= 63
-        )
-        cols["Steps"] |= {SMALL_REWARDS.name: small} if whole else {REWARDS.name: r}
-    scalars = {"EpisodeBatch": {"run": run, "n_actions": 0}, "Recognitions": {"n_categories": 0}}
-    for sub in ("recognitions", "unsafe_added", "substitutions"):
-        d, msg = batch.get(sub) or {}, SUBS[sub]
-        n = len(d.get("step", ()))
-        names = [f.key or f.name for f in COLUMNS[msg] if f.name != "scores"]
-        if n and set(names) - d.keys():
-            raise ValueError(
-                f"{where}.{sub}: missing columns {[k for k in names if k not in d]}; expected {names}"
-            )
-        cols[msg] = {
-            f.name: _column(d[f.key or f.name], f, n, f"{where}.{sub}.{f.key or f.name}")
-            for f in COLUMNS[msg]
-            if n and f.name != "scores"
-        }
-        if (
-            n
-            and e
-            and not ep[0] <= cols[msg]["episode"].min() <= cols[msg]["episode"].max() <= ep[-1]
-        ):
-            raise ValueError(
-                f"{where}.{sub}.episode: values outside the batch's episodes {ep[0]}..{ep[-1]}"
-            )
-        sc = (
-            np.asarray(d.get("scores", ()), "<f4")
-            if sub == "recognitions" and n
-            else np.zeros(0, "<f4")
-        )
-        if sc.size:
-            if sc.ndim != 2 or sc.shape[0] != n:
-                raise ValueError(
-                    f"{where}.recognitions.scores: expected shape ({n}, n_categories), got {sc.shape}"
-                )
-            cols[msg]["scores"], scalars[msg]["n_categories"] = sc.ravel(), sc.shape[1]
-    if batch.get("q_values") is not None:
-        q = np.asarray(batch["q_values"], dtype="<f4")
-        if q.ndim != 3 or q.shape[0] != e:
-            raise ValueError(
-                f"{where}.q_values: expected shape ({e}, n_states, n_actions), got {q.shape}"
-            )
-        cols["EpisodeBatch"]["q_values"], scalars["EpisodeBatch"]["n_actions"] = (
-            q.ravel(),
-            q.shape[2],
-        )
-    return {"run": run, "episode": ep, "cols": cols, "scalars": scalars}
 
 
 def _payload(msg: str, f: Field, a: np.ndarray) -> bytes:
@@ -204,7 +73,7 @@ def _message(msg: str, b: Mapping[str, Any]):
 
 
 def encode_batch(b: Mapping[str, Any]) -> bytes:
-    """The ``EpisodeBatch`` bytes of a checked batch (:func:`check_batch`), through the raw views: the bytes the
+    """The ``EpisodeBatch`` bytes of a checked batch (:func:`.batch_check.check_batch`), through the raw views: the bytes the
     real class filled through the runtime serializes (tested)."""
     return _message("EpisodeBatch", b).SerializeToString(deterministic=True)
 
@@ -246,7 +115,7 @@ def _values(raw: list[bytes], f: Field, column) -> tuple[np.ndarray, np.ndarray]
     values = np.frombuffer(b, np.uint8)
     if (
         values >= 128
-    ).any():  # the runtime reads them (measured: 13 ms a million values; numpy took 52)
+    ).any():  # the runtime reads them, faster than numpy (benchmarks.records_overhead)
         if (values[np.cumsum(lens)[lens > 0] - 1] >= 128).any():
             raise ValueError("a varint column does not end with a whole value")
         ends = np.r_[0, np.cumsum(values < 128)][np.r_[0, np.cumsum(lens)]]

@@ -17,7 +17,8 @@ import numpy as np
 from mcap.writer import CompressionType, Writer
 
 from . import schema as S
-from .codec import check_batch, encode_batch
+from .batch_check import check_batch
+from .codec import encode_batch
 
 LAYOUT_CHARS = frozenset("SGX.")
 OBSTACLE_KEYS = ("cell", "physical", "category", "instance", "orientation")
@@ -47,8 +48,8 @@ COMPRESSION = {
 
 @functools.cache
 def package_versions() -> dict[str, str]:
-    """Versions of the packages that shape the results (read from installed metadata once a process, no
-    imports; reading it took ~15 ms, a tenth of a recorded paper-scale trial)."""
+    """Versions of the packages that shape the results, read from the installed metadata once a
+    process, without importing the packages."""
     import platform
 
     def version(name: str) -> str:

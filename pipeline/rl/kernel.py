@@ -10,6 +10,10 @@ the picture (the recogniser runs in Python, Algorithm 1 line 20). Runs advance i
 The step rules are ``rules.apply_action`` (the world and the safety layer) and
 ``policy.select_action`` / ``policy.td_update`` (the agent); nothing here re-implements them, and
 nothing here tells safety methods apart.
+
+The helpers above ``advance_run`` hold its rarer paths (logging a recognition or an A_d addition,
+the step trace, an episode's end, pausing); they are plain numba calls, not inlined, which keeps
+the step loop itself small.
 """
 
 from __future__ import annotations
@@ -17,8 +21,7 @@ from __future__ import annotations
 import numba as nb
 
 # numba's OpenMP layer leaves its threads spinning after each parallel region; the recogniser's
-# torch calls that follow a pause then fight them for the two cores (measured: 36 ms instead of
-# 4 ms per support-set column). The workqueue layer does not spin.
+# torch calls that follow a pause then fight them for the cores. The workqueue layer does not spin.
 if nb.config.THREADING_LAYER == "default":
     nb.config.THREADING_LAYER = "workqueue"
 
@@ -28,7 +31,98 @@ from pipeline.rl.rules import apply_action, empty_added
 
 
 @nb.njit(cache=True)
-def advance_run(  # noqa: PLR0915 (to split)
+def _log_additions(additions, r, ep, t, added, n_added):
+    """Append the ``n_added`` pairs that just joined A_d to run ``r``'s additions."""
+    for k in range(n_added):
+        i = additions.length[r]
+        additions.episode[r, i] = ep
+        additions.step[r, i] = t
+        additions.state[r, i], additions.action[r, i], additions.source[r, i] = added[k]
+        additions.length[r] = i + 1
+
+
+@nb.njit(cache=True)
+def _log_recognition(recognitions, r, ep, t, s, a, pic, predicted, true):
+    """Append one recognition (the picture seen from ``(s, a)``) to run ``r``'s recognitions."""
+    i = recognitions.length[r]
+    recognitions.episode[r, i] = ep
+    recognitions.step[r, i] = t
+    recognitions.state[r, i] = s
+    recognitions.action[r, i] = a
+    recognitions.picture[r, i] = pic
+    recognitions.predicted[r, i] = predicted
+    recognitions.true[r, i] = true
+    recognitions.length[r] = i + 1
+
+
+@nb.njit(cache=True)
+def _log_step(trace, r, s, a, rew, flags, reselected, truncated):
+    """Append one step to run ``r``'s trace, with the agent's flags added to the world's."""
+    if reselected:
+        flags |= StepFlag.reselected
+    if truncated:
+        flags |= StepFlag.truncated
+    i = trace.length[r]
+    trace.states[r, i] = s
+    trace.actions[r, i] = a
+    trace.rewards[r, i] = rew
+    trace.flags[r, i] = flags
+    trace.length[r] = i + 1
+
+
+@nb.njit(cache=True)
+def _note_substitution(substitution, r, ep, t, pic, category):
+    """Hand the picture misrecognised at step ``t`` to the runner (``Status.substitute``)."""
+    substitution.episode[r] = ep
+    substitution.step[r] = t
+    substitution.picture[r] = pic
+    substitution.category[r] = category
+
+
+@nb.njit(cache=True)
+def _end_episode(results, r, ep, t, col, ret, prev, e, flags, qr, ur, maze):
+    """Write episode ``ep``'s outcome to run ``r``'s row of ``results``, including whether the
+    greedy policy now walks an optimal path."""
+    results.steps[r, ep] = t
+    results.collisions[r, ep] = col
+    results.returns[r, ep] = ret
+    results.reached_goal[r, ep] = (flags & StepFlag.goal) != 0
+    results.prevented[r, ep] = prev
+    results.epsilon[r, ep] = e
+    results.greedy_optimal[r, ep] = greedy_path_is_optimal(
+        qr, ur, maze.next_cell, maze.obstacle, maze.start, maze.goal, maze.optimal_length
+    )
+
+
+@nb.njit(cache=True)
+def _resume(state, r):
+    """Run ``r``'s scalars, which live in locals while it advances (``_pause`` puts them back):
+    episode, step, cell, Sarsa's pending action and its reselected flag, the episode's
+    collisions, prevented actions, epsilon and return so far."""
+    return (
+        state.episode[r],
+        state.step[r],
+        state.cell[r],
+        state.pending_action[r],
+        state.pending_reselected[r],
+        state.collisions[r],
+        state.prevented[r],
+        state.epsilon[r],
+        state.ep_return[r],
+    )
+
+
+@nb.njit(cache=True)
+def _pause(state, r, ep, t, s, pend, pend_resel, col, prev, e, ret):
+    """Put run ``r``'s scalars back into ``state`` (the inverse of ``_resume``)."""
+    state.episode[r], state.step[r], state.cell[r] = ep, t, s
+    state.pending_action[r], state.pending_reselected[r] = pend, pend_resel
+    state.collisions[r], state.prevented[r] = col, prev
+    state.epsilon[r], state.ep_return[r] = e, ret
+
+
+@nb.njit(cache=True)
+def advance_run(
     r, ep_limit, method, maze, sights, state, results, trace, recognitions, additions, substitution
 ):
     """Advance run ``r`` until episode ``ep_limit`` or a pause; returns a ``Status``.
@@ -46,8 +140,7 @@ def advance_run(  # noqa: PLR0915 (to split)
     """
     capacity = trace.states.shape[1]
     added = empty_added()
-    qr = state.q[r]
-    ur = state.unsafe[r]
+    qr, ur = state.q[r], state.unsafe[r]
     # the tables apply_action needs, unpacked once (it takes plain arrays: see there why)
     next_cell, obstacle, ssrl_pairs = maze.next_cell, maze.obstacle, maze.ssrl_pairs
     pictures, true_category, predicted = (
@@ -55,13 +148,8 @@ def advance_run(  # noqa: PLR0915 (to split)
         sights.true_category[r],
         sights.predicted[r],
     )
-    rng = state.rng
-    sarsa = method.learner == Learner.sarsa
-    # the run's scalars live in locals while it advances and go back to ``state`` when it pauses
-    ep, t, s = state.episode[r], state.step[r], state.cell[r]
-    pend, pend_resel = state.pending_action[r], state.pending_reselected[r]
-    col, prev = state.collisions[r], state.prevented[r]
-    e, ret = state.epsilon[r], state.ep_return[r]
+    rng, sarsa = state.rng, method.learner == Learner.sarsa
+    ep, t, s, pend, pend_resel, col, prev, e, ret = _resume(state, r)
     status = Status.limit
     while ep < ep_limit:
         if t == 0 and trace.record and trace.length[r] + method.max_steps > capacity:
@@ -90,22 +178,11 @@ def advance_run(  # noqa: PLR0915 (to split)
                 ur,
                 added,
             )
-            for k in range(n_added):
-                i = additions.length[r]
-                additions.episode[r, i] = ep
-                additions.step[r, i] = t
-                additions.state[r, i], additions.action[r, i], additions.source[r, i] = added[k]
-                additions.length[r] = i + 1
+            if n_added:
+                _log_additions(additions, r, ep, t, added, n_added)
             if pic >= 0:
-                i = recognitions.length[r]
-                recognitions.episode[r, i] = ep
-                recognitions.step[r, i] = t
-                recognitions.state[r, i] = s
-                recognitions.action[r, i] = a
-                recognitions.picture[r, i] = pic
-                recognitions.predicted[r, i] = predicted[pic]
-                recognitions.true[r, i] = true_category[obstacle[s, a]]
-                recognitions.length[r] = i + 1
+                true = true_category[obstacle[s, a]]
+                _log_recognition(recognitions, r, ep, t, s, a, pic, predicted[pic], true)
             if out != Outcome.prevented:
                 break
             prev += 1
@@ -126,49 +203,21 @@ def advance_run(  # noqa: PLR0915 (to split)
         t += 1
         ret += rew
         end = term or t >= method.max_steps
-        if resel:
-            flags |= StepFlag.reselected
-        if end and not term:
-            flags |= StepFlag.truncated
         if trace.record:
-            i = trace.length[r]
-            trace.states[r, i] = s
-            trace.actions[r, i] = a
-            trace.rewards[r, i] = rew
-            trace.flags[r, i] = flags
-            trace.length[r] = i + 1
+            _log_step(trace, r, s, a, rew, flags, resel, end and not term)
         substitute = out == Outcome.collided and method.dynamic and pic >= 0
         if substitute:
-            substitution.episode[r] = ep
-            substitution.step[r] = t - 1
-            substitution.picture[r] = pic
-            substitution.category[r] = true_category[obstacle[s, a]]
+            _note_substitution(substitution, r, ep, t - 1, pic, true_category[obstacle[s, a]])
         if end:
-            results.steps[r, ep] = t
-            results.collisions[r, ep] = col
-            results.returns[r, ep] = ret
-            results.reached_goal[r, ep] = (flags & StepFlag.goal) != 0
-            results.prevented[r, ep] = prev
-            results.epsilon[r, ep] = e
-            results.greedy_optimal[r, ep] = greedy_path_is_optimal(
-                qr, ur, next_cell, obstacle, maze.start, maze.goal, maze.optimal_length
-            )
-            ep += 1
-            t = 0
-            s = maze.start
-            pend = -1
-            col = 0
-            prev = 0
-            ret = 0.0
+            _end_episode(results, r, ep, t, col, ret, prev, e, flags, qr, ur, maze)
+            # the next episode starts at the start cell with fresh counters
+            ep, t, s, pend, col, prev, ret = ep + 1, 0, maze.start, -1, 0, 0, 0.0
         else:
             s = s2
         if substitute:
             status = Status.substitute
             break
-    state.episode[r], state.step[r], state.cell[r] = ep, t, s
-    state.pending_action[r], state.pending_reselected[r] = pend, pend_resel
-    state.collisions[r], state.prevented[r] = col, prev
-    state.epsilon[r], state.ep_return[r] = e, ret
+    _pause(state, r, ep, t, s, pend, pend_resel, col, prev, e, ret)
     return status
 
 

@@ -10,7 +10,7 @@ Usage::
 from __future__ import annotations
 
 import contextlib
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from tqdm.auto import tqdm
@@ -32,6 +32,7 @@ from pipeline.rl.structs import (
     Substitution,
     Trace,
 )
+from pipeline.rl.trial_result import TrialResult
 from pipeline.world.geometry import Geometry, build_geometry
 from pipeline.world.maze import Layout
 from pipeline.world.pictures import N_PICTURES, picture_category
@@ -60,111 +61,162 @@ def make_run_world(geometry: Geometry, seed: int, run: int) -> RunWorld:
     return RunWorld(placement, picture_table(geometry, placement), placement.category.copy())
 
 
-@dataclass
-class TrialResult:
-    """Per-episode outcomes, arrays of shape (runs, episodes)."""
+class Trial:
+    """One call of :func:`run_trials`: the kernel's buffers for all its runs, and the Python side
+    of the loop (the recogniser's support-set substitutions, Algorithm 1 line 20, and handing
+    finished episodes to the sink)."""
 
-    layout: Layout
-    method: MethodSpec
-    seed: int
-    steps: np.ndarray
-    collisions: np.ndarray
-    returns: np.ndarray
-    reached_goal: np.ndarray
-    prevented: np.ndarray
-    greedy_optimal: np.ndarray
-    epsilon: np.ndarray
-    placements: list[Placement] = field(default_factory=list)
+    def __init__(
+        self,
+        layout: Layout,
+        method: MethodSpec,
+        *,
+        runs: int,
+        episodes: int,
+        seed: int,
+        recogniser: Recogniser | None,
+        sink: EpisodeSink | None,
+        run_offset: int,
+        trace_capacity: int,
+        shared_support: bool,
+    ) -> None:
+        if runs < 1:
+            raise ValueError(f"runs={runs}: must be >= 1")
+        if episodes < 1:
+            raise ValueError(f"episodes={episodes}: must be >= 1")
+        self.params = MethodParams.of(method)
+        reasons_with_pictures = rules.reasons_with_pictures(self.params.safety)
+        if reasons_with_pictures and recogniser is None:
+            raise ValueError(f"method {method.name!r} reasons with pictures: pass a recogniser")
+        self.layout, self.method, self.seed = layout, method, seed
+        self.runs, self.episodes, self.run_offset = runs, episodes, run_offset
+        self.recogniser, self.sink, self.shared_support = recogniser, sink, shared_support
+        self.asks_recogniser = recogniser is not None and reasons_with_pictures
+        self.record = sink is not None
+        self.trace_steps = self.record and getattr(sink, "records_steps", True)
+        self.want_scores = self.record and self.asks_recogniser
+        geometry = build_geometry(layout)
+        self.maze = MazeArrays.of(layout, geometry)
+        self.worlds = [make_run_world(geometry, seed, run_offset + r) for r in range(runs)]
+        self._allocate(geometry, trace_capacity)
 
-    @property
-    def runs(self) -> int:
-        return self.steps.shape[0]
+    def _allocate(self, geometry: Geometry, trace_capacity: int) -> None:
+        """The kernel's arrays (``structs.py``) and the per-run cursors of what was handed over."""
+        runs, layout, method = self.runs, self.layout, self.method
+        # each dangerous pair (eq. 4) is seen and joins A_d at most once a run
+        self.n_dangerous = max(1, int((geometry.obstacle >= 0).sum()))
+        self.sights = Sights(
+            pictures=np.stack([w.pictures for w in self.worlds]).astype(np.int16),
+            true_category=np.stack([w.true_category for w in self.worlds]).astype(np.int8)
+            if len(layout.obstacles)
+            else np.zeros((runs, 1), np.int8),
+            predicted=np.zeros((runs, N_PICTURES), dtype=np.int8),
+        )
+        seeds = [run_seeds(self.seed, self.run_offset + r).agent for r in range(runs)]
+        rng = np.array(seeds, dtype=np.uint64)
+        self.state = RunState.fresh(runs, layout.n_cells, layout.start, method.epsilon, rng)
+        self.results = Results.zeros(runs, self.episodes)
+        capacity = max(trace_capacity, method.max_steps) if self.trace_steps else 1
+        self.trace = Trace.empty(runs, capacity, self.trace_steps)
+        self.recognitions = Recognitions.empty(runs, self.n_dangerous)
+        self.additions = Additions.empty(runs, self.n_dangerous)
+        self.substitution = Substitution.empty(runs)
+        self.status = np.zeros(runs, np.int64)
+        self.score_table = None  # (runs, n_dangerous, n_categories) relation scores, when asked for
+        self.scored = [0] * runs  # recognitions of each run with their scores in score_table
+        self.handed_recognitions = [0] * runs  # rows already in a batch, per run
+        self.handed_additions = [0] * runs
+        self.emitted = [0] * runs  # episodes already in a batch, per run
 
-    @property
-    def episodes(self) -> int:
-        return self.steps.shape[1]
+    def slot(self, r: int) -> int:
+        """The recogniser slot of run ``r`` (one slot for all runs with a shared support set)."""
+        return self.run_offset if self.shared_support else self.run_offset + r
 
-    def converged_episode(self) -> list[int | None]:
-        """Per run: the 0-based index of the first episode after which the greedy policy follows
-        an optimal path and keeps doing so to the end of the run; None if it never settles."""
-        out: list[int | None] = []
-        for row in self.greedy_optimal:
-            bad = np.flatnonzero(~row)
-            if bad.size == 0:
-                out.append(0)
-            elif bad[-1] == row.size - 1:
-                out.append(None)
-            else:
-                out.append(int(bad[-1] + 1))
-        return out
+    def support_accuracy(self, r: int) -> float:
+        """Accuracy of run ``r``'s current support set on the query pictures."""
+        return np.count_nonzero(self.sights.predicted[r] == PICTURE_CATEGORY) / N_PICTURES
 
-    def summary(self) -> dict:
-        conv = self.converged_episode()
-        runs = [
-            {
-                "run": r,
-                "collisions": int(self.collisions[r].sum()),
-                "steps": int(self.steps[r].sum()),
-                "converged_episode": conv[r],
-                "goals": int(self.reached_goal[r].sum()),
-                "prevented": int(self.prevented[r].sum()),
-            }
-            for r in range(self.runs)
-        ]
+    def start(self, r: int) -> None:
+        """Give run ``r`` its recogniser (fresh or carried-over support set) and its answers."""
+        if not self.asks_recogniser:
+            return
+        seed = run_seeds(self.seed, self.run_offset + r).recogniser
+        self.recogniser.start_run(self.slot(r), seed)
+        self.sights.predicted[r] = self.recogniser.predictions(self.slot(r))
+        self._tell_substitution(r, episode=0, step=0, picture=-1, category=-1, position=-1)
 
-        def stats(values):
-            v = np.asarray([x for x in values if x is not None], dtype=float)
-            if v.size == 0:
-                return {"mean": None, "std": None, "n": 0}
-            return {
-                "mean": float(v.mean()),
-                "std": float(v.std(ddof=1)) if v.size > 1 else 0.0,
-                "n": int(v.size),
-            }
+    def _tell_substitution(self, r: int, **where) -> None:
+        if self.sink is not None:
+            self.sink.substitution(
+                run=self.run_offset + r, **where, support_accuracy=self.support_accuracy(r)
+            )
 
-        return {
-            "maze": self.layout.name,
-            "method": self.method.name,
-            "seed": self.seed,
-            "n_runs": self.runs,
-            "n_episodes": self.episodes,
-            "collisions": stats(r["collisions"] for r in runs),
-            "steps": stats(r["steps"] for r in runs),
-            "converged_episode": stats(conv),
-            "converged_runs": int(sum(c is not None for c in conv)),
-            "runs": runs,
-        }
+    def substitute(self, r: int) -> None:
+        """Run ``r`` paused on a misrecognised picture: substitute it into the support set."""
+        self.score_pending(r)  # the recognitions so far, under the support set they were made with
+        sub = self.substitution
+        picture, category = int(sub.picture[r]), int(sub.category[r])
+        position = self.recogniser.learn_from_collision(self.slot(r), picture, category)
+        self.sights.predicted[r] = self.recogniser.predictions(self.slot(r))
+        self._tell_substitution(
+            r,
+            episode=int(sub.episode[r]),
+            step=int(sub.step[r]),
+            picture=picture,
+            category=category,
+            position=int(position),
+        )
 
+    def score_pending(self, r: int) -> None:
+        """Relation scores of run ``r``'s recognitions not yet scored (only when recording)."""
+        if not self.want_scores:
+            return
+        lo, hi = self.scored[r], int(self.recognitions.length[r])
+        if hi > lo:
+            pictures = self.recognitions.picture[r, lo:hi].astype(np.int64)
+            got = np.asarray(self.recogniser.scores(self.slot(r), pictures), np.float32)
+            if self.score_table is None:
+                self.score_table = np.zeros((self.runs, self.n_dangerous, got.shape[1]), np.float32)
+            self.score_table[r, lo:hi], self.scored[r] = got, hi
 
-def _emit(
-    sink, r, run_id, first_ep, last_ep, results, trace, recognitions, additions, scores, cursors
-):
-    """Hand episodes ``first_ep..last_ep-1`` of run ``r`` to the sink as one columnar batch."""
-    if last_ep > first_ep:
+    def emit(self, r: int) -> None:
+        """Hand run ``r``'s finished episodes not yet handed over to the sink as one batch."""
+        self.score_pending(r)
+        done = int(self.state.episode[r])
+        if done > self.emitted[r]:
+            self.sink.episodes(**self._batch(r, self.emitted[r], done))
+        self.trace.length[r] = 0
+        self.emitted[r] = done
+
+    def _rows(self, table, r: int, handed: list[int], last_ep: int) -> slice:
+        """Rows of ``table`` (recognitions or additions) of run ``r``'s episodes before
+        ``last_ep`` not yet handed over; marks them handed."""
+        lo = handed[r]
+        hi = lo + int(np.searchsorted(table.episode[r, lo : int(table.length[r])], last_ep))
+        handed[r] = hi
+        return slice(lo, hi)
+
+    def _batch(self, r: int, first_ep: int, last_ep: int) -> dict:
+        """Episodes ``first_ep..last_ep-1`` of run ``r`` as the sink's columnar batch (sink.py)."""
+        results, trace, recognitions, additions = (
+            self.results,
+            self.trace,
+            self.recognitions,
+            self.additions,
+        )
         eps = slice(first_ep, last_ep)
         steps = results.steps[r, eps]
-        n = (
-            int(steps.sum()) if trace.record else 0
-        )  # a sink without steps (records_steps False) gets none
-        lo = cursors["rec"][r]  # recognitions and additions of the finished episodes only
-        hi = lo + int(
-            np.searchsorted(recognitions.episode[r, lo : int(recognitions.length[r])], last_ep)
+        n = int(steps.sum()) if trace.record else 0  # a sink without steps gets none
+        rec = self._rows(recognitions, r, self.handed_recognitions, last_ep)
+        add = self._rows(additions, r, self.handed_additions, last_ep)
+        table = self.score_table
+        scores = (
+            table[r, rec].copy()
+            if table is not None and self.scored[r] >= rec.stop
+            else np.zeros((rec.stop - rec.start, 0), np.float32)
         )
-        rec = slice(lo, hi)
-        table = scores["table"]  # relation scores of run r's recognitions, when asked for
-        sc = (
-            table[r, lo:hi].copy()
-            if table is not None and scores["done"][r] >= hi
-            else np.zeros((hi - lo, 0), np.float32)
-        )
-        alo = cursors["add"][r]
-        ahi = alo + int(
-            np.searchsorted(additions.episode[r, alo : int(additions.length[r])], last_ep)
-        )
-        add = slice(alo, ahi)
-        cursors["rec"][r], cursors["add"][r] = hi, ahi
-        sink.episodes(
-            run=run_id,
+        return dict(
+            run=self.run_offset + r,
             episode=np.arange(first_ep, last_ep, dtype=np.int32),
             steps=steps.astype(np.int32),
             states=trace.states[r, :n].copy(),
@@ -179,7 +231,7 @@ def _emit(
                 "picture": recognitions.picture[r, rec].astype(np.int16),
                 "predicted": recognitions.predicted[r, rec].astype(np.int8),
                 "true": recognitions.true[r, rec].astype(np.int8),
-                "scores": sc,
+                "scores": scores,
             },
             unsafe_added={
                 "episode": additions.episode[r, add].astype(np.int32),
@@ -197,10 +249,98 @@ def _emit(
                 "greedy_optimal": results.greedy_optimal[r, eps].copy(),
             },
         )
-    trace.length[r] = 0
+
+    def advance(self, pending: np.ndarray, limit: int) -> None:
+        """Advance the runs ``pending`` to episode ``limit``, serving their pauses on the way."""
+        while pending.size:
+            kernel.advance_batch(
+                pending,
+                limit,
+                self.status,
+                self.params,
+                self.maze,
+                self.sights,
+                self.state,
+                self.results,
+                self.trace,
+                self.recognitions,
+                self.additions,
+                self.substitution,
+            )
+            again = []
+            for r in pending:
+                r = int(r)
+                why = int(self.status[r])  # numpy compares its ints with an IntEnum slowly
+                if why == Status.substitute:
+                    self.substitute(r)
+                    again.append(r)
+                elif why == Status.flush:
+                    self.emit(r)
+                    again.append(r)
+            pending = np.array(again, dtype=np.int64)
+
+    def run(self, *, progress: bool, chunk_episodes: int) -> TrialResult:
+        """Every run to the last episode: all runs at once in chunks of ``chunk_episodes``
+        (independent runs), or one after another (shared support set)."""
+        runs, episodes = self.runs, self.episodes
+        limits = list(range(min(chunk_episodes, episodes), episodes, chunk_episodes))
+        limits = [episodes] if self.shared_support else limits + [episodes]
+        groups = (
+            [np.array([r], np.int64) for r in range(runs)]
+            if self.shared_support
+            else [np.arange(runs, dtype=np.int64)]
+        )
+        desc = f"{self.method.name} {self.layout.name}"
+        bar = tqdm(total=runs * episodes, disable=not progress, unit="ep", desc=desc, leave=False)
+        try:
+            for group in groups:
+                self._run_group(group, limits, bar)
+        except Exception:
+            raise
+        except BaseException:  # Ctrl-C or SIGTERM: every finished episode goes to the sink first
+            self._emit_finished()
+            raise
+        finally:
+            bar.close()
+        return self.result()
+
+    def _run_group(self, group: np.ndarray, limits: list[int], bar) -> None:
+        for r in group:
+            self.start(int(r))
+        for limit in limits:
+            before = int(self.state.episode[group].sum())
+            self.advance(group, limit)
+            bar.update(int(self.state.episode[group].sum()) - before)
+            # a trace is handed over when full (flush); without one, after every chunk
+            if self.record and (limit == self.episodes or not self.trace_steps):
+                for r in group:
+                    self.emit(int(r))
+
+    def _emit_finished(self) -> None:
+        """After an interruption: hand every run's finished episodes not yet handed over."""
+        for r in range(self.runs) if self.record else ():
+            with contextlib.suppress(Exception):  # a batch the signal cut in two is not sent again
+                if self.emitted[r] < int(self.state.episode[r]):
+                    self.emit(r)
+
+    def result(self) -> TrialResult:
+        results = self.results
+        return TrialResult(
+            self.layout,
+            self.method,
+            self.seed,
+            results.steps,
+            results.collisions,
+            results.returns,
+            results.reached_goal,
+            results.prevented,
+            results.greedy_optimal,
+            results.epsilon,
+            [w.placement for w in self.worlds],
+        )
 
 
-def run_trials(  # noqa: PLR0915 (to split)
+def run_trials(
     layout: Layout,
     method: MethodSpec,
     runs: int,
@@ -225,195 +365,16 @@ def run_trials(  # noqa: PLR0915 (to split)
     recogniser built to carry its support set over hands each run the set the previous run left.
     Q, A_d and the obstacle placement are still fresh for every run.
     """
-    if runs < 1:
-        raise ValueError(f"runs={runs}: must be >= 1")
-    if episodes < 1:
-        raise ValueError(f"episodes={episodes}: must be >= 1")
-    params = MethodParams.of(method)
-    reasons_with_pictures = rules.reasons_with_pictures(params.safety)
-    if reasons_with_pictures and recogniser is None:
-        raise ValueError(f"method {method.name!r} reasons with pictures: pass a recogniser")
-    geometry = build_geometry(layout)
-    maze = MazeArrays.of(layout, geometry)
-    n_obs = len(layout.obstacles)
-    # each dangerous pair (eq. 4) is seen and joins A_d at most once a run
-    n_dangerous = max(1, int((geometry.obstacle >= 0).sum()))
-    record = sink is not None
-    trace_steps = record and getattr(sink, "records_steps", True)
-
-    worlds = [make_run_world(geometry, seed, run_offset + r) for r in range(runs)]
-    sights = Sights(
-        pictures=np.stack([w.pictures for w in worlds]).astype(np.int16),
-        true_category=np.stack([w.true_category for w in worlds]).astype(np.int8)
-        if n_obs
-        else np.zeros((runs, 1), np.int8),
-        predicted=np.zeros((runs, N_PICTURES), dtype=np.int8),
-    )
-    predicted = sights.predicted
-    rng = np.array([run_seeds(seed, run_offset + r).agent for r in range(runs)], dtype=np.uint64)
-    uses_recogniser = recogniser is not None and reasons_with_pictures
-
-    def slot(r: int) -> int:
-        return run_offset if shared_support else run_offset + r
-
-    def support_accuracy(r: int) -> float:  # of run r's support set on the query pictures
-        return np.count_nonzero(predicted[r] == PICTURE_CATEGORY) / N_PICTURES
-
-    def start(r: int) -> None:
-        if uses_recogniser:
-            recogniser.start_run(slot(r), run_seeds(seed, run_offset + r).recogniser)
-            predicted[r] = recogniser.predictions(slot(r))
-            if sink is not None:
-                sink.substitution(
-                    run=run_offset + r,
-                    episode=0,
-                    step=0,
-                    picture=-1,
-                    category=-1,
-                    position=-1,
-                    support_accuracy=support_accuracy(r),
-                )
-
-    state = RunState.fresh(runs, layout.n_cells, layout.start, method.epsilon, rng)
-    results = Results.zeros(runs, episodes)
-    trace = Trace.empty(
-        runs, max(trace_capacity, method.max_steps) if trace_steps else 1, trace_steps
-    )
-    recognitions = Recognitions.empty(runs, n_dangerous)
-    additions = Additions.empty(runs, n_dangerous)
-    substitution = Substitution.empty(runs)
-    scores = {
-        "table": None,
-        "done": [0] * runs,
-    }  # (runs, n_dangerous, n_categories) and rows filled a run
-    cursors = {"rec": [0] * runs, "add": [0] * runs}
-    emitted = [0] * runs
-    status = np.zeros(runs, np.int64)
-    want_scores = record and uses_recogniser
-
-    def score_pending(r: int) -> None:
-        if not want_scores:
-            return
-        lo, hi = scores["done"][r], int(recognitions.length[r])
-        if hi > lo:
-            got = np.asarray(
-                recogniser.scores(slot(r), recognitions.picture[r, lo:hi].astype(np.int64)),
-                np.float32,
-            )
-            if scores["table"] is None:
-                scores["table"] = np.zeros((runs, n_dangerous, got.shape[1]), np.float32)
-            scores["table"][r, lo:hi], scores["done"][r] = got, hi
-
-    def emit(r: int) -> None:
-        score_pending(r)
-        done = int(state.episode[r])
-        _emit(
-            sink,
-            r,
-            run_offset + r,
-            emitted[r],
-            done,
-            results,
-            trace,
-            recognitions,
-            additions,
-            scores,
-            cursors,
-        )
-        emitted[r] = done
-
-    def advance(pending: np.ndarray, limit: int) -> None:
-        while pending.size:
-            kernel.advance_batch(
-                pending,
-                limit,
-                status,
-                params,
-                maze,
-                sights,
-                state,
-                results,
-                trace,
-                recognitions,
-                additions,
-                substitution,
-            )
-            again = []
-            for r in pending:
-                r = int(r)
-                why = int(
-                    status[r]
-                )  # numpy compares its ints with an IntEnum member slowly (~8 us)
-                if why == Status.substitute:
-                    score_pending(
-                        r
-                    )  # the recognitions so far, under the support set they were made with
-                    ep, step = int(substitution.episode[r]), int(substitution.step[r])
-                    pic, cat = int(substitution.picture[r]), int(substitution.category[r])
-                    position = recogniser.learn_from_collision(slot(r), pic, cat)
-                    predicted[r] = recogniser.predictions(slot(r))
-                    if sink is not None:
-                        sink.substitution(
-                            run=run_offset + r,
-                            episode=ep,
-                            step=step,
-                            picture=pic,
-                            category=cat,
-                            position=int(position),
-                            support_accuracy=support_accuracy(r),
-                        )
-                    again.append(r)
-                elif why == Status.flush:
-                    emit(r)
-                    again.append(r)
-            pending = np.array(again, dtype=np.int64)
-
-    limits = list(range(min(chunk_episodes, episodes), episodes, chunk_episodes)) + [episodes]
-    bar = tqdm(
-        total=runs * episodes,
-        disable=not progress,
-        unit="ep",
-        desc=f"{method.name} {layout.name}",
-        leave=False,
-    )
-    groups = (
-        [np.array([r], np.int64) for r in range(runs)]
-        if shared_support
-        else [np.arange(runs, dtype=np.int64)]
-    )
-    try:
-        for group in groups:
-            for r in group:
-                start(int(r))
-            for limit in [episodes] if shared_support else limits:
-                before = int(state.episode[group].sum())
-                advance(group, limit)
-                bar.update(int(state.episode[group].sum()) - before)
-                if record and (
-                    limit == episodes or not trace_steps
-                ):  # else when the trace is full (flush)
-                    for r in group:
-                        emit(int(r))
-    except Exception:
-        raise
-    except BaseException:  # Ctrl-C or SIGTERM: every finished episode goes to the sink first
-        for r in range(runs) if record else ():
-            with contextlib.suppress(Exception):  # a batch the signal cut in two is not sent again
-                if emitted[r] < int(state.episode[r]):
-                    emit(r)
-        raise
-    finally:
-        bar.close()
-    return TrialResult(
+    trial = Trial(
         layout,
         method,
-        seed,
-        results.steps,
-        results.collisions,
-        results.returns,
-        results.reached_goal,
-        results.prevented,
-        results.greedy_optimal,
-        results.epsilon,
-        [w.placement for w in worlds],
+        runs=runs,
+        episodes=episodes,
+        seed=seed,
+        recogniser=recogniser,
+        sink=sink,
+        run_offset=run_offset,
+        trace_capacity=trace_capacity,
+        shared_support=shared_support,
     )
+    return trial.run(progress=progress, chunk_episodes=chunk_episodes)
