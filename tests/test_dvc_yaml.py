@@ -1,5 +1,5 @@
-"""dvc.yaml against conf/: one trials stage per experiment file, config declared as params (keys
-that exist), code and data as deps, and a DVC site cache that does not depend on the cwd."""
+"""dvc.yaml against pipeline/conf/: one trials stage per experiment file, config declared as params
+(keys that exist), code and data as deps, and a DVC site cache that does not depend on the cwd."""
 
 import configparser
 import os
@@ -41,9 +41,9 @@ def params_entries(stage: dict) -> list[tuple[str, list[str]]]:
 
 
 def test_trials_foreach_is_every_experiment_file():
-    files = sorted(p.stem for p in (ROOT / "conf" / "experiment").glob("*.yaml"))
+    files = sorted(p.stem for p in (ROOT / "pipeline" / "conf" / "experiment").glob("*.yaml"))
     assert sorted(EXPERIMENTS) == files, (
-        "list every conf/experiment/*.yaml in dvc.yaml's trials foreach"
+        "list every pipeline/conf/experiment/*.yaml in dvc.yaml's trials foreach"
     )
     assert len(set(EXPERIMENTS)) == len(EXPERIMENTS)
 
@@ -56,8 +56,11 @@ def test_report_depends_on_every_experiment():
 def test_each_trials_stage_tracks_its_experiment_and_every_method(exp):
     stage = expanded("trials", exp)
     files = dict(params_entries(stage))
-    assert files[f"conf/experiment/{exp}.yaml"] == []  # the whole file
-    methods = {f"conf/method/{p.name}" for p in (ROOT / "conf" / "method").glob("*.yaml")}
+    assert files[f"pipeline/conf/experiment/{exp}.yaml"] == []  # the whole file
+    methods = {
+        f"pipeline/conf/method/{p.name}"
+        for p in (ROOT / "pipeline" / "conf" / "method").glob("*.yaml")
+    }
     assert methods <= {f for f, keys in files.items() if keys == []}
     assert (
         f"+experiment={exp} " in stage["cmd"]
@@ -82,7 +85,7 @@ def test_params_name_existing_files_and_keys_and_deps_hold_no_config():
             for key in keys:  # `dvc exp run -S file:key=...` needs the key in the file
                 _get(data, key)
         for dep in stage.get("deps", []):
-            assert not (dep.startswith("conf/") and dep.endswith(".yaml")), (
+            assert not (dep.startswith("pipeline/conf/") and dep.endswith(".yaml")), (
                 f"{name}: {dep} belongs in params"
             )
 
@@ -90,8 +93,8 @@ def test_params_name_existing_files_and_keys_and_deps_hold_no_config():
 def test_default_scale_is_the_paper_profile():
     for name, stage in all_stages().items():
         assert "profile=" not in stage["cmd"], name
-        profiles = {f for f, _ in params_entries(stage) if f.startswith("conf/profile/")}
-        assert profiles <= {"conf/profile/paper.yaml"}, name
+        profiles = {f for f, _ in params_entries(stage) if f.startswith("pipeline/conf/profile/")}
+        assert profiles <= {"pipeline/conf/profile/paper.yaml"}, name
 
 
 def test_site_cache_dir_is_not_relative():

@@ -24,19 +24,19 @@ robot to the previous safe state and the episode goes on; without it the collisi
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, replace
-from pathlib import Path
 from typing import Any
 
 from omegaconf import OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
+from pipeline.conf import conf_dir
 from pipeline.errors import ConfigError
 from pipeline.rl.codes import Learner
 from pipeline.rl.rules import Safety, reasons_with_pictures
 from pipeline.schema import check, setting
 
 #: ``conf/method/<name>.yaml``: each file holds only what differs from :class:`MethodSpec`'s defaults.
-METHOD_DIR = Path(__file__).resolve().parents[2] / "conf" / "method"
+METHOD_DIR = conf_dir("method")
 
 
 @dataclass
