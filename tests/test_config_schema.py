@@ -408,8 +408,7 @@ def test_a_cell_pins_recogniser_arguments_and_its_records_say_so(tmp_path):
         (
             {"a": {"method": "fewshot", "recogniser_group": "nope"}, "b": {"method": "fewshot"}},
             [],
-            r"config key 'experiment.cells.a.recogniser_group': no recogniser 'nope' "
-            r"\(pipeline/conf/recogniser/: fixed_accuracy, "
+            r"config key 'experiment.cells.a.recogniser_group': no recogniser 'nope' \(conf/recogniser/: fixed_accuracy, "
             r"oracle, protonet, relation_net\)",
         ),
         (

@@ -169,9 +169,7 @@ def recogniser_group(name: str, key: str) -> dict[str, Any]:
     path = folder / f"{name}.yaml"
     if not path.is_file():
         known = ", ".join(sorted(p.stem for p in folder.glob("*.yaml")))
-        raise ConfigError(
-            f"config key '{key}': no recogniser {name!r} (pipeline/conf/recogniser/: {known})"
-        )
+        raise ConfigError(f"config key '{key}': no recogniser {name!r} (conf/recogniser/: {known})")
     return OmegaConf.to_container(OmegaConf.load(path), resolve=True)
 
 
