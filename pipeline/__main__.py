@@ -1,8 +1,8 @@
 """``python -m pipeline <stage> [hydra overrides...]``: one thin Hydra entry point per stage.
 
 Each stage lives in ``pipeline/stages/<stage>.py`` with a ``main()`` that composes
-``pipeline/conf/<stage>.yaml`` (``pipeline/stages/_common.py``); the first line of its docstring is
-the description ``--help`` lists.
+``conf/<stage>.yaml`` (``pipeline/stages/_common.py``); the first line of its docstring is the
+description ``--help`` lists.
 """
 
 from __future__ import annotations

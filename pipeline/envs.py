@@ -61,9 +61,8 @@ def make_recogniser(
     substitution_way: int = 0,
     carry_over: bool = False,
 ) -> Recogniser:
-    """The recogniser ``pipeline/conf/recogniser/<name>.yaml``, with ``options`` overriding its
-    keys, built as the trials stage builds it. Bad names and values raise ``ValueError``
-    (``ConfigError``)."""
+    """The recogniser ``conf/recogniser/<name>.yaml``, with ``options`` overriding its keys, built
+    as the trials stage builds it. Bad names and values raise ``ValueError`` (``ConfigError``)."""
     # Hydra (about 0.2 s to import) only when a recogniser is built, not for every environment
     from pipeline.stages._recognisers import build_recogniser
 

@@ -24,6 +24,7 @@ robot to the previous safe state and the episode goes on; without it the collisi
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, replace
+from pathlib import Path
 from typing import Any
 
 from omegaconf import OmegaConf
@@ -36,7 +37,7 @@ from pipeline.rl.rules import Safety, reasons_with_pictures
 from pipeline.schema import check, setting
 
 #: ``conf/method/<name>.yaml``: each file holds only what differs from :class:`MethodSpec`'s defaults.
-METHOD_DIR = conf_dir("method")
+METHOD_DIR: Path = conf_dir("method")
 
 
 @dataclass
