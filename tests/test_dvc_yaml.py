@@ -1,5 +1,5 @@
-"""dvc.yaml against pipeline/conf/: one trials stage per experiment file, config declared as params
-(keys that exist), code and data as deps, and a DVC site cache that does not depend on the cwd."""
+"""dvc.yaml against conf/: one trials stage per experiment file, config declared as params (keys
+that exist), code and data as deps, and a DVC site cache that does not depend on the cwd."""
 
 import configparser
 import os
