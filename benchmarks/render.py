@@ -21,11 +21,12 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 
 from hydra import compose, initialize_config_dir  # noqa: E402
 
+from pipeline.conf import conf_dir  # noqa: E402
 from pipeline.world.render_plan import PlanConfig, make_plan  # noqa: E402
 from pipeline.world.renderer import SceneRenderer  # noqa: E402
 from pipeline.world.scenes import build_scene  # noqa: E402
 
-CONF = str(Path(__file__).resolve().parents[1] / "conf")
+CONF = str(conf_dir())
 
 
 def per_setting(size: int, supersample: int) -> dict:

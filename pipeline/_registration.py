@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import sys
 
-#: ``SafeNav-<maze>-v0`` for the built-in mazes (``conf/mazes/``).
+#: ``SafeNav-<maze>-v0`` for the built-in mazes (``pipeline/conf/mazes/``).
 MAZES = ("5x5", "7x7", "11x11")
 ENV_IDS = tuple(f"SafeNav-{maze}-v0" for maze in MAZES)
 #: The method of the registered ids; other methods by keyword (``gymnasium.make(id, method=...)``).

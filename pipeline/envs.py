@@ -9,7 +9,7 @@ keywords of :class:`pipeline.rl.gym_env.SafeNavigationEnv`, and the recogniser a
 
 Why here: the environment lives in ``rl``, which never imports ``fewshot`` (the science
 packages stay independent; README "Layout"), and a recogniser by name may be the Relation Network of ``fewshot``. Building
-recognisers from ``conf/recogniser/<name>.yaml`` is the stages' job, done by
+recognisers from ``pipeline/conf/recogniser/<name>.yaml`` is the stages' job, done by
 ``pipeline.stages._recognisers.build_recogniser`` (its ``_target_`` and the argument check against
 the target's signature). This module is wiring like the stages: it loads the yaml and hands it to
 that same function, so the trials stage and ``gymnasium.make`` build a recogniser through one path,
@@ -28,17 +28,19 @@ from typing import Any
 
 from omegaconf import OmegaConf
 
+from pipeline.conf import conf_dir
 from pipeline.rl.gym_env import SafeNavigationEnv
 from pipeline.rl.methods import MethodSpec, get_method
 from pipeline.rl.recogniser import Recogniser
 from pipeline.world.maze import Layout
 
-#: ``conf/recogniser/<name>.yaml``: the recognisers by name (the trials stage's config group).
-RECOGNISER_DIR = Path(__file__).resolve().parents[1] / "conf" / "recogniser"
+#: ``pipeline/conf/recogniser/<name>.yaml``: the recognisers by name (the trials stage's config
+#: group).
+RECOGNISER_DIR = conf_dir("recogniser")
 
 
 def recogniser_names() -> list[str]:
-    """The recognisers of ``conf/recogniser/``, sorted."""
+    """The recognisers of ``pipeline/conf/recogniser/``, sorted."""
     return sorted(p.stem for p in RECOGNISER_DIR.glob("*.yaml"))
 
 
@@ -47,7 +49,7 @@ def _check_name(name: str) -> Path:
     if not path.is_file():
         raise ValueError(
             f"unknown recogniser {name!r}; expected one of {', '.join(recogniser_names())} "
-            f"(conf/recogniser/<name>.yaml), or a Recogniser object"
+            f"(pipeline/conf/recogniser/<name>.yaml), or a Recogniser object"
         )
     return path
 
@@ -80,7 +82,8 @@ def make_env(
     render_mode: str | None = None,
     tile_size: int = 32,
 ) -> SafeNavigationEnv:
-    """A :class:`SafeNavigationEnv`; ``recogniser`` an object or a name of ``conf/recogniser/``.
+    """A :class:`SafeNavigationEnv`; ``recogniser`` an object or a name of
+    ``pipeline/conf/recogniser/``.
 
     A name is built only for the methods that reason with pictures (like the trials stage); with
     ``fewshot_dss`` the recogniser gets substitution way ``substitution`` (1-4, section 3.3), as
@@ -100,7 +103,8 @@ def make_env(
     elif recogniser is None and spec.uses_recogniser:
         raise ValueError(
             f"method {spec.name!r} reasons with pictures and needs a recogniser: pass "
-            f"recogniser=<name> with a name of conf/recogniser/ ({', '.join(recogniser_names())}), "
+            "recogniser=<name> with a name of pipeline/conf/recogniser/ "
+            f"({', '.join(recogniser_names())}), "
             f"e.g. gymnasium.make('SafeNav-5x5-v0', method={spec.name!r}, recogniser='oracle'), "
             f"or a Recogniser object (pipeline.rl.recogniser)"
         )

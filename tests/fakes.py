@@ -69,9 +69,10 @@ class ListSink:
         return sorted((e for e in self.all_episodes if e["run"] == run), key=lambda e: e["episode"])
 
 
-#: fig8's Prototypical Network cells run their own recogniser group (conf/recogniser/protonet.yaml),
-#: which needs the rendered pictures and the trained model; these overrides give them the oracle,
-#: for the tests that run fig8 where neither exists (CI's clean checkout).
+#: fig8's Prototypical Network cells run their own recogniser group
+#: (pipeline/conf/recogniser/protonet.yaml), which needs the rendered pictures and the trained
+#: model; these overrides give them the oracle, for the tests that run fig8 where neither exists
+#: (CI's clean checkout).
 FIG8_WITHOUT_MODELS = [
     f"experiment.cells.{cell}.recogniser_group=oracle"
     for cell in ("fewshot_protonet", "fewshot_dss_protonet")

@@ -1,8 +1,9 @@
 """The docs speak only of what is in the repository, and the defaults they quote are the configs'.
 
 A default is quoted as ``key=value`` in backticks followed by "by default" (several may share it:
-"`a=1`, `b=2` and `c=3` by default"); the key is one of a stage's config (``conf/<stage>.yaml``
-composed, profile ``paper``), written ``<stage>.<key>`` where stages disagree.
+"`a=1`, `b=2` and `c=3` by default"); the key is one of a stage's config
+(``pipeline/conf/<stage>.yaml`` composed, profile ``paper``), written ``<stage>.<key>`` where stages
+disagree.
 """
 
 import re

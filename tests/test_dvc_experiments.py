@@ -1,6 +1,6 @@
 """`dvc exp run -S <file>:<key>=<value>` on the real configs, at smoke scale, in a temporary git repo
-holding a copy of pipeline/ and conf/ and a small dvc.yaml shaped like ours (a trials foreach with
-the same kind of params, the oracle recogniser: no pictures or model needed)."""
+holding a copy of pipeline/ (its configs in pipeline/conf/) and a small dvc.yaml shaped like ours (a
+trials foreach with the same kind of params, the oracle recogniser: no pictures or model needed)."""
 
 import json
 import os
@@ -28,10 +28,10 @@ stages:
         - pipeline/rl
         - pipeline/stages/trials.py
       params:
-        - conf/trials.yaml: [seed]
-        - conf/profile/smoke.yaml: [trials.runs, trials.episodes]
-        - conf/experiment/${item}.yaml:
-        - conf/method/fewshot_dss.yaml:
+        - pipeline/conf/trials.yaml: [seed]
+        - pipeline/conf/profile/smoke.yaml: [trials.runs, trials.episodes]
+        - pipeline/conf/experiment/${item}.yaml:
+        - pipeline/conf/method/fewshot_dss.yaml:
       outs:
         - runs/${item}
       metrics:
@@ -93,30 +93,41 @@ def experiments(repo: Path) -> dict[str, dict]:
 
 def test_exp_run_set_param_reruns_trials_and_shows_param_and_metrics(tmp_path):
     repo = new_repo(tmp_path / "repo", DVC_YAML)
-    for folder in ("pipeline", "conf"):
-        shutil.copytree(ROOT / folder, repo / folder, ignore=shutil.ignore_patterns("__pycache__"))
+    shutil.copytree(
+        ROOT / "pipeline", repo / "pipeline", ignore=shutil.ignore_patterns("__pycache__")
+    )
     run(repo, "dvc", "repro")
     commit(repo)
     assert run(repo, "dvc", "status").stdout.strip() == "Data and pipelines are up to date."
 
     out = run(
-        repo, "dvc", "exp", "run", "-n", "two-runs", "-S", "conf/profile/smoke.yaml:trials.runs=2"
+        repo,
+        "dvc",
+        "exp",
+        "run",
+        "-n",
+        "two-runs",
+        "-S",
+        "pipeline/conf/profile/smoke.yaml:trials.runs=2",
     )
     assert "Running stage 'trials@fig10'" in out.stdout
     exps = experiments(repo)
     base, two = exps["workspace"], exps["two-runs"]
-    assert two["params"]["conf/profile/smoke.yaml"]["data"]["trials"] == {"runs": 2, "episodes": 20}
+    assert two["params"]["pipeline/conf/profile/smoke.yaml"]["data"]["trials"] == {
+        "runs": 2,
+        "episodes": 20,
+    }
     metrics = two["metrics"]["metrics/fig10.json"]["data"]
     assert set(metrics) == {"restore", "carry"} and metrics["restore"]["converged_runs"] <= 2
     assert (
-        base["params"]["conf/profile/smoke.yaml"]["data"]["trials"]["runs"] == 2
+        base["params"]["pipeline/conf/profile/smoke.yaml"]["data"]["trials"]["runs"] == 2
     )  # applied to the workspace
     assert (
         json.loads((repo / "runs" / "fig10" / "restore" / "summary.json").read_text())["n_runs"]
         == 2
     )
     diff = run(repo, "dvc", "params", "diff", "--json").stdout
-    assert json.loads(diff)["conf/profile/smoke.yaml"]["trials.runs"] == {
+    assert json.loads(diff)["pipeline/conf/profile/smoke.yaml"]["trials.runs"] == {
         "old": 3,
         "new": 2,
         "diff": -1,
@@ -124,7 +135,7 @@ def test_exp_run_set_param_reruns_trials_and_shows_param_and_metrics(tmp_path):
 
     # A key the file does not have (method files omit what they inherit): Hydra's struct mode
     # refuses `alpha=`; `++alpha=` adds it (or overrides it if present).
-    method = "conf/method/fewshot_dss.yaml"
+    method = "pipeline/conf/method/fewshot_dss.yaml"
     refused = run(repo, "dvc", "exp", "run", "-S", f"{method}:alpha=0.05", ok=False)
     assert (
         refused.returncode != 0
@@ -137,9 +148,10 @@ def test_exp_run_set_param_reruns_trials_and_shows_param_and_metrics(tmp_path):
     text = (repo / method).read_text()
     assert text.startswith("# Only what differs") and "alpha: 0.05" in text  # comments kept
 
-    # DVC resolves the file's interpolations to apply -S: the stage files (conf/<stage>.yaml, with
-    # ${profile...}) cannot take -S; edit them and `dvc exp run` (README "DVC experiments").
-    refused = run(repo, "dvc", "exp", "run", "-S", "conf/trials.yaml:seed=1", ok=False)
+    # DVC resolves the file's interpolations to apply -S: the stage files
+    # (pipeline/conf/<stage>.yaml, with ${profile...}) cannot take -S; edit them and `dvc exp run`
+    # (README "DVC experiments").
+    refused = run(repo, "dvc", "exp", "run", "-S", "pipeline/conf/trials.yaml:seed=1", ok=False)
     assert (
         refused.returncode != 0
         and "Interpolation key 'profile.trials.runs' not found" in refused.stderr

@@ -149,7 +149,7 @@ def test_params_name_existing_files_and_keys_and_deps_hold_no_config():
             for key in keys:  # `dvc exp run -S file:key=...` needs the key in the file
                 _get(data, key)
         for dep in stage.get("deps", []):
-            assert not (dep.startswith("conf/") and dep.endswith(".yaml")), (
+            assert not (dep.startswith("pipeline/conf/") and dep.endswith(".yaml")), (
                 f"{name}: {dep} belongs in params"
             )
 
@@ -157,8 +157,8 @@ def test_params_name_existing_files_and_keys_and_deps_hold_no_config():
 def test_default_scale_is_the_paper_profile():
     for name, stage in all_stages().items():
         assert "profile=" not in stage["cmd"], name
-        profiles = {f for f, _ in params_entries(stage) if f.startswith("conf/profile/")}
-        assert profiles <= {"conf/profile/paper.yaml"}, name
+        profiles = {f for f, _ in params_entries(stage) if f.startswith("pipeline/conf/profile/")}
+        assert profiles <= {"pipeline/conf/profile/paper.yaml"}, name
 
 
 def test_site_cache_dir_is_not_relative():

@@ -31,13 +31,14 @@ from typing import Any
 from omegaconf import OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
+from pipeline.conf import conf_dir
 from pipeline.errors import ConfigError
 from pipeline.rl.codes import Learner
 from pipeline.rl.rules import METHODS, Method, Safety, reasons_with_pictures
 from pipeline.schema import check, setting
 
 #: ``conf/method/<name>.yaml``: each file holds only what differs from :class:`MethodSpec`'s defaults.
-METHOD_DIR = Path(__file__).resolve().parents[2] / "conf" / "method"
+METHOD_DIR: Path = conf_dir("method")
 
 
 @dataclass

@@ -30,11 +30,12 @@ from typing import Any
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
+from pipeline.conf import HYDRA_MODULE, HYDRA_PATH, conf_dir
 from pipeline.errors import ConfigError, Interrupted, UserError
 from pipeline.schema import check
 
-#: Absolute path of the Hydra config folder (a relative one breaks when imported as a package).
-CONF_DIR = str(Path(__file__).resolve().parents[2] / "conf")
+#: The config folder shipped in the package (``pipeline/conf``), as a file-system path.
+CONF_DIR = str(conf_dir())
 
 #: ``run(typed_config, overrides)``: the stage's work; ``overrides`` are the command line's.
 Runner = Callable[[Any, list[str]], Any]
@@ -79,13 +80,13 @@ def typed(cfg: DictConfig) -> Any:
 def compose(config_name: str, overrides: list[str]) -> DictConfig:
     """``conf/<config_name>.yaml`` with ``overrides``; a bad override raises :class:`ConfigError`."""
     from hydra import compose as hydra_compose
-    from hydra import initialize_config_dir
+    from hydra import initialize_config_module
     from hydra.errors import HydraException
 
     import pipeline.stages._schema  # noqa: F401  (registers the schemas)
 
     try:
-        with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
+        with initialize_config_module(config_module=HYDRA_MODULE, version_base="1.3"):
             return hydra_compose(config_name=config_name, overrides=overrides)
     except (HydraException, OmegaConfBaseException, ValueError) as exc:
         raise ConfigError(one_line(exc)) from None
@@ -207,7 +208,7 @@ def _hydra_main(config_name: str, run: Runner, args: list[str]) -> None:
             for point in sweep_points(args):
                 load_config(config_name, point)
 
-    @hydra.main(config_path=CONF_DIR, config_name=config_name, version_base="1.3")
+    @hydra.main(config_path=HYDRA_PATH, config_name=config_name, version_base="1.3")
     def task(cfg: DictConfig) -> Any:
         with user_facing():
             return _run_and_say(

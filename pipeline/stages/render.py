@@ -1,6 +1,6 @@
 """Stage ``render``: the query, support and meta-training pictures, rendered with MuJoCo, and their manifest.
 
-    python -m pipeline render [key=value ...]            # config conf/render.yaml
+    python -m pipeline render [key=value ...]            # config pipeline/conf/render.yaml
 
 Writes ``<out_dir>/{query,support,train,val}/**.png``, then ``<out_dir>/manifest.csv`` (last,
 atomically: a manifest exists only for a complete render), then contact sheets under

@@ -3,7 +3,7 @@
     python -m pipeline replay file=<file.mcap> run=3 episode=120 [whole_run=true] [viewer=web|native]
 
 The file may also be given positionally (``python -m pipeline replay <file.mcap> run=3 ...``).
-Logic in :mod:`pipeline.replay`; this is the thin entry point (conf/replay.yaml) and
+Logic in :mod:`pipeline.replay`; this is the thin entry point (pipeline/conf/replay.yaml) and
 starts the viewer.
 
 ``viewer=web`` serves the recording with the Rerun CLI of the rerun-sdk wheel and prints the one

@@ -3,7 +3,7 @@
 Wherever a maze is accepted (``maze=`` of the trials stage and of experiment cells, the ``maze``
 keyword of the Gymnasium environment), :func:`pipeline.world.maze.load_layout` passes a name that
 starts with ``random:`` here. The layout is ``W`` cells wide and ``H`` high, with the start in the
-top-left corner and the goal in the bottom-right one (as in ``conf/mazes/``), exactly
+top-left corner and the goal in the bottom-right one (as in ``pipeline/conf/mazes/``), exactly
 ``obstacles`` obstacles and the goal reachable:
 
 * ``random:<W>x<H>:<obstacles>:<seed>`` (:func:`scatter`): the cells other than start and goal,
@@ -13,19 +13,19 @@ top-left corner and the goal in the bottom-right one (as in ``conf/mazes/``), ex
   cells) and, for sparse grids, is close to drawing the obstacles uniformly among the layouts
   with a reachable goal.
 * ``random:<W>x<H>:<obstacles>:<seed>:unique`` (:func:`lined_path`): the paper's kind of layout
-  (``conf/mazes/5x5.txt``): a single shortest path from start to goal that runs between obstacles.
-  A random monotone path (a shuffle of ``W-1`` moves east and ``H-1`` south) is drawn; obstacles
-  on the free neighbours of the path ("lining" cells, in a random order) close every other path
-  of the same length; the remaining obstacles go on the other lining cells first, then on the
-  rest of the grid in a random order. So with at least as many obstacles as lining cells the
-  path is lined on both sides, as in the paper's 5x5. If closing the other shortest paths takes
-  more obstacles than the spec has, another path is drawn, up to :data:`UNIQUE_DRAWS` times.
+  (``pipeline/conf/mazes/5x5.txt``): a single shortest path from start to goal that runs between
+  obstacles. A random monotone path (a shuffle of ``W-1`` moves east and ``H-1`` south) is drawn;
+  obstacles on the free neighbours of the path ("lining" cells, in a random order) close every
+  other path of the same length; the remaining obstacles go on the other lining cells first, then
+  on the rest of the grid in a random order. So with at least as many obstacles as lining cells
+  the path is lined on both sides, as in the paper's 5x5. If closing the other shortest paths
+  takes more obstacles than the spec has, another path is drawn, up to :data:`UNIQUE_DRAWS` times.
 
 The random numbers come from numpy's ``Generator`` (PCG64) seeded with
 ``[seed, W, H, obstacles, unique]``, so the same spec gives the same layout on every machine
 with the locked numpy (``tests/test_generate.py`` pins one). The layout's name is the spec in
 its canonical form (``random:5x5:9:1``); the trials stage records its rows like any other
-layout's. A spec that cannot be met raises :class:`~pipeline.world.maze.MazeError` naming the
+layout's. A spec that cannot be met raises :class:`~pipeline.world.layout.MazeError` naming the
 spec and the reason.
 """
 
@@ -36,7 +36,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pipeline.world.maze import MOVES, Layout, MazeError, bfs_distances, parse_layout
+from pipeline.world.layout import MOVES, Layout, MazeError, bfs_distances, parse_layout
 
 PREFIX = "random:"
 SPEC_PATTERN = re.compile(r"random:(\d+)x(\d+):(\d+):(\d+)(:unique)?")
