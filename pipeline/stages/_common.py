@@ -82,8 +82,9 @@ def compose(config_name: str, overrides: list[str]) -> DictConfig:
     from hydra import initialize_config_dir
     from hydra.errors import HydraException
 
-    import pipeline.stages._schema  # noqa: F401  (registers the schemas)
+    from pipeline.stages._schema import register
 
+    register()
     try:
         with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
             return hydra_compose(config_name=config_name, overrides=overrides)
@@ -200,8 +201,9 @@ def _hydra_main(config_name: str, run: Runner, args: list[str]) -> None:
     import hydra
     from hydra.core.hydra_config import HydraConfig
 
-    import pipeline.stages._schema  # noqa: F401
+    from pipeline.stages._schema import register
 
+    register()
     if any(a in ("-m", "--multirun") for a in args):  # refuse a bad sweep before launching any job
         with user_facing():
             for point in sweep_points(args):
