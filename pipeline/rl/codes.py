@@ -25,6 +25,21 @@ class Learner(IntEnum):
     sarsa = 1  #: Sarsa: bootstrap from the action actually chosen next
 
 
+class Safety(IntEnum):
+    """How a method's unsafe set A_d grows (paper section 3.2.2 and the baselines of 4.2.2).
+
+    Each member's rule is a branch of ``rules.apply_action``; nothing else branches on these.
+    Declared here, beside the other codes, so the method schema reads its names without numba.
+    """
+
+    none = 0  #: no safety layer (Q-learning, Sarsa, constrained RL)
+    shield = 1  #: online shield: a collision from (s, a) adds (s, a)
+    ssrl = 2  #: SSRL: a collision with o adds every (free neighbour of o, action toward o)
+    fewshot = (
+        3  #: Algorithm 1: a recognised obstacle adds (s, a); a misrecognition collides and adds it
+    )
+
+
 class Outcome(IntEnum):
     """What one chosen action did (``rules.apply_action``)."""
 

@@ -31,8 +31,7 @@ from omegaconf import OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
 from pipeline.errors import ConfigError
-from pipeline.rl.codes import Learner
-from pipeline.rl.rules import Safety, reasons_with_pictures
+from pipeline.rl.codes import Learner, Safety
 from pipeline.schema import check, setting
 
 #: ``conf/method/<name>.yaml``: each file holds only what differs from :class:`MethodSpec`'s defaults.
@@ -73,6 +72,8 @@ class MethodSpec:
     @property
     def uses_recogniser(self) -> bool:
         """Whether its safety rule looks at pictures (``pipeline.rl.rules.reasons_with_pictures``)."""
+        from pipeline.rl.rules import reasons_with_pictures  # numba: not for reading the schema
+
         return bool(reasons_with_pictures(Safety[self.safety]))
 
     def with_overrides(self, **kw) -> MethodSpec:

@@ -4,8 +4,9 @@ README "Where we differ from the paper").
 
 ``apply_action`` is the single implementation of these rules; the batched kernel and the
 Gymnasium environment both call it. It is also the only code that tells safety methods apart
-(:class:`Safety`, defined here): adding one means a member and a branch in this file (and a line in
-``reasons_with_pictures`` if it looks at pictures), its yaml, a test and a docs line (docs/extending.md).
+(:class:`~pipeline.rl.codes.Safety`, whose members name the rules): adding one means a member there
+and a branch in this file (and a line in ``reasons_with_pictures`` if it looks at pictures), its
+yaml, a test and a docs line (docs/extending.md).
 
 Given the robot in free cell ``s`` choosing ``a``:
 
@@ -22,27 +23,10 @@ Given the robot in free cell ``s`` choosing ``a``:
 
 from __future__ import annotations
 
-from enum import IntEnum
-
 import numba as nb
 import numpy as np
 
-from pipeline.rl.codes import Outcome, Source, StepFlag
-
-
-class Safety(IntEnum):
-    """How a method's unsafe set A_d grows (paper section 3.2.2 and the baselines of 4.2.2).
-
-    Each member's rule is a branch of ``rules.apply_action``; nothing else branches on these.
-    """
-
-    none = 0  #: no safety layer (Q-learning, Sarsa, constrained RL)
-    shield = 1  #: online shield: a collision from (s, a) adds (s, a)
-    ssrl = 2  #: SSRL: a collision with o adds every (free neighbour of o, action toward o)
-    fewshot = (
-        3  #: Algorithm 1: a recognised obstacle adds (s, a); a misrecognition collides and adds it
-    )
-
+from pipeline.rl.codes import Outcome, Safety, Source, StepFlag
 
 #: The most pairs one step can add to A_d (SSRL: the pair itself and up to four neighbours').
 MAX_ADDED = 8

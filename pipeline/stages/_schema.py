@@ -18,8 +18,7 @@ from typing import Any
 
 from omegaconf import II, MISSING
 
-from pipeline.fewshot.accuracy_study import StudyConfig
-from pipeline.fewshot.settings import TrainConfig
+from pipeline.fewshot.settings import StudyConfig, TrainConfig
 from pipeline.rl.methods import MethodSpec
 from pipeline.schema import setting
 from pipeline.stages._experiment_schema import (  # noqa: F401  (the experiment group's schema)
