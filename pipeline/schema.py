@@ -18,7 +18,7 @@ import dataclasses
 import functools
 import inspect
 import textwrap
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from typing import Any
 
 from omegaconf import MISSING
@@ -51,7 +51,8 @@ def setting(
     return dataclasses.field(default=default, metadata=meta)
 
 
-def _problem(value: Any, meta: dict) -> str | None:
+def problem(value: Any, meta: Mapping[str, Any]) -> str | None:
+    """What is wrong with ``value`` under a field's metadata (``must be >= 1; got 0``), or None."""
     if value is None:
         return None
     if "choices" in meta and value not in meta["choices"]:
@@ -84,9 +85,9 @@ def check(obj: Any, prefix: str = "") -> None:
         for f in dataclasses.fields(obj):
             value = getattr(obj, f.name)
             key = f"{prefix}{f.name}"
-            problem = _problem(value, f.metadata)
-            if problem:
-                raise ConfigError(f"config key '{key}': {problem}")
+            wrong = problem(value, f.metadata)
+            if wrong:
+                raise ConfigError(f"config key '{key}': {wrong}")
             check(value, key + ".")
     elif isinstance(obj, dict):
         for k, v in obj.items():
