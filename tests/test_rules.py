@@ -110,7 +110,8 @@ def test_codes_accept_config_strings_and_members():
 
 
 def test_only_the_rules_tell_safety_methods_apart():
-    """Adding a safety method touches rules.py (its Safety member and branch), not the kernel, runner or env."""
+    """Adding a safety method touches codes.py (its Safety member) and rules.py (its branch), not
+    the kernel, runner or env."""
     from pathlib import Path
 
     import pipeline.rl as rl
