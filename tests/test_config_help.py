@@ -181,3 +181,13 @@ def test_help_on_the_command_line_imports_no_heavy_library():
     heads = [line.split()[3] for line in out.stdout.splitlines() if line.startswith("python -m")]
     assert heads == ["trials", "render", "meta_train", "accuracy", "report", "replay"]
     assert out.stdout.splitlines()[-1] == "LOADED []"
+
+
+def test_a_stage_entry_point_prints_the_help_instead_of_running(capsys):
+    from pipeline.stages._common import stage_main
+
+    def run(cfg, overrides):
+        raise AssertionError("--help must not run the stage")
+
+    stage_main("replay", run, ["-h", "file=x.mcap"])
+    assert capsys.readouterr().out == stage_help("replay", CONF_DIR)
