@@ -55,8 +55,10 @@ def per_setting(size: int, supersample: int) -> dict:
 
 
 def stage(overrides: list[str]) -> dict:
+    from pipeline.stages._schema import register
     from pipeline.stages.render import run
 
+    register()  # conf/render.yaml names render_schema
     with (
         tempfile.TemporaryDirectory() as tmp,
         initialize_config_dir(config_dir=CONF, version_base="1.3"),

@@ -2,7 +2,8 @@
 
 Each stage lives in ``pipeline/stages/<stage>.py`` with a ``main()`` that composes
 ``conf/<stage>.yaml`` (``pipeline/stages/_common.py``); the first line of its docstring is the
-description ``--help`` lists.
+description ``--help`` lists. ``<stage> --help`` prints the stage's groups and keys from the schema
+(``pipeline/stages/_help.py``) without importing the stage's module.
 """
 
 from __future__ import annotations
@@ -13,7 +14,8 @@ import sys
 
 import pipeline.stages as _stages
 from pipeline.errors import quiet_broken_pipe
-from pipeline.stages._common import describe
+from pipeline.stages._common import print_help, wants_help
+from pipeline.stages._help import describe
 
 
 def available_stages() -> list[str]:
@@ -51,6 +53,9 @@ def main(argv: list[str] | None = None) -> None:
             file=sys.stderr,
         )
         raise SystemExit(2)
+    if wants_help(argv):
+        print_help(stage)
+        raise SystemExit(0)
     module = importlib.import_module(f"pipeline.stages.{stage}")
     sys.argv = [f"pipeline {stage}", *argv]
     module.main()

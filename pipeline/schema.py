@@ -1,16 +1,24 @@
-"""Constraints for the typed configs: ranges and choices declared once, on the dataclass field.
+"""The config schema's mechanism: a key's type, range, choices and description, each declared once,
+on its dataclass field.
 
-Hydra's structured configs check types and refuse unknown keys; they have no ranges. A field
-declared with :func:`setting` carries its range or choices as metadata, and :func:`check` walks a
-config object (dataclasses, dicts, lists) and refuses the first value out of range, naming its
-full key. The science dataclasses (``MethodSpec``, ``TrainConfig``, ...) declare their fields this
-way, so the schema is the only place a key is checked.
+Every config is a dataclass: a stage's (``pipeline/stages/_schema.py``) or a config group's, beside
+the science it configures (``MethodSpec``, ``TrainConfig``, ``StudyConfig``, ``ReportSpec``). A field
+declares its key: the annotation is the type, :func:`setting` adds a range (``ge``/``gt``/``le``/``lt``),
+``choices`` or ``nonempty`` as metadata, and the string literal under the field (an attribute
+docstring, read by :func:`field_docs`) is its description. From these alone, Hydra's structured
+configs refuse wrong types and unknown keys, :func:`check` refuses values out of range and
+:func:`constraint` and :func:`field_docs` give ``python -m pipeline <stage> --help`` its text.
+This module sits below the science packages, so they declare their fields with it.
 """
 
 from __future__ import annotations
 
+import ast
 import dataclasses
-from collections.abc import Iterable
+import functools
+import inspect
+import textwrap
+from collections.abc import Iterable, Mapping
 from typing import Any
 
 from omegaconf import MISSING
@@ -43,7 +51,8 @@ def setting(
     return dataclasses.field(default=default, metadata=meta)
 
 
-def _problem(value: Any, meta: dict) -> str | None:
+def problem(value: Any, meta: Mapping[str, Any]) -> str | None:
+    """What is wrong with ``value`` under a field's metadata (``must be >= 1; got 0``), or None."""
     if value is None:
         return None
     if "choices" in meta and value not in meta["choices"]:
@@ -76,9 +85,9 @@ def check(obj: Any, prefix: str = "") -> None:
         for f in dataclasses.fields(obj):
             value = getattr(obj, f.name)
             key = f"{prefix}{f.name}"
-            problem = _problem(value, f.metadata)
-            if problem:
-                raise ConfigError(f"config key '{key}': {problem}")
+            wrong = problem(value, f.metadata)
+            if wrong:
+                raise ConfigError(f"config key '{key}': {wrong}")
             check(value, key + ".")
     elif isinstance(obj, dict):
         for k, v in obj.items():
@@ -86,3 +95,41 @@ def check(obj: Any, prefix: str = "") -> None:
     elif isinstance(obj, (list, tuple)):
         for i, v in enumerate(obj):
             check(v, f"{prefix}{i}.")
+
+
+def constraint(f: dataclasses.Field) -> str:
+    """A field's range or choices in words (``>= 1``, ``> 0, < 180``, ``one of a, b``), or ``""``."""
+    meta = f.metadata
+    words = [
+        f"{word} {meta[key]}"
+        for key, word in (("ge", ">="), ("gt", ">"), ("le", "<="), ("lt", "<"))
+        if key in meta
+    ]
+    if "choices" in meta:
+        words.append("one of " + ", ".join(map(str, meta["choices"])))
+    if meta.get("nonempty"):
+        words.append("not empty")
+    return ", ".join(words)
+
+
+@functools.cache
+def field_docs(cls: type) -> dict[str, str]:
+    """Field name -> its description: the string literal right under the field in ``cls``'s source
+    (and its bases'), whitespace folded into one line."""
+    docs: dict[str, str] = {}
+    for klass in reversed(cls.__mro__[:-1]):
+        try:
+            source = textwrap.dedent(inspect.getsource(klass))
+        except (OSError, TypeError):
+            continue
+        body = ast.parse(source).body[0].body
+        for stmt, after in zip(body, body[1:]):
+            if (
+                isinstance(stmt, ast.AnnAssign)
+                and isinstance(stmt.target, ast.Name)
+                and isinstance(after, ast.Expr)
+                and isinstance(after.value, ast.Constant)
+                and isinstance(after.value.value, str)
+            ):
+                docs[stmt.target.id] = " ".join(after.value.value.split())
+    return docs

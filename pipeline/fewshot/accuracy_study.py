@@ -20,8 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pipeline.fewshot.colour import HUE_SHIFTS
-from pipeline.schema import setting
+from pipeline.fewshot.settings import StudyConfig
 
 # The paper's figures (Tables 1 and 2), for the report to put beside ours.
 PAPER_BASELINE = {"correct": [0, 3, 2, 8, 4], "total": [8, 8, 8, 8, 8], "mean": 0.425}
@@ -51,18 +50,6 @@ PAPER_TABLE2 = {
     4: (0.5364, 0.4868),
     5: (0.5491, 0.4860),
 }
-
-
-@dataclass
-class StudyConfig:
-    """Accuracy-study settings (``conf/accuracy.yaml``'s ``study``)."""
-
-    repeats: int = setting(100, ge=1)
-    """Repetitions per substituted category (the paper: 100, giving x/800)."""
-    seed: int = setting(0, ge=0)
-    """Seeds the random choice of pictures and positions."""
-    hue_shifts: list[float] = setting(default_factory=lambda: list(HUE_SHIFTS))
-    """The colour test's hue rotations of the query pictures, degrees (:mod:`.colour`); [] skips it."""
 
 
 @dataclass

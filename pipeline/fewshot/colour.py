@@ -12,8 +12,7 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.colors import hsv_to_rgb, rgb_to_hsv
 
-#: Hue rotations of the colour test (degrees): five turns spread round the colour circle.
-HUE_SHIFTS = (60.0, 120.0, 180.0, 240.0, 300.0)
+from pipeline.fewshot.settings import HUE_SHIFTS  # noqa: F401  (the colour test's turns)
 
 
 def hue_rotate(images: np.ndarray, degrees: float) -> np.ndarray:

@@ -1,8 +1,9 @@
 """The few-shot module's settings as plain dataclasses (no torch import): the networks' shapes
 (:class:`ModelConfig` for the Relation Network, with the feature-map sizes it implies;
-:class:`ProtoConfig` for the Prototypical Network) and the meta-training hyperparameters
-(:class:`TrainConfig`, whose ``model`` chooses between them). The stage schemas (``pipeline/stages/_schema.py``) type
-``conf/meta_train.yaml`` with them, so checking a config never loads torch.
+:class:`ProtoConfig` for the Prototypical Network), the meta-training hyperparameters
+(:class:`TrainConfig`, whose ``model`` chooses between them) and the accuracy study's
+(:class:`StudyConfig`, :mod:`.accuracy_study`). The stage schemas (``pipeline/stages/_schema.py``) type
+``conf/meta_train.yaml`` and ``conf/accuracy.yaml`` with them, so checking a config never loads torch.
 """
 
 from __future__ import annotations
@@ -137,3 +138,20 @@ class TrainConfig:
         if self.model == "protonet":
             return ProtoConfig(self.input_size)
         return ModelConfig(self.input_size, self.relation_padding)
+
+
+#: Hue rotations of the colour test (degrees, :mod:`.colour`): five turns spread round the colour
+#: circle.
+HUE_SHIFTS = (60.0, 120.0, 180.0, 240.0, 300.0)
+
+
+@dataclass
+class StudyConfig:
+    """Accuracy-study settings (``conf/accuracy.yaml``'s ``study``)."""
+
+    repeats: int = setting(100, ge=1)
+    """Repetitions per substituted category (the paper: 100, giving x/800)."""
+    seed: int = setting(0, ge=0)
+    """Seeds the random choice of pictures and positions."""
+    hue_shifts: list[float] = setting(default_factory=lambda: list(HUE_SHIFTS))
+    """The colour test's hue rotations of the query pictures, degrees (:mod:`.colour`); [] skips it."""

@@ -11,8 +11,9 @@ built from the records alone.
 
 The schema of the trials stage types ``experiment.report`` by :class:`ReportSpec`, so Hydra refuses
 unknown keys and :func:`pipeline.schema.check` refuses a ``kind`` outside :data:`KINDS` (the
-``choices`` in the field's metadata); :meth:`ReportSpec.problems` refuses cell names the experiment
-does not have. Plain dataclasses, no third-party imports.
+``choices`` its field declares with :func:`~pipeline.schema.setting`); :meth:`ReportSpec.problems`
+refuses cell names the experiment does not have. Reading a recorded block
+(:meth:`ReportSpec.from_dict`) refuses the same unknown keys and kinds, in the same words.
 """
 
 from __future__ import annotations
@@ -20,6 +21,8 @@ from __future__ import annotations
 from collections.abc import Iterable
 from dataclasses import dataclass, field, fields
 from typing import Any
+
+from pipeline.schema import problem, setting
 
 #: Section kinds. ``default``: table of collisions + learning curves (+ support-set accuracy).
 #: ``bars``: the same with a bar chart of collisions per run. ``long_term``: the runs are
@@ -41,7 +44,7 @@ class Group:
     four substitution ways). In a ``by_maze`` section the row has one entry per maze, each pooling
     the group's cells on that maze."""
 
-    key: str = field(default="", metadata={"nonempty": True})
+    key: str = setting("", nonempty=True)
     """Names the row in CSV files (the ``key`` column of the learning curves' table)."""
     cells: list[str] = field(default_factory=list)
     """The cells whose runs count together."""
@@ -70,7 +73,7 @@ class ReportSpec:
     """Sections are sorted by ``order``, then by experiment name (the paper's use 1-4)."""
     title: str | None = None
     """The section's heading; default ``Experiment <name>``."""
-    kind: str = field(default="default", metadata={"choices": KINDS})
+    kind: str = setting("default", choices=KINDS)
     """One of :data:`KINDS`."""
     claim: str | None = None
     """The paper's claim for this experiment, quoted as ``Paper: ...`` under the heading."""
@@ -107,8 +110,10 @@ class ReportSpec:
         if values.get("path") is not None:
             values["path"] = PathSpec(**_known(PathSpec, values["path"], "report.path"))
         spec = cls(**values)
-        if spec.kind not in KINDS:
-            raise ValueError(f"report.kind: must be one of {', '.join(KINDS)}; got {spec.kind!r}")
+        for f in fields(cls):
+            wrong = problem(getattr(spec, f.name), f.metadata)
+            if wrong:
+                raise ValueError(f"report.{f.name}: {wrong}")
         return spec
 
     def problems(self, cells: Iterable[str]) -> list[tuple[str, str]]:

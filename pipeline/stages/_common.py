@@ -5,26 +5,24 @@ line and exit status 2.
 API, converts it to the stage's schema (``pipeline/stages/_schema.py``) and checks every range;
 any :class:`~pipeline.errors.UserError` (a bad config, layout, checkpoint, image folder or record
 file) prints ``error: <what>: <problem>`` on stderr and exits 2, before any work where it can be
-detected up front. With ``-m`` (multirun sweeps) or Hydra's own flags (``--help``, ``--cfg``...)
+detected up front. With ``-m`` (multirun sweeps) or Hydra's own flags (``--cfg``, ``--hydra-help``...)
 the stage runs under ``hydra.main`` instead, so launchers (joblib, submitit) work; each job then
-goes through the same conversion and error handling.
+goes through the same conversion and error handling. ``--help`` (``-h``) prints the stage's groups
+and keys from the schema (``pipeline/stages/_help.py``) without composing.
 
 Every stage ends by printing one line on stdout naming what it wrote (``wrote <path>, <path>``):
 its module's ``written(cfg, result)``, or, for a stage without one, the path its ``run`` returns.
 A stage's one-line description (``python -m pipeline --help``, ``<stage> --help``) is the first
-line of its module's docstring.
+line of its module's docstring (``pipeline/stages/_help.py``).
 """
 
 from __future__ import annotations
 
-import ast
 import importlib
-import importlib.util
 import signal
 import sys
 from collections.abc import Callable
 from contextlib import contextmanager
-from pathlib import Path
 from typing import Any
 
 from omegaconf import DictConfig, OmegaConf
@@ -33,9 +31,13 @@ from omegaconf.errors import OmegaConfBaseException
 from pipeline.conf import HYDRA_MODULE, HYDRA_PATH, conf_dir
 from pipeline.errors import ConfigError, Interrupted, UserError
 from pipeline.schema import check
+from pipeline.stages._help import stage_help
 
 #: The config folder shipped in the package (``pipeline/conf``), as a file-system path.
 CONF_DIR = str(conf_dir())
+
+#: The flags that print a stage's help (``pipeline/stages/_help.py``) instead of running it.
+HELP_FLAGS = {"-h", "--help"}
 
 #: ``run(typed_config, overrides)``: the stage's work; ``overrides`` are the command line's.
 Runner = Callable[[Any, list[str]], Any]
@@ -83,8 +85,9 @@ def compose(config_name: str, overrides: list[str]) -> DictConfig:
     from hydra import initialize_config_module
     from hydra.errors import HydraException
 
-    import pipeline.stages._schema  # noqa: F401  (registers the schemas)
+    from pipeline.stages._schema import register
 
+    register()
     try:
         with initialize_config_module(config_module=HYDRA_MODULE, version_base="1.3"):
             return hydra_compose(config_name=config_name, overrides=overrides)
@@ -129,15 +132,6 @@ def load_config(stage: str, overrides: list[str] = ()) -> Any:
     return typed(compose(stage, list(overrides)))
 
 
-def describe(stage: str) -> str:
-    """The stage's one-line description: the first line of its module's docstring without the
-    ``Stage ``<name>``:`` in front (read from the source: no import, so ``--help`` stays fast)."""
-    spec = importlib.util.find_spec(f"pipeline.stages.{stage}")
-    doc = ast.get_docstring(ast.parse(Path(spec.origin).read_text())) or ""
-    first = doc.strip().splitlines()[0] if doc.strip() else ""
-    return first.removeprefix(f"Stage ``{stage}``:").strip().replace("``", "")
-
-
 def wrote(stage: str, cfg: Any, result: Any) -> None:
     """Print the stage's last line: ``wrote`` and the folders and files it wrote."""
     module = importlib.import_module(f"pipeline.stages.{stage}")
@@ -158,9 +152,19 @@ def run_stage(stage: str, overrides: list[str] = ()) -> Any:
     return _run_and_say(stage, module.run, load_config(stage, overrides), list(overrides))
 
 
+def wants_help(args: list[str]) -> bool:
+    return bool(HELP_FLAGS & set(args))
+
+
+def print_help(stage: str) -> None:
+    print(stage_help(stage, CONF_DIR), end="", flush=True)
+
+
 def stage_main(config_name: str, run: Runner, args: list[str] | None = None) -> Any:
     """Run a stage from the command line (``args``, default ``sys.argv[1:]``)."""
     args = list(sys.argv[1:] if args is None else args)
+    if wants_help(args):
+        return print_help(config_name)
     if _hydra_mode(args):
         return _hydra_main(config_name, run, args)
     with user_facing():
@@ -201,8 +205,9 @@ def _hydra_main(config_name: str, run: Runner, args: list[str]) -> None:
     import hydra
     from hydra.core.hydra_config import HydraConfig
 
-    import pipeline.stages._schema  # noqa: F401
+    from pipeline.stages._schema import register
 
+    register()
     if any(a in ("-m", "--multirun") for a in args):  # refuse a bad sweep before launching any job
         with user_facing():
             for point in sweep_points(args):
@@ -215,13 +220,5 @@ def _hydra_main(config_name: str, run: Runner, args: list[str]) -> None:
                 config_name, run, typed(cfg), list(HydraConfig.get().overrides.task)
             )
 
-    sys.argv = [sys.argv[0], *args, *_help_header(config_name, args)]
+    sys.argv = [sys.argv[0], *args]
     task()
-
-
-def _help_header(stage: str, args: list[str]) -> list[str]:
-    """With ``--help``, the override that heads Hydra's help with the stage's name and description."""
-    if not {"-h", "--help"} & set(args):
-        return []
-    header = f"python -m pipeline {stage} [key=value ...]: {describe(stage)}".replace("'", "\\'")
-    return [f"hydra.help.header='{header}'"]

@@ -1,31 +1,35 @@
 """The typed schema of every stage's config (Hydra structured configs, registered in the ConfigStore).
 
 ``conf/<stage>.yaml`` names its schema first in its defaults list (``- trials_schema``) and gives the
-values; the dataclasses here give the types, ranges and documentation. Hydra refuses wrong types and
-unknown keys while composing; :func:`pipeline.schema.check` refuses values out of range. The groups
-are typed through their parent's field: ``method`` by :class:`~pipeline.rl.methods.MethodSpec`,
-``profile`` by :class:`Profile`, ``experiment`` by :class:`Experiment`; a recogniser is typed by the
-signature of its ``_target_`` (``pipeline.stages._recognisers``).
+values; the dataclasses here give each key's type, range or choices and, in the string under it,
+its description (:mod:`pipeline.schema`). Hydra refuses wrong types and unknown keys while
+composing; :func:`pipeline.schema.check` refuses values out of range; ``python -m pipeline <stage>
+--help`` prints the same declarations (``pipeline/stages/_help.py``). The groups are typed through
+their parent's field: ``method`` by :class:`~pipeline.rl.methods.MethodSpec`, ``profile`` by
+:class:`Profile`, ``experiment`` by :class:`~pipeline.stages._experiment_schema.Experiment`,
+``data`` by :class:`DataConfig`; a recogniser is typed by the signature of its ``_target_``
+(``pipeline.stages._recognisers``).
 """
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Any
 
-from hydra.core.config_store import ConfigStore
 from omegaconf import II, MISSING
 
-from pipeline.errors import ConfigError
-from pipeline.fewshot.accuracy_study import StudyConfig
-from pipeline.fewshot.settings import TrainConfig
-from pipeline.report.spec import ReportSpec
+from pipeline.fewshot.settings import StudyConfig, TrainConfig
 from pipeline.rl.methods import MethodSpec
 from pipeline.schema import setting
-from pipeline.world.layout_sets import LayoutSetError, expand
+from pipeline.stages._experiment_schema import (  # noqa: F401  (the experiment group's schema)
+    SUBSTITUTION_WAYS,
+    SUPPORT_MODES,
+    Cell,
+    Experiment,
+    Layouts,
+    LayoutSet,
+)
 
-SUPPORT_MODES = ("restore", "carry")
-SUBSTITUTION_WAYS = (1, 2, 3, 4)
 VIEWERS = ("none", "web", "native")
 RECORD_LEVELS = ("steps", "episodes", "none")
 DATA_SOURCES = ("rendered", "folder")
@@ -34,16 +38,26 @@ DATA_SOURCES = ("rendered", "folder")
 # ---------------------------------------------------------------- profile (conf/profile/*.yaml)
 @dataclass
 class RenderProfile:
+    """The render stage's scale (its keys of the same names read these)."""
+
     n_train_classes: int = setting(ge=0)
+    """Meta-training classes (the paper: miniImageNet's 64)."""
     n_val_classes: int = setting(ge=0)
+    """Held-out validation classes that pick the checkpoint."""
     per_class: int = setting(ge=1)
+    """Pictures per meta-training class."""
     workers: int = setting(ge=1)
+    """Render processes."""
 
 
 @dataclass
 class TrialsProfile:
+    """The trials' scale (the keys ``runs`` and ``episodes`` and the generated layouts read these)."""
+
     runs: int = setting(ge=1)
+    """Independent runs per cell."""
     episodes: int = setting(ge=1)
+    """Episodes per run."""
     layouts: int = setting(ge=1)
     """Generated layouts per size of an experiment's layout sets (``conf/experiment/generalisation.yaml``
     reads it as each set's ``count``)."""
@@ -53,18 +67,28 @@ class TrialsProfile:
 
 @dataclass
 class MetaTrainProfile:
+    """Meta-training's scale (``train.<key>`` of ``conf/meta_train.yaml`` reads these)."""
+
     episodes: int = setting(ge=1)
+    """Training episodes of the Relation Network."""
     protonet_episodes: int = setting(ge=1)
     """Training episodes of the Prototypical Network (``model=protonet``): it levels off sooner."""
     val_every: int = setting(ge=1)
+    """Training episodes between model-selection evaluations."""
     val_episodes: int = setting(ge=1)
+    """Model-selection episodes (validation classes only)."""
     eval_episodes: int = setting(ge=1)
+    """Episodes of the reported accuracy and its 95% interval."""
     eval_queries: int = setting(ge=1)
+    """Query pictures per class in those episodes."""
 
 
 @dataclass
 class AccuracyProfile:
+    """The accuracy study's scale."""
+
     repeats: int = setting(ge=1)
+    """Repetitions per substituted category (the paper: 100, giving x/800)."""
 
 
 @dataclass
@@ -72,117 +96,29 @@ class Profile:
     """The scale of every stage: ``paper`` (the default of ``dvc repro``) or ``smoke``."""
 
     render: RenderProfile = field(default_factory=RenderProfile)
+    """The render stage's scale."""
     trials: TrialsProfile = field(default_factory=TrialsProfile)
+    """The trials' scale."""
     meta_train: MetaTrainProfile = field(default_factory=MetaTrainProfile)
+    """Meta-training's scale."""
     accuracy: AccuracyProfile = field(default_factory=AccuracyProfile)
+    """The accuracy study's scale."""
 
 
 # ---------------------------------------------------------------- trials
-@dataclass
-class Cell:
-    """One cell of an experiment: a method on a maze. Keys left out come from the top level
-    (the experiment file's globals or the command line); keys given here are pinned."""
-
-    method: str = setting(nonempty=True)
-    """A method of ``conf/method/``."""
-    maze: str | None = None
-    substitution: int | None = setting(None, choices=SUBSTITUTION_WAYS)
-    support: str | None = setting(None, choices=SUPPORT_MODES)
-    params: dict[str, Any] = field(default_factory=dict)
-    """Method fields this cell pins (``{alpha: 0.05}``); the command line does not change them."""
-    recogniser: dict[str, Any] = field(default_factory=dict)
-    """Recogniser arguments this cell pins (``{p: 0.3}``) over the top level's recogniser
-    (``recogniser=<name>``, ``recogniser.<arg>=``), checked against that recogniser's parameters;
-    only for methods that recognise pictures. The command line does not change them."""
-    recogniser_group: str | None = None
-    """A recogniser of ``conf/recogniser/`` (``protonet``) this cell runs instead of the top level's;
-    the top level's recogniser arguments do not reach it, its own ``recogniser`` pins do."""
-
-
-@dataclass
-class LayoutSet:
-    """``count`` generated layouts of one size (``pipeline/world/layout_sets.py``): the mazes
-    ``random:<size>:<obstacles>:<seed + k>[:unique]``, ``k = 0 .. count-1``."""
-
-    size: str = setting(nonempty=True)
-    """``<W>x<H>`` (W wide, H high)."""
-    obstacles: int = setting(ge=0)
-    count: int = setting(ge=1)
-    seed: int = setting(0, ge=0)
-    """The first layout's seed; layout ``k`` has seed ``seed + k``."""
-    unique: bool = True
-    """The paper's kind of layout: a single shortest path lined by obstacles (``:unique``)."""
-
-
-@dataclass
-class Layouts:
-    """Cell templates crossed with sets of generated layouts: cell ``<template>_<size>_L<seed>`` is
-    the template on the layout of ``size`` with that seed."""
-
-    sizes: list[LayoutSet] = field(default_factory=list)
-    cells: dict[str, Cell] = field(default_factory=dict)
-    """Templates: cells without a maze (each generated cell gets its layout's)."""
-
-
-@dataclass
-class Experiment:
-    """``conf/experiment/<name>.yaml``: the cells, and how the report presents them."""
-
-    name: str = setting(nonempty=True)
-    cells: dict[str, Cell] = field(default_factory=dict)
-    layouts: Layouts | None = None
-    """Cells over generated layouts (``experiment.layouts``), besides the ``cells`` listed by hand."""
-
-    def all_cells(self) -> dict[str, Cell]:
-        """The cells listed by hand, then those of ``layouts`` (in set, layout, template order);
-        a set that cannot be met, a template that pins a maze or a name given twice is refused
-        (:class:`~pipeline.errors.ConfigError` naming the key)."""
-        if self.layouts is None:
-            return dict(self.cells)
-        for name, template in self.layouts.cells.items():
-            if template.maze is not None:
-                raise ConfigError(
-                    f"config key 'experiment.layouts.cells.{name}.maze': the layout sets give "
-                    "each generated cell its maze; leave maze out of the template"
-                )
-        if not self.layouts.cells:
-            raise ConfigError(
-                "config key 'experiment.layouts.cells': no templates; name at least one "
-                "(e.g. {ssrl: {method: ssrl}})"
-            )
-        if not self.layouts.sizes:
-            raise ConfigError(
-                "config key 'experiment.layouts.sizes': no layout sets; give at least one "
-                "(e.g. {size: 5x5, obstacles: 9, count: 100})"
-            )
-        try:
-            generated = expand([asdict(s) for s in self.layouts.sizes], list(self.layouts.cells))
-        except LayoutSetError as exc:
-            raise ConfigError(f"config key 'experiment.layouts.sizes.{exc.key}': {exc}") from None
-        out = dict(self.cells)
-        for name, g in generated.items():
-            if name in out:
-                raise ConfigError(
-                    f"config key 'experiment.cells.{name}': the layout sets generate a cell of "
-                    "that name; rename it"
-                )
-            out[name] = replace(self.layouts.cells[g.template], maze=g.maze)
-        return out
-
-    report: ReportSpec | None = None
-    """How the report presents the experiment (``pipeline/report/spec.py``); none: the default section."""
-
-
 @dataclass
 class TrialsConfig:
     """``python -m pipeline trials``: independent runs of a method on a maze (or every cell of an
     experiment), every episode recorded to MCAP."""
 
     profile: Profile = field(default_factory=Profile)
+    """The scale (``conf/profile/``): ``runs`` and ``episodes`` default to its ``trials`` keys."""
     method: MethodSpec = field(default_factory=MethodSpec)
+    """The method (``conf/method/``): its file over the base method, then ``method.<field>=``."""
     recogniser: dict[str, Any] = field(default_factory=dict)
     """The recogniser group (``conf/recogniser/``): ``_target_`` and its arguments."""
     experiment: Experiment | None = None
+    """An experiment (``+experiment=<name>``, ``conf/experiment/``): several cells, one run each."""
     maze: str = setting(nonempty=True)
     """A built-in layout (``conf/mazes/<name>.txt``), a path to a layout file, or a generated layout
     ``random:<W>x<H>:<obstacles>:<seed>[:unique]`` (``pipeline/world/generate.py``)."""
@@ -195,19 +131,27 @@ class TrialsConfig:
     records keep, for recognisers without pictures of their own (oracle, fixed_accuracy); relation_net
     records those of its ``recogniser.images_dir``."""
     runs: int = setting(II("profile.trials.runs"), ge=1)
+    """Independent runs (each with its own obstacle assignment and seed)."""
     episodes: int = setting(II("profile.trials.episodes"), ge=1)
+    """Episodes per run."""
     seed: int = setting(ge=0)
+    """Seeds every run: run ``r`` draws its placement, exploration and recogniser from ``(seed, r)``."""
     out: str = setting(nonempty=True)
+    """Writes ``<out>/summary.json`` (+ ``records.mcap``); an experiment: ``<out>/<cell>/``."""
     overwrite: bool = MISSING
     """Replace results already in ``out``; without it such an ``out`` is refused (``dvc repro``
     deletes a stage's outs before running it, so there the ``out`` is empty)."""
     metrics_file: str | None = None
+    """An experiment's mean collisions per cell are also written here (DVC metrics)."""
     timing_file: str | None = None
+    """Each cell's trial seconds are written here (kept out of ``out``, which is byte-reproducible)."""
     record: str = setting(choices=RECORD_LEVELS)
     """What the MCAP records hold (docs/records.md "Record levels"): ``steps`` every step, ``episodes``
     per-episode summaries and every recognition, substitution and unsafe pair, ``none`` no record file."""
     flush_every: int = setting(ge=1)
+    """Episodes per MCAP chunk (what a killed run may lose)."""
     progress: bool = MISSING
+    """Print progress (on stderr)."""
     threads: int = setting(ge=0)
     """numba threads; 0 = all cores (divided among the ``workers``)."""
     workers: int = setting(1, ge=1)
@@ -218,50 +162,90 @@ class TrialsConfig:
 # ---------------------------------------------------------------- render
 @dataclass
 class MazeCameraConfig:
+    """The robot's camera in the maze (the query pictures)."""
+
     cell: float = setting(gt=0)
+    """Metres per grid cell."""
     camera_distance: float = setting(gt=0)
+    """Horizontal distance from the camera to the obstacle's centre, metres (one cell)."""
     camera_height: float = setting(gt=0)
+    """The robot camera's height, metres."""
     target_height: float = setting(gt=0)
+    """The camera aims at this height above the obstacle's foot, metres."""
     fovy: float = setting(gt=0, lt=180)
+    """Vertical field of view, degrees."""
 
 
 @dataclass
 class CatalogueCameraConfig:
+    """The product-photo setting of the support pictures."""
+
     fovy: float = setting(gt=0, lt=180)
+    """Vertical field of view, degrees."""
     elevation: list[float] = MISSING
+    """The range of camera elevations, degrees (negative: looking down)."""
     turn: list[float] = MISSING
+    """The range of the object's turn away from a frontal view, degrees."""
     fill: float = setting(gt=0, le=1)
+    """The fraction of the picture's height the object fills."""
 
 
 @dataclass
 class QualityConfig:
+    """Anti-aliasing and shadows of the renderer."""
+
     offsamples: int = setting(ge=0)
+    """Multisample anti-aliasing samples (0: none)."""
     supersample: int = setting(ge=1)
+    """Draw at this multiple of the size and average blocks (anti-aliasing)."""
     shadow_size: int = setting(ge=1)
+    """Shadow map resolution."""
     studio_shadows: bool = MISSING
+    """Shadows in meta-training pictures (maze and catalogue pictures always have them)."""
 
 
 @dataclass
 class RenderConfig:
+    """``python -m pipeline render``: the query, support and meta-training pictures and one manifest."""
+
     profile: Profile = field(default_factory=Profile)
+    """The scale (``conf/profile/``): the class and picture counts default to its ``render`` keys."""
     out_dir: str = setting(nonempty=True)
+    """The pictures and ``manifest.csv``; its parent folder must exist."""
     figures_dir: str = setting(nonempty=True)
+    """The contact sheets (the report stage copies them)."""
     size: int = setting(ge=8)
+    """Picture side in pixels (the paper's 84x84)."""
     seed: int = setting(ge=0)
+    """Seeds every scene (classes, instances, views)."""
     workers: int = setting(II("profile.render.workers"), ge=1)
+    """Render processes (one renderer each); 1: in this process."""
     categories: list[str] = MISSING
+    """The query and support categories, in order."""
     n_train_classes: int = setting(II("profile.render.n_train_classes"), ge=0)
+    """Meta-training classes."""
     n_val_classes: int = setting(II("profile.render.n_val_classes"), ge=0)
+    """Held-out validation classes that pick the checkpoint."""
     per_class: int = setting(II("profile.render.per_class"), ge=1)
+    """Pictures per meta-training class."""
     views_per_instance: int = setting(ge=1)
+    """Pictures per jittered instance of a class."""
     support_per_category: int = setting(ge=1)
+    """Support pictures per category (K of the K-shot support set)."""
     maze: MazeCameraConfig = field(default_factory=MazeCameraConfig)
+    """The robot's camera in the maze (the query pictures)."""
     catalogue: CatalogueCameraConfig = field(default_factory=CatalogueCameraConfig)
+    """The product-photo setting (the support pictures)."""
     quality: QualityConfig = field(default_factory=QualityConfig)
+    """Anti-aliasing and shadows."""
     contact_sheets: bool = MISSING
+    """Write contact sheets of the pictures to ``figures_dir``."""
     contact_tile: int = setting(ge=8)
+    """Tile side of the contact sheets, pixels."""
     contact_train_classes: int = setting(ge=1)
+    """Rows (classes) of the meta-training and validation contact sheets."""
     contact_per_class: int = setting(ge=1)
+    """Pictures per class in those two sheets."""
 
 
 # ---------------------------------------------------------------- meta_train, accuracy
@@ -272,6 +256,7 @@ class DataConfig:
     (:func:`pipeline.fewshot.data.load_folder`), such as miniImageNet's."""
 
     source: str = setting(choices=DATA_SOURCES)
+    """Where the classes come from (set by the group: ``data=rendered`` or ``data=folder``)."""
     train_dir: str | None = None
     """``data=folder``: the training classes, ``<train_dir>/<class>/<picture>``."""
     val_dir: str | None = None
@@ -280,38 +265,64 @@ class DataConfig:
 
 @dataclass
 class MetaTrainConfig:
+    """``python -m pipeline meta_train``: meta-train the Relation Network (or, with
+    ``model=protonet``, a Prototypical Network) and write its checkpoint and validation metrics."""
+
     profile: Profile = field(default_factory=Profile)
+    """The scale (``conf/profile/``): training and validation episodes default to its ``meta_train`` keys."""
     data: DataConfig = field(default_factory=DataConfig)
+    """Where the classes come from (``conf/data/``)."""
     images_dir: str = setting(nonempty=True)
     """``data=rendered``: the render stage's output, whose train and val splits are read."""
     checkpoint: str = setting(nonempty=True)
+    """The selected checkpoint (set by the ``model`` group)."""
     metrics_file: str = setting(nonempty=True)
+    """Its validation metrics (DVC metrics; ``train_info.json`` goes beside it)."""
     history_file: str = setting(nonempty=True)
+    """The training history, one row per evaluation (CSV)."""
     threads: int = setting(ge=1)
+    """torch intra-op threads."""
     progress: bool = MISSING
+    """Show a progress bar (on stderr)."""
     train: TrainConfig = field(default_factory=TrainConfig)
+    """The meta-training hyperparameters (``train.model`` is set by the ``model`` group)."""
 
 
 @dataclass
 class AccuracyConfig:
+    """``python -m pipeline accuracy``: the few-shot accuracy study (Tables 1 and 2)."""
+
     profile: Profile = field(default_factory=Profile)
+    """The scale (``conf/profile/``): ``study.repeats`` defaults to its ``accuracy.repeats``."""
     recogniser: dict[str, Any] = field(default_factory=dict)
     """The recogniser group (``conf/recogniser/``), as in the trials."""
     out_dir: str = setting(nonempty=True)
+    """``baseline.csv``, ``table1.csv``, ``table2.csv`` and ``summary.json``."""
     threads: int = setting(ge=1)
+    """torch intra-op threads."""
     progress: bool = MISSING
+    """Show a progress bar (on stderr)."""
     study: StudyConfig = field(default_factory=StudyConfig)
+    """The study's settings."""
 
 
 # ---------------------------------------------------------------- replay, report
 @dataclass
 class ReplayConfig:
+    """``python -m pipeline replay``: one recorded episode (or a whole run) in Rerun."""
+
     file: str = setting(nonempty=True)
+    """An ``.mcap`` record file (or the ``.mcap.partial`` of a killed run)."""
     run: int = setting(ge=0)
+    """The run to replay."""
     episode: int = setting(ge=0)
+    """The episode to replay."""
     whole_run: bool = MISSING
+    """Every episode of the run on one timeline (``episode`` is then ignored)."""
     out: str | None = None
+    """The ``.rrd`` to write; none: ``replays/<experiment>-<cell>-run<run>-ep<episode>.rrd``."""
     viewer: str = setting(choices=VIEWERS)
+    """Then open the recording: ``none``, ``web`` (serve it to a browser) or ``native`` (needs a display)."""
     bind: str = setting(nonempty=True)
     """IP address the web viewer listens on; off the loopback only with ``allow_remote``."""
     allow_remote: bool = MISSING
@@ -324,16 +335,24 @@ class ReplayConfig:
 
 @dataclass
 class ReportConfig:
+    """``python -m pipeline report``: rebuild the report from the recorded data alone."""
+
     profile: Profile = field(default_factory=Profile)
+    """The scale (``conf/profile/``; the report reads none of it)."""
     runs_dir: str = setting(nonempty=True)
+    """The trials' records: ``<runs_dir>/<experiment>/<cell>/records.mcap``."""
     accuracy_dir: str = setting(nonempty=True)
+    """The accuracy stage's data files (the Relation Network's)."""
     model_metrics: str = setting(nonempty=True)
+    """The Relation Network's validation metrics (meta_train)."""
     protonet_accuracy_dir: str = setting(nonempty=True)
     """The Prototypical Network's accuracy study, shown beside the Relation Network's (Tables 1-2)."""
     protonet_metrics: str = setting(nonempty=True)
     """The Prototypical Network's validation metrics (meta_train model=protonet)."""
     contact_dir: str = setting(nonempty=True)
+    """The render stage's contact sheets, copied to the report's figures."""
     out: str = setting(nonempty=True)
+    """``index.md``, ``tables/`` and ``figures/`` (replaced only by a complete build)."""
     allow_missing: bool = MISSING
     """Build without experiments or cells that have no complete records (listed at the top)."""
 
@@ -350,9 +369,9 @@ SCHEMAS = {
 
 
 def register() -> None:
+    """Store every stage's schema in Hydra's ConfigStore as ``<stage>_schema`` (before composing)."""
+    from hydra.core.config_store import ConfigStore
+
     cs = ConfigStore.instance()
     for stage, schema in SCHEMAS.items():
         cs.store(name=f"{stage}_schema", node=schema)
-
-
-register()
