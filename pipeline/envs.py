@@ -61,7 +61,7 @@ def make_recogniser(
     substitution_way: int = 0,
     carry_over: bool = False,
 ) -> Recogniser:
-    """The recogniser ``conf/recogniser/<name>.yaml``, with ``options`` overriding its keys, built
+    """The recogniser ``pipeline/conf/recogniser/<name>.yaml``, with ``options`` overriding its keys, built
     as the trials stage builds it. Bad names and values raise ``ValueError`` (``ConfigError``)."""
     # Hydra (slow to import) only when a recogniser is built, not for every environment
     from pipeline.stages._recognisers import build_recogniser

@@ -411,7 +411,7 @@ def test_a_cell_pins_recogniser_arguments_and_its_records_say_so(tmp_path):
             {"a": {"method": "fewshot", "recogniser_group": "nope"}, "b": {"method": "fewshot"}},
             [],
             r"config key 'experiment.cells.a.recogniser_group': no recogniser 'nope' "
-            + re.escape(f"(conf/recogniser/: {', '.join(recogniser_names())})"),
+            + re.escape(f"(pipeline/conf/recogniser/: {', '.join(recogniser_names())})"),
         ),
         (
             {"a": {"method": "fewshot", "recogniser_group": "oracle"}, "s": {"method": "ssrl"}},

@@ -1,4 +1,4 @@
-"""dvc.yaml against conf/: one trials stage per experiment file, config declared as params (keys
+"""dvc.yaml against pipeline/conf/: one trials stage per experiment file, config declared as params (keys
 that exist, and every method and recogniser file an experiment reads), code and data as deps, and a
 DVC site cache that does not depend on the cwd. The lists DVC forces are checked here, each
 failure naming what to add or remove."""
@@ -68,10 +68,10 @@ def test_report_depends_on_every_experiment():
 
 
 def read_by_experiments() -> list[str]:
-    """The method and recogniser files the experiments of ``conf/experiment/`` read, as dvc.yaml
+    """The method and recogniser files the experiments of ``pipeline/conf/experiment/`` read, as dvc.yaml
     names them: the methods of their cells (listed and layout templates), the recognisers their
     cells choose (``recogniser_group``), their defaults lists choose (``override /recogniser``) and
-    ``conf/trials.yaml`` chooses for the rest."""
+    ``pipeline/conf/trials.yaml`` chooses for the rest."""
     trials = yaml.safe_load((Path(CONF_DIR) / "trials.yaml").read_text())
     recognisers = {
         d["recogniser"] for d in trials["defaults"] if isinstance(d, dict) and "recogniser" in d
@@ -122,7 +122,7 @@ def test_the_files_experiments_read_include_their_methods_and_recognisers():
     assert f"{method}/fewshot_dss.yaml" in read  # a cell's method
     assert f"{recogniser}/protonet.yaml" in read  # fig8's recogniser_group
     assert f"{recogniser}/fixed_accuracy.yaml" in read  # accuracy_curve's override /recogniser
-    assert f"{recogniser}/relation_net.yaml" in read  # conf/trials.yaml's default
+    assert f"{recogniser}/relation_net.yaml" in read  # pipeline/conf/trials.yaml's default
 
 
 def test_differences_name_what_is_missing_and_what_is_extra():

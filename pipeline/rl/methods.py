@@ -37,18 +37,18 @@ from pipeline.rl.codes import Learner
 from pipeline.rl.rules import METHODS, Method, Safety, reasons_with_pictures
 from pipeline.schema import check, setting
 
-#: ``conf/method/<name>.yaml``: each file holds only what differs from :class:`MethodSpec`'s defaults.
+#: ``pipeline/conf/method/<name>.yaml``: each file holds only what differs from :class:`MethodSpec`'s defaults.
 METHOD_DIR: Path = conf_dir("method")
 
 
 @dataclass
 class MethodSpec:
     """One method of the comparison; the defaults are the base method (tabular Q-learning with the
-    paper's hyperparameters, section 4.1), and ``conf/method/<name>.yaml`` states what differs.
+    paper's hyperparameters, section 4.1), and ``pipeline/conf/method/<name>.yaml`` states what differs.
     This dataclass is also the Hydra schema of the ``method`` config group."""
 
     name: str = setting("qlearning", nonempty=True)
-    """The method's name (its file in ``conf/method/``), carried into the records."""
+    """The method's name (its file in ``pipeline/conf/method/``), carried into the records."""
     learner: str = setting(Learner.q.name, choices=[m.name for m in Learner])
     """``q`` (Q-learning, eq. 9) or ``sarsa``."""
     safety: str = setting(Safety.none.name, choices=[m.name for m in Safety])
@@ -90,7 +90,7 @@ def check_method(spec: MethodSpec, key: str = "method") -> MethodSpec:
 
 
 def method_names() -> list[str]:
-    """The methods of ``conf/method/``, sorted."""
+    """The methods of ``pipeline/conf/method/``, sorted."""
     return sorted(p.stem for p in METHOD_DIR.glob("*.yaml"))
 
 
@@ -102,7 +102,7 @@ IDENTITY = ("learner", "safety", "constrained", "dynamic_support")
 @cache
 def declared_fields() -> dict[str, dict[str, Any]]:
     """The fields of every declared method (:data:`pipeline.rl.rules.METHODS`) that has a file
-    in ``conf/method/``, by name, in the declared order."""
+    in ``pipeline/conf/method/``, by name, in the declared order."""
     return {m.name: load_method(m.name).as_dict() for m in METHODS if m.name in method_names()}
 
 
@@ -127,7 +127,7 @@ def declaration(method: dict[str, Any]) -> Method | None:
 def load_method(
     name: str, overrides: dict[str, Any] | None = None, key: str = "method"
 ) -> MethodSpec:
-    """``conf/method/<name>.yaml`` merged onto the base method, then ``overrides`` (field -> value),
+    """``pipeline/conf/method/<name>.yaml`` merged onto the base method, then ``overrides`` (field -> value),
     type- and range-checked by the schema; errors name ``key``."""
     path = METHOD_DIR / f"{name}.yaml"
     if not path.is_file():

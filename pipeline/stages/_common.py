@@ -1,7 +1,7 @@
 """The one entry path of every stage: compose the typed config, run, and turn a user error into one
 line and exit status 2.
 
-``python -m pipeline <stage> key=value ...`` composes ``conf/<stage>.yaml`` with Hydra's compose
+``python -m pipeline <stage> key=value ...`` composes ``pipeline/conf/<stage>.yaml`` with Hydra's compose
 API, converts it to the stage's schema (``pipeline/stages/_schema.py``) and checks every range;
 any :class:`~pipeline.errors.UserError` (a bad config, layout, checkpoint, image folder or record
 file) prints ``error: <what>: <problem>`` on stderr and exits 2, before any work where it can be
@@ -80,7 +80,7 @@ def typed(cfg: DictConfig) -> Any:
 
 
 def compose(config_name: str, overrides: list[str]) -> DictConfig:
-    """``conf/<config_name>.yaml`` with ``overrides``; a bad override raises :class:`ConfigError`."""
+    """``pipeline/conf/<config_name>.yaml`` with ``overrides``; a bad override raises :class:`ConfigError`."""
     from hydra import compose as hydra_compose
     from hydra import initialize_config_module
     from hydra.errors import HydraException
@@ -128,7 +128,7 @@ def _hydra_mode(args: list[str]) -> bool:
 
 
 def load_config(stage: str, overrides: list[str] = ()) -> Any:
-    """``conf/<stage>.yaml`` with ``overrides``, as the stage's typed config (checked)."""
+    """``pipeline/conf/<stage>.yaml`` with ``overrides``, as the stage's typed config (checked)."""
     return typed(compose(stage, list(overrides)))
 
 

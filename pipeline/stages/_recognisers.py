@@ -1,10 +1,10 @@
-"""Build a recogniser from its config group (``conf/recogniser/<name>.yaml``) through ``_target_``.
+"""Build a recogniser from its config group (``pipeline/conf/recogniser/<name>.yaml``) through ``_target_``.
 
 A recogniser is any callable returning an object of the ``pipeline.rl.recogniser.Recogniser``
 protocol whose keyword arguments include ``substitution_way`` and ``carry_over`` (the trial stage
 fills those from the cell). The callable's signature is its schema: the yaml's other keys must be
 its parameters, with values of their annotated types. Adding a recogniser: its module, its yaml
-and a test; the lists of recognisers (in messages, in tests) come from ``conf/recogniser/``.
+and a test; the lists of recognisers (in messages, in tests) come from ``pipeline/conf/recogniser/``.
 """
 
 from __future__ import annotations
@@ -25,12 +25,12 @@ from pipeline.stages._common import CONF_DIR
 
 FILLED_BY_STAGE = ("substitution_way", "carry_over")
 
-#: ``conf/recogniser/<name>.yaml``: one file per recogniser, the group ``recogniser=<name>`` chooses.
+#: ``pipeline/conf/recogniser/<name>.yaml``: one file per recogniser, the group ``recogniser=<name>`` chooses.
 RECOGNISER_DIR = Path(CONF_DIR) / "recogniser"
 
 
 def recogniser_names() -> list[str]:
-    """The recognisers of ``conf/recogniser/``, sorted."""
+    """The recognisers of ``pipeline/conf/recogniser/``, sorted."""
     return sorted(p.stem for p in RECOGNISER_DIR.glob("*.yaml"))
 
 

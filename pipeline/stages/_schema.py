@@ -1,6 +1,6 @@
 """The typed schema of every stage's config (Hydra structured configs, registered in the ConfigStore).
 
-``conf/<stage>.yaml`` names its schema first in its defaults list (``- trials_schema``) and gives the
+``pipeline/conf/<stage>.yaml`` names its schema first in its defaults list (``- trials_schema``) and gives the
 values; the dataclasses here give each key's type, range or choices and, in the string under it,
 its description (:mod:`pipeline.schema`). Hydra refuses wrong types and unknown keys while
 composing; :func:`pipeline.schema.check` refuses values out of range; ``python -m pipeline <stage>
@@ -35,7 +35,7 @@ RECORD_LEVELS = ("steps", "episodes", "none")
 DATA_SOURCES = ("rendered", "folder")
 
 
-# ---------------------------------------------------------------- profile (conf/profile/*.yaml)
+# ---------------------------------------------------------------- profile (pipeline/conf/profile/*.yaml)
 @dataclass
 class RenderProfile:
     """The render stage's scale (its keys of the same names read these)."""
@@ -59,7 +59,7 @@ class TrialsProfile:
     episodes: int = setting(ge=1)
     """Episodes per run."""
     layouts: int = setting(ge=1)
-    """Generated layouts per size of an experiment's layout sets (``conf/experiment/generalisation.yaml``
+    """Generated layouts per size of an experiment's layout sets (``pipeline/conf/experiment/generalisation.yaml``
     reads it as each set's ``count``)."""
     layout_runs: int = setting(ge=1)
     """Runs per cell of an experiment over generated layouts (``generalisation.yaml``'s ``runs``)."""
@@ -67,7 +67,7 @@ class TrialsProfile:
 
 @dataclass
 class MetaTrainProfile:
-    """Meta-training's scale (``train.<key>`` of ``conf/meta_train.yaml`` reads these)."""
+    """Meta-training's scale (``train.<key>`` of ``pipeline/conf/meta_train.yaml`` reads these)."""
 
     episodes: int = setting(ge=1)
     """Training episodes of the Relation Network."""
@@ -112,15 +112,15 @@ class TrialsConfig:
     experiment), every episode recorded to MCAP."""
 
     profile: Profile = field(default_factory=Profile)
-    """The scale (``conf/profile/``): ``runs`` and ``episodes`` default to its ``trials`` keys."""
+    """The scale (``pipeline/conf/profile/``): ``runs`` and ``episodes`` default to its ``trials`` keys."""
     method: MethodSpec = field(default_factory=MethodSpec)
-    """The method (``conf/method/``): its file over the base method, then ``method.<field>=``."""
+    """The method (``pipeline/conf/method/``): its file over the base method, then ``method.<field>=``."""
     recogniser: dict[str, Any] = field(default_factory=dict)
-    """The recogniser group (``conf/recogniser/``): ``_target_`` and its arguments."""
+    """The recogniser group (``pipeline/conf/recogniser/``): ``_target_`` and its arguments."""
     experiment: Experiment | None = None
-    """An experiment (``+experiment=<name>``, ``conf/experiment/``): several cells, one run each."""
+    """An experiment (``+experiment=<name>``, ``pipeline/conf/experiment/``): several cells, one run each."""
     maze: str = setting(nonempty=True)
-    """A built-in layout (``conf/mazes/<name>.txt``), a path to a layout file, or a generated layout
+    """A built-in layout (``pipeline/conf/mazes/<name>.txt``), a path to a layout file, or a generated layout
     ``random:<W>x<H>:<obstacles>:<seed>[:unique]`` (``pipeline/world/generate.py``)."""
     substitution: int = setting(choices=SUBSTITUTION_WAYS)
     """Dynamic support set: substitution way 1-4 (section 3.3); used by methods with dynamic_support."""
@@ -209,7 +209,7 @@ class RenderConfig:
     """``python -m pipeline render``: the query, support and meta-training pictures and one manifest."""
 
     profile: Profile = field(default_factory=Profile)
-    """The scale (``conf/profile/``): the class and picture counts default to its ``render`` keys."""
+    """The scale (``pipeline/conf/profile/``): the class and picture counts default to its ``render`` keys."""
     out_dir: str = setting(nonempty=True)
     """The pictures and ``manifest.csv``; its parent folder must exist."""
     figures_dir: str = setting(nonempty=True)
@@ -251,7 +251,7 @@ class RenderConfig:
 # ---------------------------------------------------------------- meta_train, accuracy
 @dataclass
 class DataConfig:
-    """Where meta-training's classes come from (``conf/data/``): ``rendered``, the render stage's
+    """Where meta-training's classes come from (``pipeline/conf/data/``): ``rendered``, the render stage's
     ``train`` and ``val`` splits in ``images_dir``; ``folder``, two folder-per-class trees
     (:func:`pipeline.fewshot.data.load_folder`), such as miniImageNet's."""
 
@@ -269,9 +269,9 @@ class MetaTrainConfig:
     ``model=protonet``, a Prototypical Network) and write its checkpoint and validation metrics."""
 
     profile: Profile = field(default_factory=Profile)
-    """The scale (``conf/profile/``): training and validation episodes default to its ``meta_train`` keys."""
+    """The scale (``pipeline/conf/profile/``): training and validation episodes default to its ``meta_train`` keys."""
     data: DataConfig = field(default_factory=DataConfig)
-    """Where the classes come from (``conf/data/``)."""
+    """Where the classes come from (``pipeline/conf/data/``)."""
     images_dir: str = setting(nonempty=True)
     """``data=rendered``: the render stage's output, whose train and val splits are read."""
     checkpoint: str = setting(nonempty=True)
@@ -293,9 +293,9 @@ class AccuracyConfig:
     """``python -m pipeline accuracy``: the few-shot accuracy study (Tables 1 and 2)."""
 
     profile: Profile = field(default_factory=Profile)
-    """The scale (``conf/profile/``): ``study.repeats`` defaults to its ``accuracy.repeats``."""
+    """The scale (``pipeline/conf/profile/``): ``study.repeats`` defaults to its ``accuracy.repeats``."""
     recogniser: dict[str, Any] = field(default_factory=dict)
-    """The recogniser group (``conf/recogniser/``), as in the trials."""
+    """The recogniser group (``pipeline/conf/recogniser/``), as in the trials."""
     out_dir: str = setting(nonempty=True)
     """``baseline.csv``, ``table1.csv``, ``table2.csv`` and ``summary.json``."""
     threads: int = setting(ge=1)
@@ -338,7 +338,7 @@ class ReportConfig:
     """``python -m pipeline report``: rebuild the report from the recorded data alone."""
 
     profile: Profile = field(default_factory=Profile)
-    """The scale (``conf/profile/``; the report reads none of it)."""
+    """The scale (``pipeline/conf/profile/``; the report reads none of it)."""
     runs_dir: str = setting(nonempty=True)
     """The trials' records: ``<runs_dir>/<experiment>/<cell>/records.mcap``."""
     accuracy_dir: str = setting(nonempty=True)
@@ -357,7 +357,7 @@ class ReportConfig:
     """Build without experiments or cells that have no complete records (listed at the top)."""
 
 
-#: Stage name -> its schema (``conf/<stage>.yaml`` lists ``<stage>_schema`` first in its defaults).
+#: Stage name -> its schema (``pipeline/conf/<stage>.yaml`` lists ``<stage>_schema`` first in its defaults).
 SCHEMAS = {
     "trials": TrialsConfig,
     "render": RenderConfig,
