@@ -19,6 +19,8 @@ import sys
 import time
 from pathlib import Path
 
+from benchmarks._output import write_figures
+
 EXPERIMENTS = ("fig8", "fig9", "fig10", "table3")
 
 
@@ -61,13 +63,10 @@ def main() -> None:
     print(
         f"total    {total:7.1f} s (goal: at most 300 s){'' if not args.no_record else ' without records'}"
     )
-    Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.json).write_text(
-        json.dumps(
-            {"record": not args.no_record, "total_seconds": round(total, 2), "experiments": rows},
-            indent=2,
-        )
-        + "\n"
+    write_figures(
+        args.json,
+        {"record": not args.no_record, "total_seconds": round(total, 2), "experiments": rows},
+        "benchmarks.experiments",
     )
 
 

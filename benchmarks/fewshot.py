@@ -19,7 +19,6 @@ Prints the figures and writes ``reports/benchmarks/fewshot.json``.
 from __future__ import annotations
 
 import argparse
-import json
 import tempfile
 import time
 from dataclasses import replace
@@ -28,6 +27,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from benchmarks._output import write_figures
 from pipeline.fewshot.accuracy_study import run_study
 from pipeline.fewshot.data import PictureSet, load_split
 from pipeline.fewshot.recogniser import RelationRecogniser
@@ -194,9 +194,7 @@ def main() -> None:
     if not args.only_episode_cost:
         with tempfile.TemporaryDirectory() as tmp:
             figures.update(bench_the_rest(args, Path(args.out_dir or tmp)))
-    path = Path(args.json)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(figures, indent=2) + "\n")
+    path = write_figures(args.json, figures, "benchmarks.fewshot")
     print(f"written {path}")
 
 

@@ -21,6 +21,8 @@ import sys
 import time
 from pathlib import Path
 
+from benchmarks._output import write_figures
+
 PAPER_LAYOUTS = 100
 
 
@@ -90,8 +92,7 @@ def main() -> None:
         )
     else:
         print(f"goal: at most 600 s: {'met' if wall <= 600 else 'not met'}")
-    Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.json).write_text(json.dumps(result, indent=2) + "\n")
+    write_figures(args.json, result, "benchmarks.generalisation")
 
 
 if __name__ == "__main__":

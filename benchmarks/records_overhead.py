@@ -47,12 +47,13 @@ os.environ.setdefault(
 
 import argparse
 import gc
-import json
 import statistics
 import tempfile
 import time
 from dataclasses import asdict
 from pathlib import Path
+
+from benchmarks._output import write_figures
 
 GOALS = {"table": 0.40, "relation_net": 0.15}
 EXPERIMENTS = ("fig8", "fig9", "fig10", "table3")
@@ -536,8 +537,7 @@ def main() -> None:
         f"total {out['seconds_total']:.0f} s; load average before {load0[0]:.2f}, after {os.getloadavg()[0]:.2f} (2 cores)"
     )
     if args.json:
-        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.json).write_text(json.dumps(out, indent=2) + "\n")
+        write_figures(args.json, out, "benchmarks.records_overhead")
         print(f"wrote {args.json}")
 
 

@@ -15,12 +15,12 @@ import os
 import platform
 import tempfile
 import time
-from pathlib import Path
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 from hydra import compose, initialize_config_dir  # noqa: E402
 
+from benchmarks._output import write_figures
 from pipeline.conf import conf_dir  # noqa: E402
 from pipeline.world.render_plan import PlanConfig, make_plan  # noqa: E402
 from pipeline.world.renderer import SceneRenderer  # noqa: E402
@@ -103,9 +103,7 @@ def main() -> None:
     if args.full:
         res["stage_default_2_workers"] = stage([])
     print(json.dumps(res, indent=2))
-    out = Path("reports/benchmarks/render.json")
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps(res, indent=2) + "\n")
+    write_figures("reports/benchmarks/render.json", res, "benchmarks.render")
 
 
 if __name__ == "__main__":

@@ -12,13 +12,12 @@ other (the host's speed varies between runs).
 from __future__ import annotations
 
 import argparse
-import json
 import time
-from pathlib import Path
 
 import numba
 import numpy as np
 
+from benchmarks._output import write_figures
 from pipeline.rl.agents import TabularAgent, run_episode
 from pipeline.rl.gym_env import SafeNavigationEnv
 from pipeline.rl.methods import get_method
@@ -111,13 +110,10 @@ def main() -> None:
             f"{row[f'speedup_{all_threads}threads_vs_gym']:>15.0f}"
         )
     numba.set_num_threads(all_threads)
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.out).write_text(
-        json.dumps(
-            {"maze": args.maze, "runs": args.runs, "episodes": args.episodes, "rows": rows},
-            indent=2,
-        )
-        + "\n"
+    write_figures(
+        args.out,
+        {"maze": args.maze, "runs": args.runs, "episodes": args.episodes, "rows": rows},
+        "benchmarks.rl_speed",
     )
     print(f"wrote {args.out}")
 
