@@ -22,6 +22,7 @@ from .colour import hue_rotate
 from .data import DataError, PictureSet, load_split, read_manifest, to_tensor
 from .model import RelationNetwork
 from .protonet import PrototypicalNetwork
+from .score_cache import source_key, store_for
 from .support_set import SupportSet
 from .training import embed_all
 
@@ -88,12 +89,23 @@ class SupportSetRecogniser(abc.ABC):
         for j in range(len(support_parts)):
             self._part[-(j + 1)] = support_parts[j]
         self._runs: dict[int, _Run] = {}
+        # columns shared with every recogniser of this process that scores the same way
+        # (:mod:`.score_cache`): same kind, weights and pictures
+        self._store = store_for(
+            source_key(
+                f"{type(self).__qualname__}:{self.kind}", network, query_images, support_images
+            )
+        )
         template = SupportSet(n_way, k_shot, 0, 0)
         self._original_state = torch.stack(
             [self._class_state(template.members[c]) for c in range(n_way)]
         )
         self._original_table = np.stack(
-            [self._column(self._original_state[c]) for c in range(n_way)], axis=1
+            [
+                self._shared_column(template.members[c], self._original_state[c])
+                for c in range(n_way)
+            ],
+            axis=1,
         )
 
     # -- what a subclass provides ------------------------------------------------------------
@@ -277,9 +289,15 @@ class SupportSetRecogniser(abc.ABC):
         state.state[category] = self._class_state(state.support.members[category])
         state.valid[category] = False
 
+    def _shared_column(self, members: np.ndarray, class_state: torch.Tensor) -> np.ndarray:
+        """The column of a category whose support members are ``members`` (position order) and
+        whose class state is ``class_state``: from the shared store, computed the first time."""
+        key = tuple(int(m) for m in members)
+        return self._store.column(key, lambda: self._column(class_state))
+
     def _table(self, run: int) -> np.ndarray:
         state = self._run(run)
         for c in np.flatnonzero(~state.valid):
-            state.table[:, c] = self._column(state.state[c])
+            state.table[:, c] = self._shared_column(state.support.members[c], state.state[c])
             state.valid[c] = True
         return state.table

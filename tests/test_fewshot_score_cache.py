@@ -1,0 +1,113 @@
+"""Scores computed once (pipeline/fewshot/score_cache.py): recognisers that score the same way share
+their columns, others do not, and what a trial records is the same with and without sharing."""
+
+import numpy as np
+import pytest
+import torch
+from fakes import ListSink
+
+from pipeline.fewshot import score_cache
+from pipeline.fewshot.checkpoint import save_checkpoint
+from pipeline.fewshot.model import ModelConfig, RelationNetwork
+from pipeline.fewshot.protonet import PrototypicalNetwork
+from pipeline.fewshot.recogniser import ProtoRecogniser, RelationRecogniser
+from pipeline.fewshot.settings import ProtoConfig
+from pipeline.fewshot.synthetic import write_synthetic_dataset
+from pipeline.rl.methods import get_method
+from pipeline.rl.runner import run_trials
+from pipeline.world.maze import load_layout
+
+NORM = {"mean": [0.4, 0.4, 0.4], "std": [0.25, 0.25, 0.25]}
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    root = tmp_path_factory.mktemp("score_cache")
+    write_synthetic_dataset(root / "images", n_train=5, n_val=5, per_class=2, seed=3)
+    torch.manual_seed(1)
+    net = RelationNetwork(ModelConfig(24, 1))
+    with torch.no_grad():
+        net(torch.randn(5, 5, 3, 24, 24), torch.randn(10, 3, 24, 24))
+    rn = save_checkpoint(root / "rn.pt", net.eval(), normalisation=NORM, config={}, metrics={})
+    torch.manual_seed(2)
+    proto = PrototypicalNetwork(ProtoConfig(24))
+    pn = save_checkpoint(root / "pn.pt", proto.eval(), normalisation=NORM, config={}, metrics={})
+    return root / "images", rn, pn
+
+
+@pytest.fixture(autouse=True)
+def fresh_store():
+    score_cache.clear()
+    yield
+    score_cache.clear()
+
+
+def test_recognisers_of_one_source_share_columns_across_ways_and_runs(files):
+    images, rn, _ = files
+    first = RelationRecogniser.from_files(rn, images, substitution_way=1)
+    assert score_cache.statistics() == {"columns": 5, "hits": 0, "misses": 5}
+    second = RelationRecogniser.from_files(rn, images, substitution_way=3)
+    assert score_cache.statistics() == {"columns": 5, "hits": 5, "misses": 5}
+    first.start_run(0, seed=4)
+    first.replace(
+        0, category=2, position=0, picture_id=int(np.flatnonzero(first.query_categories == 2)[0])
+    )
+    before = first.scores(0, np.arange(40)).copy()
+    second.start_run(7, seed=9)
+    second.replace(
+        7, category=2, position=0, picture_id=int(np.flatnonzero(second.query_categories == 2)[0])
+    )
+    stats = score_cache.statistics()
+    np.testing.assert_array_equal(second.scores(7, np.arange(40)), before)
+    assert score_cache.statistics() == {**stats, "hits": stats["hits"] + 1}
+
+
+def test_another_hue_or_kind_is_another_source(files):
+    images, rn, pn = files
+    RelationRecogniser.from_files(rn, images)
+    RelationRecogniser.from_files(rn, images, query_hue_shift=90.0)
+    ProtoRecogniser.from_files(pn, images)
+    assert score_cache.statistics() == {"columns": 15, "hits": 0, "misses": 15}
+
+
+@pytest.mark.parametrize("kind", ["relation", "proto"])
+def test_a_trial_records_the_same_with_and_without_sharing(files, kind):
+    images, rn, pn = files
+    load = (
+        (lambda: RelationRecogniser.from_files(rn, images, substitution_way=2))
+        if kind == "relation"
+        else (lambda: ProtoRecogniser.from_files(pn, images, substitution_way=2))
+    )
+    layout, method = load_layout("7x7"), get_method("fewshot_dss")
+
+    def batches(recogniser):
+        sink = ListSink()
+        result = run_trials(
+            layout, method, 6, 40, seed=5, recogniser=recogniser, sink=sink, progress=False
+        )
+        return result.summary(), sink.batches, sink.substitutions
+
+    with score_cache.disabled():
+        alone = batches(load())
+    assert score_cache.statistics()["columns"] == 0
+    load()  # another cell's recogniser fills the store first
+    shared = batches(load())
+    assert score_cache.statistics()["hits"] > 0
+    assert alone[0] == shared[0] and alone[2] == shared[2]
+    assert_same(alone[1], shared[1])
+
+
+def assert_same(a, b, where="batches"):
+    """``a`` and ``b`` equal to the bit, through lists, dicts and arrays."""
+    if isinstance(a, dict):
+        assert a.keys() == b.keys(), where
+        for key in a:
+            assert_same(a[key], b[key], f"{where}.{key}")
+    elif isinstance(a, list | tuple):
+        assert len(a) == len(b), where
+        for i, (x, y) in enumerate(zip(a, b)):
+            assert_same(x, y, f"{where}[{i}]")
+    else:
+        x, y = np.asarray(a), np.asarray(b)
+        assert x.dtype == y.dtype and x.shape == y.shape, where
+        assert x.tobytes() == y.tobytes(), where
