@@ -32,6 +32,7 @@ from pipeline.conf import conf_dir
 from pipeline.rl.gym_env import SafeNavigationEnv
 from pipeline.rl.methods import MethodSpec, get_method
 from pipeline.rl.recogniser import Recogniser
+from pipeline.threads import TORCH_THREADS_BESIDE_NUMBA, ThreadBudget
 from pipeline.world.maze import Layout
 
 #: ``pipeline/conf/recogniser/<name>.yaml``: the recognisers by name (the trials stage's config
@@ -62,13 +63,17 @@ def make_recogniser(
     carry_over: bool = False,
 ) -> Recogniser:
     """The recogniser ``pipeline/conf/recogniser/<name>.yaml``, with ``options`` overriding its keys, built
-    as the trials stage builds it. Bad names and values raise ``ValueError`` (``ConfigError``)."""
+    as the trials stage builds it. Bad names and values raise ``ValueError`` (``ConfigError``).
+    A recogniser that scores with torch leaves torch on one thread (:mod:`pipeline.threads`)."""
     # Hydra (slow to import) only when a recogniser is built, not for every environment
     from pipeline.stages._recognisers import build_recogniser
 
     node = OmegaConf.to_container(OmegaConf.load(_check_name(name)), resolve=True)
     node.update(dict(options or {}))
-    return build_recogniser(node, substitution_way=substitution_way, carry_over=carry_over)
+    recogniser = build_recogniser(node, substitution_way=substitution_way, carry_over=carry_over)
+    # torch's share beside the rules' numba code, as in the trials stage (pipeline.threads)
+    ThreadBudget(1, None, TORCH_THREADS_BESIDE_NUMBA).apply()
+    return recogniser
 
 
 def make_env(

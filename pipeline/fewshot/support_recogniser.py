@@ -180,13 +180,15 @@ class SupportSetRecogniser(abc.ABC):
         return recogniser
 
     def describe(self) -> dict:
-        """What the records keep about this recogniser: the checkpoint's path, sha256 and shape (and
-        the query pictures' hue shift, when they are turned)."""
+        """What the records keep about this recogniser: the checkpoint's path, sha256 and shape, the
+        torch threads that score (``pipeline.threads``; kernels may round differently on another
+        count) and the query pictures' hue shift, when they are turned."""
         out = {
             "kind": self.kind,
             "checkpoint": getattr(self, "checkpoint_file", None),
             "substitution_way": self.substitution_way,
             "carry_over": self.carry_over,
+            "torch_threads": torch.get_num_threads(),
         }
         if getattr(self, "query_hue_shift", 0.0):
             out["query_hue_shift"] = self.query_hue_shift

@@ -9,14 +9,14 @@ pictures once); it collects each cell's summary, and the stage writes the experi
 metrics in cell order, as with one process.
 
 Workers are started with ``spawn`` (torch's and numba's thread pools are not safe across
-``fork``); numba's compiled kernels come from its on-disk cache. Each worker uses ``threads``
-numba and torch threads (``threads=0``: the cores divided among the workers).
+``fork``); numba's compiled kernels come from its on-disk cache. Each worker applies the trials
+thread budget (:func:`pipeline.threads.trials_budget`): ``threads`` numba threads
+(``threads=0``: the cores divided among the workers) and one torch thread.
 """
 
 from __future__ import annotations
 
 import multiprocessing
-import os
 from collections.abc import Iterator
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import replace
@@ -30,28 +30,22 @@ from pipeline.stages._cell_run import (
     recorded_pictures,
     run_cell,
 )
+from pipeline.threads import ThreadBudget, trials_budget
 
 #: Per worker process: recognisers by :func:`~pipeline.stages._cell_run.recogniser_key`, pictures by folder.
 _BUILT: dict = {}
 _PICTURES: dict = {}
+_BUDGET: list[ThreadBudget] = [trials_budget(0, 1)]
 
 
-def threads_per_worker(threads: int, workers: int) -> int:
-    """numba/torch threads of one worker: ``threads`` if given, else the cores shared out (at least 1)."""
-    return threads if threads > 0 else max(1, (os.cpu_count() or 1) // workers)
-
-
-def _start_worker(threads: int) -> None:
-    import numba
-    import torch
-
-    numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
-    torch.set_num_threads(threads)
+def _start_worker(budget: ThreadBudget) -> None:
+    _BUDGET[0] = budget.apply()
 
 
 def _run_one(cell, folder: str) -> tuple[dict, float]:
     """In a worker: give ``cell`` its recogniser and pictures (built once per process), run it."""
     recogniser = make_recogniser(cell.config, built=_BUILT)
+    _BUDGET[0].apply()  # torch's share, now that a recogniser may have imported it
     shown = pictures_dir(cell.config) if cell.config.record != "none" else None
     if shown not in _PICTURES:
         _PICTURES[shown] = recorded_pictures(cell.config)
@@ -95,7 +89,7 @@ def run_parallel(
         workers,
         mp_context=context,
         initializer=_start_worker,
-        initargs=(threads_per_worker(threads, workers),),
+        initargs=(trials_budget(threads, workers),),
     )
     try:
         pending = {

@@ -16,7 +16,6 @@ from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
-import torch
 
 from pipeline.errors import ConfigError
 from pipeline.fewshot.accuracy_study import run_study
@@ -30,6 +29,7 @@ from pipeline.stages._recognisers import (
     recognisers_taking,
 )
 from pipeline.stages._schema import AccuracyConfig
+from pipeline.threads import torch_budget
 from pipeline.world.pictures import CATEGORIES, N_PICTURES, picture_category
 
 
@@ -64,7 +64,7 @@ def _hue_turned_predictions(
 
 def run(cfg: AccuracyConfig, overrides: list[str] = ()) -> dict:
     config = cfg.study
-    torch.set_num_threads(cfg.threads)
+    torch_budget(cfg.threads).apply()
     start = time.perf_counter()
     recogniser = build_recogniser(cfg.recogniser, substitution_way=0, carry_over=False)
     turned = _hue_turned_predictions(cfg, list(overrides))

@@ -39,6 +39,7 @@ from pipeline.stages._common import stage_main
 from pipeline.stages._progress import compact, follow
 from pipeline.stages._schema import TrialsConfig
 from pipeline.stages._workers import cell_results
+from pipeline.threads import trials_budget
 from pipeline.world.maze import load_layout
 
 #: The fields of a cell's summary that the experiment's ``summary.json`` lists.
@@ -109,8 +110,7 @@ def refuse_overwrite(cfg: TrialsConfig, out: Path) -> None:
 def run(cfg: TrialsConfig, overrides: list[str]) -> dict:
     cells = resolve_cells(cfg, overrides)
     refuse_what_does_not_fit(cfg, cells)
-    if cfg.threads > 0:
-        numba.set_num_threads(cfg.threads)
+    trials_budget(cfg.threads, min(cfg.workers, len(cells))).apply()
     with exclusive_folder(cfg.out) as out:
         refuse_overwrite(cfg, out)
         staging = out / f".staging-{os.getpid()}"
