@@ -74,8 +74,10 @@ class MethodSpec:
 
     @property
     def uses_recogniser(self) -> bool:
-        """Whether its safety rule looks at pictures (``pipeline.rl.rules.reasons_with_pictures``)."""
-        return bool(reasons_with_pictures(Safety[self.safety]))
+        """Whether its safety rule looks at pictures (``pipeline.rl.rules.reasons_with_pictures``,
+        its Python function: asked thousands of times while cells are planned, where numba's
+        dispatch would cost more than the answer)."""
+        return bool(reasons_with_pictures.py_func(Safety[self.safety]))
 
     def with_overrides(self, **kw) -> MethodSpec:
         return check_method(replace(self, **kw))

@@ -39,11 +39,14 @@ class CellRun:
     config: TrialsConfig
     layout: Layout
     recogniser: Any = None
-    """Built before any cell runs, so a broken checkpoint is refused up front."""
+    """Built before any cell runs, so a broken checkpoint is refused up front (in the process
+    that runs the cell: the stage's, or a worker's)."""
     pictures: dict[int, bytes] = field(default_factory=dict)
     """The query pictures the records keep, by picture id (read up front, like the recogniser)."""
     support: dict[int, list[bytes]] = field(default_factory=dict)
     """The initial support set the records keep: category -> its K shots in position order."""
+    recogniser_key: str = "recogniser"
+    """The config key an error in building the recogniser names (a cell's own where it pins one)."""
 
     @property
     def method(self) -> MethodSpec:

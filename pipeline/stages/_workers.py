@@ -16,6 +16,7 @@ thread budget (:func:`pipeline.threads.trials_budget`): ``threads`` numba thread
 
 from __future__ import annotations
 
+import json
 import multiprocessing
 from collections.abc import Iterator
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
@@ -42,10 +43,22 @@ def _start_worker(budget: ThreadBudget) -> None:
     _BUDGET[0] = budget.apply()
 
 
+def _recogniser(cell: CellRun):
+    """In a worker: ``cell``'s recogniser, built once per process where cells may share it."""
+    recogniser = make_recogniser(cell.config, cell.recogniser_key, built=_BUILT)
+    _BUDGET[0].apply()  # torch's share, now that a recogniser may have imported it
+    return recogniser
+
+
+def _check_recogniser(cell: CellRun) -> None:
+    """In a worker, before any cell runs: build ``cell``'s recogniser (kept for the cells this
+    worker runs), so that a broken checkpoint or argument stops the stage up front."""
+    _recogniser(cell)
+
+
 def _run_one(cell, folder: str) -> tuple[dict, float]:
     """In a worker: give ``cell`` its recogniser and pictures (built once per process), run it."""
-    recogniser = make_recogniser(cell.config, built=_BUILT)
-    _BUDGET[0].apply()  # torch's share, now that a recogniser may have imported it
+    recogniser = _recogniser(cell)
     shown = pictures_dir(cell.config) if cell.config.record != "none" else None
     if shown not in _PICTURES:
         _PICTURES[shown] = recorded_pictures(cell.config)
@@ -82,7 +95,8 @@ def run_parallel(
     cells: list[CellRun], folders: list[Path], workers: int, threads: int
 ) -> Iterator[tuple[int, dict, float]]:
     """``(index, summary, seconds)`` of every cell as it completes, run in ``workers`` processes.
-    An error in a cell stops the others and is raised here; so is an interrupt."""
+    Each distinct recogniser is built by a worker first (a broken one stops the stage before any
+    cell runs). An error in a cell stops the others and is raised here; so is an interrupt."""
     light = [replace(c, recogniser=None, pictures={}, support={}) for c in cells]
     context = multiprocessing.get_context("spawn")
     pool = ProcessPoolExecutor(
@@ -92,6 +106,9 @@ def run_parallel(
         initargs=(trials_budget(threads, workers),),
     )
     try:
+        checks = {recogniser_check_key(c.config): c for c in light if c.method.uses_recogniser}
+        for future in [pool.submit(_check_recogniser, c) for c in checks.values()]:
+            future.result()
         pending = {
             pool.submit(_run_one, cell, str(folder)): i
             for i, (cell, folder) in enumerate(zip(light, folders))
@@ -106,6 +123,12 @@ def run_parallel(
         stop(pool)
         raise
     pool.shutdown()
+
+
+def recogniser_check_key(cfg) -> str:
+    """Cells whose recognisers are built from the same arguments, way and support policy."""
+    way = cfg.substitution if cfg.method.dynamic_support else 0
+    return json.dumps([cfg.recogniser, way, cfg.support], sort_keys=True, default=str)
 
 
 def stop(pool: ProcessPoolExecutor) -> None:

@@ -19,6 +19,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pandas as pd
+import torch
 
 from pipeline.errors import ConfigError
 from pipeline.fewshot.checkpoint import save_checkpoint
@@ -28,7 +29,6 @@ from pipeline.fewshot.training import config_dict, meta_train
 from pipeline.files import write_json_atomic
 from pipeline.stages._common import stage_main
 from pipeline.stages._schema import MetaTrainConfig
-from pipeline.threads import torch_budget
 
 #: The keys of the training result that ``metrics_file`` holds; the others go to ``train_info.json``.
 METRIC_KEYS = (
@@ -121,7 +121,7 @@ def refuse_idle_keys(cfg: MetaTrainConfig, overrides: list[str]) -> None:
 def run(cfg: MetaTrainConfig, overrides: list[str] = ()) -> dict:
     config = cfg.train
     refuse_idle_keys(cfg, list(overrides))
-    torch_budget(cfg.threads).apply()
+    torch.set_num_threads(cfg.threads)
     train, val, source = picture_sets(cfg, list(overrides))
     result = meta_train(train, val, config, progress=cfg.progress)
     metrics = {**result.metrics, **source}

@@ -47,11 +47,15 @@ INDEXED = ("method", "maze", "substitution", "support", "collisions", "converged
 
 
 def resolve_cells(cfg: TrialsConfig, overrides: list[str]) -> list[CellRun]:
-    """The cells to run, each with its layout loaded and its recogniser built (once for all the
-    cells that ask for the same one: :func:`~pipeline.stages._cell_run.make_recogniser`)."""
+    """The cells to run, each with its layout loaded, its recorded pictures read and its
+    recogniser built (once for all the cells that ask for the same one:
+    :func:`~pipeline.stages._cell_run.make_recogniser`). Cells that will run in worker processes
+    get no recogniser here: the workers build what they run, and check it before any cell starts
+    (:func:`pipeline.stages._workers.run_parallel`)."""
     configs = {"": cfg} if cfg.experiment is None else experiment_cells(cfg, overrides)
     refuse_inapplicable(configs, parse_overrides(overrides))
     declared = cfg.experiment.all_cells() if cfg.experiment is not None else {}
+    in_process = min(cfg.workers, len(configs)) <= 1
     built: dict[str, Any] = {}
     pictures: dict[str, tuple] = {}
     out = []
@@ -63,11 +67,12 @@ def resolve_cells(cfg: TrialsConfig, overrides: list[str]) -> list[CellRun]:
             where = generated_key(cfg.experiment, name) if name else None
             raise ConfigError(f"config key '{where or prefix + 'maze'}': {exc}") from None
         pins = name and (declared[name].recogniser or declared[name].recogniser_group)
-        recogniser = make_recogniser(cell, f"{prefix}recogniser" if pins else "recogniser", built)
+        key = f"{prefix}recogniser" if pins else "recogniser"
+        recogniser = make_recogniser(cell, key, built) if in_process else None
         shown = json.dumps([pictures_dir(cell) if cell.record != "none" else None], default=str)
         if shown not in pictures:
             pictures[shown] = recorded_pictures(cell)
-        out.append(CellRun(name, cell, layout, recogniser, *pictures[shown]))
+        out.append(CellRun(name, cell, layout, recogniser, *pictures[shown], recogniser_key=key))
     return out
 
 
