@@ -111,3 +111,21 @@ def assert_same(a, b, where="batches"):
         x, y = np.asarray(a), np.asarray(b)
         assert x.dtype == y.dtype and x.shape == y.shape, where
         assert x.tobytes() == y.tobytes(), where
+
+
+@pytest.mark.parametrize("kind", ["relation", "proto"])
+def test_a_category_state_depends_on_its_members_not_their_order(files, kind):
+    """The premise of keying columns by the multiset of members: the class state sums (or
+    averages) them in one canonical order, so the same members in other positions score the same
+    bits."""
+    images, rn, pn = files
+    cls, ckpt = (RelationRecogniser, rn) if kind == "relation" else (ProtoRecogniser, pn)
+    with score_cache.disabled():
+        rec = cls.from_files(ckpt, images, substitution_way=1)
+    pictures = np.flatnonzero(rec.query_categories == 1)[:5]
+    for run, order in ((0, pictures), (1, pictures[[3, 0, 4, 2, 1]])):
+        rec.start_run(run, seed=0)
+        for position, picture in enumerate(order):
+            rec.replace(run, category=1, position=position, picture_id=int(picture))
+    assert rec.support_members(0)[1].tolist() != rec.support_members(1)[1].tolist()
+    assert rec.scores(0, np.arange(40)).tobytes() == rec.scores(1, np.arange(40)).tobytes()

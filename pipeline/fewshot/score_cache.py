@@ -54,6 +54,7 @@ class ColumnStore:
 
 
 _STORES: dict[str, ColumnStore] = {}
+_UNSHARED: list[ColumnStore] = []  # made while disabled(), counted by statistics()
 _SHARING = [True]
 
 
@@ -74,13 +75,15 @@ def source_key(kind: str, network: torch.nn.Module, *tensors: torch.Tensor) -> s
 def store_for(source: str) -> ColumnStore:
     """The process's store for ``source`` (a fresh, unshared one while :func:`disabled`)."""
     if not _SHARING[0]:
-        return ColumnStore(keep=False)
+        _UNSHARED.append(ColumnStore(keep=False))
+        return _UNSHARED[-1]
     return _STORES.setdefault(source, ColumnStore())
 
 
 def statistics() -> dict[str, int]:
-    """Columns kept, hits and misses over every shared store of this process."""
-    stores = list(_STORES.values())
+    """Columns kept, hits and misses (columns computed) over every store of this process since
+    the last :func:`clear`."""
+    stores = [*_STORES.values(), *_UNSHARED]
     return {
         "columns": sum(len(s) for s in stores),
         "hits": sum(s.hits for s in stores),
@@ -89,8 +92,9 @@ def statistics() -> dict[str, int]:
 
 
 def clear() -> None:
-    """Forget every shared column (the stores of recognisers already built are kept by them)."""
+    """Forget every shared column and the counts (recognisers already built keep their stores)."""
     _STORES.clear()
+    _UNSHARED.clear()
 
 
 @contextlib.contextmanager

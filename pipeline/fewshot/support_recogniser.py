@@ -98,7 +98,7 @@ class SupportSetRecogniser(abc.ABC):
         )
         template = SupportSet(n_way, k_shot, 0, 0)
         self._original_state = torch.stack(
-            [self._class_state(template.members[c]) for c in range(n_way)]
+            [self._class_state(np.sort(template.members[c])) for c in range(n_way)]
         )
         self._original_table = np.stack(
             [
@@ -288,13 +288,13 @@ class SupportSetRecogniser(abc.ABC):
             )
 
     def _refresh(self, state: _Run, category: int) -> None:
-        state.state[category] = self._class_state(state.support.members[category])
+        state.state[category] = self._class_state(np.sort(state.support.members[category]))
         state.valid[category] = False
 
     def _shared_column(self, members: np.ndarray, class_state: torch.Tensor) -> np.ndarray:
         """The column of a category whose support members are ``members`` (position order) and
         whose class state is ``class_state``: from the shared store, computed the first time."""
-        key = tuple(int(m) for m in members)
+        key = tuple(sorted(int(m) for m in members))
         return self._store.column(key, lambda: self._column(class_state))
 
     def _table(self, run: int) -> np.ndarray:
