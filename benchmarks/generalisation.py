@@ -8,7 +8,8 @@ run; datasets/runs is left alone) and prints the wall time (process start to end
 worker start-up and numba's cache included), the cells, the agent steps and steps per second, and
 the sum of the cells' trial times (what a cluster would share out). ``--layouts N`` runs N layouts
 per size instead of 100; the figures for 100 are then extrapolated from the per-cell times and
-labelled as such. Writes reports/benchmarks/generalisation.json.
+labelled as such: the cells' trial times scaled, the rest of the wall time counted once.
+Writes reports/benchmarks/generalisation.json.
 """
 
 from __future__ import annotations
@@ -24,6 +25,13 @@ from pathlib import Path
 from benchmarks._output import write_figures
 
 PAPER_LAYOUTS = 100
+
+
+def extrapolate(wall: float, trial_seconds: float, workers: int, scale: float) -> float:
+    """Wall time at ``scale`` times the cells: the cells' trial time (shared by the workers)
+    scaled, the rest of the wall time (start-up, planning, workers starting) counted once."""
+    cells_wall = trial_seconds / max(1, workers)
+    return max(0.0, wall - cells_wall) + cells_wall * scale
 
 
 def main() -> None:
@@ -85,13 +93,12 @@ def main() -> None:
         f"(mean {trial_seconds / len(cells):.3f} s, slowest {max(cells.values()):.2f} s)"
     )
     if scale != 1:
-        result["extrapolated_to_100_layouts_seconds"] = round(wall * scale, 1)
+        estimate = extrapolate(wall, trial_seconds, args.workers, scale)
+        result["extrapolated_to_100_layouts_seconds"] = round(estimate, 1)
         print(
-            f"EXTRAPOLATED to {PAPER_LAYOUTS} layouts per size (x{scale:g} the cells): about {wall * scale:.0f} s "
-            "wall (goal: 600 s)"
+            f"EXTRAPOLATED to {PAPER_LAYOUTS} layouts per size (x{scale:g} the cells): about "
+            f"{estimate:.0f} s wall (the cells' time scaled, the rest counted once)"
         )
-    else:
-        print(f"goal: at most 600 s: {'met' if wall <= 600 else 'not met'}")
     write_figures(args.json, result, "benchmarks.generalisation")
 
 

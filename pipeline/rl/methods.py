@@ -77,7 +77,8 @@ class MethodSpec:
         """Whether its safety rule looks at pictures (``pipeline.rl.rules.reasons_with_pictures``,
         its Python function: asked thousands of times while cells are planned, where numba's
         dispatch would cost more than the answer)."""
-        return bool(reasons_with_pictures.py_func(Safety[self.safety]))
+        rule = getattr(reasons_with_pictures, "py_func", reasons_with_pictures)  # NUMBA_DISABLE_JIT
+        return bool(rule(Safety[self.safety]))
 
     def with_overrides(self, **kw) -> MethodSpec:
         return check_method(replace(self, **kw))
