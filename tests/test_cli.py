@@ -9,6 +9,7 @@ from pathlib import Path
 
 import pytest
 import yaml
+from entry import cli
 
 from pipeline.__main__ import available_stages
 from pipeline.errors import ConfigError
@@ -64,7 +65,7 @@ def test_a_stage_help_is_its_schema_with_the_stage_named():
 
 
 def test_a_stage_ends_with_the_line_naming_what_it_wrote(tmp_path):
-    out = pipeline("trials", *TINY, f"out={tmp_path}/a")
+    out = cli("trials", *TINY, f"out={tmp_path}/a")
     assert out.returncode == 0, out.stderr
     assert (
         out.stdout.splitlines()[-1] == f"wrote {tmp_path}/a/summary.json, {tmp_path}/a/records.mcap"
@@ -73,9 +74,9 @@ def test_a_stage_ends_with_the_line_naming_what_it_wrote(tmp_path):
 
 def test_an_out_holding_results_is_refused_unless_overwrite(tmp_path):
     out = tmp_path / "a"
-    assert pipeline("trials", *TINY, f"out={out}").returncode == 0
+    assert cli("trials", *TINY, f"out={out}").returncode == 0
     before = digest(out)
-    refused = pipeline("trials", *TINY, "seed=3", f"out={out}")
+    refused = cli("trials", *TINY, "seed=3", f"out={out}")
     assert refused.returncode == 2 and refused.stdout == ""
     assert (
         refused.stderr.count("\n") == 1
@@ -86,7 +87,7 @@ def test_an_out_holding_results_is_refused_unless_overwrite(tmp_path):
         "records.mcap",
         "summary.json",
     ]
-    replaced = pipeline("trials", *TINY, "seed=3", f"out={out}", "overwrite=true")
+    replaced = cli("trials", *TINY, "seed=3", f"out={out}", "overwrite=true")
     assert replaced.returncode == 0, replaced.stderr
     assert digest(out) != before
 

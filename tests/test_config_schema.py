@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from entry import cli
 from fakes import FIG8_WITHOUT_MODELS
 
 from pipeline.errors import ConfigError
@@ -103,9 +104,7 @@ def test_other_stages_refuse_bad_values_naming_the_key(stage, override, key):
     ],
 )
 def test_command_line_errors_are_one_line_exit_2(stage, args, key):
-    out = subprocess.run(
-        [sys.executable, "-m", "pipeline", stage, *args], capture_output=True, text=True, cwd=ROOT
-    )
+    out = cli(stage, *args)
     assert out.returncode == 2, out.stderr
     lines = out.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error: ") and key in lines[0], out.stderr

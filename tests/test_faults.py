@@ -1,6 +1,7 @@
-"""Fault suite: bad input and faults through the real command line. Every case asserts the exit
-code, one line on stderr naming the thing and the problem, and that nothing already on disk was
-lost (docs/reliability.md lists the guarantees)."""
+"""Fault suite: bad input and faults through the command line's entry (``pipeline.__main__.main``,
+in this process; in a child process where a signal or a second process is the point). Every case
+asserts the exit code, one line on stderr naming the thing and the problem, and that nothing
+already on disk was lost (docs/reliability.md lists the guarantees)."""
 
 from __future__ import annotations
 
@@ -13,20 +14,11 @@ import time
 from pathlib import Path
 
 import pytest
+from entry import cli
 from fakes import FIG8_WITHOUT_MODELS
 
 ROOT = Path(__file__).resolve().parents[1]
 FAST = ["runs=2", "episodes=4", "progress=false"]
-
-
-def cli(*args, cwd=ROOT, timeout=300):
-    return subprocess.run(
-        [sys.executable, "-m", "pipeline", *args],
-        capture_output=True,
-        text=True,
-        cwd=cwd,
-        timeout=timeout,
-    )
 
 
 def one_line_error(out, *words, code=2):
