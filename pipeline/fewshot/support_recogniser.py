@@ -27,6 +27,14 @@ from .support_set import SupportSet
 from .training import embed_all
 
 
+def canonical(members: np.ndarray) -> np.ndarray:
+    """A category's support members in the one order its class state sums them: the original
+    support pictures first, by position (``-1, -2, ...``), then query pictures by id. The state, and
+    so every score, depends on the multiset of members only (the key of :mod:`.score_cache`), and
+    the original support set sums in its own position order."""
+    return np.array(sorted((int(m) for m in members), key=lambda m: (m >= 0, abs(m))))
+
+
 @dataclass
 class _Run:
     support: SupportSet
@@ -98,7 +106,7 @@ class SupportSetRecogniser(abc.ABC):
         )
         template = SupportSet(n_way, k_shot, 0, 0)
         self._original_state = torch.stack(
-            [self._class_state(np.sort(template.members[c])) for c in range(n_way)]
+            [self._class_state(canonical(template.members[c])) for c in range(n_way)]
         )
         self._original_table = np.stack(
             [
@@ -288,13 +296,13 @@ class SupportSetRecogniser(abc.ABC):
             )
 
     def _refresh(self, state: _Run, category: int) -> None:
-        state.state[category] = self._class_state(np.sort(state.support.members[category]))
+        state.state[category] = self._class_state(canonical(state.support.members[category]))
         state.valid[category] = False
 
     def _shared_column(self, members: np.ndarray, class_state: torch.Tensor) -> np.ndarray:
         """The column of a category whose support members are ``members`` (position order) and
         whose class state is ``class_state``: from the shared store, computed the first time."""
-        key = tuple(sorted(int(m) for m in members))
+        key = tuple(int(m) for m in canonical(members))
         return self._store.column(key, lambda: self._column(class_state))
 
     def _table(self, run: int) -> np.ndarray:
