@@ -237,6 +237,21 @@ def test_bad_checkpoints(tiny_model, tmp_path, make, words):
     assert not (tmp_path / "o").exists()
 
 
+def test_a_bad_checkpoint_stops_workers_before_any_folder(tiny_model, tmp_path):
+    """With workers, each recogniser is built in a worker first: the same one line, no ``out``."""
+    bad = tmp_path / "bad.pt"
+    bad.write_bytes(b"")
+    args = [a for a in _with_model(tiny_model, f"recogniser.checkpoint={bad}") if "method" not in a]
+    out = tmp_path / "o"
+    one_line_error(
+        cli("trials", "+experiment=fig9", "workers=2", f"out={out}", *args),
+        "config key 'recogniser'",
+        str(bad),
+        "corrupt or not a torch checkpoint",
+    )
+    assert not out.exists()
+
+
 def test_a_checkpoint_of_another_shape_is_refused(tiny_model, tmp_path):
     args = _with_model(tiny_model, f"recogniser.checkpoint={tiny_model}/rn.pt", f"out={tmp_path}")
     args = [a for a in args if not a.startswith("recogniser.input_size")]  # the config expects 48

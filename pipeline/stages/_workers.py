@@ -16,6 +16,7 @@ thread budget (:func:`pipeline.threads.trials_budget`): ``threads`` numba thread
 
 from __future__ import annotations
 
+import contextlib
 import json
 import multiprocessing
 from collections.abc import Iterator
@@ -72,15 +73,15 @@ def _run_one(cell, folder: str) -> tuple[dict, float]:
 
 
 def cell_results(
-    cells: list[CellRun], out: Path, workers: int, threads: int, progress: bool
+    cells: list[CellRun], out: Path, pool: ProcessPoolExecutor | None, progress: bool
 ) -> Iterator[tuple[int, dict, float]]:
     """``(index, summary, seconds)`` of every cell into ``out`` (``<out>/<cell>/``, or ``out``
-    itself for the one unnamed cell) as it completes: one after another, or in ``workers``
-    processes (without per-episode bars); ``progress``: each cell's per-episode bar."""
+    itself for the one unnamed cell) as it completes: one after another, or in the ``pool``'s
+    processes (:func:`worker_pool`, without per-episode bars); ``progress``: each cell's bar."""
     folders = [out / c.name if c.name else out for c in cells]
-    if workers > 1 and len(cells) > 1:
+    if pool is not None:
         try:
-            yield from run_parallel(cells, folders, workers, threads)
+            yield from run_parallel(pool, cells, folders)
         except (KeyboardInterrupt, Interrupted) as exc:  # the workers are stopped: say where
             code = exc.code if isinstance(exc, Interrupted) else 130
             raise Interrupted(
@@ -91,24 +92,42 @@ def cell_results(
         yield i, *run_cell(cell, folder, progress)
 
 
-def run_parallel(
-    cells: list[CellRun], folders: list[Path], workers: int, threads: int
-) -> Iterator[tuple[int, dict, float]]:
-    """``(index, summary, seconds)`` of every cell as it completes, run in ``workers`` processes.
-    Each distinct recogniser is built by a worker first (a broken one stops the stage before any
-    cell runs). An error in a cell stops the others and is raised here; so is an interrupt."""
-    light = [replace(c, recogniser=None, pictures={}, support={}) for c in cells]
-    context = multiprocessing.get_context("spawn")
+@contextlib.contextmanager
+def worker_pool(
+    cells: list[CellRun], workers: int, threads: int
+) -> Iterator[ProcessPoolExecutor | None]:
+    """``workers`` processes for ``cells`` (None for one process or one cell), each with the trials
+    thread budget. Every distinct recogniser the cells need is built by a worker before this
+    returns, so a broken checkpoint or argument stops the stage before it touches any folder. The
+    workers are stopped when the block ends, however it ends."""
+    if workers <= 1 or len(cells) <= 1:
+        yield None
+        return
     pool = ProcessPoolExecutor(
         workers,
-        mp_context=context,
+        mp_context=multiprocessing.get_context("spawn"),
         initializer=_start_worker,
         initargs=(trials_budget(threads, workers),),
     )
     try:
-        checks = {recogniser_check_key(c.config): c for c in light if c.method.uses_recogniser}
-        for future in [pool.submit(_check_recogniser, c) for c in checks.values()]:
+        checks = {recogniser_check_key(c.config): c for c in cells if c.method.uses_recogniser}
+        light = [replace(c, recogniser=None, pictures={}, support={}) for c in checks.values()]
+        for future in [pool.submit(_check_recogniser, c) for c in light]:
             future.result()
+        yield pool
+    except BaseException:
+        stop(pool)
+        raise
+    pool.shutdown()
+
+
+def run_parallel(
+    pool: ProcessPoolExecutor, cells: list[CellRun], folders: list[Path]
+) -> Iterator[tuple[int, dict, float]]:
+    """``(index, summary, seconds)`` of every cell as it completes, run in the ``pool``. An error
+    in a cell stops the others and is raised here; so is an interrupt."""
+    light = [replace(c, recogniser=None, pictures={}, support={}) for c in cells]
+    try:
         pending = {
             pool.submit(_run_one, cell, str(folder)): i
             for i, (cell, folder) in enumerate(zip(light, folders))
@@ -122,7 +141,6 @@ def run_parallel(
     except BaseException:
         stop(pool)
         raise
-    pool.shutdown()
 
 
 def recogniser_check_key(cfg) -> str:

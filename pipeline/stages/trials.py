@@ -38,7 +38,7 @@ from pipeline.stages._cell_run import CellRun, make_recogniser, pictures_dir, re
 from pipeline.stages._common import stage_main
 from pipeline.stages._progress import compact, follow
 from pipeline.stages._schema import TrialsConfig
-from pipeline.stages._workers import cell_results
+from pipeline.stages._workers import cell_results, worker_pool
 from pipeline.threads import trials_budget
 from pipeline.world.maze import load_layout
 
@@ -51,7 +51,7 @@ def resolve_cells(cfg: TrialsConfig, overrides: list[str]) -> list[CellRun]:
     recogniser built (once for all the cells that ask for the same one:
     :func:`~pipeline.stages._cell_run.make_recogniser`). Cells that will run in worker processes
     get no recogniser here: the workers build what they run, and check it before any cell starts
-    (:func:`pipeline.stages._workers.run_parallel`)."""
+    (:func:`pipeline.stages._workers.worker_pool`)."""
     configs = {"": cfg} if cfg.experiment is None else experiment_cells(cfg, overrides)
     refuse_inapplicable(configs, parse_overrides(overrides))
     declared = cfg.experiment.all_cells() if cfg.experiment is not None else {}
@@ -115,12 +115,13 @@ def refuse_overwrite(cfg: TrialsConfig, out: Path) -> None:
 def run(cfg: TrialsConfig, overrides: list[str]) -> dict:
     cells = resolve_cells(cfg, overrides)
     refuse_what_does_not_fit(cfg, cells)
-    trials_budget(cfg.threads, min(cfg.workers, len(cells))).apply()
-    with exclusive_folder(cfg.out) as out:
+    workers = min(cfg.workers, len(cells))
+    trials_budget(cfg.threads, workers).apply()
+    with worker_pool(cells, workers, cfg.threads) as pool, exclusive_folder(cfg.out) as out:
         refuse_overwrite(cfg, out)
         staging = out / f".staging-{os.getpid()}"
         shutil.rmtree(staging, ignore_errors=True)
-        index = run_cells(cfg, cells, staging)
+        index = run_cells(cfg, cells, staging, pool)
         swap_in(staging, out)
         for stale in out.glob(".staging-*"):  # partial records of interrupted runs, now superseded
             shutil.rmtree(stale, ignore_errors=True)
@@ -140,12 +141,11 @@ def written(cfg: TrialsConfig, index: dict) -> list[Path | str]:
     return [out, *filter(None, [cfg.metrics_file, cfg.timing_file])]
 
 
-def run_cells(cfg: TrialsConfig, cells: list[CellRun], out: Path) -> dict:
-    """Every cell into ``out`` (the staging folder); the experiment's index and metrics last, in
-    cell order whatever the order the cells finished in."""
-    workers = min(cfg.workers, len(cells))
+def run_cells(cfg: TrialsConfig, cells: list[CellRun], out: Path, pool=None) -> dict:
+    """Every cell into ``out`` (the staging folder), in this process or the worker ``pool``; the
+    experiment's index and metrics last, in cell order whatever the order the cells finished in."""
     progress = cfg.progress and not compact(cells)
-    by_index = follow(cfg, cells, cell_results(cells, out, workers, cfg.threads, progress))
+    by_index = follow(cfg, cells, cell_results(cells, out, pool, progress))
     summaries = {c.name: by_index[i][0] for i, c in enumerate(cells)}
     if cfg.timing_file:
         timing = {c.name: round(by_index[i][1], 3) for i, c in enumerate(cells)}
