@@ -1,12 +1,13 @@
 """One thread budget per process: how its cores are split between worker processes, numba (the
 batched kernel) and torch (the recognisers' scores), decided once and applied on every path.
 
-numba and torch each keep a thread pool; on a 2-core machine two pools of two threads fight, and
-a torch batch of 40 query pairs beside a busy numba pool then takes about ten times as long as on
-one quiet thread. So a trials process gives numba its share of the cores and torch one thread: the
-recognisers score small batches, and a fixed torch thread count keeps every score the same bits
-whichever way the cells are spread over processes. Stages that run torch alone (meta-training, the
-accuracy study) give torch their ``threads`` and leave numba alone.
+numba and torch each keep a thread pool; on a machine with other work, two pools of all the
+cores fight, and a torch batch of 40 query pairs can take many times as long as on one thread. So
+a trials process gives numba its share of the cores and torch one thread: the recognisers score
+small batches (on a quiet machine a second torch thread gains a little: ``benchmarks.threads``),
+and one torch thread everywhere keeps the recorded ``torch_threads``, and the scores, the same
+whichever way the cells are spread over processes. Stages that run torch alone (meta-training,
+the accuracy study) give torch their ``threads`` and leave numba alone.
 
 The budget is applied where a process starts its work: the trials stage (one process, the parent
 of workers), each worker process, the accuracy study and a Gymnasium environment that builds its

@@ -4,16 +4,17 @@ what it depends on and shared by every recogniser of a process that scores the s
 A column (every query picture's raw score against one category's class state, paper eq. 2) is a
 pure function of the network's weights, the query and support pictures as the network sees them
 (after resizing, normalising and any hue shift of the colour test), the recogniser's kind, and the
-category's support members in position order. The **source** key hashes the first three from the
+multiset of the category's support members. The **source** key hashes the first three from the
 very tensors the recogniser was built with, so two recognisers share columns exactly when they
 would compute the same numbers, whatever path built them (files, tests, another substitution
-way). Within a source a column is keyed by its members in position order (the class state sums
-them in that order, so a reordered multiset may differ in the last bit; keying by order keeps
-the records the same bytes with and without the cache).
+way). Within a source a column is keyed by its members in the one order the class state sums
+them (:func:`pipeline.fewshot.support_recogniser.canonical`), so a stored column is the very bits
+a recomputation would give and the records are the same bytes with and without the store.
 
 The store lives for the process: the cells of an experiment, and the cells a worker process
-runs one after another, reuse what earlier cells computed. :func:`disabled` turns sharing off
-(every column is then computed as before, within a run only), for tests and benchmarks that
+runs one after another, reuse what earlier cells computed (worker processes do not share: the
+generalisation study needs a few hundred distinct columns in all). :func:`disabled` turns sharing
+off (every column is then computed as before, within a run only), for tests and benchmarks that
 compare the two.
 """
 
