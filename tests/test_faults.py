@@ -5,8 +5,10 @@ already on disk was lost (docs/reliability.md lists the guarantees)."""
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
+import os
 import signal
 import subprocess
 import sys
@@ -350,6 +352,51 @@ def test_a_killed_trial_says_what_it_kept_and_loses_nothing(tmp_path, sig, code)
     assert {
         k: v for k, v in after.items() if not k.startswith(".staging-")
     } == before  # old results whole
+
+
+def _children(pid: int) -> list[int]:
+    """The processes whose parent is ``pid`` (Linux ``/proc``)."""
+    out = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        with contextlib.suppress(OSError):
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+            if int(fields[1]) == pid:
+                out.append(int(stat.parent.name))
+    return out
+
+
+def _alive(pid: int) -> bool:
+    with contextlib.suppress(OSError):
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    return False
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux /proc")
+def test_workers_end_when_their_stage_is_killed(tmp_path):
+    """``kill -9`` of a ``workers=2`` stage: its worker processes (and the resource tracker they
+    kept alive) end within seconds instead of running on as orphans."""
+    stage = _start(
+        "+experiment=fig9", "recogniser=oracle", "workers=2", "runs=100", "episodes=4000",
+        "progress=false", f"out={tmp_path}",
+    )  # fmt: skip
+    children: list[int] = []
+    try:
+        t0 = time.time()
+        while time.time() - t0 < 60 and len(children) < 3:  # two workers and the resource tracker
+            children = _children(stage.pid)
+            time.sleep(0.2)
+        assert len(children) >= 2, children
+        time.sleep(2.0)  # the workers are running cells
+        stage.kill()
+        stage.wait(timeout=10)
+        t0 = time.time()
+        while time.time() - t0 < 20 and any(map(_alive, children)):
+            time.sleep(0.2)
+        assert not [p for p in children if _alive(p)], "workers outlived their stage"
+    finally:  # whatever happened, nothing of this test runs on
+        for pid in [stage.pid, *children]:
+            with contextlib.suppress(OSError):
+                os.kill(pid, signal.SIGKILL)
 
 
 def test_a_killed_experiment_rerun_keeps_the_previous_experiment(tmp_path):

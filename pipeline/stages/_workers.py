@@ -19,6 +19,9 @@ from __future__ import annotations
 import contextlib
 import json
 import multiprocessing
+import os
+import threading
+import time
 from collections.abc import Iterator
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import replace
@@ -40,8 +43,21 @@ _PICTURES: dict = {}
 _BUDGET: list[ThreadBudget] = [trials_budget(0, 1)]
 
 
-def _start_worker(budget: ThreadBudget) -> None:
+#: How often a worker looks whether the stage that started it is still there (seconds).
+PARENT_CHECK_SECONDS = 0.5
+
+
+def _start_worker(budget: ThreadBudget, parent: int) -> None:
     _BUDGET[0] = budget.apply()
+    threading.Thread(target=_exit_with_parent, args=(parent,), daemon=True).start()
+
+
+def _exit_with_parent(parent: int) -> None:
+    """End this worker once the stage process ``parent`` is gone (``kill -9`` of the stage gives
+    its workers no signal: they would otherwise run on, orphans holding memory and cores)."""
+    while os.getppid() == parent:
+        time.sleep(PARENT_CHECK_SECONDS)
+    os._exit(1)
 
 
 def _recogniser(cell: CellRun):
@@ -107,7 +123,7 @@ def worker_pool(
         workers,
         mp_context=multiprocessing.get_context("spawn"),
         initializer=_start_worker,
-        initargs=(trials_budget(threads, workers),),
+        initargs=(trials_budget(threads, workers), os.getpid()),
     )
     try:
         checks = {recogniser_check_key(c.config): c for c in cells if c.method.uses_recogniser}
