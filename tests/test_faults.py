@@ -399,6 +399,28 @@ def test_workers_end_when_their_stage_is_killed(tmp_path):
                 os.kill(pid, signal.SIGKILL)
 
 
+def test_a_terminated_multi_worker_stage_says_one_line(tmp_path):
+    """SIGTERM of a ``workers=2`` stage: the one line saying where the finished cells are, and no
+    warning after it (the workers make no semaphore the resource tracker would report)."""
+    stage = _start(
+        "+experiment=fig9", "recogniser=oracle", "workers=2", "runs=100", "episodes=20000",
+        "progress=false", f"out={tmp_path}",
+    )  # fmt: skip
+    try:
+        t0 = time.time()
+        while time.time() - t0 < 60 and len(_children(stage.pid)) < 3:
+            time.sleep(0.2)
+        time.sleep(2.0)
+        stage.send_signal(signal.SIGTERM)
+        _, err = stage.communicate(timeout=60)
+    finally:
+        stage.kill()
+    assert stage.returncode == 143, err
+    assert err.strip().splitlines() == [
+        f"interrupted; the finished cells' records are under {tmp_path}/.staging-{stage.pid}"
+    ], err
+
+
 def test_a_killed_experiment_rerun_keeps_the_previous_experiment(tmp_path):
     assert (
         cli("trials", "+experiment=fig9", "recogniser=oracle", f"out={tmp_path}", *FAST).returncode

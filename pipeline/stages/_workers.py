@@ -50,6 +50,11 @@ PARENT_CHECK_SECONDS = 0.5
 def _start_worker(budget: ThreadBudget, parent: int) -> None:
     _BUDGET[0] = budget.apply()
     threading.Thread(target=_exit_with_parent, args=(parent,), daemon=True).start()
+    # tqdm would make a multiprocessing lock (a named semaphore) even for the disabled bars of a
+    # worker; a stopped worker never frees it and the resource tracker complains at exit
+    from tqdm import tqdm
+
+    tqdm.set_lock(threading.RLock())
 
 
 def _exit_with_parent(parent: int) -> None:
