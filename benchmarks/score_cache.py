@@ -15,41 +15,12 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import filecmp
 import os
-import shutil
-import time
 from pathlib import Path
 
+from benchmarks._in_process import differing, timed_run, warm_up
 from benchmarks._output import write_figures
 from pipeline.fewshot import score_cache
-from pipeline.stages._common import run_stage
-
-
-def run_once(experiment: str, out: Path, kept: Path, share: bool) -> tuple[float, dict]:
-    """Wall seconds and store statistics of one run of ``experiment`` into ``out`` (the same
-    folder every time: the records embed it), then moved to ``kept``."""
-    shutil.rmtree(out, ignore_errors=True)
-    shutil.rmtree(kept, ignore_errors=True)
-    score_cache.clear()
-    guard = contextlib.nullcontext() if share else score_cache.disabled()
-    t0 = time.perf_counter()
-    with guard, contextlib.redirect_stdout(open(os.devnull, "w")):
-        run_stage("trials", [f"+experiment={experiment}", "progress=false", f"out={out}"])
-    seconds = time.perf_counter() - t0
-    out.rename(kept)
-    return seconds, score_cache.statistics()
-
-
-def same_files(a: Path, b: Path) -> tuple[int, list[str]]:
-    """The records and summaries under ``a`` compared byte for byte with ``b``'s."""
-    names = sorted(
-        p.relative_to(a).as_posix()
-        for p in a.rglob("*")
-        if p.name in ("records.mcap", "summary.json")
-    )
-    differ = [n for n in names if not filecmp.cmp(a / n, b / n, shallow=False)]
-    return len(names), differ
 
 
 def main() -> None:
@@ -62,19 +33,17 @@ def main() -> None:
     ap.add_argument("--json", default="reports/benchmarks/score_cache.json")
     args = ap.parse_args()
     out = Path(args.out)
-    with contextlib.redirect_stdout(open(os.devnull, "w")):
-        run_stage(
-            "trials",
-            [f"+experiment={args.experiment}", "profile=smoke", "progress=false", "overwrite=true"]
-            + [f"out={out / 'warm-up'}"],
-        )
+    warm_up(args.experiment, out)
     best: dict[str, float] = {}
     stats: dict[str, dict] = {}
     for _ in range(args.repeats):
         for label, share in (("without", False), ("with", True)):
-            seconds, stats[label] = run_once(args.experiment, out / "run", out / label, share)
+            score_cache.clear()
+            setting = contextlib.nullcontext() if share else score_cache.disabled()
+            seconds = timed_run(args.experiment, out / "run", out / label, setting)
             best[label] = min(best.get(label, seconds), seconds)
-    compared, differ = same_files(out / "without", out / "with")
+            stats[label] = score_cache.statistics()
+    compared, differ = differing(out / "without", out / "with", ("records.mcap", "summary.json"))
     figures = {
         "experiment": args.experiment,
         "repeats": args.repeats,

@@ -13,30 +13,13 @@ reports/benchmarks/threads.json.
 from __future__ import annotations
 
 import argparse
-import contextlib
-import filecmp
 import os
-import shutil
-import time
 from pathlib import Path
 
+from benchmarks._in_process import differing, timed_run, warm_up
 from benchmarks._output import write_figures
 from pipeline import threads
 from pipeline.fewshot import score_cache
-from pipeline.stages._common import run_stage
-
-
-def run_once(experiment: str, out: Path, kept: Path, torch_threads: int) -> float:
-    """Wall seconds of ``experiment`` with ``torch_threads`` torch threads beside numba."""
-    shutil.rmtree(out, ignore_errors=True)
-    shutil.rmtree(kept, ignore_errors=True)
-    threads.TORCH_THREADS_BESIDE_NUMBA = torch_threads
-    t0 = time.perf_counter()
-    with score_cache.disabled(), contextlib.redirect_stdout(open(os.devnull, "w")):
-        run_stage("trials", [f"+experiment={experiment}", "progress=false", f"out={out}"])
-    seconds = time.perf_counter() - t0
-    out.rename(kept)
-    return seconds
 
 
 def main() -> None:
@@ -49,28 +32,19 @@ def main() -> None:
     ap.add_argument("--json", default="reports/benchmarks/threads.json")
     args = ap.parse_args()
     out, budget = Path(args.out), threads.TORCH_THREADS_BESIDE_NUMBA
-    with contextlib.redirect_stdout(open(os.devnull, "w")):
-        run_stage(
-            "trials",
-            [f"+experiment={args.experiment}", "profile=smoke", "progress=false", "overwrite=true"]
-            + [f"out={out / 'warm-up'}"],
-        )
+    warm_up(args.experiment, out)
     best: dict[int, float] = {}
     try:
         for _ in range(args.repeats):
             for n in (budget, 2):
-                seconds = run_once(args.experiment, out / "run", out / f"torch{n}", n)
+                threads.TORCH_THREADS_BESIDE_NUMBA = n
+                seconds = timed_run(
+                    args.experiment, out / "run", out / f"torch{n}", score_cache.disabled()
+                )
                 best[n] = min(best.get(n, seconds), seconds)
     finally:
         threads.TORCH_THREADS_BESIDE_NUMBA = budget
-    summaries = sorted(
-        p.relative_to(out / "torch2") for p in (out / "torch2").rglob("summary.json")
-    )
-    differ = [
-        str(p)
-        for p in summaries
-        if not filecmp.cmp(out / f"torch{budget}" / p, out / "torch2" / p, shallow=False)
-    ]
+    summaries, differ = differing(out / f"torch{budget}", out / "torch2", ("summary.json",))
     figures = {
         "experiment": args.experiment,
         "repeats": args.repeats,
@@ -78,14 +52,14 @@ def main() -> None:
         "numba_threads": threads.trials_budget(0, 1).numba,
         f"wall_seconds_torch_{budget}_thread": round(best[budget], 2),
         "wall_seconds_torch_2_threads": round(best[2], 2),
-        "summaries_compared": len(summaries),
+        "summaries_compared": summaries,
         "summaries_that_differ": differ,
         "load_average_after": os.getloadavg()[0],
     }
     print(
         f"{args.experiment}, every column recomputed: torch on {budget} thread {best[budget]:.1f} s, "
         f"on 2 threads {best[2]:.1f} s (best of {args.repeats}, numba on "
-        f"{figures['numba_threads']}); {len(summaries)} summaries "
+        f"{figures['numba_threads']}); {summaries} summaries "
         + ("the same bytes" if not differ else f"DIFFER: {differ}")
     )
     write_figures(args.json, figures, "benchmarks.threads")
