@@ -280,11 +280,11 @@ class Trial:
             pending = np.array(again, dtype=np.int64)
 
     def run(self, *, progress: bool, chunk_episodes: int) -> TrialResult:
-        """Every run to the last episode: all runs at once in chunks of ``chunk_episodes``
+        """Every run to the last episode in chunks of ``chunk_episodes``: all runs at once
         (independent runs), or one after another (shared support set)."""
         runs, episodes = self.runs, self.episodes
         limits = list(range(min(chunk_episodes, episodes), episodes, chunk_episodes))
-        limits = [episodes] if self.shared_support else limits + [episodes]
+        limits += [episodes]
         groups = (
             [np.array([r], np.int64) for r in range(runs)]
             if self.shared_support
@@ -311,8 +311,9 @@ class Trial:
             before = int(self.state.episode[group].sum())
             self.advance(group, limit)
             bar.update(int(self.state.episode[group].sum()) - before)
-            # a trace is handed over when full (flush); without one, after every chunk
-            if self.record and (limit == self.episodes or not self.trace_steps):
+            # every chunk's finished episodes are handed over (and a trace also when it is full):
+            # with the writer's flush_seconds, a killed run keeps what it finished (docs/records.md)
+            if self.record:
                 for r in group:
                     self.emit(int(r))
 
