@@ -187,7 +187,7 @@ def test_a_flipped_byte_loses_only_its_chunk(files, tmp_path, capsys, which, kin
     else:
         assert "no episode lost" in msgs[0]
     if any(t.startswith("/pictures/") for t in topics):
-        assert "40 of 40 pictures" in msgs[0] and not r.meta.pictures
+        assert "lost the 40 pictures" in msgs[0] and not r.meta.pictures
     elif kind == "pictures":
         assert len(r.meta.pictures) == 40
     # the channel and schema definitions of a lost first chunk come from the summary

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import json
 import warnings
-from collections import Counter
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -22,7 +21,7 @@ import pandas as pd
 from . import schema as S
 from .codec import FormatError, check_schema, decode_batches
 from .loss import account, describe, expected_shape
-from .scan import Damage, RecordsError, Scan, scan
+from .scan import RecordsError, Scan, scan
 
 _FRAMES = ("steps", "episodes", "recognitions", "unsafe", "substitutions")
 _UNFINISHED = {  # why an undamaged file is not complete, by (.partial, without a closing record)
@@ -179,10 +178,7 @@ def _read_file(path: Path, window, pictures: bool) -> dict[str, Any]:
     dec = _decode(sc)
     for key in _FRAMES:  # the rows in the window, sorted by (run, episode, step)
         cols = dec[key]
-        t = (
-            cols["run"].astype(np.int64) * S.RUN_NS
-            + cols["episode"].astype(np.int64) * S.EPISODE_NS
-        )
+        t = cols["run"].astype(np.int64) * S.RUN_NS + cols["episode"] * np.int64(S.EPISODE_NS)
         keep = None if window is None else (t >= window[0]) & (t < window[1])
         if keep is not None and not keep.all():
             cols, t = {k: v[keep] for k, v in cols.items()}, t[keep]
@@ -201,15 +197,8 @@ def _account(sc: Scan, meta: FileMeta, dec: dict, window) -> None:
     stopped = any(d.kind == "stopped" for d in sc.damage)  # what was not read after it: lost
     finished = stopped or not truncated and not meta.partial and closed.get("complete") == "true"
     spans = [d.span for d in sc.damage if d.span is not None]
-    expected, lost, absent = account(
-        eps["run"],
-        eps["episode"],
-        runs=runs,
-        per_run=per_run,
-        finished=finished,
-        spans=spans,
-        window=window,
-    )
+    shape = {"runs": runs, "per_run": per_run, "finished": finished, "window": window}
+    expected, lost, absent = account(eps["run"], eps["episode"], spans=spans, **shape)
     problems = [d.what for d in sc.damage] + sc.notes
     if sc.dropped:
         problems.append(f"{sc.dropped} messages of channels defined in lost parts were dropped")
@@ -218,8 +207,9 @@ def _account(sc: Scan, meta: FileMeta, dec: dict, window) -> None:
     chunks = any(d.kind == "chunk" for d in sc.damage)
     heads = [f"lost {describe(lost, per_run)}"] if lost else ["no episode lost"] * chunks
     heads += [f"missing {describe(absent, per_run)} (not recorded)"] if absent else []
-    if window is None and (counts := _lost_messages(sc)):
-        heads.append(f"messages lost: {counts}")
+    held = sum(c.topic.startswith(PICTURE_PREFIXES) for c in sc.channels.values())
+    if held and not (meta.pictures or meta.support_pictures) and (sc.damage and window is None):
+        heads.append(f"lost the {held} pictures")
     problems += heads
     if not problems and (meta.partial or closed.get("complete") != "true"):
         problems.append(_UNFINISHED[meta.partial, meta.closed is None])
@@ -240,21 +230,6 @@ def _account(sc: Scan, meta: FileMeta, dec: dict, window) -> None:
         warnings.warn(f"{sc.path}: {'; '.join(problems)}; {kept}", RecordsWarning, stacklevel=4)
     elif not len(eps["run"]) and window is None:
         warnings.warn(f"{sc.path}: the file holds no episode records", RecordsWarning, stacklevel=4)
-
-
-def _lost_messages(sc: Scan) -> str:
-    """``40 of 40 pictures``: what the summary's statistics count and was not read."""
-    stats = sc.summary.statistics if sc.summary is not None else None
-    if stats is None:
-        return ""
-    kinds = {S.TOPIC_PICTURES: "pictures", S.TOPIC_SUPPORT: "support pictures"}
-    read, held = Counter(), Counter()
-    for topic, msgs in sc.messages.items():
-        read[kinds.get(topic.rsplit("/", 1 + topic.startswith(S.TOPIC_SUPPORT))[0])] += len(msgs)
-    for cid, n in stats.channel_message_counts.items():
-        topic = sc.channels[cid].topic if cid in sc.channels else ""
-        held[kinds.get(topic.rsplit("/", 1 + topic.startswith(S.TOPIC_SUPPORT))[0])] += n
-    return ", ".join(f"{n - read[k]} of {n} {k}" for k, n in held.items() if k and read[k] < n)
 
 
 def _maze(mz: dict[str, str]) -> dict[str, Any]:
@@ -291,24 +266,18 @@ def _meta(sc: Scan, pictures: bool) -> FileMeta:
         try:
             vars(meta).update(parse(sc.metadata[name]) if name in sc.metadata else {})
         except Exception as e:
-            sc.damage.append(
-                Damage("metadata", f"metadata record '{name}' does not parse ({type(e).__name__})")
-            )
-    for topic, msgs in sc.messages.items() if pictures else ():
+            sc.add("metadata", f"metadata record '{name}' does not parse ({type(e).__name__})")
+    for topic, msgs in sc.messages.items() if pictures and sc.messages else ():
+        *_, a, b = topic.split("/")
         try:
-            if topic.startswith(PICTURE_PREFIXES):
-                data = S.CompressedImage.FromString(msgs[-1][1]).data
-                *_, a, b = topic.split("/")
-                if topic.startswith(S.TOPIC_PICTURES):
-                    meta.pictures[int(b)] = data
-                else:
-                    meta.support_pictures[int(a), int(b)] = data
+            if topic.startswith(PICTURE_PREFIXES[0]):
+                meta.pictures[int(b)] = S.CompressedImage.FromString(msgs[-1][1]).data
+            elif topic.startswith(PICTURE_PREFIXES[1]):
+                meta.support_pictures[int(a), int(b)] = S.CompressedImage.FromString(
+                    msgs[-1][1]
+                ).data
         except Exception as e:
-            sc.damage.append(
-                Damage(
-                    "decode", f"the picture message on {topic} does not decode ({type(e).__name__})"
-                )
-            )
+            sc.add("decode", f"the picture message on {topic} does not decode ({type(e).__name__})")
     return meta
 
 
@@ -324,11 +293,7 @@ def _decode(sc: Scan) -> dict[str, Any]:
     )
     if (sc.metadata or sc.messages) and not ours:
         topics = sorted({ch.topic for ch in sc.channels.values()})
-        held = (
-            f" (channels {', '.join(topics[:4])}{', ...' if len(topics) > 4 else ''})"
-            if topics
-            else ""
-        )
+        held = f" (channels {', '.join(topics[:4])}{', ...' * (len(topics) > 4)})" * bool(topics)
         by = f"by {sc.library!r}" if sc.library else "by another program"
         raise RecordsError(
             f"{sc.path}: not a record file of this pipeline: an MCAP file written {by}{held}, "
@@ -351,5 +316,5 @@ def _decode(sc: Scan) -> dict[str, Any]:
         except Exception as e:
             run, ep, _ = S.split_log_time(t)
             what = f"the episode batch stamped run {run} episode {ep} does not decode ({type(e).__name__}: {e})"
-            sc.damage.append(Damage("decode", what, (t, t)))
+            sc.add("decode", what, (t, t))
     return decode_batches(good, str(sc.path))

@@ -70,6 +70,9 @@ class Scan:
     summary: Summary | None = None  # the summary section, when intact
     dropped: int = 0  # messages whose channel definition is lost everywhere
 
+    def add(self, kind: str, what: str, span: tuple[int, int] | None = None) -> None:
+        self.damage.append(Damage(kind, what, span))
+
 
 def scan(path: str | Path, *, time_range: tuple[int, int] | None = None) -> Scan:
     """Every intact record of ``path``; ``time_range`` (ns, end exclusive) leaves out the messages
@@ -111,7 +114,7 @@ def _summary(data: bytes, out: Scan) -> int:
             return start
         except Exception as e:
             problem = f"the summary section does not parse ({type(e).__name__}: {e})"
-    out.damage.append(Damage("summary", f"{problem}; the file was read without it"))
+    out.add("summary", f"{problem}; the file was read without it")
     return len(data)
 
 
@@ -187,7 +190,7 @@ def _indexed(data: bytes, out: Scan, end: int, time_range) -> None:
         try:
             _file(out, _parse(data, pos, pos + 9 + _HEAD.unpack_from(data, pos)[1]), None)
         except Exception:
-            out.damage.append(Damage("metadata", f"{what} at byte {pos} is damaged"))
+            out.add("metadata", f"{what} at byte {pos} is damaged")
     chunks = sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset)
     for k, c in enumerate(chunks, 1):
         pos, span = c.chunk_start_offset, (c.message_start_time, c.message_end_time)
@@ -197,23 +200,20 @@ def _indexed(data: bytes, out: Scan, end: int, time_range) -> None:
             why = f"bad chunk record ({type(e).__name__})"
         if why:
             what = f"chunk {k} of {len(chunks)} damaged ({why}) at byte {pos}"
-            out.damage.append(Damage("chunk", what, span))
+            out.add("chunk", what, span)
     head, (crc,) = data[end - 13 : end - 4], struct.unpack_from("<I", data, end - 4)
     if head != _HEAD.pack(Opcode.DATA_END, 4):
-        out.damage.append(Damage("data", "the data-end record before the summary is damaged"))
-    elif (
-        crc
-        and time_range is None
-        and not out.damage
-        and zlib.crc32(memoryview(data)[: end - 13]) != crc
-    ):
-        out.damage.append(
-            Damage(
-                "data",
-                "the data section's CRC does not match: a byte outside the chunks' data is damaged "
-                "(a record header, a metadata record or a message index); every chunk read passed "
-                "its own CRC",
-            )
+        return out.add("data", "the data-end record before the summary is damaged")
+    _data_crc(data, out, end - 13, crc, time_range)
+
+
+def _data_crc(data: bytes, out: Scan, end: int, crc: int, time_range) -> None:
+    """The data section's CRC, on a whole read that found no other damage."""
+    if crc and time_range is None and not out.damage and zlib.crc32(memoryview(data)[:end]) != crc:
+        what = "a byte outside the chunks' data is damaged (a record header, a metadata record or a message index)"
+        out.add(
+            "data",
+            f"the data section's CRC does not match: {what}; every chunk read passed its own CRC",
         )
 
 
@@ -230,32 +230,21 @@ def _stream(data: bytes, out: Scan, time_range) -> None:
         if end > n:
             return _truncated(out, f"it ends {n - pos - 9} bytes into {name} at byte {pos}")
         if opcode not in _RECORDS:
-            out.damage.append(
-                Damage("record", f"{name} at byte {pos} is of no known kind: skipped")
-            )
+            out.add("record", f"{name} at byte {pos} is of no known kind: skipped")
             pos = end
             continue
         try:
             rec = _parse(data, pos, end)
         except Exception as e:
             why = str(e) if isinstance(e, ValueError) else type(e).__name__
-            out.damage.append(
-                Damage("stopped", f"{name} at byte {pos} is damaged ({why}); reading stopped there")
-            )
+            out.add("stopped", f"{name} at byte {pos} is damaged ({why}); reading stopped there")
             return
         if isinstance(rec, DataEnd):
-            if (
-                rec.data_section_crc
-                and not out.damage
-                and zlib.crc32(memoryview(data)[:pos]) != rec.data_section_crc
-            ):
-                out.damage.append(Damage("data", "the data section's CRC does not match"))
+            _data_crc(data, out, pos, rec.data_section_crc, time_range)
             if not any(d.kind == "summary" for d in out.damage):
-                out.damage.append(
-                    Damage(
-                        "truncated",
-                        "the summary section at the end of the file is truncated (all recorded data is intact)",
-                    )
+                out.add(
+                    "truncated",
+                    "the summary section at the end of the file is truncated (all recorded data is intact)",
                 )
             return
         why = (
@@ -263,7 +252,7 @@ def _stream(data: bytes, out: Scan, time_range) -> None:
         )
         if why:
             span = (rec.message_start_time, rec.message_end_time)
-            out.damage.append(Damage("chunk", f"chunk {k} damaged ({why}) at byte {pos}", span))
+            out.add("chunk", f"chunk {k} damaged ({why}) at byte {pos}", span)
         pos = end
     _truncated(out, f"it ends after {n} bytes at a record boundary, before its data-end record")
 
@@ -277,4 +266,4 @@ def _name(opcode: int) -> str:
 
 def _truncated(out: Scan, where: str) -> None:
     what = f"the file is truncated: {where}; that record, anything after it and the summary section are lost"
-    out.damage.append(Damage("truncated", what))
+    out.add("truncated", what)

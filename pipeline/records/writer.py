@@ -306,7 +306,7 @@ class RecordWriter:
                 step = (
                     self._mcap.flush if item is _STOP else self._chunk if item is _FLUSH else None
                 )
-                self._guard(step or (lambda: self._write(item)))
+                self._guard(step or functools.partial(self._write, item))
             finally:
                 self._queue.task_done()
             if item is _STOP:
