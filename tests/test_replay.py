@@ -253,8 +253,6 @@ def test_replay_draws_with_the_files_moves_and_names(tmp_path):
     vectors = [v[0] for v in _columns(old, "/maze/robot/action")["Arrows2D:vectors"]]
     assert np.allclose(vectors, [[0.4, 0], [0, 0.4], [-0.4, 0], [0, -0.4]])
     assert "action E: reselected" in _columns(old, "/events")["TextLog:text"][0][0]
-    with pytest.raises(ValueError, match="maze.moves"):
-        write(tmp_path / "bad.mcap", actions=["up", "down"], moves=[(-1, 0), (0, 1), (1, 0)])
 
 
 SUPPORT = {

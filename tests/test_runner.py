@@ -120,6 +120,21 @@ def test_same_seed_same_results_and_runs_do_not_depend_on_the_batch():
     assert not np.array_equal(a.steps, d.steps)
 
 
+@pytest.mark.parametrize("shared", [False, True])
+def test_every_chunk_of_episodes_is_handed_to_the_sink_and_chunks_change_no_result(shared):
+    """A recording sink gets every run's finished episodes after each chunk (what a killed run
+    keeps, docs/reliability.md), with a step trace too; the chunking changes no result."""
+    method, sink = get_method("fewshot_dss"), ListSink()
+    kw = dict(runs=2, episodes=250, seed=3, progress=False, shared_support=shared)
+    chunked = run_trials(MAZE, method, recogniser=always_wrong(), sink=sink, **kw)
+    firsts = [(int(b["run"]), int(b["episode"][0]), int(b["episode"][-1])) for b in sink.batches]
+    expected = [(r, a, b) for r in (0, 1) for a, b in ((0, 99), (100, 199), (200, 249))]
+    assert sorted(firsts) == expected
+    whole = run_trials(MAZE, method, recogniser=always_wrong(), chunk_episodes=250, **kw)
+    assert chunked.summary() == whole.summary()
+    np.testing.assert_array_equal(chunked.steps, whole.steps)
+
+
 def test_summary_fields():
     s = run_trials(MAZE, get_method("ssrl"), runs=3, episodes=80, seed=0, progress=False).summary()
     assert s["n_runs"] == 3 and len(s["runs"]) == 3

@@ -35,6 +35,7 @@ VERSION_PACKAGES = (
     *("hydra-core", "omegaconf", "gymnasium"),
 )
 SUBSTITUTION_KEYS = tuple(f.name for f in S.MESSAGES["Substitutions"])  # of substitution()
+PICTURES = S.TOPIC_PICTURES + "/<picture id>"
 TIME = "log_time_ns = run * 1e15 + episode * 1e9 + step * 1e6 (1 ms a step, 1 s an episode)"
 _FLUSH, _STOP = object(), object()  # queue items besides batches
 
@@ -53,68 +54,54 @@ def package_versions() -> dict[str, str]:
     return {"python": platform.python_version()} | {n: version(n) for n in VERSION_PACKAGES}
 
 
+def _plain(o: Any) -> Any:
+    if isinstance(o, (np.generic, np.ndarray, set, frozenset, tuple)):
+        return o.tolist() if hasattr(o, "tolist") else list(o)
+    if isinstance(o, Path):
+        return str(o)
+    raise TypeError(f"cannot record a {type(o).__name__} in the metadata (value {o!r})")
+
+
 def to_json(obj: Any) -> str:
     """Configs (dicts, OmegaConf containers, numpy values) as compact, sorted JSON."""
     if type(obj).__module__.startswith("omegaconf"):
         from omegaconf import OmegaConf
 
         obj = OmegaConf.to_container(obj, resolve=True)
-
-    def plain(o: Any) -> Any:
-        if isinstance(o, (np.generic, np.ndarray, set, frozenset, tuple, Path)):
-            return (
-                str(o) if isinstance(o, Path) else o.tolist() if hasattr(o, "tolist") else list(o)
-            )
-        raise TypeError(f"cannot record a {type(o).__name__} in the metadata (value {o!r})")
-
-    return json.dumps(obj, default=plain, sort_keys=True, separators=(",", ":"))
+    return json.dumps(obj, default=_plain, sort_keys=True, separators=(",", ":"))
 
 
-def _metadata(metadata: dict, maze, runs, level: str) -> list[tuple[str, dict[str, str]]]:
+def _metadata(meta: dict, maze, runs, level: str) -> list[tuple[str, dict[str, str]]]:
     """The MCAP metadata records (docs/records.md "The schema")."""
-    out = [
-        ("recording", {"format_version": S.FORMAT_VERSION, "library": S.LIBRARY, "record": level})
-    ]
-    out[0][1].update(
-        time=TIME,
-        episodes_topic=S.TOPIC_EPISODES,
-        pictures_topic=S.TOPIC_PICTURES + "/<picture id>",
-    )
-    if (config := metadata.pop("config", None)) is not None:  # libyaml's emitter: faster, same text
-        parsed = yaml.safe_load(config) if isinstance(config, str) else json.loads(to_json(config))
-        text = (
-            config
-            if isinstance(config, str)
-            else yaml.dump(parsed, Dumper=yaml.CSafeDumper, sort_keys=True)
-        )
+    head = {"format_version": S.FORMAT_VERSION, "library": S.LIBRARY, "record": level, "time": TIME}
+    out = [("recording", head | {"episodes_topic": S.TOPIC_EPISODES, "pictures_topic": PICTURES})]
+    if isinstance(config := meta.pop("config", None), str):
+        out.append(("config", {"yaml": config, "json": to_json(yaml.safe_load(config))}))
+    elif config is not None:  # libyaml's emitter: the same text, faster
+        parsed = json.loads(to_json(config))
+        text = yaml.dump(parsed, Dumper=yaml.CSafeDumper, sort_keys=True)
         out.append(("config", {"yaml": text, "json": to_json(parsed)}))
-    if "seeds" in metadata:
-        out.append(("seeds", {"json": to_json(metadata.pop("seeds"))}))
-    versions = dict(metadata.pop("versions", None) or {})
-    out.append(("versions", package_versions() | {str(k): str(v) for k, v in versions.items()}))
+    if "seeds" in meta:
+        out.append(("seeds", {"json": to_json(meta.pop("seeds"))}))
+    versions = {str(k): str(v) for k, v in dict(meta.pop("versions", None) or {}).items()}
+    out.append(("versions", package_versions() | versions))
     if maze is not None:
-        rows, extra = (
-            list(maze["layout"]),
-            {k: v for k, v in maze.items() if k not in ("layout", "actions")},
-        )
+        rows, rest = list(maze["layout"]), dict(maze)
         mz = {"layout": "\n".join(rows), "height": str(len(rows)), "width": str(len(rows[0]))}
-        mz |= {"cell_index": "row * width + col"} | {
-            k: to_json(extra.pop(k)) for k in ("categories", "moves") if k in extra
-        }
-        mz |= (
-            {"actions": ",".join(map(str, maze["actions"]))}
-            if maze.get("actions") is not None
-            else {}
-        )
-        out.append(("maze", mz | ({"extra": to_json(extra)} if extra else {})))
+        mz["cell_index"], _ = "row * width + col", rest.pop("layout")
+        mz |= {k: to_json(rest.pop(k)) for k in ("categories", "moves") if rest.get(k) is not None}
+        if rest.get("actions") is not None:  # comma-separated names
+            mz["actions"] = ",".join(map(str, rest.pop("actions")))
+        rest.pop("actions", None), rest.pop("categories", None), rest.pop("moves", None)
+        out.append(("maze", mz | ({"extra": to_json(rest)} if rest else {})))
     if runs is not None:
+        items = runs.items() if isinstance(runs, Mapping) else enumerate(runs)
         placed = {
-            str(int(r)): [{k: int(o[k]) for k in OBSTACLE_KEYS} for o in obs]
-            for r, obs in dict(enumerate(runs) if not isinstance(runs, Mapping) else runs).items()
+            str(int(r)): [{k: int(o[k]) for k in OBSTACLE_KEYS} for o in obs] for r, obs in items
         }
         out.append(("obstacles", {"json": to_json(placed), "keys": ",".join(OBSTACLE_KEYS)}))
-    if metadata:
-        out.append(("info", {str(k): to_json(v) for k, v in sorted(metadata.items())}))
+    if meta:
+        out.append(("info", {str(k): to_json(v) for k, v in sorted(meta.items())}))
     return out
 
 
