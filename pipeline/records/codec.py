@@ -152,10 +152,8 @@ def _columns(flat: dict, name: str) -> dict[str, Any]:
         return ValueError(f"{name}: episode batch messages are inconsistent: {why}")
 
     count = {k: v[1] for k, v in flat.items() if isinstance(k, tuple)}
-    n_eps, lens = (
-        count["EpisodeBatch", "episode"],
-        flat["EpisodeSummaries", "steps"][0].astype(np.int64),
-    )
+    n_eps = count["EpisodeBatch", "episode"]
+    lens = flat["EpisodeSummaries", "steps"][0].astype(np.int64)
     if not count["Steps", "states"].any():  # recorded without steps (record=episodes)
         lens = np.zeros_like(lens)
     n_float, n_small = count["Steps", REWARDS.name], count["Steps", SMALL_REWARDS.name]
@@ -166,15 +164,13 @@ def _columns(flat: dict, name: str) -> dict[str, Any]:
     rows = {"EpisodeSummaries": n_eps, "Steps": np.bincount(per_msg, lens, len(n_eps))}
     rows |= {m: count[m, "episode"] for m in ("Recognitions", "UnsafeAdditions", "Substitutions")}
     for msg, expected in rows.items():
-        for f in COLUMNS[msg]:
-            if f.name not in ("scores", SMALL_REWARDS.name) and not np.array_equal(
-                count[msg, f.name], expected
-            ):
+        for f in (f for f in COLUMNS[msg] if f.name not in ("scores", SMALL_REWARDS.name)):
+            if not np.array_equal(count[msg, f.name], expected):
                 raise bad(f"{msg}.{f.name} does not have one entry per row")
-    rec_m, ncat, n_sc = (
+    rec_m, n_sc, ncat = (
         count["Recognitions", "episode"],
-        flat["n_categories"],
         count["Recognitions", "scores"],
+        flat["n_categories"],
     )
     if not np.array_equal(n_sc, np.where(n_sc > 0, rec_m * ncat, 0)):
         raise bad("scores do not have n_categories columns")
@@ -183,24 +179,16 @@ def _columns(flat: dict, name: str) -> dict[str, Any]:
     starts = np.repeat(np.cumsum(lens) - lens, lens)
     small = np.repeat(n_small > 0, n_float + n_small)  # the steps whose rewards are small_rewards
     reward = np.empty(len(small), np.float32)
-    reward[small], reward[~small] = (
-        flat["Steps", SMALL_REWARDS.name][0],
-        flat["Steps", REWARDS.name][0],
-    )
+    reward[small] = flat["Steps", SMALL_REWARDS.name][0]
+    reward[~small] = flat["Steps", REWARDS.name][0]
     step = (np.arange(len(starts)) - starts).astype(np.int32)
     head = {"run": np.repeat(ep_run, lens), "episode": np.repeat(ep_ep, lens), "step": step}
     steps = _frame(flat, "Steps", head, reward=reward)
     steps |= {flag: (steps["flags"] & bit) != 0 for flag, bit in S.FLAG_NAMES.items()}
 
-    def rows_of(msg: str) -> dict:
-        return _frame(
-            flat, msg, {"run": np.repeat(flat["run"], count[msg, "episode"]).astype(np.int32)}
-        )
-
     rec, unsafe, subs = (
-        rows_of("Recognitions"),
-        rows_of("UnsafeAdditions"),
-        rows_of("Substitutions"),
+        _frame(flat, m, {"run": np.repeat(flat["run"], count[m, "episode"]).astype(np.int32)})
+        for m in ("Recognitions", "UnsafeAdditions", "Substitutions")
     )
     rec["correct"] = rec["predicted"] == rec["true"]
     has, width = n_sc > 0, int(ncat[n_sc > 0].max()) if n_sc.any() else 0
@@ -224,10 +212,10 @@ def _columns(flat: dict, name: str) -> dict[str, Any]:
             raise bad(f"{what} of episodes that are not in their batch")
         per_episode[what] = np.bincount(order[pos], minlength=len(ep_key)).astype(np.int32)
     episodes = _frame(flat, "EpisodeSummaries", {"run": ep_run, "episode": ep_ep})
-    episodes |= {
-        "n_recognitions": per_episode["recognitions"],
-        "n_unsafe_added": per_episode["unsafe"],
-    }
+    episodes["n_recognitions"], episodes["n_unsafe_added"] = (
+        per_episode["recognitions"],
+        per_episode["unsafe"],
+    )
     q_values, (q, n_q), row = {}, flat["EpisodeBatch", "q_values"], np.cumsum(n_eps) - n_eps
     pos = np.cumsum(n_q) - n_q
     for i in np.flatnonzero(n_q):
