@@ -38,6 +38,7 @@ SUBSTITUTION_KEYS = tuple(f.name for f in S.MESSAGES["Substitutions"])  # of sub
 PICTURES = S.TOPIC_PICTURES + "/<picture id>"
 TIME = "log_time_ns = run * 1e15 + episode * 1e9 + step * 1e6 (1 ms a step, 1 s an episode)"
 _FLUSH, _STOP = object(), object()  # queue items besides batches
+QUEUE = 256  # batches: a chunk of the runner's (one a run) fits; at most 32,768 steps each
 
 
 @functools.cache
@@ -130,8 +131,8 @@ class RecordWriter:
     ``support_pictures``: category -> K initial thumbnails; ``steps``: record every step
     (``record=steps``) or, False, only what happens per episode (``record=episodes``).
 
-    Batches are checked, encoded and written on the writer's own thread, behind a queue of 8
-    batches (the caller waits only when it is full). A chunk is closed every ``flush_every``
+    Batches are checked, encoded and written on the writer's own thread, behind a queue of
+    :data:`QUEUE` batches (the caller waits only when it is full). A chunk is closed every ``flush_every``
     episodes (where chunks end is part of the bytes, so never by the clock); once ``flush_seconds``
     pass with episodes not yet in a closed chunk, they are written after the last one as a
     provisional chunk that the next chunk overwrites: a killed run keeps them, and a finished file
@@ -190,7 +191,7 @@ class RecordWriter:
             channel = self._mcap.register_channel(topic, "protobuf", ids[1])
             self._mcap.add_message(channel, log_time=0, publish_time=0, data=data)
         self._mcap.flush()  # the pictures and channel definitions in a complete first chunk
-        self._queue: queue.Queue = queue.Queue(maxsize=8)
+        self._queue: queue.Queue = queue.Queue(maxsize=QUEUE)
         self._thread = threading.Thread(
             target=self._serve, name=f"records {self.path}", daemon=True
         )
