@@ -87,7 +87,7 @@ def smoke(tmp_path_factory):
             f"recogniser.checkpoint={models}/rn.pt",
             f"recogniser.images_dir={images}",
             "progress=false",
-            f"metrics_file={d}/metrics/{exp}.json",
+            f"metrics_dir={d}/metrics/{exp}",
             *(protonet_cells if exp == "fig8" else []),
         )
     stage(

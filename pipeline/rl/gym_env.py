@@ -167,7 +167,7 @@ class SafeNavigationEnv(gym.Env):
         self.state = self.layout.start
         self.t = 0
         return self.state, self._info(
-            prevented=False, collided=False, picture=-1, flags=0, added=[]
+            prevented=False, collided=False, picture=-1, recognition=None, flags=0, added=[]
         )
 
     def step(self, action):

@@ -141,8 +141,11 @@ class TrialsConfig:
     overwrite: bool = MISSING
     """Replace results already in ``out``; without it such an ``out`` is refused (``dvc repro``
     deletes a stage's outs before running it, so there the ``out`` is empty)."""
-    metrics_file: str | None = None
-    """An experiment's mean collisions per cell are also written here (DVC metrics)."""
+    index_file: str | None = None
+    """An experiment: every file of ``out`` with its SHA-256 (``pipeline.files.write_index``), for dvc.yaml."""
+    metrics_dir: str | None = None
+    """An experiment's DVC metrics go to this folder (replaced): one small file per cell, or per
+    template and size over generated layouts (``pipeline/stages/_metrics.py``)."""
     timing_file: str | None = None
     """Each cell's trial seconds are written here (kept out of ``out``, which is byte-reproducible)."""
     record: str = setting(choices=RECORD_LEVELS)
@@ -212,6 +215,8 @@ class RenderConfig:
     """The scale (``pipeline/conf/profile/``): the class and picture counts default to its ``render`` keys."""
     out_dir: str = setting(nonempty=True)
     """The pictures and ``manifest.csv``; its parent folder must exist."""
+    index_file: str | None = None
+    """Every file of ``out_dir`` with its SHA-256 (``pipeline.files.write_index``), for dvc.yaml."""
     figures_dir: str = setting(nonempty=True)
     """The contact sheets (the report stage copies them)."""
     size: int = setting(ge=8)
