@@ -125,7 +125,12 @@ def make_env(
             f"or a Recogniser object (pipeline.rl.recogniser)"
         )
     return SafeNavigationEnv(
-        "5x5" if maze is None else maze, spec, recogniser, run=run, render_mode=render_mode, tile_size=tile_size
+        "5x5" if maze is None else maze,
+        spec,
+        recogniser,
+        run=run,
+        render_mode=render_mode,
+        tile_size=tile_size,
     )
 
 

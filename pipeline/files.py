@@ -112,7 +112,9 @@ def write_index(folder: str | Path, path: str | Path) -> Path:
 
     folder = Path(folder)
     files = sorted(
-        p for p in folder.rglob("*") if p.is_file() and not p.relative_to(folder).as_posix().startswith(".")
+        p
+        for p in folder.rglob("*")
+        if p.is_file() and not p.relative_to(folder).as_posix().startswith(".")
     )
     index = {}
     for p in files:

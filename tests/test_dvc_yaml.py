@@ -174,10 +174,29 @@ def test_params_name_existing_files_and_keys_and_deps_hold_no_config():
 
 
 def test_default_scale_is_the_paper_profile():
+    """Every stage but ``sample`` (the committed records sample, at smoke scale on purpose)."""
     for name, stage in all_stages().items():
+        if name == "sample":
+            assert "profile=smoke" in stage["cmd"]
+            assert {f for f, _ in params_entries(stage) if "/profile/" in f} == {
+                "pipeline/conf/profile/smoke.yaml"
+            }
+            continue
         assert "profile=" not in stage["cmd"], name
         profiles = {f for f, _ in params_entries(stage) if f.startswith("pipeline/conf/profile/")}
         assert profiles <= {"pipeline/conf/profile/paper.yaml"}, name
+
+
+def test_the_records_sample_is_committed_and_small():
+    """``datasets/sample``: in git (``cache: false``), so the README's records and replay examples
+    work on a fresh clone; under 2 MB."""
+    outs = STAGES["sample"]["outs"]
+    assert outs == [{"datasets/sample/fig8": {"cache": False}}]
+    folder = ROOT / "datasets" / "sample" / "fig8"
+    if folder.is_dir():
+        size = sum(p.stat().st_size for p in folder.rglob("*") if p.is_file())
+        assert 0 < size < 2 * 2**20
+        assert len(list(folder.glob("*/records.mcap"))) >= 3
 
 
 def test_site_cache_dir_is_not_relative():

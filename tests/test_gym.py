@@ -14,8 +14,7 @@ from fakes import always_right
 from gymnasium.utils.env_checker import check_env, data_equivalence
 
 import pipeline
-from pipeline import palette
-from pipeline import _registration
+from pipeline import _registration, palette
 from pipeline.envs import recogniser_names
 from pipeline.errors import ConfigError
 from pipeline.rl import gym_render
@@ -187,13 +186,17 @@ def test_rgb_array_picture():
     assert centre(layout.start, img) == gym_render.ROBOT_RGB == palette.rgb(palette.ROBOT)
     for o, cell in enumerate(layout.obstacles):
         assert centre(cell, img) == gym_render.CATEGORY_RGB[u.world.true_category[o]]
-    assert not (img[: 5 * t] == gym_render.UNSAFE_RGB).all(axis=2).any()  # the maze; the legend has one
+    assert (
+        not (img[: 5 * t] == gym_render.UNSAFE_RGB).all(axis=2).any()
+    )  # the maze; the legend has one
     # 5x5: S X X . . -- moving east from the start runs into an obstacle: (0, E) joins A_d
     s, reward, *_ = env.step(E)
     assert (s, reward) == (0, -1.0) and u.unsafe[0, E]
     img = env.render()
     assert (
-        tuple(int(x) for x in img[t // 2, t - 2]) == gym_render.UNSAFE_RGB == palette.rgb(palette.UNSAFE)
+        tuple(int(x) for x in img[t // 2, t - 2])
+        == gym_render.UNSAFE_RGB
+        == palette.rgb(palette.UNSAFE)
     )  # east edge of cell 0
     assert tuple(int(x) for x in img[t // 2, 2]) == gym_render.START_RGB  # west edge: not in A_d
     assert centre(layout.start, img) == gym_render.ROBOT_RGB
@@ -249,7 +252,9 @@ def test_render_modes_and_their_errors():
     )  # Gymnasium's RenderCollection
     frames.reset(seed=0)
     frames.step(S)
-    assert [f.shape for f in frames.render()] == [(160 + gym_render.legend_strip(160).shape[0], 160, 3)] * 2
+    assert [f.shape for f in frames.render()] == [
+        (160 + gym_render.legend_strip(160).shape[0], 160, 3)
+    ] * 2
     with pytest.raises(ValueError, match="render_mode='human'.*ansi, rgb_array"):
         SafeNavigationEnv("5x5", render_mode="human")
     with pytest.raises(ValueError, match="tile_size=4"):

@@ -30,14 +30,13 @@ def first_recognition(recs: Records, run: int) -> tuple[int, str]:
     recognition, else the first recorded; with a sentence saying which and why."""
     seen = episodes_with(recs.recognitions, run)
     if seen:
-        return seen[0], (
-            f"episode {seen[0]}: the first of run {run} with a recognition; recognitions in "
-            f"episodes {shown(seen)}"
-        )
+        return seen[
+            0
+        ], f"the first of run {run} with a recognition (they are in episodes {shown(seen)})"
     recorded = sorted(int(e) for e in recs.episodes.episode[recs.episodes.run == run])
     return recorded[0], (
-        f"episode {recorded[0]}: run {run} holds no recognition (the method recognises no "
-        "pictures, or the robot never moved toward an obstacle), so its first recorded episode"
+        f"the first recorded of run {run}, which holds no recognition (the method recognises no "
+        "pictures, or the robot never moved toward an obstacle)"
     )
 
 
@@ -71,3 +70,28 @@ def empty_views(recs: Records, run: int, episodes: list[int]) -> EmptyViews:
     if not scores or rows[scores].isna().all().all():
         return EmptyViews(None, "the recogniser records no scores (it names a category only)")
     return EmptyViews(None, None)
+
+
+def log_empty(rec, empty: EmptyViews) -> None:
+    """Say in the picture and recognition views why they stay empty (static: for every step)."""
+    import rerun as rr
+
+    if empty.recognition is None:
+        return
+    rec.log(
+        "recognition/result",
+        rr.TextDocument(
+            f"### No recognition to show\n\n{empty.recognition}.", media_type="text/markdown"
+        ),
+        static=True,
+    )
+    rec.log(
+        "recognition/picture/note",
+        rr.Points2D(
+            [[0.0, 0.0]],
+            radii=0.01,
+            labels=["no picture seen: see the recognition view"],
+            show_labels=True,
+        ),
+        static=True,
+    )

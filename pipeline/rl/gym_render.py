@@ -85,7 +85,9 @@ def legend_strip(width: int) -> np.ndarray:
 
     font = ImageFont.load_default(size=10)
     probe = ImageDraw.Draw(Image.new("RGB", (1, 1)))
-    entries = [(name, colour, 14 + probe.textlength(name, font=font) + 8) for name, colour in LEGEND]
+    entries = [
+        (name, colour, 14 + probe.textlength(name, font=font) + 8) for name, colour in LEGEND
+    ]
     lines, x = [[]], 0.0
     for name, colour, w in entries:
         if x + w > width and lines[-1]:

@@ -320,10 +320,10 @@ class ReplayConfig:
     """An ``.mcap`` record file (or the ``.mcap.partial`` of a killed run)."""
     run: int = setting(ge=0)
     """The run to replay."""
-    episode: int = setting(ge=0)
-    """The episode to replay."""
+    episode: int | None = setting(None, ge=0)
+    """The episode to replay; none: the run's first episode with a recognition."""
     whole_run: bool = MISSING
-    """Every episode of the run on one timeline (``episode`` is then ignored)."""
+    """Every episode of the run on one timeline (refused together with ``episode``)."""
     out: str | None = None
     """The ``.rrd`` to write; none: ``replays/<experiment>-<cell>-run<run>-ep<episode>.rrd``."""
     viewer: str = setting(choices=VIEWERS)

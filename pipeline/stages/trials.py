@@ -116,7 +116,9 @@ def refuse_overwrite(cfg: TrialsConfig, out: Path) -> None:
 def run(cfg: TrialsConfig, overrides: list[str]) -> dict:
     for key in ("metrics_dir", "index_file"):
         if cfg.experiment is None and getattr(cfg, key):
-            raise ConfigError(f"config key '{key}': only an experiment (+experiment=...) writes one")
+            raise ConfigError(
+                f"config key '{key}': only an experiment (+experiment=...) writes one"
+            )
     cells = resolve_cells(cfg, overrides)
     refuse_what_does_not_fit(cfg, cells)
     workers = min(cfg.workers, len(cells))
