@@ -22,6 +22,9 @@ ROBOT = "#1A1A1A"  # the robot and its path
 FREE = "#FFFFFF"  # a free cell
 GRID = "#BEBEBE"  # grid lines
 PAPER = "#000000"  # the paper's numbers beside ours
+#: Series that nothing above declares (recognisers side by side, support set restored / carried
+#: over), by position; none of them a method's colour.
+SERIES = ("#4D4D4D", "#B8860B", "#6B6ECF", "#3CB371", "#CD5C5C", "#20B2AA")
 
 
 def category(c: int) -> str:

@@ -40,6 +40,7 @@ from pipeline.report.parts import (
     COLLISIONS,
     collision_row,
     curves_part,
+    styles_of,
     support_part,
     write_curves_table,
 )
@@ -95,11 +96,14 @@ def default_kind(rep, exp: Experiment, paper: dict[str, PaperValue], bars: bool 
             "collisions per run",
             rep.out / "figures" / name,
             paper=[paper.get(r.key) for r, _ in rows],
+            styles=styles_of(rows),
         )
         rep.figure(
             f"figures/{name}",
-            "Collisions per run: mean (bar), s.d. (thin), 95% bootstrap CI (thick), runs "
-            "(dots)" + ("; the paper's number in red" if paper else "") + ".",
+            "Collisions per run: mean (bar; its value under the name), s.d. (thin), 95% bootstrap "
+            "CI (thick), runs (dots)"
+            + ("; the paper's number as a black dash" if paper else "")
+            + ".",
         )
     if exp.spec.curves is not False:
         curves_part(rep, exp, rows)
@@ -137,12 +141,12 @@ def long_term_kind(rep, exp: Experiment, paper: dict[str, PaperValue]) -> None:
         f"{exp.spec.title or exp.name} (ours)",
         rep.out / "figures" / name,
         paper=[paper.get(row.key) for row, _ in values],
+        styles=styles_of(rows),
     )
     rep.figure(
         f"figures/{name}",
-        "Collisions of each consecutive experiment; right: mean with 95% bootstrap CI"
-        + ("; the paper's number in red" if paper else "")
-        + ".",
+        "Collisions of each consecutive experiment (numbered from 1); right: mean with 95% "
+        "bootstrap CI" + ("; the paper's number as a black dash" if paper else "") + ".",
     )
     if exp.spec.curves is not False:
         curves_part(rep, exp, rows)
@@ -159,7 +163,9 @@ def long_term_kind(rep, exp: Experiment, paper: dict[str, PaperValue]) -> None:
                 "Query accuracy of the support set at the end of each experiment",
                 rep.out / "figures" / name,
                 ylabel="query accuracy",
-                xlabel="experiment (consecutive runs)",
+                xlabel="experiment (consecutive runs, from 1)",
+                styles=styles_of(rows),
+                first=1,
             )
             rep.figure(
                 f"figures/{name}",

@@ -18,8 +18,9 @@ import numpy as np
 from pipeline.files import write_json_atomic
 from pipeline.report.stats import bootstrap_ci
 
-#: The keys of every metrics file (the columns of ``dvc metrics show``).
-KEYS = ("collisions", "collisions_ci_low", "collisions_ci_high", "converged")
+#: The keys of every metrics file (the columns of ``dvc metrics show``): mean collisions per run,
+#: its 95% bootstrap interval, the fraction of runs whose greedy path converged.
+KEYS = ("collisions", "ci_low", "ci_high", "converged")
 
 
 def rows(experiment, summaries: dict[str, dict]) -> dict[str, list[dict]]:
@@ -47,12 +48,17 @@ def row_metrics(cells: list[dict]) -> dict:
         values = [c["collisions"]["mean"] for c in cells]
     lo, hi = bootstrap_ci(values)
     runs = sum(c["n_runs"] for c in cells)
-    return {
-        "collisions": round(float(np.mean(values)), 4),
-        "collisions_ci_low": round(lo, 4),
-        "collisions_ci_high": round(hi, 4),
-        "converged": round(sum(c["converged_runs"] for c in cells) / max(runs, 1), 4),
-    }
+    return dict(
+        zip(
+            KEYS,
+            (
+                round(float(np.mean(values)), 3),
+                round(lo, 3),
+                round(hi, 3),
+                round(sum(c["converged_runs"] for c in cells) / max(runs, 1), 3),
+            ),
+        )
+    )
 
 
 def write_metrics(folder: str | Path, experiment, summaries: dict[str, dict]) -> Path:

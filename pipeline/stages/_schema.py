@@ -342,8 +342,6 @@ class ReplayConfig:
 class ReportConfig:
     """``python -m pipeline report``: rebuild the report from the recorded data alone."""
 
-    profile: Profile = field(default_factory=Profile)
-    """The scale (``pipeline/conf/profile/``; the report reads none of it)."""
     runs_dir: str = setting(nonempty=True)
     """The trials' records: ``<runs_dir>/<experiment>/<cell>/records.mcap``."""
     accuracy_dir: str = setting(nonempty=True)
@@ -360,6 +358,8 @@ class ReportConfig:
     """``index.md``, ``tables/`` and ``figures/`` (replaced only by a complete build)."""
     allow_missing: bool = MISSING
     """Build without experiments or cells that have no complete records (listed at the top)."""
+    allow_mixed_scales: bool = MISSING
+    """Build from cells recorded at different scales (profiles), each named at the top."""
 
 
 #: Stage name -> its schema (``pipeline/conf/<stage>.yaml`` lists ``<stage>_schema`` first in its defaults).
