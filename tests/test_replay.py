@@ -527,6 +527,8 @@ def test_web_viewer_lives_and_dies_with_the_command(recorded, tmp_path, sig, cod
             assert page.status == 200
         proc.send_signal(sig)
         assert proc.wait(30) == code
+        if sig != signal.SIGKILL:  # Ctrl-C and SIGTERM both say where the recording is
+            assert f"the recording stays at {tmp_path / 'w.rrd'}" in proc.stderr.read()
         deadline = (
             time.monotonic() + 10
         )  # SIGKILL: the child's parent-death signal, then its own exit

@@ -10,8 +10,9 @@ controlled recogniser's accuracy: :mod:`pipeline.report.accuracy_curve`) and ``g
 a section with the learned path before the experiment's own. Tables and figures are named after
 the experiment's folder: ``tables/<folder>.md|csv``, ``figures/<folder>_collisions.png``,
 ``<folder>_learning_curves.png`` (its data ``tables/<folder>_learning_curves.csv``, long format:
-``series`` (the row's name; with `` (<maze>)`` in ``by_maze``), ``key``, ``episode``, ``mean``,
-``ci_low``, ``ci_high``; dvc.yaml's plots colour by ``series``), ``<folder>_support_accuracy.png``,
+``series`` (the row's name; with `` (<maze>)`` in ``by_maze``), ``key``, ``colour`` (the
+row's, :func:`~pipeline.report.names.row_styles`), ``maze``, ``episode``, ``mean``, ``ci_low``,
+``ci_high``; dvc.yaml's plots draw a panel per maze, each series in its colour), ``<folder>_support_accuracy.png``,
 ``<folder>_long_term.png``, ``<folder>_path.png``; ``by_maze`` adds ``_<maze>`` to the figures and
 writes ``tables/<folder>_data.csv``.
 

@@ -34,7 +34,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from urllib.parse import quote
 
-from pipeline.errors import ConfigError
+from pipeline.errors import ConfigError, Interrupted
 from pipeline.stages._common import stage_main
 from pipeline.stages._schema import ReplayConfig
 
@@ -190,7 +190,9 @@ def serve_web(rrd: str | Path, web: WebAddress) -> None:
         if proc.wait():
             raise SystemExit(f"error: the Rerun viewer exited with status {proc.returncode}")
     except KeyboardInterrupt:
-        print("viewer stopped", file=sys.stderr, flush=True)
+        print(f"viewer stopped; the recording stays at {rrd}", file=sys.stderr, flush=True)
+    except Interrupted as exc:  # SIGTERM (the stage's handler): the same words, exit 143
+        raise Interrupted(exc.code, f"viewer stopped; the recording stays at {rrd}") from None
     finally:
         _stop(proc)
 
