@@ -334,7 +334,9 @@ class Replay:
                 ),
                 (
                     "maze/robot/trajectory",
-                    rr.LineStrips2D.columns(strips=[at[: t + 1] for t in range(n)]),
+                    rr.LineStrips2D.columns(
+                        strips=[at[: t + 1] for t in range(n)], colors=np.tile(ROBOT, (n, 1))
+                    ),
                 ),
                 (
                     "metrics/return",

@@ -32,7 +32,7 @@ def first_recognition(recs: Records, run: int) -> tuple[int, str]:
     if seen:
         return seen[
             0
-        ], f"the first of run {run} with a recognition (they are in episodes {shown(seen)})"
+        ], f"the first of run {run} with a recognition; recognitions in episodes {shown(seen)}"
     recorded = sorted(int(e) for e in recs.episodes.episode[recs.episodes.run == run])
     return recorded[0], (
         f"the first recorded of run {run}, which holds no recognition (the method recognises no "
