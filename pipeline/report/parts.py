@@ -113,10 +113,15 @@ def curves_part(
     )
 
 
-def write_curves_table(rep, exp: Experiment, frames: list[pd.DataFrame]) -> None:
+def write_curves_table(
+    rep, exp: Experiment, frames: list[pd.DataFrame], maze: str | None = None
+) -> None:
+    """``tables/<folder>_learning_curves.csv`` (``_<maze>`` for one maze of several: a DVC plot
+    each, whose series have distinct colours)."""
     if frames:
+        suffix = "" if maze is None else f"_{safe(maze)}"
         pd.concat(frames, ignore_index=True).to_csv(
-            rep.out / "tables" / f"{exp.folder}_learning_curves.csv",
+            rep.out / "tables" / f"{exp.folder}_learning_curves{suffix}.csv",
             index=False,
             lineterminator="\n",
             float_format="%.6g",

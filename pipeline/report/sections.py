@@ -12,7 +12,8 @@ the experiment's folder: ``tables/<folder>.md|csv``, ``figures/<folder>_collisio
 ``<folder>_learning_curves.png`` (its data ``tables/<folder>_learning_curves.csv``, long format:
 ``series`` (the row's name; with `` (<maze>)`` in ``by_maze``), ``key``, ``colour`` (the
 row's, :func:`~pipeline.report.names.row_styles`), ``maze``, ``episode``, ``mean``, ``ci_low``,
-``ci_high``; dvc.yaml's plots draw a panel per maze, each series in its colour), ``<folder>_support_accuracy.png``,
+``ci_high``; dvc.yaml's plots draw each series in its colour; ``by_maze`` also writes the rows of
+each maze to ``tables/<folder>_learning_curves_<maze>.csv``, a plot each), ``<folder>_support_accuracy.png``,
 ``<folder>_long_term.png``, ``<folder>_path.png``; ``by_maze`` adds ``_<maze>`` to the figures and
 writes ``tables/<folder>_data.csv``.
 
@@ -225,7 +226,10 @@ def by_maze_kind(rep, exp: Experiment, paper: dict[str, PaperValue]) -> None:
         on_maze = [(row, [c for c in cells if c.maze == maze]) for row, cells in rows]
         on_maze = [(row, cells) for row, cells in on_maze if cells]
         if exp.spec.curves is not False:
-            curves_part(rep, exp, on_maze, maze, table=curves)
+            here: list = []
+            curves_part(rep, exp, on_maze, maze, table=here)
+            write_curves_table(rep, exp, here, maze)  # the DVC plot of this maze
+            curves += here
     write_curves_table(rep, exp, curves)
     if exp.spec.support_accuracy is not False:
         for maze in mazes:
