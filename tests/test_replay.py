@@ -666,7 +666,9 @@ def test_every_empty_recognition_view_says_why():
     assert "no recognition in episode 3" in other.recognition and "2, 4" in other.recognition
     assert other.scores == other.recognition
     assert "method recognises no pictures" in empty_views(recs, 0, [0]).recognition
-    assert "no scores" in empty_views(_recs({0: [1]}, scores=False), 0, [1]).scores
+    assert other.scores_short == "none, see below"  # the scores view's name
+    no_scores = empty_views(_recs({0: [1]}, scores=False), 0, [1])
+    assert "no scores" in no_scores.scores and no_scores.scores_short == "none recorded"
     assert empty_views(recs, 1, [0, 1, 2, 3]).recognition is None  # a whole run: some episode has
 
 
@@ -681,3 +683,14 @@ def test_the_stage_without_an_episode_prints_the_one_it_opens(recorded, tmp_path
     assert f"episode={first}: the first of run 1 with a recognition" in capsys.readouterr().out
     with pytest.raises(ConfigError, match="config key 'episode': whole_run=true"):
         run_stage("replay", [f"file={path}", "run=1", "episode=2", "whole_run=true"])
+
+
+def test_a_replay_without_recognitions_says_why_in_its_views(tmp_path):
+    """The committed sample's shield cell recognises no pictures: the picture and recognition
+    views get their note (static), and no picture or score is drawn."""
+    path = ROOT / "datasets" / "sample" / "fig8" / "shield" / "records.mcap"
+    rows = _rows(build_replay(path, 0, 0, out=tmp_path / "s.rrd"))
+    assert {"/recognition/picture/note", "/recognition/result"} <= rows.keys()
+    assert rows["/recognition/result"] == 0  # static: shown at every step
+    assert "/recognition/picture" not in rows
+    assert not [k for k in rows if k.startswith("/recognition/scores")]

@@ -105,7 +105,7 @@ class Replay:
             *self.shape,
             legend_positions(*self.shape, len(self.labels) + 2)[1],
             self.grid.bounds(),
-            f"relation scores: empty, {empty.scores}" if empty.scores else "relation scores",
+            "relation scores" + (f": {empty.scores_short}" if empty.scores else ""),
         )
 
     def draw_static(self) -> None:

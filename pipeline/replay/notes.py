@@ -47,6 +47,12 @@ class EmptyViews:
     recognition: str | None  # picture seen and recognition text
     scores: str | None  # relation scores bar chart
 
+    @property
+    def scores_short(self) -> str:
+        """What the scores view's name says (a tab title: short): that the recognition view below
+        says why, or that the recogniser records none."""
+        return "none, see below" if self.scores == self.recognition else "none recorded"
+
 
 def empty_views(recs: Records, run: int, episodes: list[int]) -> EmptyViews:
     """Why the picture, scores and recognition views of a replay of ``episodes`` of ``run`` show
@@ -85,12 +91,12 @@ def log_empty(rec, empty: EmptyViews) -> None:
         ),
         static=True,
     )
-    rec.log(
+    rec.log(  # the corners keep the label, centred on the middle point, inside the view
         "recognition/picture/note",
         rr.Points2D(
-            [[0.0, 0.0]],
-            radii=0.01,
-            labels=["no picture seen: see the recognition view"],
+            [[-1.0, -1.0], [0.0, 0.0], [1.0, 1.0]],
+            radii=[0.0, 0.01, 0.0],
+            labels=["", "no picture seen: see the recognition view", ""],
             show_labels=True,
         ),
         static=True,
