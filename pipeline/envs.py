@@ -77,7 +77,7 @@ def make_recogniser(
 
 
 def make_env(
-    maze: str | Layout = "5x5",
+    maze: str | Layout | None = None,
     method: str | MethodSpec = "shield",
     recogniser: Recogniser | str | None = None,
     *,
@@ -86,13 +86,24 @@ def make_env(
     run: int = 0,
     render_mode: str | None = None,
     tile_size: int = 32,
+    registered_maze: str | None = None,
 ) -> SafeNavigationEnv:
     """A :class:`SafeNavigationEnv`; ``recogniser`` an object or a name of
     ``pipeline/conf/recogniser/``.
 
     A name is built only for the methods that reason with pictures (like the trials stage); with
     ``fewshot_dss`` the recogniser gets substitution way ``substitution`` (1-4, section 3.3), as
-    ``substitution=`` does for the trials stage. Each ``reset(seed=...)`` restores its support set."""
+    ``substitution=`` does for the trials stage. Each ``reset(seed=...)`` restores its support set.
+    ``registered_maze``: the maze of the id (``SafeNav-7x7-v0``); another ``maze`` is refused, so
+    an id never names a maze it does not run (``SafeNav-v0`` takes any; ``maze`` defaults to 5x5)."""
+    if registered_maze is not None:
+        asked = getattr(maze, "name", maze)
+        if maze is not None and asked != registered_maze:
+            raise ValueError(
+                f"maze={asked!r}: SafeNav-{registered_maze}-v0 is the {registered_maze} maze; "
+                f"for another maze use gymnasium.make('SafeNav-v0', maze={asked!r})"
+            )
+        maze = registered_maze
     spec = method if isinstance(method, MethodSpec) else get_method(method)
     if isinstance(recogniser, str):
         _check_name(recogniser)
@@ -114,7 +125,12 @@ def make_env(
             f"or a Recogniser object (pipeline.rl.recogniser)"
         )
     return SafeNavigationEnv(
-        maze, spec, recogniser, run=run, render_mode=render_mode, tile_size=tile_size
+        "5x5" if maze is None else maze,
+        spec,
+        recogniser,
+        run=run,
+        render_mode=render_mode,
+        tile_size=tile_size,
     )
 
 

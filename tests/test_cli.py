@@ -125,7 +125,7 @@ def test_each_trials_stage_writes_into_the_out_dvc_deletes_before_it_runs():
         outs = [
             (o if isinstance(o, str) else next(iter(o))).replace("${item}", item) for o in declared
         ]
-        assert outs == [cfg.out] and not cfg.overwrite, (item, outs, cfg.out)
+        assert outs == [cfg.out, cfg.index_file] and not cfg.overwrite, (item, outs, cfg.out)
         kept = [
             o for o in declared if isinstance(o, dict) and next(iter(o.values())).get("persist")
         ]
