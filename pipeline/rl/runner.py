@@ -44,6 +44,9 @@ PICTURE_CATEGORY = np.array([picture_category(p) for p in range(N_PICTURES)], dt
 #: Steps a run's trace holds (10 bytes a step): a run's episodes go to the sink when it is full and at the end
 #: of the trial, so a paper-scale 11x11 run (about 23,500 steps) is one batch (the recording costs per batch).
 TRACE_CAPACITY = 32768
+#: A recording sink gets every run's finished episodes at least every this many episodes (and when
+#: a run's step trace is full): with the writer's flush_seconds, what a killed run keeps.
+EMIT_EVERY = 500
 
 
 @dataclass(frozen=True)
@@ -311,9 +314,10 @@ class Trial:
             before = int(self.state.episode[group].sum())
             self.advance(group, limit)
             bar.update(int(self.state.episode[group].sum()) - before)
-            # every chunk's finished episodes are handed over (and a trace also when it is full):
-            # with the writer's flush_seconds, a killed run keeps what it finished (docs/records.md)
-            if self.record:
+            # finished episodes are handed over every EMIT_EVERY episodes (a trace also when full)
+            if self.record and (
+                limit % EMIT_EVERY == 0 or limit == self.episodes or not self.trace_steps
+            ):
                 for r in group:
                     self.emit(int(r))
 
