@@ -322,6 +322,26 @@ def test_bad_input_is_refused_with_a_message_naming_it(tmp_path):
     assert (tmp_path / "x.mcap.partial").exists() and not (tmp_path / "x.mcap").exists()
 
 
+def test_a_disk_error_on_the_writer_thread_reaches_the_caller_naming_the_file(tmp_path):
+    """An OSError on the writer's thread (a full disk) is raised by the next call with its errno and
+    the file's name; the file keeps its .partial name."""
+    import errno
+
+    w = RecordWriter(tmp_path / "d.mcap")
+
+    def full(*args, **kwargs):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    w._mcap.add_message = full
+    w.episodes(**make_batch([_episode()]))
+    with pytest.raises(OSError) as e:
+        w.flush()
+    assert e.value.errno == errno.ENOSPC and e.value.filename == str(tmp_path / "d.mcap.partial")
+    with pytest.raises(OSError, match="No space left"):
+        w.close()
+    assert (tmp_path / "d.mcap.partial").exists() and not (tmp_path / "d.mcap").exists()
+
+
 def test_an_exception_leaves_a_finished_partial_file(tmp_path):
     with pytest.raises(RuntimeError):
         with RecordWriter(tmp_path / "r.mcap", flush_every=1) as w:
