@@ -161,6 +161,7 @@ class RecordWriter:
         self._next_episode: dict[int, int] = {}  # run -> first episode not yet recorded
         self._subs: dict[int, list[tuple]] = {}  # run -> substitutions waiting for their batch
         self._pending: list[tuple[int, bytes]] = []  # messages since the last closed chunk
+        self._provisioned = 0  # of them, in the provisional chunk on disk
         self._flushed_at, self._error, self._closed = time.monotonic(), None, False
         records = _metadata(dict(metadata or {}), maze, runs, "steps" if steps else "episodes")
         images = [
@@ -282,9 +283,8 @@ class RecordWriter:
     def _serve(self) -> None:
         """The writer's thread: the batches in the order they came (so the same bytes)."""
         while True:
-            wait = (
-                self._flushed_at + self.flush_seconds - time.monotonic() if self._pending else None
-            )
+            new = len(self._pending) > self._provisioned  # messages no chunk on disk holds
+            wait = self._flushed_at + self.flush_seconds - time.monotonic() if new else None
             try:
                 item = self._queue.get(timeout=None if wait is None else max(wait, 0))
             except queue.Empty:
@@ -325,6 +325,7 @@ class RecordWriter:
         self._mcap.flush()
         self._file.truncate()
         self._pending, self._since_flush, self._flushed_at = [], 0, time.monotonic()
+        self._provisioned = 0
 
     def _provisional(self) -> None:
         """The messages since the last closed chunk as an uncompressed chunk at the end of the
@@ -340,7 +341,7 @@ class RecordWriter:
         self._file.flush()
         os.fsync(self._file.fileno())
         self._file.seek(at)
-        self._flushed_at = time.monotonic()
+        self._flushed_at, self._provisioned = time.monotonic(), len(self._pending)
 
     def __enter__(self) -> RecordWriter:
         return self
