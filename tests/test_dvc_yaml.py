@@ -112,7 +112,7 @@ def test_each_trials_stage_tracks_its_experiment_and_the_methods_and_recognisers
         f"+experiment={exp} " in stage["cmd"]
         and f"metrics_file=datasets/metrics/{exp}.json" in stage["cmd"]
     )
-    assert stage["outs"] == [f"datasets/runs/{exp}"]
+    assert stage["outs"] == [{f"datasets/runs/{exp}": {"persist": True}}]
 
 
 def test_the_files_experiments_read_include_their_methods_and_recognisers():

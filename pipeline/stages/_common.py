@@ -60,6 +60,9 @@ def one_line(exc: BaseException) -> str:
     key = getattr(cause, "full_key", None)
     if isinstance(cause, OmegaConfBaseException) and key:
         return f"config key '{key}': {text}"
+    named = [ln.split(":", 1)[1].strip() for ln in message.splitlines() if "full_key:" in ln]
+    if named and named[0]:  # hydra's composition error quotes the key of the value it refused
+        return f"config key '{named[0]}': {text}"
     if cause is not exc and str(exc).strip():
         head = str(exc).strip().splitlines()[0]
         if head not in text:

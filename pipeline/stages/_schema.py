@@ -139,8 +139,8 @@ class TrialsConfig:
     out: str = setting(nonempty=True)
     """Writes ``<out>/summary.json`` (+ ``records.mcap``); an experiment: ``<out>/<cell>/``."""
     overwrite: bool = MISSING
-    """Replace results already in ``out``; without it such an ``out`` is refused (``dvc repro``
-    deletes a stage's outs before running it, so there the ``out`` is empty)."""
+    """Replace results already in ``out``; without it such an ``out`` is refused (dvc.yaml's
+    trials stages give it: DVC keeps their outs, ``persist``)."""
     metrics_file: str | None = None
     """An experiment's mean collisions per cell are also written here (DVC metrics)."""
     timing_file: str | None = None

@@ -6,9 +6,10 @@
 One cell (method, maze, substitution way, support restore/carry) writes ``summary.json`` and
 ``records.mcap`` into its folder: ``<out>/`` for a single cell, ``<out>/<cell>/`` for each cell
 of an experiment, plus ``<out>/summary.json`` listing the cells. An ``out`` that already holds
-results is refused unless ``overwrite=true`` is given (``dvc repro`` and ``dvc exp run`` delete a
-stage's outs before they run it, so the stage finds its ``out`` empty there). Everything is built
-in ``<out>/.staging-<pid>/`` and moved in only when complete.
+results is refused unless ``overwrite=true`` is given (dvc.yaml's stages give it: DVC keeps their
+outs, ``persist``, so a refused config leaves them in place). Everything is built in
+``<out>/.staging-<pid>/`` and moved in only when complete; with ``overwrite=true`` the cells of
+the previous run that this one does not have are removed then.
 
 The stage composes and hands over: the cells are planned in :mod:`pipeline.stages._cell_plan`,
 each runs through :func:`pipeline.stages._cell_run.run_cell` (one after another, or side by side
@@ -100,8 +101,7 @@ def refuse_what_does_not_fit(cfg: TrialsConfig, cells: list[CellRun]) -> None:
 
 def refuse_overwrite(cfg: TrialsConfig, out: Path) -> None:
     """Results already in ``out`` (anything but hidden entries: the lock, staging folders) are
-    replaced only with ``overwrite=true``. Under ``dvc repro`` the stage never meets its old
-    results: DVC deletes a stage's outs before it runs it (and keeps them in its cache)."""
+    replaced only with ``overwrite=true``, which the stages of dvc.yaml give (their outs persist)."""
     held = sorted(p.name for p in out.iterdir() if not p.name.startswith("."))
     if not held or cfg.overwrite:
         return
@@ -110,6 +110,19 @@ def refuse_overwrite(cfg: TrialsConfig, out: Path) -> None:
         f"config key 'out': {out} already holds results ({shown}); give overwrite=true to "
         "replace them, or choose another out"
     )
+
+
+def previous_cells(out: Path) -> set[str]:
+    """The cell folders the experiment run before this one wrote into ``out`` (its
+    ``summary.json`` index): ``overwrite=true`` replaces them, so those this run does not write
+    are removed after the swap (``dvc repro`` keeps the out of the trials stages, ``persist``)."""
+    try:
+        cells = json.loads((out / "summary.json").read_text()).get("cells")
+    except (OSError, ValueError, AttributeError):
+        return set()
+    if not isinstance(cells, dict):
+        return set()
+    return {n for n in cells if isinstance(n, str) and n and "/" not in n and not n.startswith(".")}
 
 
 def run(cfg: TrialsConfig, overrides: list[str]) -> dict:
@@ -121,8 +134,11 @@ def run(cfg: TrialsConfig, overrides: list[str]) -> dict:
         refuse_overwrite(cfg, out)
         staging = out / f".staging-{os.getpid()}"
         shutil.rmtree(staging, ignore_errors=True)
+        previous = previous_cells(out) if cfg.overwrite else set()
         index = run_cells(cfg, cells, staging, pool)
         swap_in(staging, out)
+        for name in sorted(previous - set(index.get("cells", {}))):
+            shutil.rmtree(out / name, ignore_errors=True)  # a cell the experiment no longer has
         for stale in out.glob(".staging-*"):  # partial records of interrupted runs, now superseded
             shutil.rmtree(stale, ignore_errors=True)
             print(f"removed the partial records of an interrupted run: {stale}")
