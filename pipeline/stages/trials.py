@@ -26,8 +26,16 @@ from typing import Any
 
 import numba
 
-from pipeline.errors import ConfigError, UserError
-from pipeline.files import exclusive_folder, swap_in, write_json_atomic
+from pipeline.errors import ConfigError, Interrupted, UserError
+from pipeline.files import (
+    DiskError,
+    disk_error,
+    disk_problem,
+    exclusive_folder,
+    size_text,
+    swap_in,
+    write_json_atomic,
+)
 from pipeline.rl.memory import available_memory, memory_estimate
 from pipeline.stages._cell_plan import (
     experiment_cells,
@@ -125,6 +133,31 @@ def previous_cells(out: Path) -> set[str]:
     return {n for n in cells if isinstance(n, str) and n and "/" not in n and not n.startswith(".")}
 
 
+def failed_run(exc: BaseException, out: Path, staging: Path, cells: int = 1) -> BaseException:
+    """What a failed run raises, after removing its staging folder (an interrupted run keeps it:
+    its partial records). A full or read-only disk is one line naming ``out``, the space free
+    once the staging folder is gone and what the run needs, and any stale staging folder."""
+    if isinstance(exc, (Interrupted, KeyboardInterrupt)):
+        return exc
+    shutil.rmtree(staging, ignore_errors=True)
+    if isinstance(exc, OSError):
+        where = Path(exc.filename).parent if exc.filename else out
+        exc = disk_problem(exc, where if not where.is_relative_to(staging) else out) or exc
+    if not isinstance(exc, DiskError):
+        return exc
+    if str(staging) in str(exc):  # a cell's records: name out, and its space now staging is gone
+        needed = f"{exc.needed} (one of {cells} cells)" if cells > 1 and exc.needed else exc.needed
+        exc = disk_error(out, needed, exc.full, "not writable")
+    stale = [
+        (p, sum(f.stat().st_size for f in p.rglob("*") if f.is_file()))
+        for p in out.glob(".staging-*")
+    ]
+    held = "".join(
+        f"; {p} (an interrupted run's partial records) holds {size_text(n)}" for p, n in stale
+    )
+    return ConfigError(f"config key 'out': {exc}{held}")
+
+
 def run(cfg: TrialsConfig, overrides: list[str]) -> dict:
     cells = resolve_cells(cfg, overrides)
     refuse_what_does_not_fit(cfg, cells)
@@ -135,8 +168,11 @@ def run(cfg: TrialsConfig, overrides: list[str]) -> dict:
         staging = out / f".staging-{os.getpid()}"
         shutil.rmtree(staging, ignore_errors=True)
         previous = previous_cells(out) if cfg.overwrite else set()
-        index = run_cells(cfg, cells, staging, pool)
-        swap_in(staging, out)
+        try:
+            index = run_cells(cfg, cells, staging, pool)
+            swap_in(staging, out)
+        except BaseException as exc:
+            raise failed_run(exc, out, staging, len(cells)) from None
         for name in sorted(previous - set(index.get("cells", {}))):
             shutil.rmtree(out / name, ignore_errors=True)  # a cell the experiment no longer has
         for stale in out.glob(".staging-*"):  # partial records of interrupted runs, now superseded
