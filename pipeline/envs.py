@@ -22,6 +22,7 @@ as in the stages: run from the project root or pass absolute paths in ``recognis
 
 from __future__ import annotations
 
+import importlib.util
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -92,7 +93,29 @@ def make_env(
 
     A name is built only for the methods that reason with pictures (like the trials stage); with
     ``fewshot_dss`` the recogniser gets substitution way ``substitution`` (1-4, section 3.3), as
-    ``substitution=`` does for the trials stage. Each ``reset(seed=...)`` restores its support set."""
+    ``substitution=`` does for the trials stage. Each ``reset(seed=...)`` restores its support set.
+    ``render_mode="human"`` wraps the ``rgb_array`` environment in Gymnasium's ``HumanRendering``
+    and is refused at once when pygame is not installed."""
+    if render_mode == "human":  # checked here, not at the first render()
+        if importlib.util.find_spec("pygame") is None:
+            raise ValueError(
+                "render_mode='human' opens a window through pygame, which is not installed "
+                "(pip install pygame); or use render_mode='rgb_array' (frames) or 'ansi' (text)"
+            )
+        from gymnasium.wrappers import HumanRendering
+
+        return HumanRendering(
+            make_env(
+                maze,
+                method,
+                recogniser,
+                recogniser_options=recogniser_options,
+                substitution=substitution,
+                run=run,
+                render_mode="rgb_array",
+                tile_size=tile_size,
+            )
+        )
     spec = method if isinstance(method, MethodSpec) else get_method(method)
     if isinstance(recogniser, str):
         _check_name(recogniser)
@@ -118,5 +141,9 @@ def make_env(
     )
 
 
-#: ``gymnasium.make`` reads the render modes from the entry point (to add its render wrappers).
-make_env.metadata = SafeNavigationEnv.metadata
+#: ``gymnasium.make`` reads the render modes from the entry point (to add its render wrappers);
+#: ``human`` is listed so that it reaches :func:`make_env`, which checks for pygame at once.
+make_env.metadata = {
+    **SafeNavigationEnv.metadata,
+    "render_modes": [*SafeNavigationEnv.metadata["render_modes"], "human"],
+}

@@ -277,7 +277,7 @@ class MetaTrainConfig:
     checkpoint: str = setting(nonempty=True)
     """The selected checkpoint (set by the ``model`` group)."""
     metrics_file: str = setting(nonempty=True)
-    """Its validation metrics (DVC metrics; ``train_info.json`` goes beside it)."""
+    """Its validation metrics (DVC metrics; ``<checkpoint stem>.train_info.json`` goes beside the checkpoint)."""
     history_file: str = setting(nonempty=True)
     """The training history, one row per evaluation (CSV)."""
     threads: int = setting(ge=1)
