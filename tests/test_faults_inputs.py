@@ -176,3 +176,21 @@ def test_sigterm_during_the_trials_first_compile_exits_within_5_s_in_one_line(tm
         pytest.skip(f"the stage finished within {delay} s: no compile left to interrupt")
     assert child.returncode == 143 and time.perf_counter() - start < 5, err[-2000:]
     assert len(err.strip().splitlines()) == 1 and err.startswith("interrupted"), err[-2000:]
+
+
+def test_a_bad_value_in_a_config_file_names_its_key():
+    """What Hydra raises when a file holds a value of the wrong type (``dvc exp run -S
+    pipeline/conf/profile/paper.yaml:trials.episodes=abc`` writes one): the key is in its text."""
+    from hydra.errors import ConfigCompositionException
+
+    from pipeline.stages._common import one_line
+
+    exc = ConfigCompositionException(
+        "In 'profile/paper': ValidationError raised while composing config:\n"
+        "Value 'abc' of type 'str' could not be converted to Integer\n"
+        "    full_key: profile.trials.episodes\n    reference_type=TrialsProfile"
+    )
+    assert one_line(exc) == (
+        "config key 'profile.trials.episodes': In 'profile/paper': ValidationError raised while "
+        "composing config: Value 'abc' of type 'str' could not be converted to Integer"
+    )
