@@ -161,3 +161,20 @@ def test_help_into_a_reader_that_is_gone_ends_quietly(args):
     proc.stdout.close()  # like `| head -0`: the reader is gone before anything is written
     err = proc.stderr.read().decode()
     assert proc.wait(timeout=120) == 141 and "Traceback" not in err and "BrokenPipe" not in err, err
+
+
+def test_an_experiment_run_by_hand_into_its_dvc_out_says_whose_folder_it_is(tmp_path, monkeypatch):
+    """The experiment's declared out is its DVC stage's cached out: run by hand (no ``DVC_STAGE``
+    in the environment, which DVC sets for its stages), the stage says that DVC owns it."""
+    small = ["+experiment=fig10", "profile=smoke", "recogniser=oracle", "record=none"]
+    monkeypatch.delenv("DVC_STAGE", raising=False)
+    done = cli("trials", *small, "progress=false", cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert done.stderr.strip() == (
+        "note: datasets/runs/fig10 is the out of DVC's stage trials@fig10: `dvc checkout` and "
+        "`dvc exp run` put back the copy dvc.lock names (or delete this one when DVC has none); "
+        "`dvc commit trials@fig10` makes this one DVC's"
+    )
+    monkeypatch.setenv("DVC_STAGE", "trials@fig10")
+    again = cli("trials", *small, "progress=false", "overwrite=true", cwd=tmp_path)
+    assert again.returncode == 0 and again.stderr == ""

@@ -9,7 +9,8 @@ of an experiment, plus ``<out>/summary.json`` listing the cells. An ``out`` that
 results is refused unless ``overwrite=true`` is given (dvc.yaml's stages give it: DVC keeps their
 outs, ``persist``, so a refused config leaves them in place). Everything is built in
 ``<out>/.staging-<pid>/`` and moved in only when complete; with ``overwrite=true`` the cells of
-the previous run that this one does not have are removed then.
+the previous run that this one does not have are removed then. An experiment run by hand into the
+``out`` its file declares (its DVC stage's cached out) ends with a note that DVC owns that folder.
 
 The stage composes and hands over: the cells are planned in :mod:`pipeline.stages._cell_plan`,
 each runs through :func:`pipeline.stages._cell_run.run_cell` (one after another, or side by side
@@ -21,6 +22,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -178,7 +180,23 @@ def run(cfg: TrialsConfig, overrides: list[str]) -> dict:
         for stale in out.glob(".staging-*"):  # partial records of interrupted runs, now superseded
             shutil.rmtree(stale, ignore_errors=True)
             print(f"removed the partial records of an interrupted run: {stale}")
+    note_dvc_out(cfg, overrides)
     return index
+
+
+def note_dvc_out(cfg: TrialsConfig, overrides: list[str]) -> None:
+    """An experiment run by hand into the ``out`` its file declares, which is its DVC stage's
+    cached out (tests/test_cli.py holds the two equal): DVC, not this run, owns that folder."""
+    given = {o.lstrip("+~").split("=")[0] for o in overrides}
+    if cfg.experiment is None or "out" in given or os.environ.get("DVC_STAGE"):
+        return
+    stage = f"trials@{cfg.experiment.name}"
+    print(
+        f"note: {cfg.out} is the out of DVC's stage {stage}: `dvc checkout` and `dvc exp run` "
+        f"put back the copy dvc.lock names (or delete this one when DVC has none); "
+        f"`dvc commit {stage}` makes this one DVC's",
+        file=sys.stderr,
+    )
 
 
 def written(cfg: TrialsConfig, index: dict) -> list[Path | str]:
