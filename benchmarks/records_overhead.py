@@ -18,11 +18,12 @@ images dir, ``flush_every`` 500 as in pipeline/conf/trials.yaml; construction an
 timed).
 The three are alternated within every repeat (the order rotates from repeat to repeat). Overhead =
 recorded / unrecorded - 1, fastest vs fastest and median vs median (and "paired": the median of the
-per-repeat ratios, which a slow spell of the shared host disturbs least), in CPU seconds of this process
-(``time.process_time``; numba and torch on one thread) and in wall seconds. Goals (README "Measured"): at
-most 40% with the table lookup, at most 15% with the Relation Network. Beside the differences, the CPU time
-spent inside the writer (construction, its calls, ``close``) is timed directly, and given as a share of
-the unrecorded trial's median: the difference of two trials' totals carries the shared host's noise twice.
+per-repeat ratios, which a slow spell of the shared host disturbs least), in wall seconds and in CPU
+seconds of this process (``time.process_time``: every thread, the writer's included; numba and torch
+on one thread). Goals, on the wall clock (the writer has its own thread; README "Measured"): at most
+15% with the table lookup, at most 5% with the Relation Network. Beside the differences, the wall time
+the trial spent inside the writer's calls (construction, ``episodes``, ``substitution``, ``close``:
+what the runner waited for) is timed directly, as a share of the unrecorded trial's median.
 
 After the table-lookup trial, the codec's choices (``bench_codec``): decoding that trial's file through the raw
 views against the real classes, and a million 2-byte varints through the runtime (what the codec does) against
@@ -55,28 +56,28 @@ from pathlib import Path
 
 from benchmarks._output import write_figures
 
-GOALS = {"table": 0.40, "relation_net": 0.15}
+GOALS = {"table": 0.15, "relation_net": 0.05}  # on the wall clock
 EXPERIMENTS = ("fig8", "fig9", "fig10", "table3")
 VARIANTS = ("no_sink", "drop_sink", "mcap")
 
 
 class TimedSink:
-    """Passes every call on to ``sink`` and adds up the CPU time spent inside it: the writer's own cost,
-    measured directly (the difference of two trials' totals carries the shared host's noise twice). Its own two
-    clock reads a call (about 1,800 calls a paper-scale trial, a few ms) count in the MCAP variant's totals."""
+    """Passes every call on to ``sink`` and adds up the wall time spent inside it: what the trial
+    waited for the writer, measured directly (the difference of two trials' totals carries the shared
+    host's noise twice). Its own two clock reads a call count in the MCAP variant's totals."""
 
     def __init__(self, sink):
         self.sink, self.cpu, self.records_steps = sink, 0.0, sink.records_steps
 
     def episodes(self, **batch) -> None:
-        t = time.process_time()
+        t = time.perf_counter()
         self.sink.episodes(**batch)
-        self.cpu += time.process_time() - t
+        self.cpu += time.perf_counter() - t
 
     def substitution(self, **fields) -> None:
-        t = time.process_time()
+        t = time.perf_counter()
         self.sink.substitution(**fields)
-        self.cpu += time.process_time() - t
+        self.cpu += time.perf_counter() - t
 
 
 class DropSink:
@@ -162,10 +163,10 @@ def bench_trial(
             layout, method, runs, episodes, seed, recogniser=recogniser, sink=sink, progress=False
         )
 
-    inside = []  # CPU s inside the writer (construction, its calls, close) of each recorded trial
+    inside = []  # wall s inside the writer's calls (construction, calls, close) of each trial
 
     def recorded():
-        t = time.process_time()
+        t = time.perf_counter()
         writer = TimedSink(
             RecordWriter(
                 path,
@@ -176,11 +177,11 @@ def bench_trial(
                 flush_every=500,
             )
         )
-        writer.cpu += time.process_time() - t
+        writer.cpu += time.perf_counter() - t
         result = trial(writer)
-        t = time.process_time()
+        t = time.perf_counter()
         writer.sink.close()
-        inside.append(writer.cpu + time.process_time() - t)
+        inside.append(writer.cpu + time.perf_counter() - t)
         return result, writer.sink
 
     run = {
@@ -214,8 +215,8 @@ def bench_trial(
         "times": times,
         "overhead": _overhead(times, "mcap"),
         "emitting_overhead": _overhead(times, "drop_sink"),
-        "writer_cpu": _stats(inside),
-        "writer_share": statistics.median(inside) / times["no_sink"]["cpu"]["median"],
+        "writer_wait": _stats(inside),
+        "writer_share": statistics.median(inside) / times["no_sink"]["wall"]["median"],
         "episodes_recorded": writer.n_episodes,
         "substitutions_recorded": writer.n_substitutions,
         "file_bytes": size,
@@ -353,7 +354,7 @@ def print_trial(t: dict, goal: float) -> None:
         f"  {t['recogniser']}: {t['steps']:,} steps, {t['substitutions_recorded']:,} substitutions"
     )
     print(
-        f"    {'':24} {'CPU best':>9} {'CPU med':>9} {'wall best':>10} {'wall med':>9} {'CPU paired':>11}"
+        f"    {'':24} {'CPU best':>9} {'CPU med':>9} {'wall best':>10} {'wall med':>9} {'wall paired':>11}"
     )
     for v, label in (
         ("no_sink", "no sink"),
@@ -371,18 +372,21 @@ def print_trial(t: dict, goal: float) -> None:
         o = t[key]
         print(
             f"    {label:24} {_pct(o['cpu']['best']):>9} {_pct(o['cpu']['median']):>9} "
-            f"{_pct(o['wall']['best']):>10} {_pct(o['wall']['median']):>9} {_pct(o['cpu']['paired']):>11}"
+            f"{_pct(o['wall']['best']):>10} {_pct(o['wall']['median']):>9} {_pct(o['wall']['paired']):>11}"
         )
     o = t["overhead"]
-    worst = max(o["cpu"]["best"], o["cpu"]["median"])
+    worst = max(o["wall"]["best"], o["wall"]["median"])
     print(
-        f"    goal: recording <= {goal:.0%}: {'met' if worst <= goal else 'NOT met'} on CPU time "
-        f"(best {_pct(o['cpu']['best'])}, median {_pct(o['cpu']['median'])}; paired {_pct(o['cpu']['paired'])})"
+        f"    goal: recording <= {goal:.0%} on the wall clock: {'met' if worst <= goal else 'NOT met'} "
+        f"(best {_pct(o['wall']['best'])}, median {_pct(o['wall']['median'])}, paired "
+        f"{_pct(o['wall']['paired'])}); CPU, every thread: best {_pct(o['cpu']['best'])}, median "
+        f"{_pct(o['cpu']['median'])}"
     )
-    w = t["writer_cpu"]
+    w = t["writer_wait"]
     print(
-        f"    inside the writer (construction, its calls, close; CPU, timed directly): best {1e3 * w['best']:.0f} ms, "
-        f"median {1e3 * w['median']:.0f} ms = {_pct(t['writer_share'])} of the unrecorded trial's median"
+        f"    waiting for the writer (construction, its calls, close; wall, timed directly): best "
+        f"{1e3 * w['best']:.0f} ms, median {1e3 * w['median']:.0f} ms = {_pct(t['writer_share'])} "
+        "of the unrecorded trial's median"
     )
     print(
         f"    {t['bytes_per_step']:.3f} bytes per recorded step ({t['bytes_per_step_without_pictures']:.3f} "

@@ -18,9 +18,10 @@ from __future__ import annotations
 
 import sys
 
-#: ``SafeNav-<maze>-v0`` for the built-in mazes (``pipeline/conf/mazes/``).
+#: ``SafeNav-<maze>-v0`` for the built-in mazes (``pipeline/conf/mazes/``), whose maze is fixed;
+#: ``SafeNav-v0`` takes any maze by keyword (``gymnasium.make("SafeNav-v0", maze="random:7x7:16:3")``).
 MAZES = ("5x5", "7x7", "11x11")
-ENV_IDS = tuple(f"SafeNav-{maze}-v0" for maze in MAZES)
+ENV_IDS = ("SafeNav-v0", *(f"SafeNav-{maze}-v0" for maze in MAZES))
 #: The method of the registered ids; other methods by keyword (``gymnasium.make(id, method=...)``).
 DEFAULT_METHOD = "shield"
 #: ``max_episode_steps`` of the ids: the default method's ``max_steps`` (``MethodSpec``; a test checks
@@ -35,13 +36,14 @@ def register_envs(registration=None) -> None:
     ``registration`` is the ``gymnasium.envs.registration`` module (imported when not given)."""
     if registration is None:
         from gymnasium.envs import registration
-    for maze, env_id in zip(MAZES, ENV_IDS):
+    for env_id, maze in zip(ENV_IDS, (None, *MAZES)):
         if env_id not in registration.registry:
+            fixed = {"registered_maze": maze} if maze else {}  # make_env refuses another maze=
             registration.register(
                 id=env_id,
                 entry_point=ENTRY_POINT,
                 max_episode_steps=MAX_EPISODE_STEPS,
-                kwargs={"maze": maze, "method": DEFAULT_METHOD},
+                kwargs={**fixed, "method": DEFAULT_METHOD},
             )
 
 

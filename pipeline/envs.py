@@ -78,7 +78,7 @@ def make_recogniser(
 
 
 def make_env(
-    maze: str | Layout = "5x5",
+    maze: str | Layout | None = None,
     method: str | MethodSpec = "shield",
     recogniser: Recogniser | str | None = None,
     *,
@@ -87,6 +87,7 @@ def make_env(
     run: int = 0,
     render_mode: str | None = None,
     tile_size: int = 32,
+    registered_maze: str | None = None,
 ) -> SafeNavigationEnv:
     """A :class:`SafeNavigationEnv`; ``recogniser`` an object or a name of
     ``pipeline/conf/recogniser/``.
@@ -94,8 +95,18 @@ def make_env(
     A name is built only for the methods that reason with pictures (like the trials stage); with
     ``fewshot_dss`` the recogniser gets substitution way ``substitution`` (1-4, section 3.3), as
     ``substitution=`` does for the trials stage. Each ``reset(seed=...)`` restores its support set.
+    ``registered_maze``: the maze of the id (``SafeNav-7x7-v0``); another ``maze`` is refused, so
+    an id never names a maze it does not run (``SafeNav-v0`` takes any; ``maze`` defaults to 5x5).
     ``render_mode="human"`` wraps the ``rgb_array`` environment in Gymnasium's ``HumanRendering``
     and is refused at once when pygame is not installed."""
+    if registered_maze is not None:
+        asked = getattr(maze, "name", maze)
+        if maze is not None and asked != registered_maze:
+            raise ValueError(
+                f"maze={asked!r}: SafeNav-{registered_maze}-v0 is the {registered_maze} maze; "
+                f"for another maze use gymnasium.make('SafeNav-v0', maze={asked!r})"
+            )
+        maze = registered_maze
     if render_mode == "human":  # checked here, not at the first render()
         if importlib.util.find_spec("pygame") is None:
             raise ValueError(
@@ -137,7 +148,12 @@ def make_env(
             f"or a Recogniser object (pipeline.rl.recogniser)"
         )
     return SafeNavigationEnv(
-        maze, spec, recogniser, run=run, render_mode=render_mode, tile_size=tile_size
+        "5x5" if maze is None else maze,
+        spec,
+        recogniser,
+        run=run,
+        render_mode=render_mode,
+        tile_size=tile_size,
     )
 
 

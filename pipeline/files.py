@@ -154,3 +154,26 @@ def swap_in(staging: Path, target: Path) -> None:
             aside.append(old)
         os.replace(entry, dest)
     shutil.rmtree(staging)
+
+
+def write_index(folder: str | Path, path: str | Path) -> Path:
+    """The SHA-256 of every file under ``folder`` (by relative path, sorted; hidden entries left
+    out) written to ``path`` as JSON. A small committed stand-in for a DVC-cached folder: stages
+    downstream declare it as their dependency, so ``dvc repro --dry`` can hash it on a fresh clone
+    where the folder does not exist yet (dvc.yaml)."""
+    import hashlib
+
+    folder = Path(folder)
+    files = sorted(
+        p
+        for p in folder.rglob("*")
+        if p.is_file() and not p.relative_to(folder).as_posix().startswith(".")
+    )
+    index = {}
+    for p in files:
+        digest = hashlib.sha256()
+        with open(p, "rb") as f:
+            for block in iter(lambda: f.read(1 << 20), b""):
+                digest.update(block)
+        index[p.relative_to(folder).as_posix()] = digest.hexdigest()
+    return write_json_atomic(path, {"folder": folder.as_posix(), "files": index})

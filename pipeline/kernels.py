@@ -5,7 +5,7 @@ torch chooses its CPU kernels by instruction set when a process first runs them,
 libraries: ATen's own kernels (``ATEN_CPU_CAPABILITY``: default, avx2, avx512), oneDNN's
 convolutions (``ONEDNN_MAX_CPU_ISA``) and MKL's matrix products (``MKL_CBWR``). Each path sums in
 its own order, so the same Relation Network gives scores a few units in the last place apart on
-two machines (docs/records.md "Same bytes on any x86 CPU"). :func:`pin_kernels` chooses
+two machines (docs/records.md "The schema"). :func:`pin_kernels` chooses
 the path every x86-64 processor has (ATen ``default``, oneDNN ``SSE41``, MKL ``COMPATIBLE``)
 before a recogniser is built; worker processes inherit it. It holds when no torch kernel ran in
 the process before (each library reads its variable once, at its first kernel):

@@ -123,7 +123,7 @@ def test_each_trials_stage_writes_into_its_persistent_out_with_overwrite():
         cfg = load_config("trials", cmd[4:])
         declared = trials_stage["do"]["outs"]
         outs = [next(iter(o)).replace("${item}", item) for o in declared]
-        assert outs == [cfg.out] and cfg.overwrite, (item, outs, cfg.out)
+        assert outs == [cfg.out, cfg.index_file] and cfg.overwrite, (item, outs, cfg.out)
         assert all(next(iter(o.values())).get("persist") for o in declared), declared
 
 

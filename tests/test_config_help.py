@@ -100,7 +100,7 @@ READS = {  # stage -> (its groups, the profile sections it reads)
     "render": (["profile"], {"render"}),
     "meta_train": (["profile", "data", "model"], {"meta_train"}),
     "accuracy": (["profile", "recogniser"], {"accuracy"}),
-    "report": (["profile"], set()),
+    "report": ([], set()),  # the scale comes from the records (pipeline/report/scale.py)
     "replay": ([], set()),
 }
 

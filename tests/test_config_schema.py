@@ -33,9 +33,17 @@ SMOKE = ["profile=smoke", "progress=false"]
 @pytest.mark.parametrize("stage", sorted(SCHEMAS))
 @pytest.mark.parametrize("profile", ["paper", "smoke"])
 def test_every_stage_composes_to_its_schema(stage, profile):
-    extra = ["file=x.mcap"] if stage == "replay" else [f"profile={profile}"]
+    """``replay`` and ``report`` have no profile (the report reads the scale from the records)."""
+    extra = {"replay": ["file=x.mcap"], "report": []}.get(stage, [f"profile={profile}"])
     cfg = load_config(stage, extra)
     assert isinstance(cfg, SCHEMAS[stage])
+
+
+def test_the_report_refuses_a_profile():
+    from pipeline.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="profile"):
+        load_config("report", ["profile=smoke"])
 
 
 @pytest.mark.parametrize(

@@ -15,8 +15,8 @@ from pipeline.report.names import (
     method_colour,
     method_name,
     recogniser_name,
-    row_colours,
     row_names,
+    row_styles,
     settings,
 )
 from pipeline.rl.methods import declaration, get_method, method_names
@@ -72,14 +72,21 @@ def test_a_method_nothing_declares_keeps_its_recorded_name():
     assert method_name(mine) == "mine" and method_colour(mine) is None
     rows = [[{"method": mine, "maze": "5x5"}], [{"method": recorded("qlearning"), "maze": "5x5"}]]
     assert row_names(rows) == ["mine", "Q-learning"]
-    assert row_colours(rows) == {}  # positional colours when a row has no declared colour
+    assert row_styles(rows)[0]["color"] == "#7f7f7f"  # grey: nothing declares its colour
+    assert row_styles(rows)[1]["color"] == METHODS[0].colour
 
 
 def test_rows_of_distinct_methods_take_their_declared_colours():
     rows = [[{"method": recorded(m.name), "maze": "5x5"}] for m in METHODS[:3]]
-    assert row_colours(rows) == {i: m.colour for i, m in enumerate(METHODS[:3])}
-    same = [[{"method": recorded("fewshot_dss"), "maze": "5x5", "substitution": w}] for w in (1, 2)]
-    assert row_colours(same) == {}  # rows that are ways of one method
+    assert [s["color"] for s in row_styles(rows)] == [m.colour for m in METHODS[:3]]
+    assert {s["ls"] for s in row_styles(rows)} == {"-"}
+    ways = [
+        [{"method": recorded("fewshot_dss"), "maze": "5x5", "substitution": w}]
+        for w in (1, 2, 3, 4)
+    ]
+    styles = row_styles(ways)  # ways of one method: shades of its colour, a dash each
+    assert len({s["color"] for s in styles}) == 4 and len({s["ls"] for s in styles}) == 4
+    assert styles == row_styles(ways)  # the same in every figure
 
 
 def test_generalisation_orders_methods_as_declared():

@@ -49,9 +49,13 @@ def test_plots_render_offline_with_one_colour_per_series(tmp_path):
     ]
     assert len(specs) == len(PLOTS)
     for spec in specs:
-        assert spec["encoding"]["color"]["field"] == "series"
-        series = {row["series"] for row in spec["data"]["values"]}
-        assert len(series) >= 2, spec["title"]
-        assert len(spec["encoding"]["color"]["scale"]["range"]) >= len(
-            series
-        )  # no colour used twice
+        color = spec["encoding"]["color"]
+        assert color["field"] == "series" and color["scale"]["range"] == {"field": "colour"}
+        assert color["legend"]["labelLimit"] == 0  # names are not cut
+        rows = spec["data"]["values"]
+        assert len({row["series"] for row in rows}) >= 2, spec["title"]
+        # Vega-Lite takes the range from the distinct colours sorted by series, the domain sorted
+        # by name: they line up only when every series of a plot has a colour of its own
+        colours = {(row["series"], row["colour"]) for row in rows}
+        assert len(colours) == len({s for s, _ in colours}) == len({c for _, c in colours})
+        assert "sort" not in color and len({row["maze"] for row in rows}) == 1  # a maze a plot

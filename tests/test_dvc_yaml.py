@@ -62,9 +62,27 @@ def test_trials_foreach_is_every_experiment_file():
 
 
 def test_report_depends_on_every_experiment():
-    deps = [d for d in STAGES["report"]["deps"] if d.startswith("datasets/runs/")]
-    problems = differences(deps, [f"datasets/runs/{e}" for e in EXPERIMENTS], "the report's deps")
+    """Through the records' committed indexes (so ``dvc repro --dry`` hashes them on a fresh clone)."""
+    deps = [d for d in STAGES["report"]["deps"] if d.startswith("datasets/index/runs/")]
+    expected = [f"datasets/index/runs/{e}.json" for e in EXPERIMENTS]
+    problems = differences(deps, expected, "the report's deps")
     assert not problems, "; ".join(problems)
+    assert not [d for d in STAGES["report"]["deps"] if d.startswith("datasets/runs")]
+
+
+def test_no_stage_depends_on_a_cached_folder():
+    """A DVC-cached output is missing on a fresh clone, and ``dvc repro --dry`` fails hashing a
+    missing dependency: stages depend on the committed index of such a folder instead."""
+    cached = {
+        o
+        for s in STAGES.values()
+        for o in s.get("do", s).get("outs", [])
+        if isinstance(o, str)  # an out without options is cached
+    }
+    cached = {c.replace("${item}", e) for c in cached for e in EXPERIMENTS}
+    for name, s in STAGES.items():
+        deps = s.get("do", s).get("deps", [])
+        assert not cached & set(deps), f"{name} depends on a cached folder: {cached & set(deps)}"
 
 
 def read_by_experiments() -> list[str]:
@@ -110,9 +128,10 @@ def test_each_trials_stage_tracks_its_experiment_and_the_methods_and_recognisers
     )
     assert (
         f"+experiment={exp} " in stage["cmd"]
-        and f"metrics_file=datasets/metrics/{exp}.json" in stage["cmd"]
+        and f"metrics_dir=datasets/metrics/{exp} " in stage["cmd"]
+        and f"index_file=datasets/index/runs/{exp}.json" in stage["cmd"]
     )
-    assert stage["outs"] == [{f"datasets/runs/{exp}": {"persist": True}}]
+    assert stage["outs"][0] == {f"datasets/runs/{exp}": {"persist": True}}
 
 
 def test_the_files_experiments_read_include_their_methods_and_recognisers():
@@ -155,10 +174,29 @@ def test_params_name_existing_files_and_keys_and_deps_hold_no_config():
 
 
 def test_default_scale_is_the_paper_profile():
+    """Every stage but ``sample`` (the committed records sample, at smoke scale on purpose)."""
     for name, stage in all_stages().items():
+        if name == "sample":
+            assert "profile=smoke" in stage["cmd"]
+            assert {f for f, _ in params_entries(stage) if "/profile/" in f} == {
+                "pipeline/conf/profile/smoke.yaml"
+            }
+            continue
         assert "profile=" not in stage["cmd"], name
         profiles = {f for f, _ in params_entries(stage) if f.startswith("pipeline/conf/profile/")}
         assert profiles <= {"pipeline/conf/profile/paper.yaml"}, name
+
+
+def test_the_records_sample_is_committed_and_small():
+    """``datasets/sample``: in git (``cache: false``), so the README's records and replay examples
+    work on a fresh clone; under 2 MB."""
+    outs = STAGES["sample"]["outs"]
+    assert outs == [{"datasets/sample/fig8": {"cache": False}}]
+    folder = ROOT / "datasets" / "sample" / "fig8"
+    if folder.is_dir():
+        size = sum(p.stat().st_size for p in folder.rglob("*") if p.is_file())
+        assert 0 < size < 2 * 2**20
+        assert len(list(folder.glob("*/records.mcap"))) >= 3
 
 
 def test_site_cache_dir_is_not_relative():

@@ -187,7 +187,7 @@ def test_a_flipped_byte_loses_only_its_chunk(files, tmp_path, capsys, which, kin
     else:
         assert "no episode lost" in msgs[0]
     if any(t.startswith("/pictures/") for t in topics):
-        assert "40 of 40 pictures" in msgs[0] and not r.meta.pictures
+        assert "lost the 40 pictures" in msgs[0] and not r.meta.pictures
     elif kind == "pictures":
         assert len(r.meta.pictures) == 40
     # the channel and schema definitions of a lost first chunk come from the summary
@@ -221,7 +221,7 @@ def test_a_damaged_first_chunk_of_a_killed_run_keeps_the_episodes_of_the_other_c
     assert r.meta.status == "PARTIAL, DAMAGED"
 
 
-def test_a_bad_chunk_length_is_resynchronised(files, tmp_path):
+def test_a_bad_chunk_length_loses_nothing_with_an_index_and_stops_reading_without(files, tmp_path):
     path, data, full, cks = files["pictures"]
     off, length, lost_eps, _ = cks[2]
     every = set(zip(full.episodes.run, full.episodes.episode))
@@ -233,14 +233,13 @@ def test_a_bad_chunk_length_is_resynchronised(files, tmp_path):
     assert len(msgs) == 1 and "the data section's CRC does not match" in msgs[0], msgs
     same_as_full(r, full, every)
     assert r.meta.status == "DAMAGED"
-    for name, cut in (("killed.mcap.partial", cks[-1][0] + 5),):
-        bad = tmp_path / name
-        bad.write_bytes(flip(data[:cut], off + 2))
-        r, msgs = read_warned(bad)
-        assert len(msgs) == 1 and "chunk 3" in msgs[0] and "damaged" in msgs[0], msgs
-        keep = every - lost_eps - (cks[-1][2] if cut < len(data) else set())
-        same_as_full(r, full, keep)
-        assert said_lost(msgs[0]) == lost_eps, msgs[0]
+    # a killed run's file has no index: reading stops at the damaged record, keeps what was before
+    bad = tmp_path / "killed.mcap.partial"
+    bad.write_bytes(flip(data[: cks[-1][0] + 5], off + 2))
+    r, msgs = read_warned(bad)
+    assert len(msgs) == 1 and f"chunk 3 at byte {off}" in msgs[0] and "lost" in msgs[0], msgs
+    same_as_full(r, full, cks[0][2] | cks[1][2])
+    assert lost_eps <= said_lost(msgs[0]) | said_lost(msgs[0], "missing"), msgs[0]
 
 
 # ---------------------------------------------------------------------------------- truncated
@@ -288,7 +287,7 @@ def _foreign(path: Path) -> Path:
     "case,problem",
     [
         ("empty", "empty file (0 bytes)"),
-        ("png", "not an MCAP file (it is a PNG image)"),
+        ("png", "not an MCAP file"),
         (
             "foreign",
             "not a record file of this pipeline: an MCAP file written by 'some-robot-logger 0.1'",
@@ -362,7 +361,7 @@ def test_a_folder_lists_partial_files_beside_complete_ones(files, tmp_path, caps
         [
             f"error: {out_dir / 'other.mcap'}: not a record file of this pipeline: an MCAP file written by "
             "'some-robot-logger 0.1' (channels /chatter), without the 'recording' metadata or an /episodes channel",
-            f"error: {out_dir / 'picture.mcap'}: not an MCAP file (it is a PNG image)",
+            f"error: {out_dir / 'picture.mcap'}: not an MCAP file: it does not start with the MCAP magic bytes",
         ]
     )
     # the library reads the finished file and says which unfinished ones it left out
@@ -431,7 +430,7 @@ def test_a_folder_listing_into_a_reader_that_stops_early_ends_quietly(files, tmp
     assert proc.wait(timeout=300) == 141 and first.startswith(f"warning: {folder / 'b-cut.mcap'}: ")
     assert "Traceback" not in err
     assert err.splitlines() == [
-        f"error: {folder / 'a-picture.mcap'}: not an MCAP file (it is a PNG image)"
+        f"error: {folder / 'a-picture.mcap'}: not an MCAP file: it does not start with the MCAP magic bytes"
     ]
 
 
@@ -512,46 +511,27 @@ def test_a_damaged_data_end_length_is_reported(files, tmp_path, length):
 
 
 def test_what_a_killed_long_run_lost_is_worked_out_in_ranges():
-    """The loss accounting of a killed 100 x 200,000 trial (every run stopped at episode 1,300) and of a damaged
-    file with gaps, window and unknown shape: missing ranges per run, not one entry per expected episode."""
+    """The loss accounting of a killed 100 x 200,000 trial (every run stopped at episode 1,300) and
+    of a damaged file with a gap, a window and an unknown shape: ranges per run, not episodes."""
     from pipeline.records.loss import account
-    from pipeline.records.scan import Damage, Scan
 
     runs, eps = np.repeat(np.arange(100), 1300), np.tile(np.arange(1300), 100)
-    expected, sentences, head = account(
-        Scan(Path("x.mcap")), runs, eps, runs=100, per_run=200_000, unfinished=True
+    expected, lost, absent = account(runs, eps, runs=100, per_run=200_000, finished=False)
+    assert (expected, lost) == (20_000_000, [])
+    assert absent == [(r, 1300, 199_999) for r in range(100)]
+    keep = ~((runs == 3) & (eps >= 40) & (eps < 60)) & (eps < 100)  # run 3 lost 40-59
+    span = [(S.log_time_ns(3, 40), S.log_time_ns(3, 59))]
+    assert account(runs[keep], eps[keep], runs=100, per_run=100, finished=True, spans=span) == (
+        10_000,
+        [(3, 40, 59)],
+        [],
     )
-    assert expected == 20_000_000
-    assert sentences == [
-        "not recorded (the trials stopped before them): runs 0-99 episodes 1300-199999 each "
-        "(19870000 episodes)"
-    ]
-    assert head == "missing runs 0-99 episodes 1300-199999 each (19870000 episodes)"
-    keep = ~((runs == 3) & (eps >= 40) & (eps < 60)) & (
-        eps < 100
-    )  # run 3 lost 40-59; 100 episodes a run
-    sc = Scan(
-        Path("y.mcap"),
-        damage=[Damage("chunk", "chunk 2 damaged", (S.log_time_ns(3, 40), S.log_time_ns(3, 59)))],
-    )
-    expected, sentences, _ = account(
-        sc, runs[keep], eps[keep], runs=100, per_run=100, unfinished=False
-    )
-    assert (expected, sentences) == (10_000, ["chunk 2 damaged: lost run 3 episodes 40-59"])
-    window = (S.log_time_ns(3, 0), S.log_time_ns(4, 0))
-    sc = Scan(
-        Path("y.mcap"),
-        damage=[Damage("chunk", "chunk 2 damaged", (S.log_time_ns(3, 40), S.log_time_ns(3, 59)))],
-    )
-    inside = keep & (runs == 3)
-    assert account(
-        sc, runs[inside], eps[inside], runs=100, per_run=100, unfinished=False, window=window
-    )[:2] == (100, ["chunk 2 damaged: lost run 3 episodes 40-59"])
-    sc = Scan(
-        Path("y.mcap"),
-        damage=[Damage("chunk", "chunk 2 damaged", (S.log_time_ns(3, 40), S.log_time_ns(3, 59)))],
-    )
-    assert account(sc, runs[keep], eps[keep], runs=None, per_run=None, unfinished=False)[:2] == (
-        None,
-        ["chunk 2 damaged: lost run 3 episodes 40-59"],
-    )
+    window, inside = (S.log_time_ns(3, 0), S.log_time_ns(4, 0)), keep & (runs == 3)
+    got = account(runs[inside], eps[inside], runs=100, per_run=100, finished=True, window=window)
+    assert got == (100, [(3, 40, 59)], [])
+    got = account(runs[keep], eps[keep], runs=None, per_run=None, finished=False)
+    assert got == (None, [(3, 40, 59)], [])  # a gap is lost even in an unfinished file
+    tail = keep & ~((runs == 5) & (eps >= 90))  # run 5 cut at 90 inside a damaged chunk's span
+    span = [(S.log_time_ns(5, 88), S.log_time_ns(5, 95))]
+    got = account(runs[tail], eps[tail], runs=100, per_run=100, finished=False, spans=span)
+    assert got == (10_000, [(3, 40, 59), (5, 90, 99)], [])

@@ -161,7 +161,7 @@ def test_the_gym_environment_takes_a_generated_maze():
 
     import pipeline  # noqa: F401  (registers the ids)
 
-    env = gymnasium.make("SafeNav-5x5-v0", maze="random:6x4:5:2:unique")
+    env = gymnasium.make("SafeNav-v0", maze="random:6x4:5:2:unique")
     assert env.unwrapped.layout.rows == load_layout("random:6x4:5:2:unique").rows
     env.close()
 

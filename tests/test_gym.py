@@ -14,7 +14,7 @@ from fakes import always_right
 from gymnasium.utils.env_checker import check_env, data_equivalence
 
 import pipeline
-from pipeline import _registration
+from pipeline import _registration, palette
 from pipeline.envs import recogniser_names
 from pipeline.errors import ConfigError
 from pipeline.rl import gym_render
@@ -42,17 +42,36 @@ def test_the_registered_ids_and_their_step_limit():
     assert (
         OUR_IDS
         == sorted(pipeline.ENV_IDS)
-        == ["SafeNav-11x11-v0", "SafeNav-5x5-v0", "SafeNav-7x7-v0"]
+        == ["SafeNav-11x11-v0", "SafeNav-5x5-v0", "SafeNav-7x7-v0", "SafeNav-v0"]
     )
     for env_id in OUR_IDS:
         spec = gym.spec(env_id)
         assert spec.kwargs["method"] == _registration.DEFAULT_METHOD
+        assert spec.kwargs.get("registered_maze", "any") in env_id.replace("SafeNav-v0", "any")
         assert spec.max_episode_steps == get_method(_registration.DEFAULT_METHOD).max_steps
     pipeline.register_envs()  # again: nothing changes, no "Overriding environment" warning
     assert (
         sorted(i for i, s in gym.registry.items() if s.entry_point == _registration.ENTRY_POINT)
         == OUR_IDS
     )
+
+
+def test_an_id_runs_the_maze_it_names():
+    """A sized id refuses another maze (the id would name a maze it does not run); ``SafeNav-v0``
+    takes any."""
+    with pytest.raises(ValueError, match="SafeNav-5x5-v0 is the 5x5 maze.*SafeNav-v0"):
+        gym.make("SafeNav-5x5-v0", maze="random:7x7:16:3")
+    assert gym.make("SafeNav-7x7-v0", maze="7x7").unwrapped.layout.width == 7
+    env = gym.make("SafeNav-v0", maze="random:7x7:16:3")
+    assert (env.unwrapped.layout.width, env.unwrapped.layout.height) == (7, 7)
+    assert gym.make("SafeNav-v0").unwrapped.layout.width == 5
+
+
+def test_info_has_the_same_keys_after_reset_and_step():
+    env = gym.make("SafeNav-5x5-v0")
+    _, info = env.reset(seed=0)
+    assert info["recognition"] is None
+    assert set(env.step(S)[4]) == set(info)
 
 
 def test_import_pipeline_registers_without_importing_gymnasium_torch_or_fewshot():
@@ -161,18 +180,23 @@ def test_rgb_array_picture():
         return tuple(int(x) for x in img[r * t + t // 2, c * t + t // 2])
 
     img = env.render()
-    assert img.shape == (5 * t, 5 * t, 3) and img.dtype == np.uint8
-    assert centre(layout.goal, img) == gym_render.GOAL_RGB == (250, 200, 0)
-    assert centre(layout.start, img) == gym_render.ROBOT_RGB == (30, 90, 220)
+    strip = gym_render.legend_strip(5 * t).shape[0]
+    assert img.shape == (5 * t + strip, 5 * t, 3) and img.dtype == np.uint8
+    assert centre(layout.goal, img) == gym_render.GOAL_RGB == palette.rgb(palette.GOAL)
+    assert centre(layout.start, img) == gym_render.ROBOT_RGB == palette.rgb(palette.ROBOT)
     for o, cell in enumerate(layout.obstacles):
         assert centre(cell, img) == gym_render.CATEGORY_RGB[u.world.true_category[o]]
-    assert not (img == gym_render.UNSAFE_RGB).all(axis=2).any()
+    assert (
+        not (img[: 5 * t] == gym_render.UNSAFE_RGB).all(axis=2).any()
+    )  # the maze; the legend has one
     # 5x5: S X X . . -- moving east from the start runs into an obstacle: (0, E) joins A_d
     s, reward, *_ = env.step(E)
     assert (s, reward) == (0, -1.0) and u.unsafe[0, E]
     img = env.render()
     assert (
-        tuple(int(x) for x in img[t // 2, t - 2]) == gym_render.UNSAFE_RGB == (220, 0, 0)
+        tuple(int(x) for x in img[t // 2, t - 2])
+        == gym_render.UNSAFE_RGB
+        == palette.rgb(palette.UNSAFE)
     )  # east edge of cell 0
     assert tuple(int(x) for x in img[t // 2, 2]) == gym_render.START_RGB  # west edge: not in A_d
     assert centre(layout.start, img) == gym_render.ROBOT_RGB
@@ -196,6 +220,17 @@ def test_category_colours_are_distinct_and_apart_from_the_markers():
     }
 
 
+def test_the_legend_strip_names_every_colour_of_the_frame():
+    """Below the maze: a swatch of each category, start, goal, A_d and robot colour, in a line
+    or more (a narrow maze wraps it)."""
+    for width in (60, 160, 400):
+        strip = gym_render.legend_strip(width)
+        assert strip.shape[1] == width
+        found = {tuple(int(x) for x in px) for px in strip.reshape(-1, 3)}
+        assert {colour for _, colour in gym_render.LEGEND} <= found
+    assert [name for name, _ in gym_render.LEGEND][: len(CATEGORIES)] == list(CATEGORIES)
+
+
 def test_ansi_text_grid():
     env = gym.make("SafeNav-5x5-v0", render_mode="ansi")
     env.reset(seed=3)
@@ -217,7 +252,9 @@ def test_render_modes_and_their_errors():
     )  # Gymnasium's RenderCollection
     frames.reset(seed=0)
     frames.step(S)
-    assert [f.shape for f in frames.render()] == [(160, 160, 3)] * 2
+    assert [f.shape for f in frames.render()] == [
+        (160 + gym_render.legend_strip(160).shape[0], 160, 3)
+    ] * 2
     with pytest.raises(ValueError, match="render_mode='human'.*ansi, rgb_array"):
         SafeNavigationEnv("5x5", render_mode="human")
     with pytest.raises(ValueError, match="tile_size=4"):
@@ -317,7 +354,7 @@ def test_relation_net_by_name_builds_the_trained_recogniser(monkeypatch):
     assert type(env.unwrapped.recogniser).__name__ == "RelationRecogniser"
     env.reset(seed=0)
     env.step(E)
-    assert env.render().shape == (160, 160, 3)
+    assert env.render().shape == (160 + gym_render.legend_strip(160).shape[0], 160, 3)
 
 
 def test_time_limit_and_the_environments_own_truncation_agree():

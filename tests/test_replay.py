@@ -253,8 +253,6 @@ def test_replay_draws_with_the_files_moves_and_names(tmp_path):
     vectors = [v[0] for v in _columns(old, "/maze/robot/action")["Arrows2D:vectors"]]
     assert np.allclose(vectors, [[0.4, 0], [0, 0.4], [-0.4, 0], [0, -0.4]])
     assert "action E: reselected" in _columns(old, "/events")["TextLog:text"][0][0]
-    with pytest.raises(ValueError, match="maze.moves"):
-        write(tmp_path / "bad.mcap", actions=["up", "down"], moves=[(-1, 0), (0, 1), (1, 0)])
 
 
 SUPPORT = {
@@ -527,6 +525,8 @@ def test_web_viewer_lives_and_dies_with_the_command(recorded, tmp_path, sig, cod
             assert page.status == 200
         proc.send_signal(sig)
         assert proc.wait(30) == code
+        if sig != signal.SIGKILL:  # Ctrl-C and SIGTERM both say where the recording is
+            assert f"the recording stays at {tmp_path / 'w.rrd'}" in proc.stderr.read()
         deadline = (
             time.monotonic() + 10
         )  # SIGKILL: the child's parent-death signal, then its own exit
@@ -625,3 +625,70 @@ def test_web_viewer_needs_allow_remote_off_the_loopback(recorded, tmp_path, caps
     )
     assert address("bind=::1").url.startswith("http://[::1]:")
     assert capsys.readouterr().err == ""  # loopback: no warning
+
+
+def _recs(recognised: dict[int, list[int]], episodes: int = 6, scores: bool = True):
+    """A stand-in for :class:`pipeline.records.Records`: ``recognised`` run -> episodes with a
+    recognition (one each), every run ``episodes`` long."""
+    import types
+
+    import pandas as pd
+
+    rows = [(r, e) for r, es in recognised.items() for e in es]
+    recognitions = pd.DataFrame(rows, columns=["run", "episode"])
+    if scores:
+        recognitions["score_0"] = 0.5
+    runs = [(r, e) for r in recognised for e in range(episodes)]
+    return types.SimpleNamespace(
+        recognitions=recognitions, episodes=pd.DataFrame(runs, columns=["run", "episode"])
+    )
+
+
+def test_without_an_episode_the_replay_opens_the_first_with_a_recognition():
+    from pipeline.replay.notes import first_recognition
+
+    recs = _recs({0: [], 1: [4, 2, 5]})
+    episode, why = first_recognition(recs, 1)
+    assert episode == 2 and "episodes 2, 4, 5 (3 episodes)" in why
+    episode, why = first_recognition(recs, 0)
+    assert episode == 0 and "holds no recognition" in why
+
+
+def test_every_empty_recognition_view_says_why():
+    from pipeline.replay.notes import empty_views
+
+    recs = _recs({0: [], 1: [4, 2]})
+    assert empty_views(recs, 1, [2]).recognition is None  # has data
+    assert empty_views(recs, 1, [2]).scores is None
+    other = empty_views(recs, 1, [3])
+    assert "no recognition in episode 3" in other.recognition and "2, 4" in other.recognition
+    assert other.scores == other.recognition
+    assert "method recognises no pictures" in empty_views(recs, 0, [0]).recognition
+    assert other.scores_short == "none, see below"  # the scores view's name
+    no_scores = empty_views(_recs({0: [1]}, scores=False), 0, [1])
+    assert "no scores" in no_scores.scores and no_scores.scores_short == "none recorded"
+    assert empty_views(recs, 1, [0, 1, 2, 3]).recognition is None  # a whole run: some episode has
+
+
+def test_the_stage_without_an_episode_prints_the_one_it_opens(recorded, tmp_path, capsys):
+    from pipeline.errors import ConfigError
+    from pipeline.stages._common import run_stage
+
+    path, written = recorded
+    first = min(w["episode"] for w in written if w["run"] == 1 and len(w["recognitions"]["step"]))
+    rrd = run_stage("replay", [f"file={path}", "run=1", f"out={tmp_path}/x.rrd"])
+    assert rrd == tmp_path / "x.rrd"
+    assert f"episode={first}: the first of run 1 with a recognition" in capsys.readouterr().out
+    with pytest.raises(ConfigError, match="config key 'episode': whole_run=true"):
+        run_stage("replay", [f"file={path}", "run=1", "episode=2", "whole_run=true"])
+
+
+def test_a_replay_without_recognitions_says_why_in_its_views(tmp_path):
+    """The committed sample's shield cell recognises no pictures: the picture and recognition
+    views get their note (static), and no picture or score is drawn."""
+    path = ROOT / "datasets" / "sample" / "fig8" / "shield" / "records.mcap"
+    rows = _rows(build_replay(path, 0, 0, out=tmp_path / "s.rrd"))
+    assert {"/recognition/picture/note", "/recognition/result"} <= rows.keys()
+    assert rows["/recognition/result"] == 0  # static: shown at every step
+    assert "/recognition/picture" not in rows
+    assert not [k for k in rows if k.startswith("/recognition/scores")]

@@ -71,7 +71,16 @@ def test_a_cells_only_experiment_gets_the_default_section(built):
     assert ci.str.fullmatch(r"[\d.]+ ± [\d.]+ \[[\d.]+, [\d.]+\]").all()
     assert (d / "reports" / "figures" / "mine_learning_curves.png").stat().st_size > 1000
     curves = pd.read_csv(d / "reports" / "tables" / "mine_learning_curves.csv")
-    assert curves.columns.tolist() == ["series", "key", "episode", "mean", "ci_low", "ci_high"]
+    assert curves.columns.tolist() == [
+        "series",
+        "key",
+        "colour",
+        "maze",
+        "episode",
+        "mean",
+        "ci_low",
+        "ci_high",
+    ]
     a = curves[curves["key"] == "a"]
     assert set(a["series"]) == {"Shield"} and a["episode"].tolist() == list(
         range(20)

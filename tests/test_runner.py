@@ -120,6 +120,20 @@ def test_same_seed_same_results_and_runs_do_not_depend_on_the_batch():
     assert not np.array_equal(a.steps, d.steps)
 
 
+@pytest.mark.parametrize("shared", [False, True])
+def test_finished_episodes_reach_the_sink_every_500_and_chunks_change_no_result(shared):
+    """A recording sink gets every run's finished episodes every EMIT_EVERY (500) episodes (what a
+    killed run keeps, docs/reliability.md), with a step trace too; chunking changes no result."""
+    method, sink = get_method("fewshot_dss"), ListSink()
+    kw = dict(runs=2, episodes=1100, seed=3, progress=False, shared_support=shared)
+    chunked = run_trials(MAZE, method, recogniser=always_wrong(), sink=sink, **kw)
+    got = sorted((int(b["run"]), int(b["episode"][0]), int(b["episode"][-1])) for b in sink.batches)
+    assert got == [(r, a, b) for r in (0, 1) for a, b in ((0, 499), (500, 999), (1000, 1099))]
+    whole = run_trials(MAZE, method, recogniser=always_wrong(), chunk_episodes=1100, **kw)
+    assert chunked.summary() == whole.summary()
+    np.testing.assert_array_equal(chunked.steps, whole.steps)
+
+
 def test_summary_fields():
     s = run_trials(MAZE, get_method("ssrl"), runs=3, episodes=80, seed=0, progress=False).summary()
     assert s["n_runs"] == 3 and len(s["runs"]) == 3

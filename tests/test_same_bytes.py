@@ -1,5 +1,5 @@
 """Records of one config are byte-identical whatever CPU kernels torch picks (issue 31;
-docs/records.md "Same bytes on any x86 CPU"): a Relation Network cell run in two processes,
+docs/records.md "The schema"): a Relation Network cell run in two processes,
 one with ``ATEN_CPU_CAPABILITY=default``, one with ``=avx2`` (oneDNN and MKL free to pick their
 best), and the files compared. A subprocess each: the kernel path is chosen once per process."""
 

@@ -1,7 +1,9 @@
-"""``python -m pipeline.records <file.mcap | folder> [--runs]``: one line a record file (config, completeness, runs,
-episodes, collisions, what a damaged or cut file lost); a folder's ``*.mcap`` and ``*.mcap.partial`` files (also in
-``.staging-*`` folders; killed runs marked PARTIAL), a file that cannot be read named in one line on stderr. Exit
-status: 0, all listed; 1, some files could not be read; 2, none could, or no such file or folder; 141, pipe closed.
+"""``python -m pipeline.records <file.mcap | folder> [--runs]``: one line a record file (config,
+completeness, runs, episodes, collisions, the episodes that hold recognitions and substitutions,
+what a damaged or cut file lost); a folder's ``*.mcap`` and ``*.mcap.partial`` files (also in
+``.staging-*`` folders; killed runs marked PARTIAL), an unreadable file named in one line on
+stderr. ``--runs``: a table, one row per run. Exit status: 0, all listed; 1, some files could not
+be read; 2, none could, or no such file or folder; 141, pipe closed.
 """
 
 import argparse
@@ -11,11 +13,46 @@ from pathlib import Path
 
 from pipeline.errors import quiet_broken_pipe
 
+from .loss import describe
 from .reader import RecordsError, RecordsWarning, find_record_files, read_records
 
 
+def _episodes_with(frame) -> list[tuple[int, int, int]]:
+    """The (run, first, last) ranges of the episodes with a row in ``frame``."""
+    pairs = sorted(set(zip(frame.run.tolist(), frame.episode.tolist())))
+    return [(r, e, e) for r, e in pairs]
+
+
+def _line(name: str, recs, meta) -> str:
+    eps, cfg = recs.episodes, meta.config or {}
+    counts = [
+        f"{n} {unit}" if exp in (None, n) else f"{n} of {exp} {unit}"
+        for n, exp, unit in (
+            (eps.run.nunique(), meta.expected_runs, "runs"),
+            (len(eps), meta.expected_episodes, "episodes"),
+        )
+    ]
+    what = ", ".join(
+        f"{k}={cfg[k]}"
+        for k in ("experiment", "method", "maze", "seed")
+        if not isinstance(cfg.get(k, {}), dict)
+    )
+    seen = [
+        f"{label} in {describe(_episodes_with(frame), None)}"
+        for label, frame in (
+            ("recognitions", recs.recognitions),
+            ("substitutions", recs.substitutions[recs.substitutions.picture >= 0]),
+        )
+        if len(frame)
+    ]
+    tail = "".join(f"; {x}" for x in (meta.lost, *seen, what) if x)
+    return (
+        f"{name}: {meta.status}; {', '.join(counts)}, {int(eps.collisions.sum())} collisions{tail}"
+    )
+
+
 def main(argv: list[str] | None = None) -> None:
-    """List the record files at the path given: per file its warnings and one line (with ``--runs`` one per run)."""
+    """List the record files at the path given: per file its warnings and one line."""
     ap = argparse.ArgumentParser(
         prog="python -m pipeline.records",
         description=__doc__,
@@ -25,7 +62,9 @@ def main(argv: list[str] | None = None) -> None:
         "path", type=Path, help="an .mcap (or .mcap.partial) record file, or a folder of them"
     )
     ap.add_argument(
-        "--runs", action="store_true", help="one line per run (episodes, collisions, goals)"
+        "--runs",
+        action="store_true",
+        help="one line per run (episodes, collisions, goals, recognitions)",
     )
     args, bad = ap.parse_args(argv), 0
     path = args.path
@@ -36,9 +75,7 @@ def main(argv: list[str] | None = None) -> None:
         if path.exists()
         else []
     )
-    with (
-        quiet_broken_pipe()
-    ):  # every write to stdout: a reader that goes away (``| head``) ends it quietly
+    with quiet_broken_pipe():  # a reader that goes away (``| head``) ends it quietly
         for f in files:
             try:
                 with warnings.catch_warnings(record=True) as caught:
@@ -59,35 +96,22 @@ def main(argv: list[str] | None = None) -> None:
                 ),
                 end="",
             )
-            eps, cfg = recs.episodes, meta.config or {}
-            counts = [
-                f"{n} {unit}" if exp in (None, n) else f"{n} of {exp} {unit}"
-                for n, exp, unit in (
-                    (eps.run.nunique(), meta.expected_runs, "runs"),
-                    (len(eps), meta.expected_episodes, "episodes"),
+            print(_line(name, recs, meta))
+            if args.runs and len(recs.episodes):
+                per_run = recs.episodes.groupby("run").agg(
+                    episodes=("episode", "size"),
+                    first=("episode", "min"),
+                    last=("episode", "max"),
+                    collisions=("collisions", "sum"),
+                    goals=("reached_goal", "sum"),
+                    steps=("steps", "sum"),
+                    recognitions=("n_recognitions", "sum"),
                 )
-            ]
-            what = ", ".join(
-                f"{k}={cfg[k]}"
-                for k in ("experiment", "method", "maze", "seed")
-                if not isinstance(cfg.get(k, {}), dict)
-            )
-            print(
-                f"{name}: {meta.status}; {', '.join(counts)}, {int(eps.collisions.sum())} collisions"
-                + "".join(f"; {x}" for x in (meta.lost, what) if x)
-            )
-            if args.runs and len(eps):
+                subs = recs.substitutions[recs.substitutions.picture >= 0].groupby("run").size()
                 print(
-                    eps.groupby("run")
-                    .agg(
-                        episodes=("episode", "size"),
-                        first=("episode", "min"),
-                        last=("episode", "max"),
-                        collisions=("collisions", "sum"),
-                        goals=("reached_goal", "sum"),
-                        steps=("steps", "sum"),
-                    )
-                    .to_string()
+                    per_run.assign(
+                        substitutions=subs.reindex(per_run.index, fill_value=0)
+                    ).to_string()
                 )
         if bad < len(files):
             print(

@@ -1,6 +1,6 @@
-"""Checking an episode batch from the trial runner (``pipeline/rl/sink.py``) before it is encoded:
-every key present, every column of the right length and within its field's range, cast to the
-dtype the codec writes (:mod:`.codec`). Errors name the batch, the column and what was wrong.
+"""Checking an episode batch (``pipeline/rl/sink.py``) before it is encoded: every key present,
+every column 1-D, of its length and in its field's range, cast to the dtype the codec writes
+(:mod:`.codec`). Errors name the batch, the column and what was wrong.
 """
 
 from __future__ import annotations
@@ -10,19 +10,10 @@ from typing import Any
 
 import numpy as np
 
-from . import schema as S
 from .codec import COLUMNS, FIXED, REWARDS, SMALL_REWARDS, SUBS
-from .schema import BOOL, CODE, F32, F64, MESSAGES, Field
+from .schema import BOOL, CODE, F32, F64, I32, MESSAGES, U32, Field
 
-_RANGE = {
-    S.I32: (-(2**31), 2**31),
-    S.U32: (0, 2**31),
-    CODE: (0, 2**32),
-}  # of the integer fields' values
-_LIMITS = {
-    np.dtype(t): (int(np.iinfo(t).min), int(np.iinfo(t).max)) for t in np.typecodes["AllInteger"]
-}
-
+_RANGE = {I32: (-(2**31), 2**31), U32: (0, 2**31), CODE: (0, 2**32)}  # of integer fields' values
 OPTIONAL = frozenset({"q_values", "substitutions"})  # sink batch keys that may be left out
 BATCH_KEYS = frozenset(
     {f.name for f in MESSAGES["EpisodeBatch"]} - {"n_actions"} - OPTIONAL
@@ -31,19 +22,15 @@ BATCH_KEYS = frozenset(
 
 
 def _column(a: Any, f: Field, n: int | None, where: str) -> np.ndarray:
-    """``a`` checked (1-D, length ``n``, integers or booleans in the field's range for integer fields) as the
-    field's payload dtype (code columns: any integer dtype, for :func:`varints`); a range is checked only where
-    the dtype allows values outside it."""
+    """``a`` checked (1-D, length ``n``, integers in the field's range) as the field's payload."""
     a = np.asarray(a)
     if a.ndim != 1 or (n is not None and len(a) != n):
-        raise ValueError(
-            f"{where}: "
-            + (
-                f"length {len(a)}, expected {n}"
-                if a.ndim == 1
-                else f"expected a 1-D array, got shape {a.shape}"
-            )
+        got = (
+            f"length {len(a)}, expected {n}"
+            if a.ndim == 1
+            else f"a 1-D array expected, got shape {a.shape}"
         )
+        raise ValueError(f"{where}: {got}")
     if f.type in (F32, F64):
         return a.astype(FIXED[f.type], copy=False)
     if a.dtype.kind not in "biu":
@@ -51,17 +38,16 @@ def _column(a: Any, f: Field, n: int | None, where: str) -> np.ndarray:
     if f.type == BOOL:
         return (a != 0).view(np.uint8)
     a = a.view(np.uint8) if a.dtype.kind == "b" else a
-    (lo, hi), (low, high) = _RANGE[f.type], _LIMITS.get(a.dtype, (-(2**64), 2**64))  # of the dtype
-    if len(a) and (low < lo and int(a.min()) < lo or high >= hi and int(a.max()) >= hi):
+    (lo, hi), info = _RANGE[f.type], np.iinfo(a.dtype)  # checked only where the dtype reaches out
+    if len(a) and (info.min < lo and int(a.min()) < lo or info.max >= hi and int(a.max()) >= hi):
         raise ValueError(f"{where}: values {int(a.min())}..{int(a.max())} outside {lo}..{hi - 1}")
     return a if f.type == CODE else a.astype(FIXED[f.type], copy=False)
 
 
 def check_batch(batch: Mapping[str, Any], *, with_steps: bool = True) -> dict[str, Any]:
-    """Check a sink batch at the boundary and return ``run``, ``episode`` and ``cols`` (message ->
-    field -> payload array) and ``scalars`` (message -> field -> int). Raises TypeError / ValueError
-    naming the bad field (missing or unknown fields, lengths, dtypes, ranges, episode ids).
-    ``with_steps=False`` (``record=episodes``): the step columns are left out, whatever the batch holds."""
+    """Check a sink batch and return ``run``, ``episode``, ``cols`` (message -> field -> payload
+    array) and ``scalars`` (message -> field -> int). Raises TypeError / ValueError naming the bad
+    field. ``with_steps=False`` (``record=episodes``): the step columns are left out."""
     missing, unknown = BATCH_KEYS - batch.keys(), batch.keys() - BATCH_KEYS - OPTIONAL
     if missing or unknown:
         raise TypeError(
@@ -69,37 +55,27 @@ def check_batch(batch: Mapping[str, Any], *, with_steps: bool = True) -> dict[st
             "(see pipeline/rl/sink.py)"
         )
     run = int(batch["run"])
-    where = f"episode batch of run {run}"
-    summary, keys = batch["summary"], [f.name for f in COLUMNS["EpisodeSummaries"][1:]]
+    where, summary = f"episode batch of run {run}", batch["summary"]
+    keys = [f.name for f in COLUMNS["EpisodeSummaries"][1:]]
     if set(keys) != summary.keys():
-        raise ValueError(
-            f"{where}.summary: missing {sorted(set(keys) - summary.keys())}, unknown "
-            f"{sorted(summary.keys() - set(keys))}; expected {keys}"
-        )
+        raise ValueError(f"{where}.summary: fields {sorted(summary.keys())}; expected {keys}")
     ep = _column(batch["episode"], COLUMNS["EpisodeBatch"][0], None, f"{where}.episode")
-    steps = _column(batch["steps"], COLUMNS["EpisodeSummaries"][0], len(ep), f"{where}.steps")
-    e, t = len(ep), int(steps.sum())
-    if e and (int(ep[-1]) - int(ep[0]) != e - 1 or (np.diff(ep.astype(np.int64)) != 1).any()):
+    e = len(ep)
+    if e and (np.diff(ep.astype(np.int64)) != 1).any():
         raise ValueError(f"{where}: episode ids must be consecutive, got {ep.tolist()}")
-    cols = {"EpisodeBatch": {"episode": ep}, "EpisodeSummaries": {"steps": steps}}
-    cols["EpisodeSummaries"] |= {
-        f.name: _column(summary[f.name], f, e, f"{where}.summary.{f.name}")
-        for f in COLUMNS["EpisodeSummaries"][1:]
-    }
-    cols["Steps"] = {
-        f.name: _column(batch[f.name], f, t, f"{where}.{f.name}")
-        for f in COLUMNS["Steps"]
-        if with_steps and f.column != "reward"
-    }
+    cols = {"EpisodeBatch": {"episode": ep}, "EpisodeSummaries": {}, "Steps": {}}
+    for f in COLUMNS["EpisodeSummaries"]:
+        value = batch["steps"] if f.name == "steps" else summary[f.name]
+        cols["EpisodeSummaries"][f.name] = _column(value, f, e, f"{where}.summary.{f.name}")
+    t = int(cols["EpisodeSummaries"]["steps"].sum())
+    for f in COLUMNS["Steps"] if with_steps else ():
+        if f.column != "reward":
+            cols["Steps"][f.name] = _column(batch[f.name], f, t, f"{where}.{f.name}")
     if with_steps:
         r = _column(batch["rewards"], REWARDS, t, f"{where}.rewards")
-        with np.errstate(
-            invalid="ignore"
-        ):  # NaN, inf, huge: not whole and small, the floats keep them
+        with np.errstate(invalid="ignore"):  # NaN, inf, huge: not whole and small, floats keep them
             small = r.astype(np.int8)
-        whole = (
-            not len(r) or (small == r).all() and -64 <= int(small.min()) and int(small.max()) <= 63
-        )
+        whole = not len(r) or (small == r).all() and -64 <= small.min() and small.max() <= 63
         cols["Steps"] |= {SMALL_REWARDS.name: small} if whole else {REWARDS.name: r}
     scalars = {"EpisodeBatch": {"run": run, "n_actions": 0}, "Recognitions": {"n_categories": 0}}
     for sub in ("recognitions", "unsafe_added", "substitutions"):
@@ -107,9 +83,7 @@ def check_batch(batch: Mapping[str, Any], *, with_steps: bool = True) -> dict[st
         n = len(d.get("step", ()))
         names = [f.key or f.name for f in COLUMNS[msg] if f.name != "scores"]
         if n and set(names) - d.keys():
-            raise ValueError(
-                f"{where}.{sub}: missing columns {[k for k in names if k not in d]}; expected {names}"
-            )
+            raise ValueError(f"{where}.{sub}: missing columns {sorted(set(names) - d.keys())}")
         cols[msg] = {
             f.name: _column(d[f.key or f.name], f, n, f"{where}.{sub}.{f.key or f.name}")
             for f in COLUMNS[msg]
@@ -123,16 +97,12 @@ def check_batch(batch: Mapping[str, Any], *, with_steps: bool = True) -> dict[st
             raise ValueError(
                 f"{where}.{sub}.episode: values outside the batch's episodes {ep[0]}..{ep[-1]}"
             )
-        sc = (
-            np.asarray(d.get("scores", ()), "<f4")
-            if sub == "recognitions" and n
-            else np.zeros(0, "<f4")
-        )
+        sc = np.asarray(d.get("scores", ()), "<f4") if sub == "recognitions" and n else np.zeros(0)
+        if sc.size and (sc.ndim != 2 or sc.shape[0] != n):
+            raise ValueError(
+                f"{where}.recognitions.scores: expected shape ({n}, n_categories), got {sc.shape}"
+            )
         if sc.size:
-            if sc.ndim != 2 or sc.shape[0] != n:
-                raise ValueError(
-                    f"{where}.recognitions.scores: expected shape ({n}, n_categories), got {sc.shape}"
-                )
             cols[msg]["scores"], scalars[msg]["n_categories"] = sc.ravel(), sc.shape[1]
     if batch.get("q_values") is not None:
         q = np.asarray(batch["q_values"], dtype="<f4")

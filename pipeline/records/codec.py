@@ -1,16 +1,13 @@
-"""Episode batches (``pipeline/rl/sink.py``) to ``fsrl.records.EpisodeBatch`` bytes and back, every column named
-by the one table :data:`.schema.MESSAGES`, both ways through the Protobuf runtime (docs/records.md "The writer").
+"""Episode batches (``pipeline/rl/sink.py``) to ``fsrl.records.EpisodeBatch`` bytes and back, every
+column named by the one table :data:`.schema.MESSAGES` (docs/records.md "The schema").
 
-Both ways go through the raw views (``schema.message_classes(..., view=True)``: every packed column declared
-``bytes``, the same wire bytes): a column is set as ``array.tobytes()`` and read with ``np.frombuffer``, no Python
-object per element, no hand-written wire code. A code column with a value of 128 or more (a maze of more than 128
-cells: varints of several bytes) is written and read by the real classes, that column alone. A message the views
-do not read exactly (an unknown field, a column split in two) is re-serialized by the real classes first. Same
-bytes, same columns as the runtime (tested). A file of another record format is refused (:func:`check_schema`).
-The views are kept because they decode an order of magnitude faster than the real classes; multi-byte
-varints go through the runtime because it is as fast to write and faster to read than vectorised numpy
-(``python -m benchmarks.records_overhead`` prints both comparisons). A batch is checked before it is
-encoded by :func:`.batch_check.check_batch`.
+Both ways go through the raw views (``schema.message_classes(view=True)``: every packed column
+declared ``bytes``, the same wire bytes): a column is set as ``array.tobytes()`` and read with
+``np.frombuffer``, no Python object per element and no hand-written wire code; the views decode an
+order of magnitude faster than the real classes (``python -m benchmarks.records_overhead``). A code
+column with a value of 128 or more (varints of several bytes) goes through the real classes, that
+column alone; a message the views do not read exactly (an unknown field, a column split in two) is
+re-serialized by the real classes first. Same bytes and columns as the runtime (tested).
 """
 
 from __future__ import annotations
@@ -24,40 +21,23 @@ from google.protobuf import descriptor_pb2
 from . import schema as S
 from .schema import CODE, F32, F64, I32, MESSAGES, SMALL, U32, Field
 
-SUBS = {
-    f.name: f.type for f in MESSAGES["EpisodeBatch"] if isinstance(f.type, str)
-}  # summary -> EpisodeSummaries
+SUBS = {f.name: f.type for f in MESSAGES["EpisodeBatch"] if isinstance(f.type, str)}
 COLUMNS = {
-    m: [f for f in fs if f.repeated and not isinstance(f.type, str)]
-    for m, fs in MESSAGES.items()
-    if m != "Substitution"
-}  # the messages of a batch
-REWARDS, SMALL_REWARDS = (
-    f for f in COLUMNS["Steps"] if f.column == "reward"
-)  # one of the two per batch
-FIXED = {
-    F32: "<f4",
-    F64: "<f8",
-    U32: "<u4",
-    I32: "<i4",
-}  # fixed-width fields -> little-endian dtype; others varints
+    m: [f for f in fs if f.repeated and not isinstance(f.type, str)] for m, fs in MESSAGES.items()
+}
+REWARDS, SMALL_REWARDS = (f for f in COLUMNS["Steps"] if f.column == "reward")  # one per batch
+FIXED = {F32: "<f4", F64: "<f8", U32: "<u4", I32: "<i4"}  # fixed-width fields; others varints
 OUR_SCHEMA = S.file_descriptor_set(S.EpisodeBatch)
 VIEWS = S.message_classes(view=True)
 
 
 def _payload(msg: str, f: Field, a: np.ndarray) -> bytes:
-    if (
-        f.type == CODE and len(a) and int(a.max()) >= 128
-    ):  # varints of several bytes: the runtime writes them
-        return getattr(
-            VIEWS[msg].FromString(S.CLASSES[msg](**{f.name: a.tolist()}).SerializeToString()),
-            f.name,
-        )
+    if f.type == CODE and len(a) and int(a.max()) >= 128:  # varints of several bytes: the runtime
+        whole = S.CLASSES[msg](**{f.name: a.tolist()}).SerializeToString()
+        return getattr(VIEWS[msg].FromString(whole), f.name)
     if f.type == CODE:  # values below 128 are their own varint byte
         return a.astype(np.uint8).tobytes()
-    if (
-        f.type == SMALL
-    ):  # Protobuf's sint32 zigzag of values in -64..63, one byte each: 0, -1, 1, -2 -> 0, 1, 2, 3
+    if f.type == SMALL:  # sint32 zigzag of values in -64..63, one byte each: 0,-1,1 -> 0,1,2
         return ((a.astype(np.int16) << 1) ^ (a.astype(np.int16) >> 15)).astype(np.uint8).tobytes()
     return a.tobytes()
 
@@ -73,8 +53,8 @@ def _message(msg: str, b: Mapping[str, Any]):
 
 
 def encode_batch(b: Mapping[str, Any]) -> bytes:
-    """The ``EpisodeBatch`` bytes of a checked batch (:func:`.batch_check.check_batch`), through the raw views: the bytes the
-    real class filled through the runtime serializes (tested)."""
+    """The ``EpisodeBatch`` bytes of a checked batch (:func:`.batch_check.check_batch`): the bytes
+    the real class filled through the runtime serializes (tested)."""
     return _message("EpisodeBatch", b).SerializeToString(deterministic=True)
 
 
@@ -83,8 +63,8 @@ class FormatError(ValueError):
 
 
 def check_schema(schema_data: bytes | None, library: str | None) -> None:
-    """Refuse (:class:`FormatError`) episode batches of a schema record that is not this format's (``None``: lost,
-    this writer's assumed); ``library``: the file header's, which names the format that wrote it."""
+    """Refuse (:class:`FormatError`) episode batches of another schema record than this format's
+    (``None``: lost, this writer's assumed); ``library``: the file header's, which names the format."""
     if schema_data in (None, OUR_SCHEMA):
         return
     try:
@@ -92,20 +72,17 @@ def check_schema(schema_data: bytes | None, library: str | None) -> None:
             return
     except Exception:  # not a FileDescriptorSet: not ours either
         pass
-    written = (
-        f"record format {library.rsplit('/', 1)[1]}"
-        if (library or "").startswith("pipeline.records/")
-        else "another record schema"
-    )
+    ours = (library or "").startswith("pipeline.records/")
+    written = f"record format {library.rsplit('/', 1)[1]}" if ours else "another record schema"
     raise FormatError(
-        f"its episode batches use {written}; this reader reads format {S.FORMAT_VERSION}: re-run the "
-        "trials that wrote it (or read it with the commit of the pipeline that wrote it)"
+        f"its episode batches use {written}; this reader reads format {S.FORMAT_VERSION}: re-run "
+        "the trials that wrote it (or read it with the commit of the pipeline that wrote it)"
     )
 
 
 def _values(raw: list[bytes], f: Field, column) -> tuple[np.ndarray, np.ndarray]:
-    """A column's values over messages (``raw``: its payload in each) and how many each holds, by the field's wire
-    type; ``column(payload)``: the values of a payload through the runtime (varints of several bytes)."""
+    """A column's values over messages (``raw``: its payload in each) and how many each holds;
+    ``column(payload)``: the values of a payload through the runtime (multi-byte varints)."""
     lens, b = np.fromiter(map(len, raw), np.int64, len(raw)), b"".join(raw)
     if f.type in FIXED:
         size = np.dtype(FIXED[f.type]).itemsize
@@ -113,9 +90,7 @@ def _values(raw: list[bytes], f: Field, column) -> tuple[np.ndarray, np.ndarray]
             raise ValueError("a fixed-width column is not whole elements")
         return np.frombuffer(b, FIXED[f.type]), lens // size
     values = np.frombuffer(b, np.uint8)
-    if (
-        values >= 128
-    ).any():  # the runtime reads them, faster than numpy (benchmarks.records_overhead)
+    if (values >= 128).any():  # the runtime reads them, faster than numpy
         if (values[np.cumsum(lens)[lens > 0] - 1] >= 128).any():
             raise ValueError("a varint column does not end with a whole value")
         ends = np.r_[0, np.cumsum(values < 128)][np.r_[0, np.cumsum(lens)]]
@@ -126,21 +101,17 @@ def _values(raw: list[bytes], f: Field, column) -> tuple[np.ndarray, np.ndarray]
 
 
 def _flat(data: list[bytes]) -> dict:
-    """Every column of the messages, concatenated, and its length in each, through the raw views. A message the
-    views do not read exactly is re-serialized by the real classes first (canonical: one packed run a column, no
-    unknown fields)."""
+    """Every column of the messages, concatenated, and its length in each, through the raw views."""
     top = []
     for d in data:
         v = VIEWS["EpisodeBatch"].FromString(d)
         v.DiscardUnknownFields()
-        if v.ByteSize() != len(d):
+        if v.ByteSize() != len(d):  # not canonical: re-serialized by the real classes
             m = S.EpisodeBatch.FromString(d)
             m.DiscardUnknownFields()
             v = VIEWS["EpisodeBatch"].FromString(m.SerializeToString(deterministic=True))
         top.append(v)
-    msgs = {"EpisodeBatch": top} | {
-        sub: [getattr(v, field) for v in top] for field, sub in SUBS.items()
-    }
+    msgs = {"EpisodeBatch": top} | {sub: [getattr(v, f) for v in top] for f, sub in SUBS.items()}
     out: dict = {
         "run": np.array([m.run for m in top], np.int64),
         "n_actions": np.array([m.n_actions for m in top]),
@@ -150,33 +121,30 @@ def _flat(data: list[bytes]) -> dict:
         for f in fields:
 
             def column(payload, msg=msg, name=f.name):
-                return getattr(
-                    S.CLASSES[msg].FromString(VIEWS[msg](**{name: payload}).SerializeToString()),
-                    name,
-                )
+                whole = VIEWS[msg](**{name: payload}).SerializeToString()
+                return getattr(S.CLASSES[msg].FromString(whole), name)
 
             out[msg, f.name] = _values([getattr(m, f.name) for m in msgs[msg]], f, column)
     return out
 
 
-def decode_batches(messages: list[tuple[int, bytes]], name: str) -> dict:
-    """The frames' columns (``steps``, ``recognitions``, ``unsafe``, ``episodes``), ``q_values``
-    ((name, run, episode) -> table) and ``batch_sizes`` of ``(log time, EpisodeBatch bytes)``
-    messages. Raises ValueError naming the problem when the messages' arrays do not fit together."""
-    return _columns(_flat([d for _, d in messages]), name)
+def decode_batches(data: list[bytes], name: str) -> dict:
+    """The frames' columns (``steps``, ``recognitions``, ``unsafe``, ``substitutions``,
+    ``episodes``) and ``q_values`` ((name, run, episode) -> table) of ``EpisodeBatch`` messages.
+    Raises ValueError naming the problem when the messages' arrays do not fit together."""
+    return _columns(_flat(data), name)
 
 
 def _frame(flat: dict, msg: str, head: dict, **given: np.ndarray) -> dict:
     """The frame columns of ``msg``'s fields in field order (``given``: columns already built)."""
-    return head | {
-        f.column: given[f.column]
-        if f.column in given
-        else flat[msg, f.name][0] != 0
-        if f.dtype == "bool"
-        else flat[msg, f.name][0].astype(f.dtype)
-        for f in COLUMNS[msg]
-        if f.name != "scores"
-    }
+    out = dict(head)
+    for f in COLUMNS[msg]:
+        if f.name != "scores":
+            v = given.get(f.column, flat[msg, f.name][0])
+            out[f.column] = (
+                v if f.column in given else v != 0 if f.dtype == "bool" else v.astype(f.dtype)
+            )
+    return out
 
 
 def _columns(flat: dict, name: str) -> dict[str, Any]:
@@ -184,61 +152,44 @@ def _columns(flat: dict, name: str) -> dict[str, Any]:
         return ValueError(f"{name}: episode batch messages are inconsistent: {why}")
 
     count = {k: v[1] for k, v in flat.items() if isinstance(k, tuple)}
-    n_eps, lens = (
-        count["EpisodeBatch", "episode"],
-        flat["EpisodeSummaries", "steps"][0].astype(np.int64),
-    )
-    msg_of_ep = np.repeat(np.arange(len(n_eps)), n_eps)
+    n_eps = count["EpisodeBatch", "episode"]
+    lens = flat["EpisodeSummaries", "steps"][0].astype(np.int64)
     if not count["Steps", "states"].any():  # recorded without steps (record=episodes)
         lens = np.zeros_like(lens)
     n_float, n_small = count["Steps", REWARDS.name], count["Steps", SMALL_REWARDS.name]
-    count["Steps", REWARDS.name] = n_float + n_small  # per batch, its rewards are in one of the two
     if ((n_float > 0) & (n_small > 0)).any():
         raise bad("a batch has rewards in both reward columns")
-    rows = {
-        "EpisodeSummaries": (n_eps, "episode"),
-        "Steps": (np.bincount(msg_of_ep, lens, len(n_eps)), "step"),
-    } | {
-        m: (count[m, "episode"], "row")
-        for m in ("Recognitions", "UnsafeAdditions", "Substitutions")
-    }
-    for msg, (expected, per) in rows.items():
-        for f in COLUMNS[msg]:
-            if f.name not in ("scores", SMALL_REWARDS.name) and not np.array_equal(
-                count[msg, f.name], expected
-            ):
-                raise bad(f"{msg}.{f.name} does not have one entry per {per}")
-    rec_m, un_k, ncat = (
+    count["Steps", REWARDS.name] = n_float + n_small
+    per_msg = np.repeat(np.arange(len(n_eps)), n_eps)
+    rows = {"EpisodeSummaries": n_eps, "Steps": np.bincount(per_msg, lens, len(n_eps))}
+    rows |= {m: count[m, "episode"] for m in ("Recognitions", "UnsafeAdditions", "Substitutions")}
+    for msg, expected in rows.items():
+        for f in (f for f in COLUMNS[msg] if f.name not in ("scores", SMALL_REWARDS.name)):
+            if not np.array_equal(count[msg, f.name], expected):
+                raise bad(f"{msg}.{f.name} does not have one entry per row")
+    rec_m, n_sc, ncat = (
         count["Recognitions", "episode"],
-        count["UnsafeAdditions", "episode"],
+        count["Recognitions", "scores"],
         flat["n_categories"],
     )
-    n_sc = count["Recognitions", "scores"]
     if not np.array_equal(n_sc, np.where(n_sc > 0, rec_m * ncat, 0)):
         raise bad("scores do not have n_categories columns")
     ep_run = np.repeat(flat["run"], n_eps).astype(np.int32)
     ep_ep = flat["EpisodeBatch", "episode"][0].astype(np.int32)
     starts = np.repeat(np.cumsum(lens) - lens, lens)
-    small = np.repeat(
-        n_small > 0, n_float + n_small
-    )  # the steps whose rewards are in small_rewards
+    small = np.repeat(n_small > 0, n_float + n_small)  # the steps whose rewards are small_rewards
     reward = np.empty(len(small), np.float32)
-    reward[small], reward[~small] = (
-        flat["Steps", SMALL_REWARDS.name][0],
-        flat["Steps", REWARDS.name][0],
-    )
-    steps = _frame(
-        flat,
-        "Steps",
-        {
-            "run": np.repeat(ep_run, lens),
-            "episode": np.repeat(ep_ep, lens),
-            "step": (np.arange(len(starts)) - starts).astype(np.int32),
-        },
-        reward=reward,
-    )
+    reward[small] = flat["Steps", SMALL_REWARDS.name][0]
+    reward[~small] = flat["Steps", REWARDS.name][0]
+    step = (np.arange(len(starts)) - starts).astype(np.int32)
+    head = {"run": np.repeat(ep_run, lens), "episode": np.repeat(ep_ep, lens), "step": step}
+    steps = _frame(flat, "Steps", head, reward=reward)
     steps |= {flag: (steps["flags"] & bit) != 0 for flag, bit in S.FLAG_NAMES.items()}
-    rec = _frame(flat, "Recognitions", {"run": np.repeat(flat["run"], rec_m).astype(np.int32)})
+
+    rec, unsafe, subs = (
+        _frame(flat, m, {"run": np.repeat(flat["run"], count[m, "episode"]).astype(np.int32)})
+        for m in ("Recognitions", "UnsafeAdditions", "Substitutions")
+    )
     rec["correct"] = rec["predicted"] == rec["true"]
     has, width = n_sc > 0, int(ncat[n_sc > 0].max()) if n_sc.any() else 0
     if width:
@@ -251,12 +202,6 @@ def _columns(flat: dict, name: str) -> dict[str, Any]:
             for r, p, m, k in zip(row[has], pos[has], rec_m[has], ncat[has]):
                 scores[r : r + m, :k] = values[p : p + m * k].reshape(m, k)
         rec |= {f"score_{j}": scores[:, j] for j in range(width)}
-    unsafe = _frame(flat, "UnsafeAdditions", {"run": np.repeat(flat["run"], un_k).astype(np.int32)})
-    subs = _frame(
-        flat,
-        "Substitutions",
-        {"run": np.repeat(flat["run"], count["Substitutions", "episode"]).astype(np.int32)},
-    )
     ep_key = ep_run.astype(np.int64) << 32 | ep_ep
     order = np.argsort(ep_key, kind="stable")
     per_episode = {}
@@ -266,10 +211,11 @@ def _columns(flat: dict, name: str) -> dict[str, Any]:
         if len(key) and (pos.max() >= len(order) or not np.array_equal(ep_key[order][pos], key)):
             raise bad(f"{what} of episodes that are not in their batch")
         per_episode[what] = np.bincount(order[pos], minlength=len(ep_key)).astype(np.int32)
-    episodes = _frame(flat, "EpisodeSummaries", {"run": ep_run, "episode": ep_ep}) | {
-        "n_recognitions": per_episode["recognitions"],
-        "n_unsafe_added": per_episode["unsafe"],
-    }
+    episodes = _frame(flat, "EpisodeSummaries", {"run": ep_run, "episode": ep_ep})
+    episodes["n_recognitions"], episodes["n_unsafe_added"] = (
+        per_episode["recognitions"],
+        per_episode["unsafe"],
+    )
     q_values, (q, n_q), row = {}, flat["EpisodeBatch", "q_values"], np.cumsum(n_eps) - n_eps
     pos = np.cumsum(n_q) - n_q
     for i in np.flatnonzero(n_q):
@@ -277,15 +223,7 @@ def _columns(flat: dict, name: str) -> dict[str, Any]:
         if not na or n_q[i] % (na * e):
             raise bad("q_values do not have n_actions columns for every episode")
         tables = q[pos[i] : pos[i] + n_q[i]].astype(np.float32).reshape(e, -1, na)
-        q_values |= {
-            (name, int(ep_run[row[i] + j]), int(ep_ep[row[i] + j])): tables[j] for j in range(e)
-        }
-    return {
-        "steps": steps,
-        "recognitions": rec,
-        "unsafe": unsafe,
-        "substitutions": subs,
-        "episodes": episodes,
-        "q_values": q_values,
-        "batch_sizes": n_eps,
-    }
+        for j in range(e):
+            q_values[name, int(ep_run[row[i] + j]), int(ep_ep[row[i] + j])] = tables[j]
+    frames = {"steps": steps, "recognitions": rec, "unsafe": unsafe, "substitutions": subs}
+    return frames | {"episodes": episodes, "q_values": q_values}

@@ -1,51 +1,82 @@
-"""What survives of an MCAP record file, read through the mcap package (docs/records.md "Damaged and truncated
-files"): with mcap's seeking reader when its summary is intact, else (or when that finds damage) front to back
-(``walk.py``). Each damaged or missing part is a :class:`Damage`; a file with nothing to read raises
+"""What survives of an MCAP record file (docs/records.md "Damaged and truncated files"), read with
+the mcap package's records. With an intact summary (its CRC checked): every chunk the chunk index
+names, each CRC-checked, a damaged one skipped; then the data section's CRC. Without one: record by
+record from the front, a damaged chunk skipped by its length, until the first record that cannot
+be read. Each damaged or missing part is a :class:`Damage`; nothing readable raises
 :class:`RecordsError`.
 """
 
 from __future__ import annotations
 
-import contextlib
 import io
 import struct
 import zlib
+from dataclasses import dataclass, field
 from pathlib import Path
 
+from mcap.data_stream import ReadDataStream
 from mcap.opcode import Opcode
-from mcap.reader import FOOTER_SIZE, make_reader
+from mcap.reader import make_reader
+from mcap.records import Channel, Chunk, DataEnd, Header, Message, MessageIndex, Metadata, Schema
+from mcap.stream_reader import CRCValidationError, breakup_chunk
+from mcap.summary import Summary
 
-from .scanned import (
-    DATA_END_HEAD,
-    PICTURE_TOPICS,
-    WRITER_CHANNELS,
-    Damage,
-    RecordsError,
-    Scan,
-    check_data_end,
-    file_record,
-    message_kind,
-)
-from .walk import walk
+from pipeline.errors import UserError
 
-__all__ = ["WRITER_CHANNELS", "Damage", "RecordsError", "Scan", "message_kind", "scan"]
+from . import schema as S
 
 MAGIC = b"\x89MCAP0\r\n"
-_FOOTER = struct.Struct("<BQQQI")
-_SIGNATURES = (
-    (b"\x89PNG\r\n\x1a\n", "a PNG image"),
-    (b"\xff\xd8\xff", "a JPEG image"),
-    (b"PK\x03\x04", "a zip archive"),
-    (b"\x1f\x8b", "a gzip file"),
-    (b"\x28\xb5\x2f\xfd", "a zstd file"),
-    (b"SQLite format 3\x00", "an SQLite database"),
-    (b"RRF", "a Rerun .rrd file"),
-)
+#: The writer registers these first, in this order (tested): channel id -> (topic, schema id,
+#: message class); used when every copy of a file's channel definitions is lost.
+WRITER_CHANNELS = {1: (S.TOPIC_EPISODES, 1, S.EpisodeBatch)}
+PICTURE_TOPICS = (S.TOPIC_PICTURES, S.TOPIC_SUPPORT)  # stamped 0: read whatever the time range
+_HEAD, _FOOTER = struct.Struct("<BQ"), struct.Struct("<BQQQI")
+_RECORDS = {  # what a data section of ours holds, by opcode
+    Opcode.HEADER: Header,
+    Opcode.SCHEMA: Schema,
+    Opcode.CHANNEL: Channel,
+    Opcode.CHUNK: Chunk,
+    Opcode.MESSAGE_INDEX: MessageIndex,
+    Opcode.METADATA: Metadata,
+    Opcode.DATA_END: DataEnd,
+}
+
+
+class RecordsError(UserError):
+    """A record file that cannot be read at all; the message names the file and the problem."""
+
+
+@dataclass
+class Damage:
+    """One damaged or missing part of a file."""
+
+    kind: str  # "chunk", "record", "stopped", "summary", "data", "metadata", "decode"; "truncated"
+    what: str  # a sentence naming the part, where it is and what is wrong with it
+    span: tuple[int, int] | None = None  # log times of the messages it held, when known
+
+
+@dataclass
+class Scan:
+    """What was read from one file. ``messages``: topic -> list of (log_time, data)."""
+
+    path: Path
+    library: str | None = None
+    schemas: dict[int, Schema] = field(default_factory=dict)
+    channels: dict[int, Channel] = field(default_factory=dict)
+    messages: dict[str, list[tuple[int, bytes]]] = field(default_factory=dict)
+    metadata: dict[str, dict[str, str]] = field(default_factory=dict)
+    damage: list[Damage] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)  # recovered, nothing lost
+    summary: Summary | None = None  # the summary section, when intact
+    dropped: int = 0  # messages whose channel definition is lost everywhere
+
+    def add(self, kind: str, what: str, span: tuple[int, int] | None = None) -> None:
+        self.damage.append(Damage(kind, what, span))
 
 
 def scan(path: str | Path, *, time_range: tuple[int, int] | None = None) -> Scan:
     """Every intact record of ``path``; ``time_range`` (ns, end exclusive) leaves out the messages
-    outside it, and their chunks unread (pictures, stamped 0, are always read)."""
+    outside it, and with an intact summary their chunks unread (pictures are always read)."""
     path = Path(path)
     try:
         data = path.read_bytes()
@@ -54,90 +85,185 @@ def scan(path: str | Path, *, time_range: tuple[int, int] | None = None) -> Scan
     except OSError as e:
         raise RecordsError(f"{path}: cannot be read ({e.strerror or e})") from None
     if data[:8] != MAGIC:
-        what = next(
-            (f"it is {w}" for sig, w in _SIGNATURES if data.startswith(sig)),
-            "it does not start with the MCAP magic bytes",
-        )
-        raise RecordsError(
-            f"{path}: empty file (0 bytes): not an MCAP record file"
-            if not data
-            else f"{path}: truncated after {len(data)} bytes, inside the MCAP magic bytes: nothing to read"
-            if len(data) < 8 and MAGIC.startswith(data)
-            else f"{path}: not an MCAP file ({what})"
-        )
-    out, reader = Scan(path), make_reader(io.BytesIO(data), validate_crcs=True)
-    end = _summary(data, out, reader)
+        what = "empty file (0 bytes)" if not data else "not an MCAP file"
+        raise RecordsError(f"{path}: {what}: it does not start with the MCAP magic bytes")
+    out = Scan(path)
+    end = _summary(data, out)
     if out.summary is not None:
-        with contextlib.suppress(Exception):  # damage found: read it record by record
-            return _read_indexed(data, path, reader, end, time_range)
-    walk(data, out, end, time_range)
+        _indexed(data, out, end, time_range)
+    else:
+        _stream(data, out, time_range)
     return out
 
 
-def _summary(data: bytes, out: Scan, reader) -> int:
-    """The summary section, if intact (CRC checked), as ``out.summary``; returns where the data section ends."""
-    foot = len(data) - 8 - FOOTER_SIZE
+def _summary(data: bytes, out: Scan) -> int:
+    """The summary section as ``out.summary`` when intact (CRC checked); where the data ends."""
+    foot = len(data) - 8 - _FOOTER.size
     if foot < 8 or data[-8:] != MAGIC:
         return len(data)
     opcode, length, start, _, crc = _FOOTER.unpack_from(data, foot)
-    if (opcode, length) != (Opcode.FOOTER, FOOTER_SIZE - 9):
-        out.damage.append(
-            Damage(
-                "summary",
-                f"the footer at byte {foot} is damaged; the file was read without its "
-                "summary section",
-            )
-        )
-    elif start:
-        problem = (
-            "names a summary section outside the file"
-            if not 8 < start <= foot
-            else "CRC mismatch"
-            if crc and zlib.crc32(data[start : foot + FOOTER_SIZE - 4]) != crc
-            else None
-        )
+    if (opcode, length) != (Opcode.FOOTER, _FOOTER.size - 9):
+        problem = f"the footer at byte {foot} is damaged"
+    elif not 8 < start <= foot:
+        problem = f"the footer names a summary section outside the file ({start})"
+    elif crc and zlib.crc32(data[start : foot + _FOOTER.size - 4]) != crc:
+        problem = f"the summary section at byte {start} is damaged (CRC mismatch)"
+    else:
         try:
-            out.summary = None if problem else reader.get_summary()
+            out.summary = make_reader(io.BytesIO(data)).get_summary()
+            return start
         except Exception as e:
-            problem = f"it does not parse ({type(e).__name__}: {e})"
-        if problem:
-            out.damage.append(
-                Damage(
-                    "summary",
-                    f"the summary section at byte {start} is damaged ({problem}); the "
-                    "file was read without it",
+            problem = f"the summary section does not parse ({type(e).__name__}: {e})"
+    out.add("summary", f"{problem}; the file was read without it")
+    return len(data)
+
+
+def _parse(data: bytes, pos: int, end: int):
+    """The record from ``pos`` to ``end``; ValueError unless its kind is known and it fills them."""
+    body = ReadDataStream(io.BytesIO(data[pos + 9 : end]))
+    rec = _RECORDS[data[pos]].read(body)
+    if body.count != end - pos - 9:
+        raise ValueError("its record length disagrees with its contents")
+    return rec
+
+
+def _chunk(out: Scan, rec: Chunk, time_range) -> str | None:
+    """File a chunk's records unless it lies outside ``time_range``; why it is damaged, or None."""
+    t0, t1 = rec.message_start_time, rec.message_end_time
+    if time_range is not None and t0 != 0 and (t1 < time_range[0] or t0 >= time_range[1]):
+        return None
+    try:
+        records = breakup_chunk(rec, validate_crc=True)
+    except CRCValidationError:
+        return "CRC mismatch"
+    except Exception as e:
+        packed = type(e).__module__.startswith(("zstandard", "lz4"))
+        return f"bad decompression ({type(e).__name__})" if packed else "bad record lengths"
+    for r in records:
+        _file(out, r, time_range)
+    return None
+
+
+def _file(out: Scan, rec, time_range) -> None:
+    if isinstance(rec, Message):
+        ch = out.channels.get(rec.channel_id) or _writer_channel(out, rec.channel_id)
+        if ch is None:
+            out.dropped += 1
+        elif (
+            time_range is None
+            or time_range[0] <= rec.log_time < time_range[1]
+            or ch.topic.startswith(PICTURE_TOPICS)
+        ):
+            out.messages.setdefault(ch.topic, []).append((rec.log_time, rec.data))
+    elif isinstance(rec, Channel):
+        out.channels[rec.id] = rec
+    elif isinstance(rec, Schema):
+        out.schemas[rec.id] = rec
+    elif isinstance(rec, Metadata):
+        out.metadata[rec.name] = dict(rec.metadata)
+    elif isinstance(rec, Header):
+        out.library = rec.library
+
+
+def _writer_channel(out: Scan, cid: int) -> Channel | None:
+    """Channel ``cid`` of this writer's fixed layout, for a file of ours whose definition is lost."""
+    if out.library != S.LIBRARY or cid not in WRITER_CHANNELS:
+        return None
+    topic, sid, cls = WRITER_CHANNELS[cid]
+    out.channels[cid] = Channel(cid, topic, "protobuf", {}, sid)
+    schema = Schema(sid, S.file_descriptor_set(cls), "protobuf", cls.DESCRIPTOR.full_name)
+    out.schemas.setdefault(sid, schema)
+    out.notes.append(
+        f"the definition of channel {topic} was lost with the damaged part; taken from this "
+        f"writer's fixed channel layout ({S.LIBRARY})"
+    )
+    return out.channels[cid]
+
+
+def _indexed(data: bytes, out: Scan, end: int, time_range) -> None:
+    """A file with an intact summary: its header, metadata and indexed chunks, then its data end."""
+    summary = out.summary
+    out.schemas, out.channels = dict(summary.schemas), dict(summary.channels)
+    where = [(8, "the header record")]
+    where += [(m.offset, f"metadata record '{m.name}'") for m in summary.metadata_indexes]
+    for pos, what in where:
+        try:
+            _file(out, _parse(data, pos, pos + 9 + _HEAD.unpack_from(data, pos)[1]), None)
+        except Exception:
+            out.add("metadata", f"{what} at byte {pos} is damaged")
+    chunks = sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset)
+    for k, c in enumerate(chunks, 1):
+        pos, span = c.chunk_start_offset, (c.message_start_time, c.message_end_time)
+        try:  # the index says where the chunk ends: its record length is not needed
+            why = _chunk(out, _parse(data, pos, pos + c.chunk_length), time_range)
+        except Exception as e:
+            why = f"bad chunk record ({type(e).__name__})"
+        if why:
+            what = f"chunk {k} of {len(chunks)} damaged ({why}) at byte {pos}"
+            out.add("chunk", what, span)
+    head, (crc,) = data[end - 13 : end - 4], struct.unpack_from("<I", data, end - 4)
+    if head != _HEAD.pack(Opcode.DATA_END, 4):
+        return out.add("data", "the data-end record before the summary is damaged")
+    _data_crc(data, out, end - 13, crc, time_range)
+
+
+def _data_crc(data: bytes, out: Scan, end: int, crc: int, time_range) -> None:
+    """The data section's CRC, on a whole read that found no other damage."""
+    if crc and time_range is None and not out.damage and zlib.crc32(memoryview(data)[:end]) != crc:
+        what = "a byte outside the chunks' data is damaged (a record header, a metadata record or a message index)"
+        out.add(
+            "data",
+            f"the data section's CRC does not match: {what}; every chunk read passed its own CRC",
+        )
+
+
+def _stream(data: bytes, out: Scan, time_range) -> None:
+    """A file without an intact summary, record by record from the front."""
+    n, pos, k = len(data), 8, 0
+    while pos < n:
+        if pos + 9 > n:
+            return _truncated(out, f"it ends {n - pos} bytes into a record header at byte {pos}")
+        opcode, length = _HEAD.unpack_from(data, pos)
+        end = pos + 9 + length
+        k += opcode == Opcode.CHUNK
+        name = f"chunk {k}" if opcode == Opcode.CHUNK else _name(opcode)
+        if end > n:
+            return _truncated(out, f"it ends {n - pos - 9} bytes into {name} at byte {pos}")
+        if opcode not in _RECORDS:
+            out.add("record", f"{name} at byte {pos} is of no known kind: skipped")
+            pos = end
+            continue
+        try:
+            rec = _parse(data, pos, end)
+        except Exception as e:
+            why = str(e) if isinstance(e, ValueError) else type(e).__name__
+            out.add("stopped", f"{name} at byte {pos} is damaged ({why}); reading stopped there")
+            return
+        if isinstance(rec, DataEnd):
+            _data_crc(data, out, pos, rec.data_section_crc, time_range)
+            if not any(d.kind == "summary" for d in out.damage):
+                out.add(
+                    "truncated",
+                    "the summary section at the end of the file is truncated (all recorded data is intact)",
                 )
-            )
-    return len(data) if out.summary is None else start
+            return
+        why = (
+            _chunk(out, rec, time_range) if isinstance(rec, Chunk) else _file(out, rec, time_range)
+        )
+        if why:
+            span = (rec.message_start_time, rec.message_end_time)
+            out.add("chunk", f"chunk {k} damaged ({why}) at byte {pos}", span)
+        pos = end
+    _truncated(out, f"it ends after {n} bytes at a record boundary, before its data-end record")
 
 
-def _read_indexed(data: bytes, path: Path, reader, end: int, time_range) -> Scan:
-    """A file with an intact summary, through mcap's seeking reader; raises on any damage found."""
-    summary = reader.get_summary()
-    out = Scan(
-        path, schemas=dict(summary.schemas), channels=dict(summary.channels), summary=summary
-    )
-    topics = {c.topic for c in summary.channels.values()}
-    pictures = {t for t in topics if t.startswith(PICTURE_TOPICS)}
-    queries = (
-        [{}]
-        if time_range is None
-        else [
-            {"topics": pictures},
-            {
-                "topics": topics - pictures,
-                "starting_at": time_range[0],
-                "ending_before": time_range[1],
-            },
-        ]
-    )
-    messages = (
-        m for query in queries for _, _, m in reader.iter_messages(log_time_order=False, **query)
-    )
-    for rec in (reader.get_header(), *reader.iter_metadata(), *messages):
-        file_record(out, rec, None)
-    if data[end - 13 : end - 4] != DATA_END_HEAD:
-        raise TypeError("no data-end record before the summary")
-    check_data_end(data, out, int.from_bytes(data[end - 4 : end], "little"), end - 13, time_range)
-    out.complete = not out.damage
-    return out
+def _name(opcode: int) -> str:
+    try:
+        return f"a {Opcode(opcode).name.lower().replace('_', ' ')} record"
+    except ValueError:
+        return f"a record of opcode {opcode:#x}"
+
+
+def _truncated(out: Scan, where: str) -> None:
+    what = f"the file is truncated: {where}; that record, anything after it and the summary section are lost"
+    out.add("truncated", what)

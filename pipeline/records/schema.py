@@ -1,28 +1,26 @@
-"""The MCAP record schema (docs/records.md "The schema"): topics, timestamps and :data:`MESSAGES`, the one
-table of fields (their order, numbers, wire types and frame columns) that the Protobuf descriptors, the encoder,
-the decoder and the reader's frames derive from (:mod:`.codec`). Flag bits and sources mirror
-``pipeline/rl/codes.py`` (a test checks); action names, moves and category names are the caller's (``maze``).
+"""The MCAP record schema (docs/records.md "The schema"): topics, timestamps and :data:`MESSAGES`,
+the one table of fields (order, numbers, wire types, frame columns) that the Protobuf descriptors,
+the encoder, the decoder and the reader's frames derive from (:mod:`.codec`). Flag bits and sources
+mirror ``pipeline/rl/codes.py`` (a test checks); action names, moves and category names are the
+caller's (``maze``).
 """
 
 from __future__ import annotations
 
 from typing import NamedTuple
 
-from foxglove_schemas_protobuf.CompressedImage_pb2 import CompressedImage  # noqa: F401  (used as schema.CompressedImage)
+from foxglove_schemas_protobuf.CompressedImage_pb2 import CompressedImage  # noqa: F401
 from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
 from mcap_protobuf.schema import build_file_descriptor_set
 
-FORMAT_VERSION = (
-    "5"  # 5: substitutions in the batches (4: states as codes; 3: fixed-width packed columns;
-)
-#                       2: varint columns; 1: one Episode each)
+# 6: format 5 without its unused Substitution message; 5: substitutions in the batches;
+# 4: states as codes; 3: fixed-width packed columns; 2: varint columns; 1: one Episode each
+FORMAT_VERSION = "6"
 PACKAGE = "fsrl.records"
 LIBRARY = "pipeline.records/" + FORMAT_VERSION  # the header's library string of this writer's files
 TOPIC_EPISODES = "/episodes"
-TOPIC_PICTURES, TOPIC_SUPPORT = (
-    "/pictures",
-    "/support",
-)  # + "/<picture id>", + "/<category>/<position>"
+TOPIC_PICTURES = "/pictures"  # + "/<picture id>"
+TOPIC_SUPPORT = "/support"  # + "/<category>/<position>"
 
 FLAG_NAMES = {"reselected": 1, "collided": 2, "recovered": 4, "goal": 8, "truncated": 16}
 FLAG_RESELECTED, FLAG_COLLIDED, FLAG_RECOVERED, FLAG_GOAL, FLAG_TRUNCATED = FLAG_NAMES.values()
@@ -32,23 +30,18 @@ STEP_NS = 1_000_000  # 1 ms
 EPISODE_NS = 1_000 * STEP_NS  # 1 s: at most 1,000 steps an episode
 RUN_NS = 1_000_000 * EPISODE_NS  # 10^6 s: at most 10^6 episodes a run
 MAX_RUN = (2**63 - 1) // RUN_NS - 1  # about 9,000 runs
-_STEPS, _EPISODES = EPISODE_NS // STEP_NS, RUN_NS // EPISODE_NS
 
 
 def log_time_ns(run: int, episode: int, step: int = 0) -> int:
     """Timestamp (ns) of ``step`` of ``episode`` of ``run``: deterministic, never the wall clock."""
-    if 0 <= step < _STEPS and 0 <= episode < _EPISODES and 0 <= run <= MAX_RUN:
-        return run * RUN_NS + episode * EPISODE_NS + step * STEP_NS
-    what, v, n = next(
-        x
-        for x in (
-            ("step", step, _STEPS),
-            ("episode", episode, _EPISODES),
-            ("run", run, MAX_RUN + 1),
-        )
-        if not 0 <= x[1] < x[2]
-    )
-    raise ValueError(f"{what} {v} out of range 0..{n - 1} for a record timestamp")
+    for what, v, n in (
+        ("step", step, EPISODE_NS // STEP_NS),
+        ("episode", episode, RUN_NS // EPISODE_NS),
+        ("run", run, MAX_RUN + 1),
+    ):
+        if not 0 <= v < n:
+            raise ValueError(f"{what} {v} out of range 0..{n - 1} for a record timestamp")
+    return run * RUN_NS + episode * EPISODE_NS + step * STEP_NS
 
 
 def split_log_time(t: int) -> tuple[int, int, int]:
@@ -67,9 +60,7 @@ I32, U32, F32, F64, BOOL = (
     _F.TYPE_BOOL,
 )
 CODE = _F.TYPE_UINT32  # packed: a varint column, one byte a value below 128; scalar: a plain uint32
-SMALL = (
-    _F.TYPE_SINT32
-)  # packed zigzag varints, written only when every value is in -64..63: one byte each
+SMALL = _F.TYPE_SINT32  # packed zigzag varints, written only when all values are in -64..63
 
 
 class Field(NamedTuple):
@@ -83,7 +74,7 @@ class Field(NamedTuple):
 
 
 # message -> fields. Frames: EpisodeSummaries and EpisodeBatch.episode -> episodes; Steps -> steps;
-# Recognitions -> recognitions; UnsafeAdditions -> unsafe; Substitution -> substitutions.
+# Recognitions -> recognitions; UnsafeAdditions -> unsafe; Substitutions -> substitutions.
 MESSAGES: dict[str, list[Field]] = {
     "EpisodeSummaries": [  # one entry per episode of the batch
         Field("steps", 1, U32, "steps", "int32"),
@@ -92,17 +83,15 @@ MESSAGES: dict[str, list[Field]] = {
         Field("reached_goal", 4, BOOL, "reached_goal", "bool"),
         Field("prevented", 5, U32, "prevented", "int32"),
         Field("epsilon", 6, F64, "epsilon", "float64"),  # at the end of the episode
-        Field("greedy_optimal", 7, BOOL, "greedy_optimal", "bool"),
-    ],  # the greedy policy is optimal after it
+        Field("greedy_optimal", 7, BOOL, "greedy_optimal", "bool"),  # greedy policy optimal after
+    ],
     "Steps": [  # one entry per executed step of the batch's episodes, concatenated
         Field("states", 1, CODE, "state", "int32"),  # cell row * width + col before the step
-        Field(
-            "actions", 2, CODE, "action", "int8"
-        ),  # action index (the maze record's actions, moves)
+        Field("actions", 2, CODE, "action", "int8"),  # index into the maze record's actions
         Field("rewards", 3, F32, "reward", "float32"),
-        Field("flags", 4, CODE, "flags", "uint8"),  # FLAG_* bits
-        # format 5: a batch whose rewards are all whole numbers in -64..63 (the rules give -1, 0, 1) has
-        # them here, one byte each, instead of in ``rewards`` (4 bytes each: half of a step's raw bytes)
+        Field("flags", 4, CODE, "flags", "uint8"),  # FLAG_NAMES bits
+        # a batch whose rewards are all whole numbers in -64..63 (the rules give -1, 0, 1) has them
+        # here, one byte each, instead of in ``rewards`` (4 bytes each)
         Field("small_rewards", 5, SMALL, "reward", "float32", key="rewards"),
     ],
     "Recognitions": [  # one entry per picture seen (section 3.2.1)
@@ -114,23 +103,23 @@ MESSAGES: dict[str, list[Field]] = {
         Field("predicted", 6, I32, "predicted", "int8"),
         Field("true_category", 7, I32, "true", "int8", key="true"),
         Field("n_categories", 8, CODE, repeated=False),  # columns of scores; 0 when no scores
-        Field("scores", 9, F32, "scores", "float32"),
-    ],  # relation scores (eq. 2), [n, n_categories]
+        Field("scores", 9, F32, "scores", "float32"),  # relation scores (eq. 2), [n, n_categories]
+    ],
     "UnsafeAdditions": [  # one entry per (s, a) added to the unsafe set A_d (eqs. 7-8)
         Field("episode", 1, U32, "episode", "int32"),
         Field("step", 2, I32, "step", "int32"),
         Field("state", 3, I32, "state", "int32"),
         Field("action", 4, CODE, "action", "int8"),
-        Field("source", 5, CODE, "source", "int8"),
-    ],  # 0 recognition, 1 collision, 2 ssrl rule
-    "Substitutions": [  # one entry per support-set change (section 3.3, Figure 5); the run's start: -1s
+        Field("source", 5, CODE, "source", "int8"),  # an index into SOURCE_NAMES
+    ],
+    "Substitutions": [  # one entry per support-set change (section 3.3); a run's start: -1s
         Field("episode", 1, U32, "episode", "int32"),
         Field("step", 2, I32, "step", "int32"),
         Field("picture", 3, I32, "picture", "int16"),  # entered the support set
         Field("category", 4, I32, "category", "int8"),  # the class it entered
         Field("position", 5, I32, "position", "int8"),  # replaced shot 0..K-1
-        Field("support_accuracy", 6, F64, "support_accuracy", "float64"),
-    ],  # on the query pictures, after it
+        Field("support_accuracy", 6, F64, "support_accuracy", "float64"),  # on the queries, after
+    ],
     "EpisodeBatch": [  # consecutive finished episodes of one run (the sink's batch)
         Field("run", 1, CODE, repeated=False),
         Field("episode", 2, U32, "episode", "int32"),
@@ -139,26 +128,9 @@ MESSAGES: dict[str, list[Field]] = {
         Field("recognitions", 5, "Recognitions", repeated=False),
         Field("unsafe_added", 6, "UnsafeAdditions", repeated=False),
         Field("n_actions", 7, CODE, repeated=False),  # columns of q_values; 0 when absent
-        Field(
-            "q_values", 8, F32, "q_values", "float32"
-        ),  # optional Q tables [E, n_states, n_actions]
+        Field("q_values", 8, F32, "q_values", "float32"),  # optional [E, n_states, n_actions]
         Field("substitutions", 9, "Substitutions", repeated=False),
-    ],  # format 5
-    "Substitution": [  # format 4's message on /substitutions: no longer written, but part of format 5's schema
-        Field("run", 1, CODE, "run", "int32", repeated=False),
-        Field("episode", 2, CODE, "episode", "int32", repeated=False),
-        Field("step", 3, CODE, "step", "int32", repeated=False),
-        Field(
-            "picture", 4, _F.TYPE_INT32, "picture", "int16", repeated=False
-        ),  # entered the support set
-        Field(
-            "category", 5, _F.TYPE_INT32, "category", "int8", repeated=False
-        ),  # the class it entered
-        Field(
-            "position", 6, _F.TYPE_INT32, "position", "int8", repeated=False
-        ),  # replaced shot 0..K-1
-        Field("support_accuracy", 7, F64, "support_accuracy", "float64", repeated=False),
-    ],  # after it
+    ],
 }
 
 
@@ -186,19 +158,17 @@ FILE_DESCRIPTOR_PROTO = _file()
 
 
 def message_classes(*, view: bool = False) -> dict:
-    """Message name -> class of :data:`MESSAGES`. ``view``: the raw views, every repeated number column declared
-    ``bytes`` instead (same number, same wire type and framing as a packed column, so the same bytes): a column
-    is then set as ``array.tobytes()`` and read with ``np.frombuffer``."""
+    """Message name -> class of :data:`MESSAGES`. ``view``: the raw views, every repeated number
+    column declared ``bytes`` instead (same number, wire type and framing as a packed column, so
+    the same bytes): a column is set as ``array.tobytes()`` and read with ``np.frombuffer``."""
     fd = descriptor_pb2.FileDescriptorProto.FromString(FILE_DESCRIPTOR_PROTO.SerializeToString())
     for d in (d for m in fd.message_type for d in m.field) if view else ():
         if d.label == _F.LABEL_REPEATED and d.type != _F.TYPE_MESSAGE:
             d.type, d.label = _F.TYPE_BYTES, _F.LABEL_OPTIONAL
     pool = descriptor_pool.DescriptorPool()
     pool.Add(fd)
-    return {
-        name: message_factory.GetMessageClass(pool.FindMessageTypeByName(f"{PACKAGE}.{name}"))
-        for name in MESSAGES
-    }
+    find = pool.FindMessageTypeByName
+    return {n: message_factory.GetMessageClass(find(f"{PACKAGE}.{n}")) for n in MESSAGES}
 
 
 CLASSES = message_classes()
@@ -206,6 +176,6 @@ EpisodeBatch, Steps = CLASSES["EpisodeBatch"], CLASSES["Steps"]
 
 
 def file_descriptor_set(message_class) -> bytes:
-    """The MCAP schema data for encoding ``protobuf``: ``message_class``'s ``FileDescriptorSet`` (with its
-    dependencies, mcap-protobuf-support's own builder), what Foxglove, Rerun and mcap-protobuf decode."""
+    """The MCAP schema data for encoding ``protobuf``: ``message_class``'s ``FileDescriptorSet``
+    (mcap-protobuf-support's builder), what Foxglove, Rerun and mcap-protobuf decode."""
     return build_file_descriptor_set(message_class).SerializeToString(deterministic=True)

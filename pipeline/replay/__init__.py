@@ -4,6 +4,6 @@ shows (:mod:`.panels`) and the recording built from a record file alone (:mod:`.
 ``replay`` reads the files through :mod:`pipeline.records`; nothing in ``records`` imports it.
 """
 
-from .build import ReplayError, build_replay, recording_name, replay_stem
+from .build import ReplayError, build_replay, opening_episode, recording_name, replay_stem
 
-__all__ = ["ReplayError", "build_replay", "recording_name", "replay_stem"]
+__all__ = ["ReplayError", "build_replay", "opening_episode", "recording_name", "replay_stem"]

@@ -13,6 +13,7 @@ from pipeline.files import disk_problem, size_text, write_atomic
 from pipeline.records import FileMeta, Records, RecordsError, read_records
 
 from .draw import Replay
+from .notes import empty_views, first_recognition
 
 APPLICATION = "fewshot_safe_rl_replay"
 
@@ -88,6 +89,12 @@ def read_run(path: Path, run: int, episode: int | None) -> Records:
     return recs
 
 
+def opening_episode(path: str | Path, run: int) -> tuple[int, str]:
+    """The episode a replay of ``run`` opens on when none is given (the first with a
+    recognition: :func:`.notes.first_recognition`), with a sentence saying why."""
+    return first_recognition(read_run(Path(path), run, None), run)
+
+
 def build_replay(
     path: str | Path,
     run: int,
@@ -111,10 +118,12 @@ def build_replay(
         APPLICATION, send_properties=False, recording_id=replay_stem(path, run, shown)
     )
     replay, name = Replay(rec, recs, run), recording_name(recs.meta, run, shown)
+    episodes = sorted(set(have)) if whole_run else [shown]
+    empty = empty_views(recs, run, episodes)
     stream = rec.binary_stream()  # in memory, then written atomically: a full or read-only
-    rec.send_blueprint(replay.blueprint(name))  # disk is an OSError here, never a cut .rrd
+    rec.send_blueprint(replay.blueprint(name, empty))  # disk is an OSError here, never a cut .rrd
     rec.send_recording_name(name)
-    replay.draw(sorted(set(have)) if whole_run else [shown])
+    replay.draw(episodes, empty)
     data = stream.read(flush=True) or b""
     rec.disconnect()
     try:

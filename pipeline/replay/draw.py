@@ -7,9 +7,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from pipeline import palette
 from pipeline.records import Records
 from pipeline.records import schema as S
 
+from .notes import EmptyViews, log_empty
 from .panels import (
     SupportGrid,
     blueprint,
@@ -19,19 +21,11 @@ from .panels import (
     legend_positions,
 )
 
-NESW = {
-    "N": (-1, 0),
-    "E": (0, 1),
-    "S": (1, 0),
-    "W": (0, -1),
-}  # (d_row, d_col) of files without moves
-FREE, START, GOAL, RED, ORANGE, BLUE = (
-    (235, 235, 235),
-    (120, 200, 120),
-    (255, 215, 0),
-    (220, 30, 30),
-    (255, 140, 0),
-    (30, 30, 200),
+#: (d_row, d_col) of files without moves
+NESW = {"N": (-1, 0), "E": (0, 1), "S": (1, 0), "W": (0, -1)}
+P = palette
+FREE, START, GOAL, RED, ORANGE, ROBOT = map(
+    P.rgb, (P.FREE, P.START, P.GOAL, P.UNSAFE, P.RESELECTED, P.ROBOT)
 )
 SHOTS = (
     5  # the support set's shots a category (the paper's K) when the file holds no support pictures
@@ -102,14 +96,16 @@ class Replay:
         self.rec.log(entity, rr.TextLog(what, level=level) if isinstance(what, str) else what, **kw)
 
     # ---------------------------------------------------------------- what does not change
-    def blueprint(self, name: str):
-        """The viewer's layout, with views that fit this maze and support set."""
+    def blueprint(self, name: str, empty: EmptyViews):
+        """The viewer's layout, with views that fit this maze and support set; the scores view
+        says in its name why it is empty (``empty``)."""
         return blueprint(
             name,
             "max Q per cell" if self.q else "visits per cell (log scale)",
             *self.shape,
-            legend_positions(*self.shape, len(self.labels))[1],
+            legend_positions(*self.shape, len(self.labels) + 2)[1],
             self.grid.bounds(),
+            "relation scores" + (f": {empty.scores_short}" if empty.scores else ""),
         )
 
     def draw_static(self) -> None:
@@ -149,14 +145,15 @@ class Replay:
                 static=True,
             )
             n = len(self.labels)
+            at = legend_positions(*self.shape, n + 2)[0]
             self.log(
                 "maze/legend",
-                rr.Points2D(
-                    legend_positions(*self.shape, n)[0],
-                    radii=0.15,
-                    class_ids=np.arange(n),
-                    show_labels=True,
-                ),
+                rr.Points2D(at[:n], radii=0.15, class_ids=np.arange(n), show_labels=True),
+                static=True,
+            )
+            self.log(
+                "maze/legend/cells",
+                rr.Points2D(at[n:], radii=0.15, colors=[START, GOAL], labels=["start", "goal"]),
                 static=True,
             )
         else:
@@ -275,11 +272,12 @@ class Replay:
             ),
         )
 
-    def draw(self, episodes: list[int]) -> None:
+    def draw(self, episodes: list[int], empty: EmptyViews) -> None:
         """Every step of ``episodes`` (consecutive recorded episodes of the run), after what the run
-        held before them: A_d, the support set and the visits."""
+        held before them: A_d, the support set and the visits; ``empty``: why views stay empty."""
         first = episodes[0]
         self.draw_static()
+        log_empty(self.rec, empty)
         self.ad = self.unsafe[self.unsafe.episode < first][["state", "action"]].to_numpy().tolist()
         visits = np.bincount(
             self.steps[self.steps.episode < first].state.to_numpy(),
@@ -315,12 +313,16 @@ class Replay:
             colours = np.where(
                 (flags & S.FLAG_COLLIDED)[:, None] != 0,
                 RED,
-                np.where((flags & S.FLAG_RESELECTED)[:, None] != 0, ORANGE, BLUE),
+                np.where((flags & S.FLAG_RESELECTED)[:, None] != 0, ORANGE, ROBOT),
             )
             for entity, columns in (
                 (
                     "maze/robot",
-                    rr.Points2D.columns(positions=at, radii=np.full(n, 0.25, np.float32)),
+                    rr.Points2D.columns(
+                        positions=at,
+                        radii=np.full(n, 0.25, np.float32),
+                        colors=np.tile(ROBOT, (n, 1)),
+                    ),
                 ),
                 (
                     "maze/robot/action",
@@ -332,7 +334,9 @@ class Replay:
                 ),
                 (
                     "maze/robot/trajectory",
-                    rr.LineStrips2D.columns(strips=[at[: t + 1] for t in range(n)]),
+                    rr.LineStrips2D.columns(
+                        strips=[at[: t + 1] for t in range(n)], colors=np.tile(ROBOT, (n, 1))
+                    ),
                 ),
                 (
                     "metrics/return",

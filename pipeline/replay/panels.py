@@ -10,20 +10,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
-COLOURS = np.array(
-    [
-        [230, 159, 0],
-        [86, 180, 233],
-        [0, 158, 115],
-        [200, 170, 0],
-        [204, 121, 167],
-        [213, 94, 0],
-        [0, 114, 178],
-        [120, 120, 120],
-    ],
-    dtype=np.uint8,
-)  # by category
-MARK = (255, 120, 0)  # the frame of a substituted support picture
+from pipeline import palette
+
+MARK = palette.rgb(palette.RESELECTED)  # the frame of a substituted support picture
 #: Viridis at 0, 1/4, 1/2, 3/4 and 1: the heat map's colours, dark (low) to yellow (high).
 RAMP = np.array(
     [[68, 1, 84], [59, 82, 139], [33, 145, 140], [94, 201, 98], [253, 231, 37]], np.float64
@@ -36,8 +25,8 @@ PITCH = (
 
 
 def colour(category: int) -> np.ndarray:
-    """The colour of ``category`` (the last one for categories beyond the palette)."""
-    return COLOURS[min(max(category, 0), len(COLOURS) - 1)]
+    """The colour of ``category`` (:func:`pipeline.palette.category`)."""
+    return np.array(palette.rgb(palette.category(category)), np.uint8)
 
 
 Bounds = tuple[tuple[float, float], tuple[float, float]]  # (x range, y range) a 2D view shows
@@ -50,10 +39,12 @@ def legend_positions(height: int, width: int, n: int) -> tuple[list[list[float]]
     return points, ((-0.1, width + 2.6), (-0.1, max(height, 0.75 * n) + 0.3))
 
 
-def blueprint(name: str, heat_name: str, height: int, width: int, maze: Bounds, grid: Bounds):
+def blueprint(
+    name: str, heat_name: str, height: int, width: int, maze: Bounds, grid: Bounds, scores: str
+):
     """The viewer's layout: maze (titled with the recording's ``name``), heat map and return; picture
-    seen, labelled scores and the recognition; the support set grid and the events. ``maze`` and
-    ``grid``: the bounds of those views."""
+    seen, scores (the view named ``scores``) and the recognition; the support set grid and the
+    events. ``maze`` and ``grid``: the bounds of those views."""
     import rerun.blueprint as rrb
 
     V, H = rrb.Vertical, rrb.Horizontal
@@ -79,10 +70,10 @@ def blueprint(name: str, heat_name: str, height: int, width: int, maze: Bounds, 
             ),
             V(
                 picture,
-                rrb.BarChartView(
+                rrb.BarChartView(  # bars in the category colours; the recognition names them
                     origin="recognition/scores",
-                    name="relation scores",
-                    plot_legend=rrb.PlotLegend(corner=rrb.Corner2D.RightTop, visible=True),
+                    name=scores,
+                    plot_legend=rrb.PlotLegend(visible=False),
                 ),
                 rrb.TextDocumentView(origin="recognition/result", name="recognition"),
                 row_shares=[2, 2, 3],

@@ -22,7 +22,9 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
+from matplotlib.ticker import MaxNLocator
 
+from pipeline import palette
 from pipeline.report import figures as F
 from pipeline.report.stats import bootstrap_ci, bounded_sd, normal_ci, wilson_ci
 
@@ -339,24 +341,28 @@ def table2(study: Study, beside: dict[str, Study] | None = None) -> pd.DataFrame
 
 
 def table2_figure(rep, study: Study, beside: dict[str, Study] | None = None) -> None:
-    fig, ax = plt.subplots(figsize=(5.5, 3.4))
+    fig, ax = plt.subplots(figsize=(6.0, 4.2), layout="constrained")
     n = study.table2.index.to_numpy()
     for (variant, column), style, label in zip(
         VARIANTS.items(), ("o-", "o--"), ("ours", "ours, no same picture")
     ):
-        for who, s, marker in [
-            (MAIN, study, "o"),
-            *((name, other, "^") for name, other in (beside or {}).items()),
-        ]:
-            k = s.table2.index.to_numpy()
-            estimates = [s.substitutions(int(i), variant) for i in k]
+        for k, (who, s, marker) in enumerate(
+            [(MAIN, study, "o"), *((name, other, "^") for name, other in (beside or {}).items())]
+        ):
+            estimates = [s.substitutions(int(i), variant) for i in s.table2.index.to_numpy()]
             values = np.array([100 * e.value for e in estimates])
             err = np.array(
                 [[100 * (e.value - e.ci()[0]), 100 * (e.ci()[1] - e.value)] for e in estimates]
             ).T
             name = label if not beside else label.replace("ours", f"ours, {who}")
             ax.errorbar(
-                k, values, yerr=err, fmt=marker + style[1:], capsize=3, label=f"{name} (95% CI)"
+                s.table2.index.to_numpy(),
+                values,
+                yerr=err,
+                fmt=marker + style[1:],
+                capsize=3,
+                color=palette.SERIES[k % len(palette.SERIES)],
+                label=f"{name} (95% CI)",
             )
         paper = study.table2.get("paper_" + column)
         if paper is not None and paper.notna().any():
@@ -364,13 +370,14 @@ def table2_figure(rep, study: Study, beside: dict[str, Study] | None = None) -> 
                 n,
                 100 * paper,
                 "s" + style[1:],
-                color="red",
-                alpha=0.6,
+                color=palette.PAPER,
+                alpha=0.7,
                 label=label.replace("ours", "paper"),
             )
     ax.set_xlabel("substitution number")
     ax.set_ylabel("mean accuracy (%)")
-    ax.legend(fontsize=8)
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+    fig.legend(fontsize=8, loc="outside lower center", ncols=2, frameon=False)
     ax.set_title("Table 2 as a plot", fontsize=10)
     F.save(fig, rep.out / "figures" / "table2_accuracy.png")
     rep.figure(

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from pipeline.report import figures as F
+from pipeline.report import figures_beyond as FB
 from pipeline.report.accuracy import query_accuracy
 from pipeline.report.experiments import Cell, Experiment
 from pipeline.report.names import method_colour, method_name
@@ -188,6 +188,11 @@ def panels(parts: Split) -> list[dict]:
             for c in parts.curves
             if c.maze == maze and (colour := method_colour(c.cells[0].info["method"]))
         }
+        colours |= {
+            label: colour
+            for (m, label), cell in parts.references.items()
+            if m == maze and (colour := method_colour(cell.info["method"]))
+        }
         out.append({"title": maze, "curves": curves, "references": references, "colours": colours})
     return out
 
@@ -219,7 +224,7 @@ def accuracy_curve_kind(rep, exp: Experiment, paper=None) -> None:
         + "\n"
     )
     name = f"{exp.folder}.png"
-    F.accuracy_curves(
+    FB.accuracy_curves(
         panels(parts),
         rep.out / "figures" / name,
         marker,

@@ -28,6 +28,7 @@ from tqdm import tqdm
 from pipeline.files import swap_in
 from pipeline.report.claims import claims_section
 from pipeline.report.experiments import ReportInputError, load_all
+from pipeline.report.scale import check_scales, scales, title_and_scale
 from pipeline.report.sections import section
 
 
@@ -42,6 +43,9 @@ class Inputs:
         None  # the experiment files (pipeline/conf/experiment/): which are missing
     )
     allow_missing: bool = False  # build without missing experiments/cells, saying so at the top
+    allow_mixed_scales: bool = False  # build from records of different profiles, named at the top
+    profiles: dict[str, dict] = field(default_factory=dict)
+    """The profiles' ``trials`` blocks by name (``pipeline/conf/profile/``): a record's scale."""
     beside: dict[str, tuple[Path, Path]] = field(default_factory=dict)
     """Other few-shot methods for Tables 1-2: name -> (accuracy study folder, metrics file)."""
 
@@ -86,6 +90,21 @@ def accuracy_section(
     accuracy_tables(rep, accuracy_dir, model_metrics, beside)
 
 
+#: What each of the render stage's contact sheets shows (its row labels included), by file stem.
+SHEETS = {
+    "contact_query": "The query pictures the robot sees in the maze, a row per category: "
+    "instance 0 seen from the north, east, south and west (the first four), then instance 1 "
+    "(the same object turned 45 degrees) from the same four sides; the row label `(i0 N E S W | "
+    "i1)` says that order.",
+    "contact_support": "The support set: five catalogue pictures per category (other instances "
+    "in another setting than the maze), a row per category.",
+    "contact_train": "Meta-training classes (procedural families, any colour): a row per class, "
+    "five of its pictures.",
+    "contact_val": "Validation classes (held out from meta-training; they choose the checkpoint): "
+    "a row per class, five of its pictures.",
+}
+
+
 def contact_sheets(rep: Report, contact_dir: Path) -> None:
     sheets = sorted(contact_dir.glob("*.png")) if contact_dir.is_dir() else []
     if not sheets:
@@ -94,7 +113,8 @@ def contact_sheets(rep: Report, contact_dir: Path) -> None:
     for sheet in sheets:
         target = rep.out / "figures" / sheet.name
         shutil.copyfile(sheet, target)
-        rep.figure(f"figures/{sheet.name}", f"Contact sheet: {sheet.stem.replace('_', ' ')}")
+        words = SHEETS.get(sheet.stem, f"The pictures of {sheet.stem.replace('_', ' ')}.")
+        rep.figure(f"figures/{sheet.name}", words)
 
 
 def build_report(inputs: Inputs) -> Path:
@@ -142,8 +162,15 @@ def ticking(bar: tqdm, every: float = 1.0):
 def _build_parts(inputs: Inputs, bar: tqdm) -> Path:
     """The report, part by part; ``bar`` names the part being built and counts those done."""
     rep = Report(inputs.out, inputs.accuracy_dir)
+    bar.set_postfix_str(f"reading the records under {inputs.runs_dir}")
+    experiments = load_all(inputs.runs_dir)
+    found = scales(experiments, inputs.profiles)
+    check_scales(found, inputs.runs_dir, inputs.allow_mixed_scales)
+    title, scale = title_and_scale(
+        found, "Few-shot reasoning-based safe RL: our results beside the paper's"
+    )
+    rep.add(f"# {title}\n\n{scale}\n")
     rep.add(
-        "# Few-shot reasoning-based safe RL: our results beside the paper's\n\n"
         "Built by `python -m pipeline report` from the recorded data only (MCAP records of every "
         "episode, the accuracy study's data files, the model's validation metrics). Collisions are "
         "mean ± standard deviation over runs with a 95% percentile-bootstrap interval of the mean "
@@ -152,8 +179,6 @@ def _build_parts(inputs: Inputs, bar: tqdm) -> Path:
         "the interval their table names. Learning curves show the mean over runs per episode with its "
         "95% t interval shaded.\n"
     )
-    bar.set_postfix_str(f"reading the records under {inputs.runs_dir}")
-    experiments = load_all(inputs.runs_dir)
     bar.total += len(experiments)
     bar.update()
     refuse_missing(rep, inputs, experiments)

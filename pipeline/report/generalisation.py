@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from pipeline.report import figures as F
+from pipeline.report import figures_beyond as FB
 from pipeline.report.checks import Claim, Data, checked, fewer, order_checks
 from pipeline.report.experiments import Experiment
 from pipeline.report.layout_cells import (
@@ -257,7 +257,7 @@ def generalisation_section(rep, exp: Experiment) -> None:
         float_format="%.6g",
     )
     name = f"{exp.folder}.png"
-    F.layout_boxes(
+    FB.layout_boxes(
         {
             s: {
                 label(lays, m): df[(df["size"] == s) & (df["method"] == m)][
@@ -268,6 +268,12 @@ def generalisation_section(rep, exp: Experiment) -> None:
             for s, lays in sizes.items()
         },
         rep.out / "figures" / name,
+        {
+            label(lays, m): c
+            for lays in sizes.values()
+            for m, c in colours(sizes).items()
+            if m in lays[0].cells
+        },
     )
     rep.figure(
         f"figures/{name}",
@@ -307,7 +313,7 @@ def generalisation_section(rep, exp: Experiment) -> None:
                 "the difference of two sizes' mean gains, 95% bootstrap interval over layouts (unpaired).",
             )
     name = f"{exp.folder}_features.png"
-    F.feature_scatter(df, FEATURES, rep.out / "figures" / name, fit, colours(sizes))
+    FB.feature_scatter(df, FEATURES, rep.out / "figures" / name, fit, colours(sizes))
     rep.figure(
         f"figures/{name}",
         "Mean collisions per run on each layout against its features, one colour per "

@@ -44,18 +44,46 @@ def method_order(name: str) -> int:
     return order.index(name) if name in order else len(order)
 
 
-def row_colours(rows: list[list[dict]]) -> dict[int, str]:
-    """Colours of rows (each a list of its cells' ``info``) by row index, where each row is one
-    declared method and no two rows share it: a method has its colour in every figure. Empty
-    otherwise (rows that are ways or support sets of one method take colours by position)."""
-    methods = [{method_name(info["method"]) for info in infos} for infos in rows]
-    colours = [
-        method_colour(infos[0]["method"]) if len(m) == 1 else None
-        for infos, m in zip(rows, methods)
-    ]
-    if None in colours or len({next(iter(m)) for m in methods}) < len(rows):
-        return {}
-    return dict(enumerate(colours))
+#: Line styles and markers of rows that share a method (ways of the DSS, support restored /
+#: carried over): with the shades of its colour, no such row hides another, even where they agree.
+DASHES = ("-", "--", "-.", ":")
+MARKERS = ("o", "s", "^", "D", "v", "P")
+
+
+def shade(colour: str, k: int, n: int) -> str:
+    """The ``k``-th of ``n`` shades of ``colour``: from darker (k = 0) to lighter, so rows of one
+    method stay in its colour yet tell apart (and none hides another of the same hue)."""
+    from matplotlib.colors import to_hex, to_rgb
+
+    if n <= 1:
+        return colour
+    t = -0.4 + 0.55 * k / (n - 1)  # < 0: toward black, > 0: toward white
+    rgb = [c * (1 + t) if t < 0 else c + (1 - c) * t for c in to_rgb(colour)]
+    return to_hex(rgb)
+
+
+def row_styles(rows: list[list[dict]]) -> list[dict]:
+    """A line colour and style per row (each a list of its cells' ``info``), the same in every
+    figure: a row of one declared method takes the method's colour (:data:`METHODS`); rows that
+    share a method take shades of it, a dash and a marker each (:data:`DASHES`, :data:`MARKERS`);
+    a row of several or
+    undeclared methods takes grey shades."""
+    keys = [" / ".join(sorted({method_name(info["method"]) for info in infos})) for infos in rows]
+    out = []
+    for i, key in enumerate(keys):
+        peers = [j for j, other in enumerate(keys) if other == key]
+        k = peers.index(i)
+        one = rows[i][0]["method"] if " / " not in key else None
+        colour = (method_colour(one) if one is not None else None) or "#7f7f7f"
+        shared = len(peers) > 1
+        out.append(
+            {
+                "color": shade(colour, k, len(peers)),
+                "ls": DASHES[k % len(DASHES)],
+                "marker": MARKERS[k % len(MARKERS)] if shared else None,
+            }
+        )
+    return out
 
 
 def sees_pictures(method: dict) -> bool:

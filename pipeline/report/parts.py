@@ -12,7 +12,7 @@ import pandas as pd
 
 from pipeline.report import figures as F
 from pipeline.report.experiments import Cell, Experiment
-from pipeline.report.names import row_colours
+from pipeline.report.names import row_styles
 from pipeline.report.paper_numbers import PaperValue
 from pipeline.report.pooling import convergence, describe_runs, pooled
 from pipeline.report.spec import Row
@@ -21,11 +21,11 @@ from pipeline.report.stats import fmt, mean_band
 COLLISIONS = "collisions (mean ± s.d. [95% CI])"
 
 
-def colours_of(rows: list[tuple[Row, list[Cell]]]) -> dict[str, str]:
-    """The rows' colours by label where each row is one declared method (its colour in every
-    figure: :func:`~pipeline.report.names.row_colours`); empty otherwise."""
-    found = row_colours([[c.info for c in cells] for _, cells in rows])
-    return {rows[i][0].label: colour for i, colour in found.items()}
+def styles_of(rows: list[tuple[Row, list[Cell]]]) -> dict[str, dict]:
+    """The rows' line colours and styles by label (:func:`~pipeline.report.names.row_styles`):
+    the same row looks the same in every figure."""
+    found = row_styles([[c.info for c in cells] for _, cells in rows])
+    return {row.label: style for (row, _), style in zip(rows, found)}
 
 
 def safe(name: str) -> str:
@@ -67,6 +67,8 @@ def curves_part(
         return
     own = table is None
     table = [] if own else table
+    styles = styles_of(rows)
+    mazes = {row.label: " / ".join(sorted({c.maze for c in cells})) for row, cells in rows}
     for row, a in series:
         mean, lo, hi = mean_band(a)
         name, key = (
@@ -79,6 +81,8 @@ def curves_part(
                 {
                     "series": name,
                     "key": key,
+                    "colour": styles[row.label]["color"],  # the DVC plots' colour (one palette)
+                    "maze": mazes[row.label],  # the DVC plots' panel
                     "episode": np.arange(mean.size),
                     "mean": mean,
                     "ci_low": lo,
@@ -95,7 +99,7 @@ def curves_part(
         {row.label: a for row, a in series},
         f"Collisions per episode{where}: mean over runs, 95% band",
         rep.out / "figures" / name,
-        colours=colours_of(rows),
+        styles=styles_of(rows),
     )
     pooled_rows = (
         " (a row that pools cells: their mean per seed)" if any(len(c) > 1 for _, c in rows) else ""
@@ -109,10 +113,15 @@ def curves_part(
     )
 
 
-def write_curves_table(rep, exp: Experiment, frames: list[pd.DataFrame]) -> None:
+def write_curves_table(
+    rep, exp: Experiment, frames: list[pd.DataFrame], maze: str | None = None
+) -> None:
+    """``tables/<folder>_learning_curves.csv`` (``_<maze>`` for one maze of several: a DVC plot
+    each, whose series have distinct colours)."""
     if frames:
+        suffix = "" if maze is None else f"_{safe(maze)}"
         pd.concat(frames, ignore_index=True).to_csv(
-            rep.out / "tables" / f"{exp.folder}_learning_curves.csv",
+            rep.out / "tables" / f"{exp.folder}_learning_curves{suffix}.csv",
             index=False,
             lineterminator="\n",
             float_format="%.6g",
@@ -135,7 +144,7 @@ def support_part(
         title,
         rep.out / "figures" / name,
         ylabel="query accuracy of the support set",
-        colours=colours_of(rows),
+        styles=styles_of(rows),
     )
     starts = {
         row.label: [s for c in cells if (s := c.start_accuracy()) is not None]

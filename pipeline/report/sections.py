@@ -10,8 +10,10 @@ controlled recogniser's accuracy: :mod:`pipeline.report.accuracy_curve`) and ``g
 a section with the learned path before the experiment's own. Tables and figures are named after
 the experiment's folder: ``tables/<folder>.md|csv``, ``figures/<folder>_collisions.png``,
 ``<folder>_learning_curves.png`` (its data ``tables/<folder>_learning_curves.csv``, long format:
-``series`` (the row's name; with `` (<maze>)`` in ``by_maze``), ``key``, ``episode``, ``mean``,
-``ci_low``, ``ci_high``; dvc.yaml's plots colour by ``series``), ``<folder>_support_accuracy.png``,
+``series`` (the row's name; with `` (<maze>)`` in ``by_maze``), ``key``, ``colour`` (the
+row's, :func:`~pipeline.report.names.row_styles`), ``maze``, ``episode``, ``mean``, ``ci_low``,
+``ci_high``; dvc.yaml's plots draw each series in its colour; ``by_maze`` also writes the rows of
+each maze to ``tables/<folder>_learning_curves_<maze>.csv``, a plot each), ``<folder>_support_accuracy.png``,
 ``<folder>_long_term.png``, ``<folder>_path.png``; ``by_maze`` adds ``_<maze>`` to the figures and
 writes ``tables/<folder>_data.csv``.
 
@@ -40,6 +42,7 @@ from pipeline.report.parts import (
     COLLISIONS,
     collision_row,
     curves_part,
+    styles_of,
     support_part,
     write_curves_table,
 )
@@ -95,11 +98,14 @@ def default_kind(rep, exp: Experiment, paper: dict[str, PaperValue], bars: bool 
             "collisions per run",
             rep.out / "figures" / name,
             paper=[paper.get(r.key) for r, _ in rows],
+            styles=styles_of(rows),
         )
         rep.figure(
             f"figures/{name}",
-            "Collisions per run: mean (bar), s.d. (thin), 95% bootstrap CI (thick), runs "
-            "(dots)" + ("; the paper's number in red" if paper else "") + ".",
+            "Collisions per run: mean (bar; its value under the name), s.d. (thin), 95% bootstrap "
+            "CI (thick), runs (dots)"
+            + ("; the paper's number as a black dash" if paper else "")
+            + ".",
         )
     if exp.spec.curves is not False:
         curves_part(rep, exp, rows)
@@ -137,12 +143,12 @@ def long_term_kind(rep, exp: Experiment, paper: dict[str, PaperValue]) -> None:
         f"{exp.spec.title or exp.name} (ours)",
         rep.out / "figures" / name,
         paper=[paper.get(row.key) for row, _ in values],
+        styles=styles_of(rows),
     )
     rep.figure(
         f"figures/{name}",
-        "Collisions of each consecutive experiment; right: mean with 95% bootstrap CI"
-        + ("; the paper's number in red" if paper else "")
-        + ".",
+        "Collisions of each consecutive experiment (numbered from 1); right: mean with 95% "
+        "bootstrap CI" + ("; the paper's number as a black dash" if paper else "") + ".",
     )
     if exp.spec.curves is not False:
         curves_part(rep, exp, rows)
@@ -159,7 +165,9 @@ def long_term_kind(rep, exp: Experiment, paper: dict[str, PaperValue]) -> None:
                 "Query accuracy of the support set at the end of each experiment",
                 rep.out / "figures" / name,
                 ylabel="query accuracy",
-                xlabel="experiment (consecutive runs)",
+                xlabel="experiment (consecutive runs, from 1)",
+                styles=styles_of(rows),
+                first=1,
             )
             rep.figure(
                 f"figures/{name}",
@@ -218,7 +226,10 @@ def by_maze_kind(rep, exp: Experiment, paper: dict[str, PaperValue]) -> None:
         on_maze = [(row, [c for c in cells if c.maze == maze]) for row, cells in rows]
         on_maze = [(row, cells) for row, cells in on_maze if cells]
         if exp.spec.curves is not False:
-            curves_part(rep, exp, on_maze, maze, table=curves)
+            here: list = []
+            curves_part(rep, exp, on_maze, maze, table=here)
+            write_curves_table(rep, exp, here, maze)  # the DVC plot of this maze
+            curves += here
     write_curves_table(rep, exp, curves)
     if exp.spec.support_accuracy is not False:
         for maze in mazes:

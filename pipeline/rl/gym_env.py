@@ -62,15 +62,16 @@ Arguments
     class.
 
 Render modes
-    ``"rgb_array"``: the maze from above, ``(height * tile_size, width * tile_size, 3)`` uint8:
-    obstacles in the colour of their category, the start pale green, the goal a yellow oval, each
-    (s, a) of A_d a red bar on the edge of cell s toward a, the robot a blue disc (colours in
+    ``"rgb_array"``: the maze from above, ``width * tile_size`` wide, a legend strip under it, uint8:
+    obstacles in the colour of their category, the start cell, the goal an oval, each (s, a) of
+    A_d a bar on the edge of cell s toward a, the robot a disc (the one palette,
+    ``pipeline/palette.py``: the replay and the report use the same colours; drawing in
     ``pipeline.rl.gym_render``). ``"ansi"``: the same as a text grid (obstacles as category digits).
     ``metadata["render_fps"]`` is 4.
 
 Registered configurations
-    ``SafeNav-5x5-v0``, ``SafeNav-7x7-v0``, ``SafeNav-11x11-v0``: method ``shield``,
-    ``max_episode_steps=200``; registered on ``import pipeline`` (or ``gymnasium.make("pipeline:SafeNav-5x5-v0")``),
+    ``SafeNav-5x5-v0``, ``SafeNav-7x7-v0``, ``SafeNav-11x11-v0`` (that maze only) and
+    ``SafeNav-v0`` (any ``maze=``, 5x5 by default): method ``shield``, ``max_episode_steps=200``; registered on ``import pipeline`` (or ``gymnasium.make("pipeline:SafeNav-5x5-v0")``),
     see ``pipeline/__init__.py``. Other methods and recognisers by keyword:
     ``gymnasium.make("SafeNav-5x5-v0", method="fewshot_dss", recogniser="oracle")``.
 """
@@ -167,7 +168,7 @@ class SafeNavigationEnv(gym.Env):
         self.state = self.layout.start
         self.t = 0
         return self.state, self._info(
-            prevented=False, collided=False, picture=-1, flags=0, added=[]
+            prevented=False, collided=False, picture=-1, recognition=None, flags=0, added=[]
         )
 
     def step(self, action):

@@ -1,28 +1,38 @@
-"""Pictures of the Gymnasium environment's state: a top-down RGB array and a text grid (numpy only).
+"""Pictures of the Gymnasium environment's state: a top-down RGB array and a text grid.
 
 ``rgb_frame`` draws one ``tile`` x ``tile`` square per cell (row 0 at the top, like the layout
-file): free cells white with grey grid lines, the start cell pale green, each obstacle filled with
-the colour of its category (``CATEGORY_RGB``, in the order of ``world.pictures.CATEGORIES``), the
-goal as a yellow oval, every pair (s, a) of A_d as a red bar along the edge of cell ``s`` on the
-side of ``a``, and the robot as a blue disc. The colours are constants so tests and viewers can
-look for them.
+file): free cells white with grey grid lines, the start cell in the start colour, each obstacle
+filled with the colour of its category, the goal as an oval, every pair (s, a) of A_d as a bar
+along the edge of cell ``s`` on the side of ``a``, and the robot as a disc; below the maze a legend
+strip names each colour. Every colour is the study's one palette (:mod:`pipeline.palette`), so a
+category has the same colour here as in the replay and the report.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from pipeline import palette
 from pipeline.world.maze import ACTION_NAMES, Layout
 from pipeline.world.pictures import CATEGORIES
 
-FREE_RGB = (255, 255, 255)
-GRID_RGB = (190, 190, 190)
-START_RGB = (214, 238, 214)
-GOAL_RGB = (250, 200, 0)
-ROBOT_RGB = (30, 90, 220)
-UNSAFE_RGB = (220, 0, 0)
-#: One colour per obstacle category (chair, kettle, carton, basin, basket): none red, yellow or blue.
-CATEGORY_RGB = ((148, 103, 189), (44, 160, 44), (140, 86, 75), (23, 190, 207), (227, 119, 194))
+FREE_RGB = palette.rgb(palette.FREE)
+GRID_RGB = palette.rgb(palette.GRID)
+START_RGB = palette.rgb(palette.START)
+GOAL_RGB = palette.rgb(palette.GOAL)
+ROBOT_RGB = palette.rgb(palette.ROBOT)
+UNSAFE_RGB = palette.rgb(palette.UNSAFE)
+#: One colour per obstacle category, in the order of ``world.pictures.CATEGORIES``.
+CATEGORY_RGB = tuple(palette.rgb(palette.category(c)) for c in range(len(CATEGORIES)))
+#: What the legend strip names, in its order.
+LEGEND = (
+    *zip(CATEGORIES, CATEGORY_RGB),
+    ("start", START_RGB),
+    ("goal", GOAL_RGB),
+    ("A_d", UNSAFE_RGB),
+    ("robot", ROBOT_RGB),
+)
+LINE = 12  # pixels per line of the legend strip
 
 
 def _disc(tile: int, rx: float, ry: float) -> np.ndarray:
@@ -34,7 +44,8 @@ def _disc(tile: int, rx: float, ry: float) -> np.ndarray:
 def rgb_frame(
     layout: Layout, categories: np.ndarray, unsafe: np.ndarray, robot: int, tile: int = 32
 ) -> np.ndarray:
-    """The maze seen from above, ``(height * tile, width * tile, 3)`` uint8.
+    """The maze seen from above, ``(height * tile + legend height, width * tile, 3)`` uint8: the
+    maze on top, the legend strip (:func:`legend_strip`) below.
 
     ``categories[o]`` is the category of obstacle ``o`` (the order of ``layout.obstacles``),
     ``unsafe`` the (n_cells, 4) A_d, ``robot`` the robot's cell."""
@@ -64,7 +75,34 @@ def rgb_frame(
     for cell, a in np.argwhere(unsafe):
         cell_view(int(cell))[edges[int(a)]] = UNSAFE_RGB
     cell_view(robot)[_disc(tile, 0.3, 0.3)] = ROBOT_RGB
-    return img
+    return np.concatenate([img, legend_strip(w * tile)])
+
+
+def legend_strip(width: int) -> np.ndarray:
+    """The legend under the maze, ``width`` pixels wide: a swatch and a name per colour of
+    :data:`LEGEND`, as many to a line as fit (PIL's built-in bitmap font)."""
+    from PIL import Image, ImageDraw, ImageFont
+
+    font = ImageFont.load_default(size=10)
+    probe = ImageDraw.Draw(Image.new("RGB", (1, 1)))
+    entries = [
+        (name, colour, 14 + probe.textlength(name, font=font) + 8) for name, colour in LEGEND
+    ]
+    lines, x = [[]], 0.0
+    for name, colour, w in entries:
+        if x + w > width and lines[-1]:
+            lines.append([])
+            x = 0.0
+        lines[-1].append((name, colour, x))
+        x += w
+    strip = Image.new("RGB", (width, LINE * len(lines) + 4), FREE_RGB)
+    draw = ImageDraw.Draw(strip)
+    for i, line in enumerate(lines):
+        y = 2 + LINE * i
+        for name, colour, x0 in line:
+            draw.rectangle([x0 + 2, y + 1, x0 + 11, y + 10], fill=colour, outline=GRID_RGB)
+            draw.text((x0 + 14, y), name, fill=(0, 0, 0), font=font)
+    return np.asarray(strip, dtype=np.uint8)
 
 
 def ansi_frame(

@@ -221,7 +221,7 @@ def advance_run(
     return status
 
 
-@nb.njit(cache=True, parallel=True)
+@nb.njit(cache=True, parallel=True, nogil=True)  # the record writer runs meanwhile
 def advance_batch(
     run_ids,
     ep_limit,

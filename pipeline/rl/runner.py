@@ -44,6 +44,9 @@ PICTURE_CATEGORY = np.array([picture_category(p) for p in range(N_PICTURES)], dt
 #: Steps a run's trace holds (10 bytes a step): a run's episodes go to the sink when it is full and at the end
 #: of the trial, so a paper-scale 11x11 run (about 23,500 steps) is one batch (the recording costs per batch).
 TRACE_CAPACITY = 32768
+#: A recording sink gets every run's finished episodes at least every this many episodes (and when
+#: a run's step trace is full): with the writer's flush_seconds, what a killed run keeps.
+EMIT_EVERY = 500
 
 
 @dataclass(frozen=True)
@@ -280,11 +283,11 @@ class Trial:
             pending = np.array(again, dtype=np.int64)
 
     def run(self, *, progress: bool, chunk_episodes: int) -> TrialResult:
-        """Every run to the last episode: all runs at once in chunks of ``chunk_episodes``
+        """Every run to the last episode in chunks of ``chunk_episodes``: all runs at once
         (independent runs), or one after another (shared support set)."""
         runs, episodes = self.runs, self.episodes
         limits = list(range(min(chunk_episodes, episodes), episodes, chunk_episodes))
-        limits = [episodes] if self.shared_support else limits + [episodes]
+        limits += [episodes]
         groups = (
             [np.array([r], np.int64) for r in range(runs)]
             if self.shared_support
@@ -311,8 +314,10 @@ class Trial:
             before = int(self.state.episode[group].sum())
             self.advance(group, limit)
             bar.update(int(self.state.episode[group].sum()) - before)
-            # a trace is handed over when full (flush); without one, after every chunk
-            if self.record and (limit == self.episodes or not self.trace_steps):
+            # finished episodes are handed over every EMIT_EVERY episodes (a trace also when full)
+            if self.record and (
+                limit % EMIT_EVERY == 0 or limit == self.episodes or not self.trace_steps
+            ):
                 for r in group:
                     self.emit(int(r))
 

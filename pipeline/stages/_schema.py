@@ -141,8 +141,11 @@ class TrialsConfig:
     overwrite: bool = MISSING
     """Replace results already in ``out``; without it such an ``out`` is refused (dvc.yaml's
     trials stages give it: DVC keeps their outs, ``persist``)."""
-    metrics_file: str | None = None
-    """An experiment's mean collisions per cell are also written here (DVC metrics)."""
+    index_file: str | None = None
+    """An experiment: every file of ``out`` with its SHA-256 (``pipeline.files.write_index``), for dvc.yaml."""
+    metrics_dir: str | None = None
+    """An experiment's DVC metrics go to this folder (replaced): one small file per cell, or per
+    template and size over generated layouts (``pipeline/stages/_metrics.py``)."""
     timing_file: str | None = None
     """Each cell's trial seconds are written here (kept out of ``out``, which is byte-reproducible)."""
     record: str = setting(choices=RECORD_LEVELS)
@@ -212,6 +215,8 @@ class RenderConfig:
     """The scale (``pipeline/conf/profile/``): the class and picture counts default to its ``render`` keys."""
     out_dir: str = setting(nonempty=True)
     """The pictures and ``manifest.csv``; its parent folder must exist."""
+    index_file: str | None = None
+    """Every file of ``out_dir`` with its SHA-256 (``pipeline.files.write_index``), for dvc.yaml."""
     figures_dir: str = setting(nonempty=True)
     """The contact sheets (the report stage copies them)."""
     size: int = setting(ge=8)
@@ -315,10 +320,10 @@ class ReplayConfig:
     """An ``.mcap`` record file (or the ``.mcap.partial`` of a killed run)."""
     run: int = setting(ge=0)
     """The run to replay."""
-    episode: int = setting(ge=0)
-    """The episode to replay."""
+    episode: int | None = setting(None, ge=0)
+    """The episode to replay; none: the run's first episode with a recognition."""
     whole_run: bool = MISSING
-    """Every episode of the run on one timeline (``episode`` is then ignored)."""
+    """Every episode of the run on one timeline (refused together with ``episode``)."""
     out: str | None = None
     """The ``.rrd`` to write; none: ``replays/<experiment>-<cell>-run<run>-ep<episode>.rrd``."""
     viewer: str = setting(choices=VIEWERS)
@@ -337,8 +342,6 @@ class ReplayConfig:
 class ReportConfig:
     """``python -m pipeline report``: rebuild the report from the recorded data alone."""
 
-    profile: Profile = field(default_factory=Profile)
-    """The scale (``pipeline/conf/profile/``; the report reads none of it)."""
     runs_dir: str = setting(nonempty=True)
     """The trials' records: ``<runs_dir>/<experiment>/<cell>/records.mcap``."""
     accuracy_dir: str = setting(nonempty=True)
@@ -355,6 +358,8 @@ class ReportConfig:
     """``index.md``, ``tables/`` and ``figures/`` (replaced only by a complete build)."""
     allow_missing: bool = MISSING
     """Build without experiments or cells that have no complete records (listed at the top)."""
+    allow_mixed_scales: bool = MISSING
+    """Build from cells recorded at different scales (profiles), each named at the top."""
 
 
 #: Stage name -> its schema (``pipeline/conf/<stage>.yaml`` lists ``<stage>_schema`` first in its defaults).

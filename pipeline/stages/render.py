@@ -23,7 +23,7 @@ from pathlib import Path
 from tqdm import tqdm
 
 from pipeline.errors import ConfigError
-from pipeline.files import swap_in, write_atomic
+from pipeline.files import swap_in, write_atomic, write_index
 from pipeline.stages._common import stage_main
 from pipeline.stages._schema import RenderConfig
 from pipeline.world.contact_sheet import contact_sheet, save_png_atomic
@@ -194,6 +194,8 @@ def run(cfg: RenderConfig, overrides: list[str] = ()) -> dict:
             cfg.contact_train_classes,
             cfg.contact_per_class,
         )
+    if cfg.index_file:
+        write_index(out, cfg.index_file)
     figures = {
         "pictures": n,
         "seconds": round(seconds, 2),
@@ -206,8 +208,13 @@ def run(cfg: RenderConfig, overrides: list[str] = ()) -> dict:
 
 
 def written(cfg: RenderConfig, figures: dict) -> list[str]:
-    """The pictures' folder (with its manifest) and the contact sheets' folder, if any were made."""
-    return [cfg.out_dir, *([cfg.figures_dir] if figures["contact_sheets"] else [])]
+    """The pictures' folder (with its manifest), the contact sheets' folder, if any were made, and
+    the index."""
+    return [
+        cfg.out_dir,
+        *([cfg.figures_dir] if figures["contact_sheets"] else []),
+        *([cfg.index_file] if cfg.index_file else []),
+    ]
 
 
 def main() -> None:

@@ -2,6 +2,8 @@
 
     python -m pipeline replay file=<file.mcap> run=3 episode=120 [whole_run=true] [viewer=web|native]
 
+Without ``episode`` the replay opens the run's first episode with a recognition (and says so).
+
 The file may also be given positionally (``python -m pipeline replay <file.mcap> run=3 ...``).
 Logic in :mod:`pipeline.replay`; this is the thin entry point (pipeline/conf/replay.yaml) and
 starts the viewer.
@@ -32,7 +34,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from urllib.parse import quote
 
-from pipeline.errors import ConfigError
+from pipeline.errors import ConfigError, Interrupted
 from pipeline.files import DiskError
 from pipeline.stages._common import stage_main
 from pipeline.stages._schema import ReplayConfig
@@ -58,25 +60,27 @@ def run(cfg: ReplayConfig, overrides: list[str] = ()) -> Path:
 def write_replay(path: Path, cfg: ReplayConfig) -> Path:
     """The ``.rrd`` of ``cfg.run``/``cfg.episode``; a damaged record file warns in one line."""
     from pipeline.records import RecordsWarning
-    from pipeline.replay import ReplayError, build_replay, replay_stem
+    from pipeline.replay import ReplayError, build_replay, opening_episode, replay_stem
 
-    out = (
-        cfg.out
-        or f"replays/{replay_stem(path, cfg.run, None if cfg.whole_run else cfg.episode)}.rrd"
-    )
+    if cfg.whole_run and cfg.episode is not None:
+        raise ConfigError("config key 'episode': whole_run=true replays every episode; give one")
+    episode = cfg.episode
+    if episode is None and not cfg.whole_run:
+        try:
+            episode, why = opening_episode(path, cfg.run)
+        except ReplayError as exc:
+            raise ConfigError(
+                f"config key '{'file' if exc.key == 'file' else 'run'}': {exc}"
+            ) from None
+        print(f"episode={episode}: {why}", flush=True)
+    out = cfg.out or f"replays/{replay_stem(path, cfg.run, episode)}.rrd"
     out = Path(out).resolve()
     if out.suffix != ".rrd":
         raise ConfigError(f"config key 'out': must end in .rrd, got {out}")
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", RecordsWarning)
-            rrd = build_replay(
-                path,
-                cfg.run,
-                None if cfg.whole_run else cfg.episode,
-                out=out,
-                whole_run=cfg.whole_run,
-            )
+            rrd = build_replay(path, cfg.run, episode, out=out, whole_run=cfg.whole_run)
     except ReplayError as exc:
         keys = "key 'file'" if exc.key == "file" else "keys 'run'/'episode'"
         raise ConfigError(f"config {keys}: {exc}") from None
@@ -189,7 +193,9 @@ def serve_web(rrd: str | Path, web: WebAddress) -> None:
         if proc.wait():
             raise SystemExit(f"error: the Rerun viewer exited with status {proc.returncode}")
     except KeyboardInterrupt:
-        print("viewer stopped", file=sys.stderr, flush=True)
+        print(f"viewer stopped; the recording stays at {rrd}", file=sys.stderr, flush=True)
+    except Interrupted as exc:  # SIGTERM (the stage's handler): the same words, exit 143
+        raise Interrupted(exc.code, f"viewer stopped; the recording stays at {rrd}") from None
     finally:
         _stop(proc)
 

@@ -7,10 +7,22 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import yaml
+
 from pipeline.errors import ConfigError
 from pipeline.report.build import Inputs, build_report
+from pipeline.report.scale import MixedScalesError
 from pipeline.stages._common import CONF_DIR, stage_main
 from pipeline.stages._schema import ReportConfig
+
+
+def profile_trials() -> dict[str, dict]:
+    """Each profile's ``trials`` block by name (``pipeline/conf/profile/*.yaml``): what names the
+    scale of the records (:mod:`pipeline.report.scale`)."""
+    return {
+        p.stem: (yaml.safe_load(p.read_text()) or {}).get("trials")
+        for p in sorted((Path(CONF_DIR) / "profile").glob("*.yaml"))
+    }
 
 
 def run(cfg: ReportConfig, overrides: list[str] = ()) -> Path:
@@ -24,12 +36,16 @@ def run(cfg: ReportConfig, overrides: list[str] = ()) -> Path:
         Path(cfg.out),
         experiments_dir=Path(CONF_DIR) / "experiment",
         allow_missing=cfg.allow_missing,
+        allow_mixed_scales=cfg.allow_mixed_scales,
+        profiles=profile_trials(),
         beside={
             "Prototypical Network": (Path(cfg.protonet_accuracy_dir), Path(cfg.protonet_metrics))
         },
     )
     try:
         index = build_report(inputs)
+    except MixedScalesError as exc:
+        raise ConfigError(f"config key 'runs_dir': {exc}") from None
     except FileNotFoundError as exc:
         raise ConfigError(f"config key 'runs_dir': {exc}") from None
     except OSError as exc:

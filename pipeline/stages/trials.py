@@ -36,6 +36,7 @@ from pipeline.files import (
     exclusive_folder,
     size_text,
     swap_in,
+    write_index,
     write_json_atomic,
 )
 from pipeline.rl.memory import available_memory, memory_estimate
@@ -47,6 +48,7 @@ from pipeline.stages._cell_plan import (
 )
 from pipeline.stages._cell_run import CellRun, make_recogniser, pictures_dir, recorded_pictures
 from pipeline.stages._common import stage_main
+from pipeline.stages._metrics import write_metrics
 from pipeline.stages._progress import compact, follow
 from pipeline.stages._schema import TrialsConfig
 from pipeline.stages._workers import cell_results, worker_pool
@@ -161,6 +163,11 @@ def failed_run(exc: BaseException, out: Path, staging: Path, cells: int = 1) -> 
 
 
 def run(cfg: TrialsConfig, overrides: list[str]) -> dict:
+    for key in ("metrics_dir", "index_file"):
+        if cfg.experiment is None and getattr(cfg, key):
+            raise ConfigError(
+                f"config key '{key}': only an experiment (+experiment=...) writes one"
+            )
     cells = resolve_cells(cfg, overrides)
     refuse_what_does_not_fit(cfg, cells)
     workers = min(cfg.workers, len(cells))
@@ -177,6 +184,8 @@ def run(cfg: TrialsConfig, overrides: list[str]) -> dict:
             raise failed_run(exc, out, staging, len(cells)) from None
         for name in sorted(previous - set(index.get("cells", {}))):
             shutil.rmtree(out / name, ignore_errors=True)  # a cell the experiment no longer has
+        if cfg.index_file:
+            write_index(out, cfg.index_file)
         for stale in out.glob(".staging-*"):  # partial records of interrupted runs, now superseded
             shutil.rmtree(stale, ignore_errors=True)
             print(f"removed the partial records of an interrupted run: {stale}")
@@ -200,7 +209,7 @@ def note_dvc_out(cfg: TrialsConfig, overrides: list[str]) -> None:
 
 
 def written(cfg: TrialsConfig, index: dict) -> list[Path | str]:
-    """``out`` (an experiment) or its files (one cell), and the experiment's metrics and timing files."""
+    """``out`` (an experiment) or its files (one cell), and the experiment's metrics folder and timing file."""
     out = Path(cfg.out)
     if cfg.experiment is None:
         return [
@@ -208,7 +217,7 @@ def written(cfg: TrialsConfig, index: dict) -> list[Path | str]:
             *([out / "records.mcap"] if cfg.record != "none" else []),
             *filter(None, [cfg.timing_file]),
         ]
-    return [out, *filter(None, [cfg.metrics_file, cfg.timing_file])]
+    return [out, *filter(None, [cfg.metrics_dir, cfg.index_file, cfg.timing_file])]
 
 
 def run_cells(cfg: TrialsConfig, cells: list[CellRun], out: Path, pool=None) -> dict:
@@ -225,16 +234,8 @@ def run_cells(cfg: TrialsConfig, cells: list[CellRun], out: Path, pool=None) -> 
     cells_index = {n: {k: s[k] for k in INDEXED} for n, s in summaries.items()}
     index = {"experiment": cfg.experiment.name, "cells": cells_index}
     write_json_atomic(out / "summary.json", index)
-    if cfg.metrics_file:
-        metrics = {
-            n: {
-                "collisions_mean": s["collisions"]["mean"],
-                "collisions_std": s["collisions"]["std"],
-                "converged_runs": s["converged_runs"],
-            }
-            for n, s in summaries.items()
-        }
-        write_json_atomic(cfg.metrics_file, metrics)
+    if cfg.metrics_dir:
+        write_metrics(cfg.metrics_dir, cfg.experiment, summaries)
     return index
 
 

@@ -1,0 +1,103 @@
+"""Why a view of the replay is empty, in words: the episode the replay opens on when none is asked
+for (:func:`first_recognition`), and for each view that would otherwise say only "No data" the
+reason (:func:`empty_views`): the method recognises no pictures, this episode holds no
+recognition (and which episodes do), or the recogniser records no scores.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from pipeline.records import Records
+
+
+def episodes_with(frame, run: int) -> list[int]:
+    """The episodes of ``run`` with a row in ``frame`` (recognitions, substitutions), in order."""
+    if frame is None or frame.empty:
+        return []
+    return sorted({int(e) for e in frame.episode[frame.run == run]})
+
+
+def shown(episodes: list[int], at_most: int = 8) -> str:
+    """``0, 1, 4 (3 episodes)``; long lists cut after ``at_most`` with their count."""
+    head = ", ".join(str(e) for e in episodes[:at_most])
+    more = ", ..." if len(episodes) > at_most else ""
+    return f"{head}{more} ({len(episodes)} episode{'s' * (len(episodes) != 1)})"
+
+
+def first_recognition(recs: Records, run: int) -> tuple[int, str]:
+    """The episode a replay of ``run`` opens on when no episode is given: the first with a
+    recognition, else the first recorded; with a sentence saying which and why."""
+    seen = episodes_with(recs.recognitions, run)
+    if seen:
+        return seen[
+            0
+        ], f"the first of run {run} with a recognition; recognitions in episodes {shown(seen)}"
+    recorded = sorted(int(e) for e in recs.episodes.episode[recs.episodes.run == run])
+    return recorded[0], (
+        f"the first recorded of run {run}, which holds no recognition (the method recognises no "
+        "pictures, or the robot never moved toward an obstacle)"
+    )
+
+
+@dataclass(frozen=True)
+class EmptyViews:
+    """The reason each recognition view is empty in the replayed episodes (None: it has data)."""
+
+    recognition: str | None  # picture seen and recognition text
+    scores: str | None  # relation scores bar chart
+
+    @property
+    def scores_short(self) -> str:
+        """What the scores view's name says (a tab title: short): that the recognition view below
+        says why, or that the recogniser records none."""
+        return "none, see below" if self.scores == self.recognition else "none recorded"
+
+
+def empty_views(recs: Records, run: int, episodes: list[int]) -> EmptyViews:
+    """Why the picture, scores and recognition views of a replay of ``episodes`` of ``run`` show
+    nothing, if they do (a whole run replay counts any of its episodes)."""
+    seen = episodes_with(recs.recognitions, run)
+    here = [e for e in seen if e in set(episodes)]
+    if not seen:
+        why = (
+            f"no recognition in run {run}: the method recognises no pictures, or the robot never "
+            "moved toward an obstacle"
+        )
+        return EmptyViews(why, why)
+    if not here:
+        why = (
+            f"no recognition in episode {episodes[0]}; run {run} has them in episodes {shown(seen)}"
+            f" (replay one with episode=<e>, or leave episode out for the first)"
+        )
+        return EmptyViews(why, why)
+    scores = [c for c in recs.recognitions.columns if c.startswith("score_")]
+    rows = recs.recognitions[recs.recognitions.run == run]
+    if not scores or rows[scores].isna().all().all():
+        return EmptyViews(None, "the recogniser records no scores (it names a category only)")
+    return EmptyViews(None, None)
+
+
+def log_empty(rec, empty: EmptyViews) -> None:
+    """Say in the picture and recognition views why they stay empty (static: for every step)."""
+    import rerun as rr
+
+    if empty.recognition is None:
+        return
+    rec.log(
+        "recognition/result",
+        rr.TextDocument(
+            f"### No recognition to show\n\n{empty.recognition}.", media_type="text/markdown"
+        ),
+        static=True,
+    )
+    rec.log(  # the corners keep the label, centred on the middle point, inside the view
+        "recognition/picture/note",
+        rr.Points2D(
+            [[-1.0, -1.0], [0.0, 0.0], [1.0, 1.0]],
+            radii=[0.0, 0.01, 0.0],
+            labels=["", "no picture seen: see the recognition view", ""],
+            show_labels=True,
+        ),
+        static=True,
+    )

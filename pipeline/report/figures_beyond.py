@@ -1,0 +1,173 @@
+"""Figures of the studies beyond the paper: collisions against recognition accuracy
+(:func:`accuracy_curves`), and collisions over generated layouts (:func:`layout_boxes`,
+:func:`feature_scatter`). Colours and the overlap check as in :mod:`pipeline.report.figures`.
+"""
+
+from __future__ import annotations
+
+import textwrap
+from pathlib import Path
+
+import numpy as np
+from matplotlib import pyplot as plt
+from matplotlib.ticker import MaxNLocator
+
+from pipeline import palette
+from pipeline.report.figures import save
+
+
+def accuracy_curves(
+    panels: list[dict], path: Path, marker: float | None = None, marker_label: str = ""
+):
+    """One panel per maze: collisions per run against the recognition accuracy ``p``. Each panel:
+    ``title``; ``curves`` (label -> ``(p, mean, ci_low, ci_high)`` arrays: a line with its band);
+    ``references`` (label -> ``(mean, ci_low, ci_high)``: a horizontal line with its band);
+    ``measured`` (curve label -> ``(x, mean, ci_low, ci_high)``: a star with its interval, in the
+    colour of that curve); ``colours`` (curve label -> colour: the methods' declared colours;
+    others take the cycle's by position). ``marker``: a vertical line at that accuracy, named
+    ``marker_label``."""
+    fig, axes = plt.subplots(1, len(panels), figsize=(4.3 * len(panels), 3.8), squeeze=False)
+    colours = palette.SERIES
+    for ax, panel in zip(axes[0], panels):
+        given = panel.get("colours", {})
+        colour = {
+            label: given.get(label) or colours[i % len(colours)]
+            for i, label in enumerate(panel["curves"])
+        }
+        for label, (x, mean, lo, hi) in panel["curves"].items():
+            ax.plot(x, mean, "o-", color=colour[label], label=label, ms=3, lw=1.2)
+            ax.fill_between(x, lo, hi, color=colour[label], alpha=0.2, lw=0)
+        for j, (label, (mean, lo, hi)) in enumerate(panel["references"].items()):
+            colour = given.get(label, "black")  # the method's colour, as everywhere
+            ax.axhline(mean, color=colour, ls=("--", "-.", ":")[j % 3], lw=1.2, label=label)
+            ax.axhspan(lo, hi, color=colour, alpha=0.1, lw=0)
+        for label, (x, mean, lo, hi) in panel.get("measured", {}).items():
+            ax.errorbar(
+                [x],
+                [mean],
+                yerr=[[mean - lo], [hi - mean]],
+                fmt="*",
+                ms=11,
+                capsize=3,
+                color=colour.get(label, palette.SERIES[0]),
+                mec="black",
+                mew=0.5,
+                zorder=5,
+                label=f"{label}, Relation Network",
+            )
+        if marker is not None:
+            ax.axvline(marker, color=palette.SERIES[0], ls=":", lw=1, label=marker_label)
+        ax.set_ylim(bottom=0)
+        ax.set_xlabel("recognition accuracy p")
+        ax.set_title(panel["title"], fontsize=10)
+    axes[0][0].set_ylabel("collisions per run (mean, 95% CI)")
+    legend = {}
+    for ax in axes[0]:  # one legend below the panels, each label once
+        legend.update(
+            {
+                label: handle
+                for handle, label in zip(*ax.get_legend_handles_labels())
+                if label not in legend
+            }
+        )
+    fig.legend(
+        legend.values(),
+        legend.keys(),
+        fontsize=8,
+        loc="upper center",
+        bbox_to_anchor=(0.5, 0.0),
+        ncol=min(len(legend), 5),
+        frameon=False,
+    )
+    return save(fig, path)
+
+
+def layout_boxes(
+    per_size: dict[str, dict[str, np.ndarray]], path: Path, colours: dict[str, str] | None = None
+):
+    """One panel per size, one under the other: a box per method of its values over layouts
+    (mean collisions per run of each layout), in the method's colour (``colours``: by label), log
+    scale (zeros drawn at the axis' floor)."""
+    n = max((len(b) for b in per_size.values()), default=1)
+    fig, axes = plt.subplots(
+        len(per_size),
+        1,
+        figsize=(1.15 * n + 1.5, 3.3 * len(per_size)),
+        squeeze=False,
+        layout="constrained",
+    )
+    for ax, (size, boxes) in zip(axes[:, 0], per_size.items()):
+        labels = list(boxes)
+        values = [np.asarray(boxes[k], dtype=float) for k in labels]
+        floor = min([v[v > 0].min() for v in values if (v > 0).any()] or [1.0]) / 2
+        drawn = ax.boxplot(
+            [np.maximum(v, floor) for v in values],
+            widths=0.6,
+            flierprops={"markersize": 3},
+            medianprops={"color": "black"},
+            patch_artist=True,
+        )
+        for k, (box, label) in enumerate(zip(drawn["boxes"], labels)):
+            colour = (colours or {}).get(label) or palette.SERIES[k % len(palette.SERIES)]
+            box.set(facecolor=colour, alpha=0.35, edgecolor=colour)
+        ax.set_yscale("log")
+        ax.set_xticks(range(1, len(labels) + 1), [textwrap.fill(k, 13) for k in labels], fontsize=7)
+        ax.set_title(f"{size}: {max((v.size for v in values), default=0)} layouts", fontsize=9)
+        ax.set_ylabel("mean collisions per run (log)", fontsize=8)
+        ax.grid(axis="y", alpha=0.3)
+    fig.suptitle("Collisions over generated layouts", fontsize=10)
+    return save(fig, path)
+
+
+def feature_scatter(df, features: dict[str, str], path: Path, fit, colours: dict[str, str]):
+    """Rows: sizes, columns: layout features; points: mean collisions per run of each (layout,
+    method), one colour per method (``colours``: by ``df["method"]``, the declared colours; a
+    method without one takes the palette's series colours), with ``fit(x, y)``'s line (slope,
+    intercept, ...) where it gives one; log y. A feature that takes one value within every size
+    has nothing to show and is left out; integer features get integer ticks; one legend, below."""
+    sizes = list(dict.fromkeys(df["size"]))
+    varied = {
+        f: x
+        for f, x in features.items()
+        if any(df[df["size"] == s][f].nunique() > 1 for s in sizes)
+    }
+    fig, axes = plt.subplots(
+        len(sizes),
+        len(varied),
+        figsize=(4.2 * len(varied), 3.2 * len(sizes) + 0.6),
+        squeeze=False,
+        layout="constrained",
+    )
+    for i, size in enumerate(sizes):
+        on = df[df["size"] == size]
+        for j, (feature, xlabel) in enumerate(varied.items()):
+            ax = axes[i][j]
+            for k, method in enumerate(dict.fromkeys(on["method"])):
+                colour = colours.get(method) or palette.SERIES[k % len(palette.SERIES)]
+                m = on[on["method"] == method]
+                x, y = m[feature].to_numpy(float), m["collisions_mean"].to_numpy(float)
+                ax.scatter(
+                    x, np.maximum(y, 0.05), s=6, alpha=0.5, color=colour, label=m["label"].iloc[0]
+                )
+                line = fit(x, y)
+                if line is not None:
+                    xs = np.linspace(x.min(), x.max(), 20)
+                    ax.plot(xs, np.maximum(line[1] + line[0] * xs, 0.05), color=colour, lw=1.2)
+            ax.set_yscale("log")
+            if np.allclose(on[feature], np.round(on[feature])):
+                ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+            ax.set_xlabel(xlabel, fontsize=8)
+            ax.set_title(size, fontsize=9)
+            if j == 0:
+                ax.set_ylabel("mean collisions per run (log)")
+    handles, labels = axes[0][0].get_legend_handles_labels()
+    fig.legend(
+        handles,
+        labels,
+        fontsize=8,
+        markerscale=3,
+        loc="outside lower center",
+        ncols=4,
+        frameon=False,
+    )
+    return save(fig, path)
