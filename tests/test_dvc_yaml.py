@@ -191,7 +191,7 @@ def test_the_records_sample_is_committed_and_small():
     """``datasets/sample``: in git (``cache: false``), so the README's records and replay examples
     work on a fresh clone; under 2 MB."""
     outs = STAGES["sample"]["outs"]
-    assert outs == [{"datasets/sample/fig8": {"cache": False}}]
+    assert outs == [{"datasets/sample/fig8": {"cache": False, "persist": True}}]
     folder = ROOT / "datasets" / "sample" / "fig8"
     if folder.is_dir():
         size = sum(p.stat().st_size for p in folder.rglob("*") if p.is_file())

@@ -1,4 +1,4 @@
-"""A full or read-only disk (docs/reliability.md "Full and read-only disks"): trials, an experiment
+"""A full or read-only disk (docs/reliability.md "DVC experiments and full disks"): trials, an experiment
 with workers and replay end in one line naming the folder and the space needed, exit 2; a failed
 run removes its own staging folder and keeps what ``out`` held; replay writes its ``.rrd`` whole or
 not at all. The disks are small tmpfs mounts: where this machine does not allow mounting (not
