@@ -216,7 +216,7 @@ def _snapshot(folder: Path) -> dict[str, str]:
 def test_exp_run_keeps_pictures_made_outside_dvc_and_refuses_a_bad_value(tmp_path):
     """Issue 31: pictures made by `python -m pipeline render` (not in DVC's cache, other bytes than
     dvc.lock's) survive `dvc exp run` of one stage and of all, and a bad `-S` value is refused
-    naming the key, leaving pictures, records and the tracked metrics file as they were."""
+    naming the key, leaving pictures, records and the tracked metrics as they were."""
     flags = _flags()
     render = "python -m pipeline render profile=smoke out_dir=images contact_sheets=false"
     dvc_yaml = {
@@ -232,11 +232,11 @@ def test_exp_run_keeps_pictures_made_outside_dvc_and_refuses_a_bad_value(tmp_pat
                 "do": {
                     "cmd": "python -m pipeline trials +experiment=${item} profile=smoke "
                     "recogniser=oracle record=episodes images_dir=images progress=false "
-                    f"out=runs/${{item}} metrics_file=metrics/${{item}}.json {flags['overwrite']}",
+                    f"out=runs/${{item}} metrics_dir=metrics/${{item}} {flags['overwrite']}",
                     "deps": ["images", "pipeline/rl"],
                     "params": [{"pipeline/conf/profile/smoke.yaml": ["trials.episodes"]}],
                     "outs": [{"runs/${item}": flags["records"]}],
-                    "metrics": [{"metrics/${item}.json": flags["metrics"]}],
+                    "metrics": [{"metrics/${item}": flags["metrics"]}],
                 },
             },
         }
@@ -253,7 +253,7 @@ def test_exp_run_keeps_pictures_made_outside_dvc_and_refuses_a_bad_value(tmp_pat
     run(repo, *render.split(), "seed=1")
     run(repo, "dvc", "repro", "-s", "trials@fig10")  # records from these pictures, in the cache
     commit(repo)
-    pictures, metrics = _snapshot(repo / "images"), (repo / "metrics" / "fig10.json").read_bytes()
+    pictures, metrics = _snapshot(repo / "images"), _snapshot(repo / "metrics" / "fig10")
     records = _snapshot(repo / "runs" / "fig10")
     smoke = "pipeline/conf/profile/smoke.yaml"
     for value, key in [("abc", "profile.trials.episodes"), ("-1", "profile.trials.episodes")]:
@@ -271,7 +271,7 @@ def test_exp_run_keeps_pictures_made_outside_dvc_and_refuses_a_bad_value(tmp_pat
         assert bad.returncode != 0 and f"error: config key '{key}'" in bad.stdout + bad.stderr
         assert _snapshot(repo / "images") == pictures
         assert _snapshot(repo / "runs" / "fig10") == records
-        assert (repo / "metrics" / "fig10.json").read_bytes() == metrics
+        assert _snapshot(repo / "metrics" / "fig10") == metrics and metrics
         run(repo, "git", "checkout", "-q", smoke)
     bad = run(repo, "dvc", "exp", "run", "-S", f"{smoke}:render.per_class=abc", ok=False)
     assert "error: config key 'profile.render.per_class'" in bad.stdout + bad.stderr
