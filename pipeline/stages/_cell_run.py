@@ -183,12 +183,8 @@ def _close_quietly(writer) -> None:
     """Finish a failed cell's records as partial; a disk that refuses even that is not a second error
     (the stage removes a failed run's staging folder)."""
     if writer is not None:
-        try:
+        with contextlib.suppress(OSError):
             writer.close(complete=False)
-        except OSError:  # RecordWriter.close leaves its file open when finish() fails: close it
-            # here, or the deleted staging file keeps its space until the writer is collected
-            with contextlib.suppress(OSError):  # its buffer cannot be written either
-                getattr(writer, "_file", None) and writer._file.close()
 
 
 def _named(cell: CellRun) -> str:
