@@ -22,6 +22,7 @@ as in the stages: run from the project root or pass absolute paths in ``recognis
 
 from __future__ import annotations
 
+import importlib.util
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -95,7 +96,9 @@ def make_env(
     ``fewshot_dss`` the recogniser gets substitution way ``substitution`` (1-4, section 3.3), as
     ``substitution=`` does for the trials stage. Each ``reset(seed=...)`` restores its support set.
     ``registered_maze``: the maze of the id (``SafeNav-7x7-v0``); another ``maze`` is refused, so
-    an id never names a maze it does not run (``SafeNav-v0`` takes any; ``maze`` defaults to 5x5)."""
+    an id never names a maze it does not run (``SafeNav-v0`` takes any; ``maze`` defaults to 5x5).
+    ``render_mode="human"`` wraps the ``rgb_array`` environment in Gymnasium's ``HumanRendering``
+    and is refused at once when pygame is not installed."""
     if registered_maze is not None:
         asked = getattr(maze, "name", maze)
         if maze is not None and asked != registered_maze:
@@ -104,6 +107,26 @@ def make_env(
                 f"for another maze use gymnasium.make('SafeNav-v0', maze={asked!r})"
             )
         maze = registered_maze
+    if render_mode == "human":  # checked here, not at the first render()
+        if importlib.util.find_spec("pygame") is None:
+            raise ValueError(
+                "render_mode='human' opens a window through pygame, which is not installed "
+                "(pip install pygame); or use render_mode='rgb_array' (frames) or 'ansi' (text)"
+            )
+        from gymnasium.wrappers import HumanRendering
+
+        return HumanRendering(
+            make_env(
+                maze,
+                method,
+                recogniser,
+                recogniser_options=recogniser_options,
+                substitution=substitution,
+                run=run,
+                render_mode="rgb_array",
+                tile_size=tile_size,
+            )
+        )
     spec = method if isinstance(method, MethodSpec) else get_method(method)
     if isinstance(recogniser, str):
         _check_name(recogniser)
@@ -134,5 +157,9 @@ def make_env(
     )
 
 
-#: ``gymnasium.make`` reads the render modes from the entry point (to add its render wrappers).
-make_env.metadata = SafeNavigationEnv.metadata
+#: ``gymnasium.make`` reads the render modes from the entry point (to add its render wrappers);
+#: ``human`` is listed so that it reaches :func:`make_env`, which checks for pygame at once.
+make_env.metadata = {
+    **SafeNavigationEnv.metadata,
+    "render_modes": [*SafeNavigationEnv.metadata["render_modes"], "human"],
+}

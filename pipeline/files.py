@@ -7,6 +7,7 @@ failed write leaves the previous version untouched.
 
 from __future__ import annotations
 
+import errno
 import fcntl
 import json
 import os
@@ -16,6 +17,60 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, BinaryIO
+
+from pipeline.errors import UserError
+
+#: A full disk or quota, and a folder or file system that cannot be written.
+DISK_FULL = (errno.ENOSPC, errno.EDQUOT)
+NOT_WRITABLE = (errno.EROFS, errno.EACCES, errno.EPERM)
+
+
+class DiskError(UserError):
+    """A write that failed for lack of space (``full``) or of permission; the message names the
+    folder, ``needed`` says what the write needs when known (both kept across processes)."""
+
+    def __init__(self, message: str, needed: str = "", full: bool = True):
+        super().__init__(message, needed, full)
+        self.needed, self.full = needed, full
+
+    def __str__(self) -> str:
+        return self.args[0]
+
+
+def size_text(n: float) -> str:
+    """``n`` bytes in the largest unit that keeps a number >= 1 (``3.1 MB``)."""
+    for unit in ("B", "kB", "MB", "GB"):
+        if abs(n) < 1000 or unit == "GB":
+            return f"{n:,.0f} {unit}" if unit == "B" else f"{n:,.1f} {unit}"
+        n /= 1000
+    raise AssertionError  # unreachable
+
+
+def free_space(folder: str | Path) -> int:
+    """Bytes free on the file system of ``folder`` (or of its nearest existing parent)."""
+    folder = Path(folder).absolute()
+    while not folder.exists() and folder != folder.parent:
+        folder = folder.parent
+    return shutil.disk_usage(folder).free
+
+
+def disk_problem(exc: OSError, folder: str | Path, needed: str = "") -> DiskError | None:
+    """One line for a full or read-only disk, naming ``folder``, its free space and ``needed``
+    (what the write needs, when known); None for any other error."""
+    if exc.errno not in DISK_FULL + NOT_WRITABLE:
+        return None
+    return disk_error(folder, needed, exc.errno in DISK_FULL, exc.strerror)
+
+
+def disk_error(folder: str | Path, needed: str, full: bool, why: str = "") -> DiskError:
+    """The one line of :func:`disk_problem` (the free space is measured now)."""
+    need = f"; {needed}" if needed else ""
+    if full:
+        free = size_text(free_space(folder))
+        text = f"no space left on the device of {folder} ({free} free{need}); free some space or"
+    else:
+        text = f"cannot write into {folder} ({why or 'not writable'}{need});"
+    return DiskError(f"{text} choose another folder", needed, full)
 
 
 def _umask() -> int:
@@ -61,8 +116,6 @@ def write_json_atomic(path: str | Path, data: Any, *, sort_keys: bool = False) -
 def exclusive_folder(folder: str | Path, what: str = "out") -> Iterator[Path]:
     """Hold ``folder`` for one writer: create it if needed, refuse at once (``UserError`` naming
     ``what``) when it is a file, not writable, or held by another process."""
-    from pipeline.errors import UserError
-
     folder = Path(folder)
     if folder.exists() and not folder.is_dir():
         raise UserError(f"config key '{what}': {folder} is a file, not a folder")

@@ -98,8 +98,8 @@ def test_an_out_with_only_hidden_entries_is_not_refused(tmp_path):
 
 
 def test_an_out_that_dvc_yaml_declares_is_refused_like_any_other(tmp_path, monkeypatch):
-    """Nothing at run time reads ``dvc.yaml``: under ``dvc repro`` the out is already empty (DVC
-    deletes a stage's outs before it runs it), so a declared out that holds results is refused too."""
+    """Nothing at run time reads ``dvc.yaml``: a declared out that holds results is refused like
+    any other unless the command gives ``overwrite=true`` (as dvc.yaml's trials stages do)."""
     (tmp_path / "dvc.yaml").write_text(
         "stages:\n  t:\n    cmd: python -m pipeline trials out=runs/a\n    outs:\n      - runs/a\n"
     )
@@ -112,24 +112,41 @@ def test_an_out_that_dvc_yaml_declares_is_refused_like_any_other(tmp_path, monke
     trials.refuse_overwrite(replace(cfg, overwrite=True), Path("runs/a"))
 
 
-def test_each_trials_stage_writes_into_the_out_dvc_deletes_before_it_runs():
-    """The ``out`` a trials stage's command composes is the stage's declared out, which DVC deletes
-    before running the command: so ``dvc repro`` never meets the refusal of an ``out`` with results."""
+def test_each_trials_stage_writes_into_its_persistent_out_with_overwrite():
+    """The ``out`` a trials stage's command composes is the stage's declared out, which DVC keeps
+    (``persist``: a refused config leaves it in place), so the command gives ``overwrite=true``."""
     stages = yaml.safe_load((ROOT / "dvc.yaml").read_text())["stages"]
     trials_stage = stages["trials"]
     for item in trials_stage["foreach"]:
         cmd = trials_stage["do"]["cmd"].replace("${item}", item).split()
         assert cmd[:4] == ["python", "-m", "pipeline", "trials"], cmd
         cfg = load_config("trials", cmd[4:])
-        declared = trials_stage["do"]["outs"]  # a plain path, or {path: {persist: ...}}
-        outs = [
-            (o if isinstance(o, str) else next(iter(o))).replace("${item}", item) for o in declared
-        ]
-        assert outs == [cfg.out, cfg.index_file] and not cfg.overwrite, (item, outs, cfg.out)
-        kept = [
-            o for o in declared if isinstance(o, dict) and next(iter(o.values())).get("persist")
-        ]
-        assert not kept, f"{kept}: DVC keeps a persist out, so the stage would refuse it"
+        declared = trials_stage["do"]["outs"]
+        outs = [next(iter(o)).replace("${item}", item) for o in declared]
+        assert outs == [cfg.out, cfg.index_file] and cfg.overwrite, (item, outs, cfg.out)
+        assert all(next(iter(o.values())).get("persist") for o in declared), declared
+
+
+def test_overwrite_removes_the_cells_the_previous_run_had_and_this_one_has_not(tmp_path):
+    """``overwrite=true`` (dvc.yaml's trials, whose outs persist) replaces the previous run's
+    results: its cells that this run has not are removed, anything else in ``out`` is kept."""
+    small = [
+        "profile=smoke",
+        "recogniser=oracle",
+        "record=none",
+        "progress=false",
+        f"out={tmp_path}",
+    ]
+    assert cli("trials", "+experiment=fig9", *small).returncode == 0
+    (tmp_path / "notes.txt").write_text("mine")
+    done = cli("trials", "+experiment=fig10", *small, "overwrite=true")
+    assert done.returncode == 0, done.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "carry",
+        "notes.txt",
+        "restore",
+        "summary.json",
+    ]
 
 
 @pytest.mark.parametrize("args", [["--help"], ["trials", "--help"]])
@@ -144,3 +161,20 @@ def test_help_into_a_reader_that_is_gone_ends_quietly(args):
     proc.stdout.close()  # like `| head -0`: the reader is gone before anything is written
     err = proc.stderr.read().decode()
     assert proc.wait(timeout=120) == 141 and "Traceback" not in err and "BrokenPipe" not in err, err
+
+
+def test_an_experiment_run_by_hand_into_its_dvc_out_says_whose_folder_it_is(tmp_path, monkeypatch):
+    """The experiment's declared out is its DVC stage's cached out: run by hand (no ``DVC_STAGE``
+    in the environment, which DVC sets for its stages), the stage says that DVC owns it."""
+    small = ["+experiment=fig10", "profile=smoke", "recogniser=oracle", "record=none"]
+    monkeypatch.delenv("DVC_STAGE", raising=False)
+    done = cli("trials", *small, "progress=false", cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert done.stderr.strip() == (
+        "note: datasets/runs/fig10 is the out of DVC's stage trials@fig10: `dvc checkout` and "
+        "`dvc exp run` put back the copy dvc.lock names (or delete this one when DVC has none); "
+        "`dvc commit trials@fig10` makes this one DVC's"
+    )
+    monkeypatch.setenv("DVC_STAGE", "trials@fig10")
+    again = cli("trials", *small, "progress=false", "overwrite=true", cwd=tmp_path)
+    assert again.returncode == 0 and again.stderr == ""

@@ -2,6 +2,7 @@
 holding a copy of pipeline/ (its configs in pipeline/conf/) and a small dvc.yaml shaped like ours (a
 trials foreach with the same kind of params, the oracle recogniser: no pictures or model needed)."""
 
+import hashlib
 import json
 import os
 import shutil
@@ -10,6 +11,7 @@ import sys
 from pathlib import Path
 
 import pytest
+import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
 BIN = Path(sys.executable).parent
@@ -182,3 +184,105 @@ stages:
     assert "up to date" in run(repo, "dvc", "status", cwd=repo / "sub").stdout
     assert not (repo / "sub" / ".dvc").exists()
     assert run(repo, "git", "status", "--porcelain").stdout == ""  # the site cache is git-ignored
+
+
+def _flags() -> dict[str, dict]:
+    """The out flags of the real dvc.yaml that keep a user's files (pictures, records, metrics)
+    through `dvc exp run`, and the trials command's tail (`overwrite=true`)."""
+    stages = yaml.safe_load((ROOT / "dvc.yaml").read_text())["stages"]
+    trials = stages["trials"]["do"]
+
+    def flags(entry) -> dict:  # a plain path has none
+        return next(iter(entry.values())) if isinstance(entry, dict) else {}
+
+    out = {
+        "images": flags(stages["render"]["outs"][0]),
+        "records": flags(trials["outs"][0]),
+        "metrics": flags(trials["metrics"][0]),
+    }
+    out["overwrite"] = "overwrite=true" if "overwrite=true" in trials["cmd"].split() else ""
+    return out
+
+
+def _snapshot(folder: Path) -> dict[str, str]:
+    return {
+        p.relative_to(folder).as_posix(): hashlib.md5(p.read_bytes()).hexdigest()
+        for p in sorted(folder.rglob("*"))
+        if p.is_file()
+    }
+
+
+@pytest.mark.slow
+def test_exp_run_keeps_pictures_made_outside_dvc_and_refuses_a_bad_value(tmp_path):
+    """Issue 31: pictures made by `python -m pipeline render` (not in DVC's cache, other bytes than
+    dvc.lock's) survive `dvc exp run` of one stage and of all, and a bad `-S` value is refused
+    naming the key, leaving pictures, records and the tracked metrics as they were."""
+    flags = _flags()
+    render = "python -m pipeline render profile=smoke out_dir=images contact_sheets=false"
+    dvc_yaml = {
+        "stages": {
+            "render": {
+                "cmd": render,
+                "deps": ["pipeline/stages/render.py"],
+                "params": [{"pipeline/conf/profile/smoke.yaml": ["render.per_class"]}],
+                "outs": [{"images": flags["images"]}],
+            },
+            "trials": {
+                "foreach": ["fig10"],
+                "do": {
+                    "cmd": "python -m pipeline trials +experiment=${item} profile=smoke "
+                    "recogniser=oracle record=episodes images_dir=images progress=false "
+                    f"out=runs/${{item}} metrics_dir=metrics/${{item}} {flags['overwrite']}",
+                    "deps": ["images", "pipeline/rl"],
+                    "params": [{"pipeline/conf/profile/smoke.yaml": ["trials.episodes"]}],
+                    "outs": [{"runs/${item}": flags["records"]}],
+                    "metrics": [{"metrics/${item}": flags["metrics"]}],
+                },
+            },
+        }
+    }
+    repo = new_repo(tmp_path / "repo", yaml.safe_dump(dvc_yaml, sort_keys=False))
+    (repo / ".gitignore").write_text((repo / ".gitignore").read_text() + "/images\n")
+    shutil.copytree(
+        ROOT / "pipeline", repo / "pipeline", ignore=shutil.ignore_patterns("__pycache__")
+    )
+    run(repo, "dvc", "repro")
+    commit(repo)
+    # a fresh clone's cache is empty; the user renders by hand, here other pictures (seed=1)
+    shutil.rmtree(repo / ".dvc" / "cache")
+    run(repo, *render.split(), "seed=1")
+    run(repo, "dvc", "repro", "-s", "trials@fig10")  # records from these pictures, in the cache
+    commit(repo)
+    pictures, metrics = _snapshot(repo / "images"), _snapshot(repo / "metrics" / "fig10")
+    records = _snapshot(repo / "runs" / "fig10")
+    smoke = "pipeline/conf/profile/smoke.yaml"
+    for value, key in [("abc", "profile.trials.episodes"), ("-1", "profile.trials.episodes")]:
+        bad = run(
+            repo,
+            "dvc",
+            "exp",
+            "run",
+            "-s",
+            "trials@fig10",
+            "-S",
+            f"{smoke}:trials.episodes={value}",
+            ok=False,
+        )
+        assert bad.returncode != 0 and f"error: config key '{key}'" in bad.stdout + bad.stderr
+        assert _snapshot(repo / "images") == pictures
+        assert _snapshot(repo / "runs" / "fig10") == records
+        assert _snapshot(repo / "metrics" / "fig10") == metrics and metrics
+        run(repo, "git", "checkout", "-q", smoke)
+    bad = run(repo, "dvc", "exp", "run", "-S", f"{smoke}:render.per_class=abc", ok=False)
+    assert "error: config key 'profile.render.per_class'" in bad.stdout + bad.stderr
+    assert _snapshot(repo / "images") == pictures
+    run(repo, "git", "checkout", "-q", smoke)
+
+    run(repo, "dvc", "exp", "run", "-s", "trials@fig10", "-S", f"{smoke}:trials.episodes=10")
+    assert _snapshot(repo / "images") == pictures
+    assert (
+        json.loads((repo / "runs" / "fig10" / "restore" / "summary.json").read_text())["n_episodes"]
+        == 10
+    )
+    run(repo, "dvc", "exp", "run", "-S", f"{smoke}:trials.episodes=12")  # all stages
+    assert (repo / "images" / "manifest.csv").is_file()  # kept, or rendered again by its stage

@@ -131,7 +131,7 @@ def test_each_trials_stage_tracks_its_experiment_and_the_methods_and_recognisers
         and f"metrics_dir=datasets/metrics/{exp} " in stage["cmd"]
         and f"index_file=datasets/index/runs/{exp}.json" in stage["cmd"]
     )
-    assert stage["outs"][0] == f"datasets/runs/{exp}"
+    assert stage["outs"][0] == {f"datasets/runs/{exp}": {"persist": True}}
 
 
 def test_the_files_experiments_read_include_their_methods_and_recognisers():
@@ -191,7 +191,7 @@ def test_the_records_sample_is_committed_and_small():
     """``datasets/sample``: in git (``cache: false``), so the README's records and replay examples
     work on a fresh clone; under 2 MB."""
     outs = STAGES["sample"]["outs"]
-    assert outs == [{"datasets/sample/fig8": {"cache": False}}]
+    assert outs == [{"datasets/sample/fig8": {"cache": False, "persist": True}}]
     folder = ROOT / "datasets" / "sample" / "fig8"
     if folder.is_dir():
         size = sum(p.stat().st_size for p in folder.rglob("*") if p.is_file())

@@ -107,7 +107,7 @@ def test_meta_train_on_folders(tmp_path, trees):
     out = tmp_path / "m"
     args = ["data=folder", f"data.train_dir={train}", f"data.val_dir={val}", *outputs(out), *SHRINK]
     metrics = run_stage("meta_train", args)
-    info = json.loads((out / "train_info.json").read_text())
+    info = json.loads((out / "rn.train_info.json").read_text())
     assert (
         info["train_dir"] == str(train) and info["val_dir"] == str(val) and "images_dir" not in info
     )

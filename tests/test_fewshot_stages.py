@@ -49,7 +49,7 @@ def test_meta_train_then_accuracy(tmp_path):
         and on_disk["val_episodes"] == 20
     )
     info = json.loads(
-        (tmp_path / "m" / "train_info.json").read_text()
+        (tmp_path / "m" / "rn.train_info.json").read_text()
     )  # metrics.json: metrics only
     assert set(on_disk) == set(meta_train.METRIC_KEYS) and {
         "train_seconds",
@@ -186,7 +186,7 @@ def test_protonet_meta_train_accuracy_and_report_tables(tmp_path):
             + shrink
             + extra,
         )
-        assert json.loads((m / "train_info.json").read_text())["model"] == model
+        assert json.loads((m / "net.train_info.json").read_text())["model"] == model
         args = [
             f"recogniser={model}",
             f"recogniser.images_dir={images}",

@@ -226,17 +226,25 @@ def test_interrupted_write_leaves_no_half_picture(tmp_path, monkeypatch):
     assert list(target.parent.iterdir()) == []  # the temporary file is removed too
 
 
-def test_interrupted_stage_leaves_no_manifest(tmp_path, monkeypatch):
-    """An old manifest is removed before rendering; one killed mid-render leaves none behind."""
+def test_interrupted_stage_keeps_the_previous_pictures_and_removes_its_staging(
+    tmp_path, monkeypatch
+):
+    """A render killed mid-way leaves the previous pictures and their manifest as they were (it
+    renders into a staging folder), and removes its staging folder."""
     import pipeline.stages.render as stage
 
-    (tmp_path / "images").mkdir()
-    (tmp_path / "images" / "manifest.csv").write_text("stale\n")
+    (tmp_path / "images" / "query").mkdir(parents=True)
+    (tmp_path / "images" / "manifest.csv").write_text("previous\n")
+    (tmp_path / "images" / "query" / "p.png").write_bytes(b"previous")
 
-    def killed(*a, **k):
+    def killed(batches, out_dir, *a, **k):
+        (Path(out_dir) / "query").mkdir(parents=True)
+        (Path(out_dir) / "query" / "p.png").write_bytes(b"half")
         raise KeyboardInterrupt
 
     monkeypatch.setattr(stage, "render_all", killed)
     with pytest.raises(KeyboardInterrupt):
         stage.run(_cfg(tmp_path))
-    assert not (tmp_path / "images" / "manifest.csv").exists()
+    assert (tmp_path / "images" / "manifest.csv").read_text() == "previous\n"
+    assert (tmp_path / "images" / "query" / "p.png").read_bytes() == b"previous"
+    assert sorted(p.name for p in (tmp_path / "images").iterdir()) == ["manifest.csv", "query"]

@@ -15,6 +15,7 @@ Pictures are resized once, at load time, to the model's input size and kept as u
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -84,15 +85,42 @@ def read_manifest(images_dir: str | Path) -> pd.DataFrame:
 
 
 def load_image(path: Path, size: int) -> np.ndarray:
-    """One picture as (size, size, 3) uint8 RGB, resized with antialiased bilinear filtering."""
+    """One picture as (size, size, 3) uint8 RGB, resized with antialiased bilinear filtering. A
+    picture of more than PIL's ``Image.MAX_IMAGE_PIXELS`` (a decompression bomb) is refused."""
     try:
-        with Image.open(path) as im:
-            im = im.convert("RGB")
-            if im.size != (size, size):
-                im = im.resize((size, size), Image.Resampling.BILINEAR)
-            return np.asarray(im, dtype=np.uint8)
-    except (OSError, ValueError) as exc:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", Image.DecompressionBombWarning)
+            with Image.open(path) as im:
+                im = im.convert("RGB")
+                if im.size != (size, size):
+                    im = im.resize((size, size), Image.Resampling.BILINEAR)
+                return np.asarray(im, dtype=np.uint8)
+    except (Image.DecompressionBombWarning, Image.DecompressionBombError) as exc:
+        raise DataError(f"cannot read picture {path}: too large, {exc}") from None
+    except (OSError, ValueError, RuntimeError) as exc:  # RuntimeError: a symbolic link loop
         raise DataError(f"cannot read picture {path}: {exc}") from exc
+
+
+def class_folders(root: Path) -> list[Path]:
+    """The class folders of a folder-per-class tree: its sub-folders in name order (hidden ones
+    skipped). A symbolic link loop, or a link to ``root`` or a folder above it (which would make
+    the tree a class of itself), is refused naming it."""
+    top = root.resolve()
+    out = []
+    for p in sorted(root.iterdir()):
+        if p.name.startswith("."):
+            continue
+        try:
+            target = p.resolve(strict=True)
+        except (OSError, RuntimeError):
+            if p.is_symlink():
+                raise DataError(f"{p}: a symbolic link that leads nowhere or to itself") from None
+            raise
+        if target.is_dir() and top.is_relative_to(target):
+            raise DataError(f"{p}: links to {target}, which holds this tree; remove the link")
+        if target.is_dir():
+            out.append(p)
+    return out
 
 
 def load_split(
@@ -147,7 +175,7 @@ def load_folder(root: str | Path, size: int, *, progress: bool = False) -> Pictu
         raise DataError(
             f"{root}: no such folder (expected a folder-per-class tree: <dir>/<class>/<picture>)"
         )
-    classes = sorted(p for p in root.iterdir() if p.is_dir() and not p.name.startswith("."))
+    classes = class_folders(root)
     if not classes:
         raise DataError(
             f"{root}: no class folders (expected <dir>/<class>/<picture>, pictures ending in "

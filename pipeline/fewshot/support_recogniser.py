@@ -17,6 +17,8 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from pipeline.kernels import kernel_path
+
 from .checkpoint import file_sha256, load_checkpoint
 from .colour import hue_rotate
 from .data import DataError, PictureSet, load_split, read_manifest, to_tensor
@@ -190,13 +192,15 @@ class SupportSetRecogniser(abc.ABC):
     def describe(self) -> dict:
         """What the records keep about this recogniser: the checkpoint's path, sha256 and shape, the
         torch threads that score (``pipeline.threads``; kernels may round differently on another
-        count) and the query pictures' hue shift, when they are turned."""
+        count), ATen's kernel path (``pipeline.kernels``) and the query pictures' hue shift, when
+        they are turned."""
         out = {
             "kind": self.kind,
             "checkpoint": getattr(self, "checkpoint_file", None),
             "substitution_way": self.substitution_way,
             "carry_over": self.carry_over,
             "torch_threads": torch.get_num_threads(),
+            "cpu_kernels": kernel_path(),
         }
         if getattr(self, "query_hue_shift", 0.0):
             out["query_hue_shift"] = self.query_hue_shift

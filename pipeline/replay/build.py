@@ -9,6 +9,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from pipeline.errors import UserError
+from pipeline.files import disk_problem, size_text, write_atomic
 from pipeline.records import FileMeta, Records, RecordsError, read_records
 
 from .draw import Replay
@@ -113,16 +114,24 @@ def build_replay(
     shown = None if whole_run else int(episode)
     recs = read_run(path, run, shown)
     have = recs.episodes.episode[recs.episodes.run == run]
-    out.parent.mkdir(parents=True, exist_ok=True)
     rec = rr.RecordingStream(
         APPLICATION, send_properties=False, recording_id=replay_stem(path, run, shown)
     )
     replay, name = Replay(rec, recs, run), recording_name(recs.meta, run, shown)
     episodes = sorted(set(have)) if whole_run else [shown]
     empty = empty_views(recs, run, episodes)
-    rec.save(out, default_blueprint=replay.blueprint(name, empty))
+    stream = rec.binary_stream()  # in memory, then written atomically: a full or read-only
+    rec.send_blueprint(replay.blueprint(name, empty))  # disk is an OSError here, never a cut .rrd
     rec.send_recording_name(name)
     replay.draw(episodes, empty)
-    rec.flush()
+    data = stream.read(flush=True) or b""
     rec.disconnect()
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        write_atomic(out, data)
+    except OSError as exc:
+        problem = disk_problem(exc, out.parent, f"the replay needs {size_text(len(data))}")
+        if problem is None:
+            raise
+        raise problem from None
     return out

@@ -234,7 +234,7 @@ def accuracy_tables(
 
 def recogniser_row(name: str, metrics: Path, accuracy_dir: Path) -> dict:
     """One row of the recogniser table: validation accuracy, query accuracy and the colour test
-    (blank where a file is missing or the study ran without the colour test)."""
+    (blank where the study ran without the colour test; a missing file is named in its cell)."""
     row = {
         "recogniser": name,
         "validation [95%]": "",
@@ -248,8 +248,11 @@ def recogniser_row(name: str, metrics: Path, accuracy_dir: Path) -> dict:
             f"{100 * m['val_accuracy']:.2f}% ± {100 * m['val_ci95']:.2f} "
             f"({m['val_episodes']} episodes)"
         )
+    else:
+        row["validation [95%]"] = f"no metrics file `{metrics}`"
     path = accuracy_dir / "summary.json"
     if not path.is_file():
+        row["query pictures [95%]"] = f"no study `{path}`"
         return row
     summary = json.loads(path.read_text())
     correct, total = (

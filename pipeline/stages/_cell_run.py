@@ -9,6 +9,7 @@ format, the writer knows no runner, so the stage joins them.
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import json
 import time
@@ -19,7 +20,7 @@ from typing import Any
 from omegaconf import OmegaConf
 
 from pipeline.errors import ConfigError, Interrupted, UserError
-from pipeline.files import write_json_atomic
+from pipeline.files import disk_problem, size_text, write_json_atomic
 from pipeline.rl.methods import MethodSpec
 from pipeline.rl.rng import run_seeds
 from pipeline.rl.runner import make_run_world, run_trials
@@ -178,11 +179,41 @@ def open_records(cell: CellRun, folder: Path):
     )
 
 
+def _close_quietly(writer) -> None:
+    """Finish a failed cell's records as partial; a disk that refuses even that is not a second error
+    (the stage removes a failed run's staging folder)."""
+    if writer is not None:
+        with contextlib.suppress(OSError):
+            writer.close(complete=False)
+
+
+def _named(cell: CellRun) -> str:
+    return f"cell {cell.name!r}" if cell.name else "the run"
+
+
+def _space_needed(cell: CellRun, folder: Path, writer) -> str:
+    """What the cell needs on disk, from what it wrote for the episodes it finished."""
+    written = sum(p.stat().st_size for p in folder.rglob("*") if p.is_file())
+    done, total = (writer.n_episodes if writer else 0), cell.config.runs * cell.config.episodes
+    where = _named(cell)
+    if done == 0:
+        return f"{where} wrote {size_text(written)} before its first episode"
+    return (
+        f"{where} needs about {size_text(written * total / done)}: it wrote "
+        f"{size_text(written)} for {done:,} of {total:,} episodes"
+    )
+
+
 def run_cell(cell: CellRun, folder: Path, progress: bool | None = None) -> tuple[dict, float]:
     """Run one cell into ``folder`` (records, ``summary.json``); its summary and trial seconds.
     ``progress``: the runner's per-episode bar (default ``cfg.progress``)."""
     cfg, method = cell.config, cell.method
-    writer = open_records(cell, folder) if cfg.record != "none" else None
+    try:
+        writer = open_records(cell, folder) if cfg.record != "none" else None
+    except OSError as exc:
+        raise (
+            disk_problem(exc, folder, f"{_named(cell)} could not start its records") or exc
+        ) from None
     t0 = time.perf_counter()
     try:
         result = run_trials(
@@ -206,12 +237,12 @@ def run_cell(cell: CellRun, folder: Path, progress: bool | None = None) -> tuple
         raise Interrupted(
             code, f"interrupted; partial records at {path}: {writer.n_episodes} episodes"
         ) from None
+    except OSError as exc:
+        _close_quietly(writer)
+        raise disk_problem(exc, folder, _space_needed(cell, folder, writer)) or exc from None
     except BaseException:
-        if writer is not None:
-            writer.close(complete=False)
+        _close_quietly(writer)
         raise
-    if writer is not None:
-        writer.close()
     seconds = time.perf_counter() - t0
     summary = result.summary()
     summary.update(
@@ -222,6 +253,11 @@ def run_cell(cell: CellRun, folder: Path, progress: bool | None = None) -> tuple
             "support": cfg.support,
         }
     )
-    # no wall-clock figures: same seed, same bytes
-    write_json_atomic(folder / "summary.json", summary)
+    try:
+        if writer is not None:
+            writer.close()
+        # no wall-clock figures: same seed, same bytes
+        write_json_atomic(folder / "summary.json", summary)
+    except OSError as exc:
+        raise disk_problem(exc, folder, _space_needed(cell, folder, writer)) or exc from None
     return summary, seconds

@@ -19,6 +19,7 @@ line of its module's docstring (``pipeline/stages/_help.py``).
 from __future__ import annotations
 
 import importlib
+import os
 import signal
 import sys
 from collections.abc import Callable
@@ -60,6 +61,9 @@ def one_line(exc: BaseException) -> str:
     key = getattr(cause, "full_key", None)
     if isinstance(cause, OmegaConfBaseException) and key:
         return f"config key '{key}': {text}"
+    named = [ln.split(":", 1)[1].strip() for ln in message.splitlines() if "full_key:" in ln]
+    if named and named[0]:  # hydra's composition error quotes the key of the value it refused
+        return f"config key '{named[0]}': {text}"
     if cause is not exc and str(exc).strip():
         head = str(exc).strip().splitlines()[0]
         if head not in text:
@@ -90,9 +94,27 @@ def compose(config_name: str, overrides: list[str]) -> DictConfig:
     register()
     try:
         with initialize_config_module(config_module=HYDRA_MODULE, version_base="1.3"):
-            return hydra_compose(config_name=config_name, overrides=overrides)
+            cfg = hydra_compose(config_name=config_name, overrides=overrides)
     except (HydraException, OmegaConfBaseException, ValueError) as exc:
         raise ConfigError(one_line(exc)) from None
+    refuse_merged_away(cfg, overrides)
+    return cfg
+
+
+def refuse_merged_away(cfg: DictConfig, overrides: list[str]) -> None:
+    """``key={}`` merges an empty mapping into the one there, which leaves it as it was: refused,
+    naming the key, rather than ignored."""
+    for override in overrides:
+        key, _, value = override.lstrip("+~").partition("=")
+        if value.strip() != "{}" or key.startswith("hydra"):
+            continue
+        kept = OmegaConf.select(cfg, key, default=None)
+        if isinstance(kept, DictConfig) and len(kept) > 0:
+            raise ConfigError(
+                f"config key '{key}': {{}} does not empty it (a mapping given here is merged into "
+                f"the one there, {', '.join(map(str, list(kept)[:3]))}...); name what to keep, or "
+                "edit the file"
+            )
 
 
 def fail(exc: UserError) -> None:
@@ -100,8 +122,36 @@ def fail(exc: UserError) -> None:
     raise SystemExit(2) from None
 
 
+#: Packages whose Python code runs numba's compiler: a signal there stops the process at once.
+COMPILERS = ("numba", "llvmlite")
+
+
+def in_compiler(frame) -> bool:
+    """Whether ``frame`` (or a caller) is numba's or llvmlite's code: an exception raised there,
+    as in a ctypes callback of LLVM, is swallowed or turned into another error."""
+    roots = tuple(
+        os.path.dirname(sys.modules[m].__file__) + os.sep for m in COMPILERS if m in sys.modules
+    )
+    while roots and frame is not None:
+        if frame.f_code.co_filename.startswith(roots):
+            return True
+        frame = frame.f_back
+    return False
+
+
+def _stop(signum, frame, stop: BaseException) -> None:
+    if in_compiler(frame):  # the first compile of a kernel: say so, and stop now
+        print("interrupted while numba compiled a kernel", file=sys.stderr, flush=True)
+        os._exit(128 + signum)
+    raise stop
+
+
 def _terminated(signum, frame) -> None:
-    raise Interrupted(128 + signum)
+    _stop(signum, frame, Interrupted(128 + signum))
+
+
+def _keyboard(signum, frame) -> None:
+    _stop(signum, frame, KeyboardInterrupt())
 
 
 @contextmanager
@@ -109,6 +159,7 @@ def user_facing():
     """User errors as one line and exit 2; Ctrl-C and SIGTERM as one line (what was kept) and exit
     130 or 143, without a traceback."""
     previous = signal.signal(signal.SIGTERM, _terminated)
+    keyboard = signal.signal(signal.SIGINT, _keyboard)
     try:
         yield
     except UserError as exc:
@@ -121,6 +172,7 @@ def user_facing():
         raise SystemExit(exc.code) from None
     finally:
         signal.signal(signal.SIGTERM, previous)
+        signal.signal(signal.SIGINT, keyboard)
 
 
 def _hydra_mode(args: list[str]) -> bool:

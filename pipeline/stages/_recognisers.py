@@ -21,6 +21,7 @@ from omegaconf import OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
 from pipeline.errors import ConfigError, UserError
+from pipeline.kernels import pin_kernels
 from pipeline.stages._common import CONF_DIR
 
 FILLED_BY_STAGE = ("substitution_way", "carry_over")
@@ -109,6 +110,7 @@ def build_recogniser(
     node: dict, *, substitution_way: int, carry_over: bool, key: str = "recogniser"
 ):
     target, args = recogniser_arguments(node, key)
+    pin_kernels()  # before the recogniser runs its first torch kernel (pipeline/kernels.py)
     try:
         return target(**args, substitution_way=substitution_way, carry_over=carry_over)
     except (UserError, ValueError, FileNotFoundError) as exc:

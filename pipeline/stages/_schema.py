@@ -139,8 +139,8 @@ class TrialsConfig:
     out: str = setting(nonempty=True)
     """Writes ``<out>/summary.json`` (+ ``records.mcap``); an experiment: ``<out>/<cell>/``."""
     overwrite: bool = MISSING
-    """Replace results already in ``out``; without it such an ``out`` is refused (``dvc repro``
-    deletes a stage's outs before running it, so there the ``out`` is empty)."""
+    """Replace results already in ``out``; without it such an ``out`` is refused (dvc.yaml's
+    trials stages give it: DVC keeps their outs, ``persist``)."""
     index_file: str | None = None
     """An experiment: every file of ``out`` with its SHA-256 (``pipeline.files.write_index``), for dvc.yaml."""
     metrics_dir: str | None = None
@@ -282,7 +282,7 @@ class MetaTrainConfig:
     checkpoint: str = setting(nonempty=True)
     """The selected checkpoint (set by the ``model`` group)."""
     metrics_file: str = setting(nonempty=True)
-    """Its validation metrics (DVC metrics; ``train_info.json`` goes beside it)."""
+    """Its validation metrics (DVC metrics; ``<checkpoint stem>.train_info.json`` goes beside the checkpoint)."""
     history_file: str = setting(nonempty=True)
     """The training history, one row per evaluation (CSV)."""
     threads: int = setting(ge=1)

@@ -10,8 +10,9 @@ docs/fewshot.md).
     python -m pipeline meta_train data=folder data.train_dir=DIR data.val_dir=DIR   # any folder-per-class trees
 
 Writes ``checkpoint`` (weights + config + the metrics below), ``metrics_file`` (validation accuracy over 600
-episodes with its 95% interval: a DVC metric), ``train_info.json`` beside it (timings, threads, flags,
-paths: not a metric) and ``history_file`` (one row per selection evaluation).
+episodes with its 95% interval: a DVC metric), ``<checkpoint stem>.train_info.json`` beside the
+checkpoint (timings, threads, flags, paths: not a metric; named after the checkpoint, so two
+trainings into one folder keep theirs) and ``history_file`` (one row per selection evaluation).
 """
 
 from __future__ import annotations
@@ -30,7 +31,7 @@ from pipeline.files import write_json_atomic
 from pipeline.stages._common import stage_main
 from pipeline.stages._schema import MetaTrainConfig
 
-#: The keys of the training result that ``metrics_file`` holds; the others go to ``train_info.json``.
+#: The keys of the training result that ``metrics_file`` holds; the others go to :func:`info_file`.
 METRIC_KEYS = (
     "val_accuracy",
     "val_ci95",
@@ -58,13 +59,20 @@ def picture_sets(
                 raise ConfigError(
                     f"config key 'data.{key}': data=folder needs it (data.{key}=<folder-per-class tree>)"
                 )
+        for key in ("train_dir", "val_dir"):  # both checked before either is read
+            try:
+                is_dir = Path(getattr(data, key)).resolve(strict=True).is_dir()
+            except (OSError, RuntimeError):  # missing, or a symbolic link loop
+                is_dir = False
+            if not is_dir:
+                raise ConfigError(
+                    f"config key 'data.{key}': {getattr(data, key)} is not a folder (missing, a "
+                    "file, or a symbolic link loop)"
+                )
         if Path(data.train_dir).resolve() == Path(data.val_dir).resolve():
             raise ConfigError(
                 "config key 'data.val_dir': it is data.train_dir; the validation classes must be held out"
             )
-        for key in ("train_dir", "val_dir"):  # both checked before either is read
-            if not Path(getattr(data, key)).is_dir():
-                raise ConfigError(f"config key 'data.{key}': {getattr(data, key)} is not a folder")
         train, val = (
             load_folder(getattr(data, key), size, progress=cfg.progress)
             for key in ("train_dir", "val_dir")
@@ -118,6 +126,11 @@ def refuse_idle_keys(cfg: MetaTrainConfig, overrides: list[str]) -> None:
         )
 
 
+def info_file(checkpoint: str | Path) -> Path:
+    """The training's timings, threads, flags and paths: ``<checkpoint stem>.train_info.json``."""
+    return Path(checkpoint).with_suffix(".train_info.json")
+
+
 def run(cfg: MetaTrainConfig, overrides: list[str] = ()) -> dict:
     config = cfg.train
     refuse_idle_keys(cfg, list(overrides))
@@ -137,7 +150,7 @@ def run(cfg: MetaTrainConfig, overrides: list[str] = ()) -> dict:
     )
     write_json_atomic(cfg.metrics_file, scores, sort_keys=True)
     write_json_atomic(
-        Path(cfg.metrics_file).with_name("train_info.json"),
+        info_file(cfg.checkpoint),
         {k: v for k, v in metrics.items() if k not in METRIC_KEYS},
         sort_keys=True,
     )
@@ -154,7 +167,7 @@ def written(cfg: MetaTrainConfig, metrics: dict) -> list[str | Path]:
     return [
         cfg.checkpoint,
         cfg.metrics_file,
-        Path(cfg.metrics_file).with_name("train_info.json"),
+        info_file(cfg.checkpoint),
         cfg.history_file,
     ]
 

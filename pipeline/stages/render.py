@@ -2,8 +2,10 @@
 
     python -m pipeline render [key=value ...]            # config pipeline/conf/render.yaml
 
-Writes ``<out_dir>/{query,support,train,val}/**.png``, then ``<out_dir>/manifest.csv`` (last,
-atomically: a manifest exists only for a complete render), then contact sheets under
+Renders into ``<out_dir>/.staging-<pid>/``, moves ``{query,support,train,val}/`` into
+``<out_dir>`` when every picture is there (a failed render leaves the previous pictures and
+removes its staging folder), then writes ``<out_dir>/manifest.csv`` (last, atomically: a manifest
+exists only for a complete render), then contact sheets under
 ``figures_dir``. The science is in ``pipeline.world`` (obstacle_models, metaset, scenes, camera,
 renderer, render_plan, render_runner); this file validates the config and does the I/O.
 """
@@ -12,6 +14,7 @@ from __future__ import annotations
 
 import csv
 import io
+import os
 import shutil
 import time
 from dataclasses import asdict
@@ -20,7 +23,7 @@ from pathlib import Path
 from tqdm import tqdm
 
 from pipeline.errors import ConfigError
-from pipeline.files import write_atomic, write_index
+from pipeline.files import swap_in, write_atomic, write_index
 from pipeline.stages._common import stage_main
 from pipeline.stages._schema import RenderConfig
 from pipeline.world.contact_sheet import contact_sheet, save_png_atomic
@@ -133,17 +136,8 @@ def write_contact_sheets(
     return written
 
 
-def run(cfg: RenderConfig, overrides: list[str] = ()) -> dict:
-    """The whole stage; returns figures (pictures, seconds, pictures per second)."""
-    plan_cfg = plan_config(cfg)
-    problem = backend_problem()
-    if problem is not None:
-        raise RendererUnavailable(problem)
-    out = Path(cfg.out_dir)
-    out.mkdir(exist_ok=True)
-    (out / MANIFEST).unlink(missing_ok=True)  # no manifest until this render is complete
-    for split in SPLITS:
-        shutil.rmtree(out / split, ignore_errors=True)
+def render_into(cfg: RenderConfig, plan_cfg: PlanConfig, staging: Path) -> tuple[int, list, float]:
+    """Every picture of the plan into ``staging``; the count, the manifest rows and the seconds."""
     t0 = time.perf_counter()
     batches, rows = make_plan(plan_cfg)
 
@@ -152,7 +146,7 @@ def run(cfg: RenderConfig, overrides: list[str] = ()) -> dict:
 
     n = render_all(
         batches,
-        str(out),
+        str(staging),
         cfg.size,
         cfg.workers,
         cfg.quality.offsamples,
@@ -162,11 +156,34 @@ def run(cfg: RenderConfig, overrides: list[str] = ()) -> dict:
         cfg.quality.studio_shadows,
         progress=bar,
     )
-    missing = [r["file"] for r in rows if not (out / r["file"]).is_file()]
+    missing = [r["file"] for r in rows if not (staging / r["file"]).is_file()]
     if missing:
         raise RuntimeError(f"{len(missing)} pictures missing after rendering, e.g. {missing[:3]}")
+    return n, rows, time.perf_counter() - t0
+
+
+def run(cfg: RenderConfig, overrides: list[str] = ()) -> dict:
+    """The whole stage; returns figures (pictures, seconds, pictures per second)."""
+    plan_cfg = plan_config(cfg)
+    problem = backend_problem()
+    if problem is not None:
+        raise RendererUnavailable(problem)
+    out = Path(cfg.out_dir)
+    out.mkdir(exist_ok=True)
+    staging = out / f".staging-{os.getpid()}"  # the pictures, moved in when all are there
+    shutil.rmtree(staging, ignore_errors=True)
+    try:
+        n, rows, seconds = render_into(cfg, plan_cfg, staging)
+        (out / MANIFEST).unlink(missing_ok=True)  # no manifest until the new pictures are in
+        for split in SPLITS:  # a split this render has not is not kept either
+            if not (staging / split).exists():
+                shutil.rmtree(out / split, ignore_errors=True)
+        swap_in(staging, out)
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+    for stale in out.glob(".staging-*"):  # left by a killed render
+        shutil.rmtree(stale, ignore_errors=True)
     write_atomic(out / MANIFEST, manifest_bytes(rows))
-    seconds = time.perf_counter() - t0
     sheets = []
     if cfg.contact_sheets:
         sheets = write_contact_sheets(

@@ -35,6 +35,7 @@ from pathlib import Path
 from urllib.parse import quote
 
 from pipeline.errors import ConfigError, Interrupted
+from pipeline.files import DiskError
 from pipeline.stages._common import stage_main
 from pipeline.stages._schema import ReplayConfig
 
@@ -83,6 +84,8 @@ def write_replay(path: Path, cfg: ReplayConfig) -> Path:
     except ReplayError as exc:
         keys = "key 'file'" if exc.key == "file" else "keys 'run'/'episode'"
         raise ConfigError(f"config {keys}: {exc}") from None
+    except DiskError as exc:  # a full or read-only folder: the .rrd is written whole or not at all
+        raise ConfigError(f"config key 'out': {exc}") from None
     for w in caught:
         if issubclass(w.category, RecordsWarning):
             print(f"warning: {w.message}", file=sys.stderr, flush=True)

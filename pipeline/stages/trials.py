@@ -6,9 +6,11 @@
 One cell (method, maze, substitution way, support restore/carry) writes ``summary.json`` and
 ``records.mcap`` into its folder: ``<out>/`` for a single cell, ``<out>/<cell>/`` for each cell
 of an experiment, plus ``<out>/summary.json`` listing the cells. An ``out`` that already holds
-results is refused unless ``overwrite=true`` is given (``dvc repro`` and ``dvc exp run`` delete a
-stage's outs before they run it, so the stage finds its ``out`` empty there). Everything is built
-in ``<out>/.staging-<pid>/`` and moved in only when complete.
+results is refused unless ``overwrite=true`` is given (dvc.yaml's stages give it: DVC keeps their
+outs, ``persist``, so a refused config leaves them in place). Everything is built in
+``<out>/.staging-<pid>/`` and moved in only when complete; with ``overwrite=true`` the cells of
+the previous run that this one does not have are removed then. An experiment run by hand into the
+``out`` its file declares (its DVC stage's cached out) ends with a note that DVC owns that folder.
 
 The stage composes and hands over: the cells are planned in :mod:`pipeline.stages._cell_plan`,
 each runs through :func:`pipeline.stages._cell_run.run_cell` (one after another, or side by side
@@ -20,13 +22,23 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import sys
 from pathlib import Path
 from typing import Any
 
 import numba
 
-from pipeline.errors import ConfigError, UserError
-from pipeline.files import exclusive_folder, swap_in, write_index, write_json_atomic
+from pipeline.errors import ConfigError, Interrupted, UserError
+from pipeline.files import (
+    DiskError,
+    disk_error,
+    disk_problem,
+    exclusive_folder,
+    size_text,
+    swap_in,
+    write_index,
+    write_json_atomic,
+)
 from pipeline.rl.memory import available_memory, memory_estimate
 from pipeline.stages._cell_plan import (
     experiment_cells,
@@ -101,8 +113,7 @@ def refuse_what_does_not_fit(cfg: TrialsConfig, cells: list[CellRun]) -> None:
 
 def refuse_overwrite(cfg: TrialsConfig, out: Path) -> None:
     """Results already in ``out`` (anything but hidden entries: the lock, staging folders) are
-    replaced only with ``overwrite=true``. Under ``dvc repro`` the stage never meets its old
-    results: DVC deletes a stage's outs before it runs it (and keeps them in its cache)."""
+    replaced only with ``overwrite=true``, which the stages of dvc.yaml give (their outs persist)."""
     held = sorted(p.name for p in out.iterdir() if not p.name.startswith("."))
     if not held or cfg.overwrite:
         return
@@ -111,6 +122,44 @@ def refuse_overwrite(cfg: TrialsConfig, out: Path) -> None:
         f"config key 'out': {out} already holds results ({shown}); give overwrite=true to "
         "replace them, or choose another out"
     )
+
+
+def previous_cells(out: Path) -> set[str]:
+    """The cell folders the experiment run before this one wrote into ``out`` (its
+    ``summary.json`` index): ``overwrite=true`` replaces them, so those this run does not write
+    are removed after the swap (``dvc repro`` keeps the out of the trials stages, ``persist``)."""
+    try:
+        cells = json.loads((out / "summary.json").read_text()).get("cells")
+    except (OSError, ValueError, AttributeError):
+        return set()
+    if not isinstance(cells, dict):
+        return set()
+    return {n for n in cells if isinstance(n, str) and n and "/" not in n and not n.startswith(".")}
+
+
+def failed_run(exc: BaseException, out: Path, staging: Path, cells: int = 1) -> BaseException:
+    """What a failed run raises, after removing its staging folder (an interrupted run keeps it:
+    its partial records). A full or read-only disk is one line naming ``out``, the space free
+    once the staging folder is gone and what the run needs, and any stale staging folder."""
+    if isinstance(exc, (Interrupted, KeyboardInterrupt)):
+        return exc
+    shutil.rmtree(staging, ignore_errors=True)
+    if isinstance(exc, OSError):
+        where = Path(exc.filename).parent if exc.filename else out
+        exc = disk_problem(exc, where if not where.is_relative_to(staging) else out) or exc
+    if not isinstance(exc, DiskError):
+        return exc
+    if str(staging) in str(exc):  # a cell's records: name out, and its space now staging is gone
+        needed = f"{exc.needed} (one of {cells} cells)" if cells > 1 and exc.needed else exc.needed
+        exc = disk_error(out, needed, exc.full, "not writable")
+    stale = [
+        (p, sum(f.stat().st_size for f in p.rglob("*") if f.is_file()))
+        for p in out.glob(".staging-*")
+    ]
+    held = "".join(
+        f"; {p} (an interrupted run's partial records) holds {size_text(n)}" for p, n in stale
+    )
+    return ConfigError(f"config key 'out': {exc}{held}")
 
 
 def run(cfg: TrialsConfig, overrides: list[str]) -> dict:
@@ -127,14 +176,36 @@ def run(cfg: TrialsConfig, overrides: list[str]) -> dict:
         refuse_overwrite(cfg, out)
         staging = out / f".staging-{os.getpid()}"
         shutil.rmtree(staging, ignore_errors=True)
-        index = run_cells(cfg, cells, staging, pool)
-        swap_in(staging, out)
+        previous = previous_cells(out) if cfg.overwrite else set()
+        try:
+            index = run_cells(cfg, cells, staging, pool)
+            swap_in(staging, out)
+        except BaseException as exc:
+            raise failed_run(exc, out, staging, len(cells)) from None
+        for name in sorted(previous - set(index.get("cells", {}))):
+            shutil.rmtree(out / name, ignore_errors=True)  # a cell the experiment no longer has
         if cfg.index_file:
             write_index(out, cfg.index_file)
         for stale in out.glob(".staging-*"):  # partial records of interrupted runs, now superseded
             shutil.rmtree(stale, ignore_errors=True)
             print(f"removed the partial records of an interrupted run: {stale}")
+    note_dvc_out(cfg, overrides)
     return index
+
+
+def note_dvc_out(cfg: TrialsConfig, overrides: list[str]) -> None:
+    """An experiment run by hand into the ``out`` its file declares, which is its DVC stage's
+    cached out (tests/test_cli.py holds the two equal): DVC, not this run, owns that folder."""
+    given = {o.lstrip("+~").split("=")[0] for o in overrides}
+    if cfg.experiment is None or "out" in given or os.environ.get("DVC_STAGE"):
+        return
+    stage = f"trials@{cfg.experiment.name}"
+    print(
+        f"note: {cfg.out} is the out of DVC's stage {stage}: `dvc checkout` and `dvc exp run` "
+        f"put back the copy dvc.lock names (or delete this one when DVC has none); "
+        f"`dvc commit {stage}` makes this one DVC's",
+        file=sys.stderr,
+    )
 
 
 def written(cfg: TrialsConfig, index: dict) -> list[Path | str]:
