@@ -316,6 +316,6 @@ def order_checks(data: Data, arm_of, order=TABLE3_ORDER, where: str = "") -> lis
 def checked(source: str, says: str, make, how: str = "", quoted: bool = True) -> Claim:
     """The claim with the checks ``make()`` returns, or "not checked" if their records are missing."""
     try:
-        return Claim(source, says, make(), how=how, quoted=quoted)
+        return Claim(source, says, make(), how=how, quoted=quoted).settle()
     except Missing as exc:
         return Claim(source, says, missing=str(exc), how=how, quoted=quoted)
