@@ -10,7 +10,7 @@ import pytest
 
 from pipeline.report.checks import from_draws
 from pipeline.report.claims import Check, Claim, accuracy_claims
-from pipeline.report.study import Study
+from pipeline.report.experiments import ReportInputError
 from pipeline.report.names import method_name, row_names
 from pipeline.report.stats import (
     bootstrap_ci,
@@ -22,6 +22,7 @@ from pipeline.report.stats import (
     stratified_means,
     wilson_ci,
 )
+from pipeline.report.study import Study
 from pipeline.rl.methods import get_method, method_names
 
 ACCURACY = Path(__file__).resolve().parents[1] / "datasets" / "accuracy"
@@ -126,7 +127,9 @@ def test_holm_step_down():
     # three checks, each alone decided at 5% (p = 0.02), together not: Holm's rule at work
     draws = np.r_[np.full(19, -0.1), np.full(1981, 1.0)]
     one = from_draws("x", 1.0, draws, "u", "b")
-    assert one.p == pytest.approx(2 * 20 / 2001) and Claim("s", "t", [one]).settle().verdict == "holds"
+    assert (
+        one.p == pytest.approx(2 * 20 / 2001) and Claim("s", "t", [one]).settle().verdict == "holds"
+    )
     three = Claim("s", "t", [from_draws(str(i), 1.0, draws, "u", "b") for i in range(3)])
     assert three.verdict == "not resolved"
     assert [c.threshold for c in three.checks] == pytest.approx([0.05 / 3, 0.05 / 2, 0.05])
@@ -187,3 +190,10 @@ def test_accuracy_intervals_are_bootstrapped_over_the_draws():
     assert [c.source for c in claims] == ["Table 1", "Table 1", "Table 2", "Table 2", "Table 2"]
     assert all(k.low <= k.estimate <= k.high and k.p is not None for c in claims for k in c.checks)
     assert accuracy_claims(ACCURACY / "nothing")[0].verdict == "not checked"
+
+
+def test_a_study_without_its_draws_is_refused(tmp_path):
+    for name in ("summary.json", "table1.csv", "table2.csv"):
+        (tmp_path / name).write_text((ACCURACY / name).read_text())
+    with pytest.raises(ReportInputError, match="draws.csv: the accuracy study's draws are missing"):
+        Study(tmp_path)

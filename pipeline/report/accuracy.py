@@ -55,8 +55,8 @@ def percent(value, estimate: Estimate | None = None) -> str:
 def intervals_note(study: Study) -> str:
     return (
         f"[95% CI] percentile bootstrap over the study's random draws ({study.draws} per substituted "
-        f"category, resampled within each; {RESAMPLES} resamples, seed {SEED}: `draws.csv`); the "
-        "original support set involves no draw."
+        f"category, resampled within each; {RESAMPLES} resamples, seed {SEED}: `draws.csv`), for these "
+        "40 query pictures and this trained model; the original support set involves no draw."
     )
 
 

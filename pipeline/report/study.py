@@ -8,7 +8,9 @@ percentile bootstrap over them (:data:`RESAMPLES` resamples, seeded by :data:`SE
 substitutions), resampling draws within each substituted category (:func:`~pipeline.report.stats.
 stratified_means`). The two variants (with and without the substituted pictures) of one number of
 substitutions resample the same draws (their difference is paired); different numbers are
-independent streams. The original support set involves no draw, so its accuracy has no interval.
+independent streams. The intervals are over the draws, for the 40 query pictures and the trained
+model as they are (other pictures or another training run are not resampled). The original support
+set involves no draw, so its accuracy has no interval.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from pipeline.report.experiments import ReportInputError
 from pipeline.report.stats import bootstrap_p, percentile_ci, stratified_means
 
 #: ``table2.csv``'s column of each variant of Table 1 (``table1.csv``'s ``variant``).
@@ -62,8 +65,9 @@ class Study:
         self.table2 = pd.read_csv(accuracy_dir / "table2.csv").set_index("substitution_number")
         path = accuracy_dir / "draws.csv"
         if not path.is_file():
-            raise FileNotFoundError(
-                f"{path}: the accuracy study's draws are missing; run the accuracy stage again"
+            raise ReportInputError(
+                f"{path}: the accuracy study's draws are missing (a study from before they were "
+                "kept); run its accuracy stage again"
             )
         self.draw_rows = pd.read_csv(path)
         self.names = self.summary["class_names"]
