@@ -133,6 +133,7 @@ def recogniser_block(kind: str, claims: list[Claim], column: dict | None, first:
     """One recogniser's claims table and checks; beside the first table, only the claims its
     cells take part in."""
     name = recogniser_name(kind)
+    name = name if name != kind else f"`{kind}` recogniser"
     shown = [
         i
         for i, c in enumerate(claims, 1)
