@@ -144,7 +144,7 @@ def test_across_mazes_the_interval_is_unpaired_and_holm_is_stated(tmp_path):
     rep = Report(tmp_path)
     claims_section(rep, [fig8(), table3()], [tmp_path / "no_study"])
     text = "\n".join(rep.sections)
-    assert "Holm's correction" in text and "p ≤ 0.05 / (m − i)" in text
+    assert "Holm's correction" in text and "1 − 0.05 / (m − i)" in text
     assert [line for line in text.splitlines() if line.startswith("### ")] == [
         "### With the Relation Network (the paper's recogniser)",
         "### With the `paper_tables` recogniser",

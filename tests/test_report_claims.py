@@ -137,7 +137,8 @@ def test_holm_step_down():
     inside = from_draws("w", 0.0, np.linspace(-0.5, 0.5, 2000), "u", "b", expect="≈", margin=1)
     outside = from_draws("w", 3.0, np.linspace(2, 4, 2000), "u", "b", expect="≈", margin=1)
     assert (inside.verdict, outside.verdict) == ("holds", "does not hold")
-    assert "p = 0.001 ≤ 0.05" in inside.text()
+    assert "p = 0.001, Holm threshold 0.05" in inside.text()
+    assert "not reached: an earlier check undecided" in three.checks[2].text()
 
 
 def test_check_and_claim_verdicts():

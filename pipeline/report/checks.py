@@ -7,15 +7,15 @@ mazes: run ``r`` of one maze shares nothing meaningful with run ``r`` of another
 (the four substitution ways) averaged per seed first; shares of converged runs have Wilson score
 intervals.
 
-Verdict rule (Holm 1979 across the checks of a claim, family level 5%): a check with a bootstrap
-p-value (of zero; of the margin for "comparable") is decided when Holm's step-down rejects it:
-sorted by p-value, the ``i``-th smallest of a claim's ``m`` such checks (from 0) is decided when
-``p <= 0.05 / (m - i)`` and all smaller ones were. A decided ``>`` check **holds** when its estimate
-is above zero and **does not hold** when below; a decided "comparable" check holds when its interval
-lies within the margin and does not hold when it lies outside; an undecided check is **not
-resolved**. A check of a share of runs ("all", "none") is an observation, decided as observed. A
-claim holds when all its checks hold, does not hold when one does not, and is not resolved
-otherwise. With one check, Holm's rule is the plain 95% rule."""
+Verdict rule (Holm 1979 across the checks of a claim, family level 5%): the checks with bootstrap
+draws are sorted by their p-value (of zero; of the margin for "comparable"); the ``i``-th smallest
+of a claim's ``m`` (from 0) is judged by its percentile interval at level ``1 - 0.05 / (m - i)``,
+and once one is undecided the rest are too. A judged ``>`` check **holds** when that interval lies
+above zero and **does not hold** when below; a "comparable" check holds when it lies within the
+margin and does not hold when outside; otherwise it is **not resolved**. A check of a share of
+runs ("all", "none") is an observation, decided as observed. A claim holds when all its checks
+hold, does not hold when one does not, and is not resolved otherwise. With one check, the rule is
+the plain one on the 95% interval shown."""
 
 from __future__ import annotations
 
@@ -42,8 +42,8 @@ LEVEL = 0.05
 class Check:
     """One number behind a verdict: ``estimate`` [``low``, ``high``] and what the claim expects
     of it: ``>`` (above zero), ``≈`` (within ``±margin``), ``all`` / ``none`` (a share of 1 / 0).
-    ``p`` (bootstrap p-value, :func:`from_draws`) and ``decided_as`` (the verdict when decided):
-    Holm's rule sets ``threshold``; without ``p`` the 95% interval decides."""
+    With bootstrap ``draws`` (:func:`from_draws`), Holm's rule (:meth:`Claim.settle`) sets the
+    level of the interval that decides (``1 - threshold``); without, the 95% interval decides."""
 
     what: str
     estimate: float
@@ -55,25 +55,27 @@ class Check:
     paper: str = ""  # the paper's numbers for it, as printed
     margin: float = 0.0  # ``≈``: the largest difference that counts as comparable
     p: float | None = None
-    decided_as: str = ""
+    draws: np.ndarray | None = field(default=None, repr=False)  # bootstrap draws of the number
     threshold: float = LEVEL
+    stopped: bool = False  # Holm's step-down stopped before this check
     recognised: bool = True  # whether a recogniser ran in its cells
+
+    def judge(self, low: float, high: float) -> str:
+        """The verdict of an interval ``[low, high]``."""
+        if self.expect == ">":
+            return "holds" if low > 0 else "does not hold" if high < 0 else "not resolved"
+        inside = -self.margin <= low and high <= self.margin
+        outside = low > self.margin or high < -self.margin
+        return "holds" if inside else "does not hold" if outside else "not resolved"
 
     @property
     def verdict(self) -> str:
-        if self.p is not None:
-            return self.decided_as if self.p <= self.threshold else "not resolved"
-        if self.expect == ">":
-            return "holds" if self.low > 0 else "does not hold" if self.high < 0 else "not resolved"
-        if self.expect == "≈":
-            inside = -self.margin <= self.low and self.high <= self.margin
-            return (
-                "holds"
-                if inside
-                else "does not hold"
-                if self.low > self.margin or self.high < -self.margin
-                else "not resolved"
-            )
+        if self.expect in (">", "≈"):
+            if self.draws is None:
+                return self.judge(self.low, self.high)
+            if self.stopped:
+                return "not resolved"
+            return self.judge(*percentile_ci(self.draws, 1 - self.threshold))
         return (
             "holds" if self.estimate == (1.0 if self.expect == "all" else 0.0) else "does not hold"
         )
@@ -90,15 +92,17 @@ class Check:
         holm_ = (
             ""
             if self.p is None
-            else f"; p = {self.p:.2g} {'≤' if self.p <= self.threshold else '>'} {self.threshold:.2g}"
+            else f"; p = {self.p:.2g}, Holm threshold {self.threshold:.2g}"
+            + (", not reached: an earlier check undecided" if self.stopped else "")
         )
         return f"{self.what}: {numbers} {self.unit} ({self.basis}{margin}{holm_}){paper}: {self.verdict}"
 
 
 def from_draws(what: str, estimate: float, draws, unit: str, basis: str, **kw) -> Check:
-    """A check from bootstrap ``draws`` of its number: the 95% percentile interval and the p-value
-    of the smallest level at which the interval decides (``expect`` ``>``: excludes zero; ``≈``:
-    lies within or outside ``±margin``), each tail share counted as ``(k + 1) / (B + 1)``."""
+    """A check from bootstrap ``draws`` of its number: the 95% percentile interval, and the p-value
+    that orders the checks of a claim for Holm's rule (``expect`` ``>``: of zero; ``≈``: the
+    smaller of those of lying within and outside ``±margin``), each tail share counted as
+    ``(k + 1) / (B + 1)``."""
     d = np.asarray(draws, dtype=float)
     expect, margin = kw.pop("expect", ">"), kw.get("margin", 0.0)
 
@@ -108,14 +112,11 @@ def from_draws(what: str, estimate: float, draws, unit: str, basis: str, **kw) -
     if expect == "≈":
         inside = max(share(np.sum(d <= -margin)), share(np.sum(d >= margin)))
         outside = min(share(np.sum(d <= margin)), share(np.sum(d >= -margin)))
-        p, decided = min(inside, outside), "holds" if inside <= outside else "does not hold"
+        p = min(inside, outside)
     else:
         p = share(min(np.sum(d <= 0), np.sum(d >= 0)))
-        decided = "holds" if estimate > 0 else "does not hold"
     low, high = percentile_ci(d)
-    return Check(
-        what, estimate, low, high, expect, unit, basis, p=min(p, 1.0), decided_as=decided, **kw
-    )
+    return Check(what, estimate, low, high, expect, unit, basis, p=min(p, 1.0), draws=d, **kw)
 
 
 @dataclass
@@ -132,10 +133,17 @@ class Claim:
         return says + (f"; checked: {self.how}" if self.how else "")
 
     def settle(self) -> Claim:
-        """Holm's thresholds for the checks with a p-value (:func:`~pipeline.report.stats.holm`)."""
-        tested = [c for c in self.checks if c.p is not None]
+        """Holm's step-down over the checks with bootstrap draws: by p-value, the ``i``-th (from
+        0) of ``m`` is judged by its interval at level ``1 - LEVEL / (m - i)``
+        (:func:`~pipeline.report.stats.holm`'s thresholds); after the first undecided one, the
+        rest are not resolved."""
+        tested = [c for c in self.checks if c.draws is not None]
+        going = True
         for check, threshold in zip(tested, holm([c.p for c in tested], LEVEL)[0]):
-            check.threshold = threshold
+            check.threshold, check.stopped = threshold, False
+        for check in sorted(tested, key=lambda c: c.threshold):
+            check.stopped = not going
+            going = going and check.verdict != "not resolved"
         return self
 
     @property

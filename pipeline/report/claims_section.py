@@ -66,11 +66,12 @@ def with_recogniser(claim: Claim, theirs: Claim | None) -> str:
 RULE = (
     "A claim is checked by one or more numbers, each with a 95% interval and a bootstrap p-value "
     '(two-sided, of zero; for "comparable", of the margin). **Verdict rule, with Holm\'s correction '
-    "across the checks of a claim** (family level 5%): sorted by p-value, the i-th smallest of a "
-    "claim's m checks (i from 0) is decided when p ≤ 0.05 / (m − i) and all smaller ones were; a "
-    'decided check **holds** when its estimate lies on the claimed side of zero ("comparable": its '
-    "interval within the margin) and **does not hold** when on the other side (outside the margin); "
-    "an undecided check is **not resolved**. Shares of converged runs are observations, decided as "
+    "across the checks of a claim** (family level 5%): the checks are taken in the order of their "
+    "p-values; the i-th of a claim's m checks (i from 0) is judged by its percentile interval at level "
+    "1 − 0.05 / (m − i), and once one is undecided the rest are too. A judged check **holds** when "
+    'that interval lies on the claimed side of zero ("comparable": within the margin) and **does '
+    "not hold** when on the other side (outside the margin); otherwise it is **not resolved**. With "
+    "one check this is the 95% interval shown. Shares of converged runs are observations, decided as "
     "observed. A claim holds when all its checks hold, does not hold when one does not, and is not "
     "resolved otherwise; each check names its p-value and Holm threshold. Differences in collisions "
     "are bootstrapped over run seeds (2000 resamples, seed 0), paired where the cells share run seeds "
@@ -78,13 +79,13 @@ RULE = (
     "seed first; the runs of a carried-over support set are one robot's consecutive experiments, "
     "treated as if independent. Accuracies are bootstrapped over the accuracy study's random draws "
     "(2000 resamples, seed 0; `draws.csv`), within each substituted category, paired where the same "
-    'draws are compared. "paper: a vs b" gives the paper\'s numbers for the two sides of a '
-    "difference; where it prints none for a side, the check says so. Each recogniser has its own "
-    "table; the column *with the paper's recognition* gives the verdict of the same checks on the "
-    f"cells recorded with the `{PAPER_RECOGNITION}` recogniser (the paper's Tables 1-2 as a "
-    "recogniser: which claims are about the method and which turn on how well the recogniser sees), "
-    '"not run" where it has none and "no recogniser in it" where no cell of the claim recognises '
-    "pictures. Data: `tables/claims.csv`."
+    'draws are compared, for the 40 query pictures and the trained model as they are. "paper: a vs '
+    "b\" gives the paper's numbers for the two sides of a difference; where it prints none for a "
+    "side, the check says so. Each recogniser has its own table; the column *with the paper's "
+    "recognition* gives the verdict of the same checks on the cells recorded with the "
+    f"`{PAPER_RECOGNITION}` recogniser (the paper's Tables 1-2 as a recogniser: which claims are about "
+    'the method and which turn on how well the recogniser sees), "not run" where it has none and '
+    '"no recogniser in it" where no cell of the claim recognises pictures. Data: `tables/claims.csv`.'
 )
 
 
