@@ -11,8 +11,9 @@ keep the layout's rows, from which the layout features are computed. Per size:
 * ``tables/<folder>.md|csv``: for each claim, the fraction of layouts where it **holds** (every
   check on the claimed side by the verdict rule of :mod:`pipeline.report.checks`, Holm's correction
   within the claim, bootstrap over the layout's run seeds, paired), where it **does not hold** and
-  where the claimed order holds for the means alone, each with a 95% Wilson interval over layouts (the layouts are independent
-  draws of the generator). Table 3's order is :func:`pipeline.report.checks.order_checks`.
+  where the claimed order holds for the means alone, each with a 95% Wilson interval over layouts
+  (the layouts are independent draws of the generator). Table 3's order is
+  :func:`pipeline.report.checks.order_checks`.
 * ``tables/<folder>_dss_gain.md|csv``: the gain of the dynamic support set (few-shot without minus
   with it) per size, mean over layouts with a 95% bootstrap interval over layouts, and whether it
   grows with the size (difference of the sizes' mean gains, bootstrap over layouts, unpaired: the
