@@ -29,7 +29,13 @@ from pipeline.report.experiments import Cell, Experiment
 from pipeline.report.names import method_name, recogniser_of
 from pipeline.report.paper_numbers import paper_for
 from pipeline.report.pooling import same_seeds
-from pipeline.report.stats import difference_draws, holm, percentile_ci, wilson_ci
+from pipeline.report.stats import (
+    bootstrap_p,
+    difference_draws,
+    holm,
+    percentile_ci,
+    wilson_ci,
+)
 
 VERDICTS = ("holds", "does not hold", "not resolved", "not checked")
 
@@ -114,7 +120,7 @@ def from_draws(what: str, estimate: float, draws, unit: str, basis: str, **kw) -
         outside = min(share(np.sum(d <= margin)), share(np.sum(d >= -margin)))
         p = min(inside, outside)
     else:
-        p = share(min(np.sum(d <= 0), np.sum(d >= 0)))
+        p = bootstrap_p(d)
     low, high = percentile_ci(d)
     return Check(what, estimate, low, high, expect, unit, basis, p=min(p, 1.0), draws=d, **kw)
 

@@ -23,7 +23,7 @@ import numpy as np
 import pandas as pd
 
 from pipeline.report.experiments import ReportInputError
-from pipeline.report.stats import bootstrap_p, percentile_ci, stratified_means
+from pipeline.report.stats import percentile_ci, stratified_means
 
 #: ``table2.csv``'s column of each variant of Table 1 (``table1.csv``'s ``variant``).
 VARIANTS = {"with_same": "mean_accuracy", "no_same": "mean_accuracy_no_same"}
@@ -41,10 +41,6 @@ class Estimate:
 
     def ci(self) -> tuple[float, float]:
         return (self.value,) * 2 if self.draws is None else percentile_ci(self.draws)
-
-    def p(self) -> float | None:
-        """Two-sided bootstrap p-value of zero (None without draws)."""
-        return None if self.draws is None else bootstrap_p(self.draws)
 
     def __sub__(self, other: Estimate) -> Estimate:
         """The difference: paired where both resampled the same draws with the same indices (the
