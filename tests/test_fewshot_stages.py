@@ -88,6 +88,21 @@ def test_meta_train_then_accuracy(tmp_path):
     # Table 2 at n = 1 is Table 1's experiment
     assert t2.mean_accuracy[1] == pytest.approx(with_same.correct.sum() / with_same.total.sum())
     assert t2.mean_accuracy_no_same[1] == pytest.approx(no_same.correct.sum() / no_same.total.sum())
+    # every draw kept: its rows add up to Tables 1 and 2
+    draws = pd.read_csv(out / "draws.csv")
+    assert len(draws) == 5 * 5 * 4 * 5  # substitution numbers x categories x repeats x tested
+    one = draws[draws.substitutions == 1].groupby(["substituted_category", "tested_category"]).sum()
+    assert one.correct.tolist() == with_same.correct.tolist()
+    assert one.correct_no_same.tolist() == no_same.correct.tolist()
+    assert one.tested_no_same.tolist() == no_same.total.tolist()
+    per_n = draws.groupby("substitutions")[
+        ["correct", "tested", "correct_no_same", "tested_no_same"]
+    ].sum()
+    assert (per_n.correct / per_n.tested).tolist() == pytest.approx(t2.mean_accuracy[1:].tolist())
+    assert (per_n.correct_no_same / per_n.tested_no_same).tolist() == pytest.approx(
+        t2.mean_accuracy_no_same[1:].tolist()
+    )
+    assert (draws.pictures.str.split().map(len) == draws.substitutions).all()
     base = pd.read_csv(out / "baseline.csv")
     assert len(base) == 40 and data["baseline"]["accuracy"] == pytest.approx(base.correct.mean())
     assert t2.mean_accuracy[0] == pytest.approx(base.correct.mean())

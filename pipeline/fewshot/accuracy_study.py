@@ -11,7 +11,9 @@
   without the substituted pictures counted. ``n = 1`` is Table 1's experiment (the same draws).
 
 Draws come from ``numpy.random.default_rng([seed, n])``, so each substitution number has its own
-stream.
+stream. Every draw's outcome is kept (:attr:`StudyResult.draws`: per draw and tested category, the
+correct count with and without the substituted pictures), so the report bootstraps its intervals
+over draws; the tables' sums are the sums of those rows.
 """
 
 from __future__ import annotations
@@ -52,12 +54,31 @@ PAPER_TABLE2 = {
 }
 
 
+#: The columns of :attr:`StudyResult.draws`: the number of substitutions, the substituted category,
+#: the draw (0..repeats-1 per substituted category and number), the substituted pictures and support
+#: positions (space-separated ids), the tested (query) category, its query pictures, those of them
+#: correct, those not substituted in the draw and those of them correct.
+DRAW_COLUMNS = (
+    "substitutions",
+    "substituted_category",
+    "draw",
+    "pictures",
+    "positions",
+    "tested_category",
+    "tested",
+    "correct",
+    "tested_no_same",
+    "correct_no_same",
+)
+
+
 @dataclass
 class StudyResult:
     """``baseline_correct`` (C,), ``per_category_total`` (C,), ``baseline_predictions`` (P,),
     ``baseline_scores`` (P, C); Table 1 as (substituted category, tested category) counts
     ``table1_correct``, ``table1_no_same_correct`` with totals ``table1_total``,
-    ``table1_no_same_total``; Table 2 as {n: (mean with, mean without the same pictures)}."""
+    ``table1_no_same_total``; Table 2 as {n: (mean with, mean without the same pictures)};
+    ``draws``: one row per draw and tested category (:data:`DRAW_COLUMNS`, arrays of equal length)."""
 
     categories: np.ndarray
     baseline_predictions: np.ndarray
@@ -69,6 +90,7 @@ class StudyResult:
     table1_no_same_correct: np.ndarray
     table1_no_same_total: np.ndarray
     table2: dict[int, tuple[float, float]]
+    draws: dict[str, np.ndarray]
 
     @property
     def baseline_accuracy(self) -> float:
@@ -102,6 +124,7 @@ def run_study(
     t1_ns_total = np.zeros((n_way, n_way), dtype=np.int64)
     table2: dict[int, tuple[float, float]] = {0: (float(base_correct.sum() / per_cat.sum()),) * 2}
     max_n = min(k_shot, int(per_cat.min()))
+    rows: list[tuple] = []
     bar = tqdm(
         total=max_n * n_way * config.repeats,
         desc="accuracy study",
@@ -113,7 +136,7 @@ def run_study(
         with_same = [0, 0]
         no_same = [0, 0]
         for c in range(n_way):
-            for _ in range(config.repeats):
+            for draw in range(config.repeats):
                 recogniser.start_run(run, config.seed)
                 pictures = rng.choice(members[c], size=n, replace=False)
                 positions = rng.choice(k_shot, size=n, replace=False)
@@ -129,6 +152,13 @@ def run_study(
                 with_same[1] += len(cats)
                 no_same[0] += int(correct[counted].sum())
                 no_same[1] += int(counted.sum())
+                by_cat = [np.bincount(cats[m], minlength=n_way) for m in (correct, counted)]
+                both = np.bincount(cats[correct & counted], minlength=n_way)
+                ids = [" ".join(map(str, map(int, x))) for x in (pictures, positions)]
+                rows += [
+                    (n, c, draw, *ids, t, per_cat[t], by_cat[0][t], by_cat[1][t], both[t])
+                    for t in range(n_way)
+                ]
                 if n == 1:
                     t1[c] += np.bincount(cats[correct], minlength=n_way)
                     t1_ns[c] += np.bincount(cats[correct & counted], minlength=n_way)
@@ -147,4 +177,5 @@ def run_study(
         table1_no_same_correct=t1_ns,
         table1_no_same_total=t1_ns_total,
         table2=table2,
+        draws={k: np.array([r[i] for r in rows]) for i, k in enumerate(DRAW_COLUMNS)},
     )

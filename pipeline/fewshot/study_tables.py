@@ -1,6 +1,7 @@
 """The accuracy study's results as tables (pure functions; the ``accuracy`` stage writes them):
 ``baseline`` (one row per query picture), ``table1`` (long format, paper's Table 1 beside ours),
-``table2`` (paper's Table 2 beside ours) and a JSON-ready ``summary``."""
+``table2`` (paper's Table 2 beside ours), ``draws`` (every random draw's outcome per tested category,
+tidy: the report bootstraps Tables 1-2's intervals over its draws) and a JSON-ready ``summary``."""
 
 from __future__ import annotations
 
@@ -9,7 +10,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from .accuracy_study import PAPER_BASELINE, PAPER_TABLE1, PAPER_TABLE2, StudyResult
+from .accuracy_study import DRAW_COLUMNS, PAPER_BASELINE, PAPER_TABLE1, PAPER_TABLE2, StudyResult
 
 
 def baseline_frame(result: StudyResult, class_names: list[str]) -> pd.DataFrame:
@@ -56,6 +57,18 @@ def table1_frame(result: StudyResult, repeats: int) -> pd.DataFrame:
                     }
                 )
     return pd.DataFrame(rows)
+
+
+def draws_frame(result: StudyResult, class_names: list[str]) -> pd.DataFrame:
+    """One row per random draw and tested category (:data:`DRAW_COLUMNS`), with the categories'
+    names beside their numbers."""
+    frame = pd.DataFrame({k: result.draws[k] for k in DRAW_COLUMNS})
+    for column in ("substituted_category", "tested_category"):
+        at = frame.columns.get_loc(column) + 1
+        frame.insert(
+            at, column.replace("category", "name"), [class_names[c] for c in frame[column]]
+        )
+    return frame
 
 
 def table2_frame(result: StudyResult) -> pd.DataFrame:

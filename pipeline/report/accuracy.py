@@ -4,19 +4,12 @@ meta-training metrics. The paper's numbers come in those files' ``paper_*`` colu
 Network (the paper's recogniser) fills the tables; other few-shot methods studied the same way
 (the Prototypical Network: ``accuracy_protonet``) are shown beside it, row by row.
 
-Intervals: the study's random unit is a draw (which query pictures replace which support pictures;
-``repeats`` draws per substituted category, independent), and its files keep sums over draws, not
-each draw. So an accuracy's standard error is bounded from the sums (:class:`Study`): one draw's
-accuracy on a category's pictures lies in [0, 1], so its variance is at most ``p (1 - p)``, and the
-s.d. of an accuracy over several categories is at most the sum of theirs. The 95% interval
-``p ± 1.96 se`` with that bound is conservative. The original support set involves no draw, so its
-accuracy has no interval.
+Intervals: :mod:`pipeline.report.study` (bootstrap over the study's random draws).
 """
 
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
 from pathlib import Path
 
 import matplotlib.pyplot as plt
@@ -26,7 +19,8 @@ from matplotlib.ticker import MaxNLocator
 
 from pipeline import palette
 from pipeline.report import figures as F
-from pipeline.report.stats import bootstrap_ci, bounded_sd, normal_ci, wilson_ci
+from pipeline.report.stats import bootstrap_ci, wilson_ci
+from pipeline.report.study import RESAMPLES, SEED, VARIANTS, Estimate, Study
 
 #: Table 2's columns (the accuracy study's ``table2.csv``) as the report prints them.
 TABLE2_HEADERS = {
@@ -36,73 +30,6 @@ TABLE2_HEADERS = {
     "paper_mean_accuracy": "paper",
     "paper_mean_accuracy_no_same": "paper, no same picture",
 }
-
-#: ``table2.csv``'s column of each variant of Table 1 (``table1.csv``'s ``variant``).
-VARIANTS = {"with_same": "mean_accuracy", "no_same": "mean_accuracy_no_same"}
-
-
-@dataclass
-class Estimate:
-    value: float
-    se: float = 0.0
-
-    def ci(self) -> tuple[float, float]:
-        return normal_ci(self.value, self.se)
-
-    def __sub__(self, other: Estimate) -> Estimate:
-        """The difference of two estimates from independent draws."""
-        return Estimate(self.value - other.value, float(np.hypot(self.se, other.se)))
-
-
-class Study:
-    """The accuracy study's data files and each accuracy's standard error over the draws (the
-    largest the recorded sums allow, :func:`~pipeline.report.stats.bounded_sd`)."""
-
-    def __init__(self, accuracy_dir: Path):
-        self.summary = json.loads((accuracy_dir / "summary.json").read_text())
-        self.table1 = pd.read_csv(accuracy_dir / "table1.csv")
-        self.table2 = pd.read_csv(accuracy_dir / "table2.csv").set_index("substitution_number")
-        self.names = self.summary["class_names"]
-        self.draws = int(self.summary["config"]["repeats"])
-        self.baseline = self.summary["baseline"]
-        self.pictures = int(sum(self.baseline["total"]))
-
-    def cells(self, variant: str, substituted: int) -> pd.DataFrame:
-        t = self.table1
-        return t[
-            (t["variant"] == variant) & (t["substituted_category"] == substituted)
-        ].sort_values("tested_category")
-
-    def row(self, variant: str, substituted: int) -> Estimate:
-        """Table 1: accuracy on all pictures with one picture of ``substituted`` substituted."""
-        d = self.cells(variant, substituted)
-        weights = d["total"] / d["total"].sum()
-        sd = bounded_sd(d["correct"] / d["total"], weights)
-        return Estimate(float(d["correct"].sum() / d["total"].sum()), sd / np.sqrt(self.draws))
-
-    def cell(self, variant: str, substituted: int, tested: int) -> Estimate:
-        d = self.cells(variant, substituted)
-        p = float((d["correct"] / d["total"])[d["tested_category"] == tested].iloc[0])
-        return Estimate(p, bounded_sd(p) / np.sqrt(self.draws))
-
-    def mean(self, variant: str) -> Estimate:
-        """Table 1's mean over the substituted categories (independent draws each)."""
-        rows = [self.row(variant, s) for s in range(len(self.names))]
-        se = float(np.sqrt(sum(r.se**2 for r in rows))) / len(rows)
-        return Estimate(float(np.mean([r.value for r in rows])), se)
-
-    def substitutions(self, n: int, variant: str = "with_same") -> Estimate:
-        """Table 2: mean accuracy with ``n`` substitutions (no draw for 0; Table 1's bound for 1)."""
-        value = float(self.table2.loc[n, VARIANTS[variant]])
-        if n == 0:
-            return Estimate(value)
-        if n == 1:
-            return Estimate(value, self.mean(variant).se)
-        return Estimate(value, bounded_sd(value) / np.sqrt(len(self.names) * self.draws))
-
-    def paper(self, n: int, variant: str = "with_same") -> float | None:
-        value = self.table2.loc[n].get("paper_" + VARIANTS[variant])
-        return None if value is None or pd.isna(value) else float(value)
 
 
 def query_accuracy(accuracy_dir: Path) -> tuple[int, int] | None:
@@ -119,7 +46,7 @@ def percent(value, estimate: Estimate | None = None) -> str:
     """``57.71%`` or, with an estimate whose interval to show, ``57.71% [55.49, 59.93]``."""
     if value is None or pd.isna(value):
         return ""
-    if estimate is None or estimate.se == 0:
+    if estimate is None or estimate.draws is None:
         return f"{100 * value:.2f}%"
     lo, hi = estimate.ci()
     return f"{100 * value:.2f}% [{100 * lo:.2f}, {100 * hi:.2f}]"
@@ -127,9 +54,9 @@ def percent(value, estimate: Estimate | None = None) -> str:
 
 def intervals_note(study: Study) -> str:
     return (
-        f"[95% CI] over the study's random draws ({study.draws} per substituted category), conservative: "
-        "the data files keep sums over draws, and the interval takes the largest spread those sums allow "
-        "(each draw's accuracy on a category lies in [0, 1]); the original support set involves no draw."
+        f"[95% CI] percentile bootstrap over the study's random draws ({study.draws} per substituted "
+        f"category, resampled within each; {RESAMPLES} resamples, seed {SEED}: `draws.csv`), for these "
+        "40 query pictures and this trained model; the original support set involves no draw."
     )
 
 
@@ -383,5 +310,5 @@ def table2_figure(rep, study: Study, beside: dict[str, Study] | None = None) -> 
     rep.figure(
         "figures/table2_accuracy.png",
         "Table 2: mean accuracy against the number of substitutions, ours with "
-        "conservative 95% intervals over the draws, beside the paper's.",
+        "95% bootstrap intervals over the draws, beside the paper's.",
     )

@@ -26,7 +26,7 @@ import pandas as pd
 from tqdm import tqdm
 
 from pipeline.files import swap_in
-from pipeline.report.claims import claims_section
+from pipeline.report.claims_section import claims_section
 from pipeline.report.experiments import ReportInputError, load_all
 from pipeline.report.scale import check_scales, scales, title_and_scale
 from pipeline.report.sections import section
@@ -183,7 +183,8 @@ def _build_parts(inputs: Inputs, bar: tqdm) -> Path:
     bar.update()
     refuse_missing(rep, inputs, experiments)
     bar.set_postfix_str("claims")
-    claims_section(rep, experiments, inputs.accuracy_dir)
+    studies = [inputs.accuracy_dir, *(folder for folder, _ in inputs.beside.values())]
+    claims_section(rep, experiments, studies)
     bar.set_postfix_str("accuracy")
     accuracy_section(rep, inputs.accuracy_dir, inputs.model_metrics, inputs.beside)
     bar.update()

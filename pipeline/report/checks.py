@@ -1,34 +1,55 @@
-"""How a claim of the paper is checked: a :class:`Check` is one number with its 95% interval and
-what the claim expects of it; a :class:`Claim` holds when all its checks hold and does not hold
-when one does not. The numbers come from the recorded cells, selected by what they ran
+"""How a claim of the paper is checked: a :class:`Check` is one number with its 95% interval, its
+bootstrap p-value and what the claim expects of it; a :class:`Claim` decides its checks together.
+The numbers come from the recorded cells of one recogniser, selected by what they ran
 (:class:`Data`): differences in collisions per run between cells are bootstrapped over run seeds
-(2000 resamples, seed 0), paired where the cells share run seeds, a pooled arm (the four
-substitution ways) averaged per seed first; shares of converged runs have Wilson score intervals.
+(2000 resamples, seed 0), paired where the cells share run seeds on one maze (unpaired across
+mazes: run ``r`` of one maze shares nothing meaningful with run ``r`` of another), a pooled arm
+(the four substitution ways) averaged per seed first; shares of converged runs have Wilson score
+intervals.
 
-A check **holds** when its interval lies on the claimed side of zero, **does not hold** when it lies
-on the other side, and is **not resolved** when it contains zero; "comparable" holds when the
-interval lies within a stated margin (and does not hold when it lies outside)."""
+Verdict rule (Holm 1979 across the checks of a claim, family level 5%): the checks with bootstrap
+draws are sorted by their p-value (of zero; of the margin for "comparable"); the ``i``-th smallest
+of a claim's ``m`` (from 0) is judged by its percentile interval at level ``1 - 0.05 / (m - i)``,
+and once one is undecided the rest are too. A judged ``>`` check **holds** when that interval lies
+above zero and **does not hold** when below; a "comparable" check holds when it lies within the
+margin and does not hold when outside; otherwise it is **not resolved**. A check of a share of
+runs ("all", "none") is an observation, decided as observed. A claim holds when all its checks
+hold, does not hold when one does not, and is not resolved otherwise. With one check, the rule is
+the plain one on the 95% interval shown."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 from itertools import pairwise
 
+import numpy as np
 import pandas as pd
 
 from pipeline.report.experiments import Cell, Experiment
-from pipeline.report.names import method_name
+from pipeline.report.names import method_name, recogniser_of
 from pipeline.report.paper_numbers import paper_for
 from pipeline.report.pooling import same_seeds
-from pipeline.report.stats import bootstrap_difference, wilson_ci
+from pipeline.report.stats import (
+    bootstrap_p,
+    difference_draws,
+    holm,
+    percentile_ci,
+    wilson_ci,
+)
 
 VERDICTS = ("holds", "does not hold", "not resolved", "not checked")
+
+
+#: The family-wise level of a claim's checks (Holm's correction).
+LEVEL = 0.05
 
 
 @dataclass
 class Check:
     """One number behind a verdict: ``estimate`` [``low``, ``high``] and what the claim expects
-    of it: ``>`` (above zero), ``≈`` (within ``±margin``), ``all`` / ``none`` (a share of 1 / 0)."""
+    of it: ``>`` (above zero), ``≈`` (within ``±margin``), ``all`` / ``none`` (a share of 1 / 0).
+    With bootstrap ``draws`` (:func:`from_draws`), Holm's rule (:meth:`Claim.settle`) sets the
+    level of the interval that decides (``1 - threshold``); without, the 95% interval decides."""
 
     what: str
     estimate: float
@@ -39,20 +60,28 @@ class Check:
     basis: str  # what the interval is over
     paper: str = ""  # the paper's numbers for it, as printed
     margin: float = 0.0  # ``≈``: the largest difference that counts as comparable
+    p: float | None = None
+    draws: np.ndarray | None = field(default=None, repr=False)  # bootstrap draws of the number
+    threshold: float = LEVEL
+    stopped: bool = False  # Holm's step-down stopped before this check
+    recognised: bool = True  # whether a recogniser ran in its cells
+
+    def judge(self, low: float, high: float) -> str:
+        """The verdict of an interval ``[low, high]``."""
+        if self.expect == ">":
+            return "holds" if low > 0 else "does not hold" if high < 0 else "not resolved"
+        inside = -self.margin <= low and high <= self.margin
+        outside = low > self.margin or high < -self.margin
+        return "holds" if inside else "does not hold" if outside else "not resolved"
 
     @property
     def verdict(self) -> str:
-        if self.expect == ">":
-            return "holds" if self.low > 0 else "does not hold" if self.high < 0 else "not resolved"
-        if self.expect == "≈":
-            inside = -self.margin <= self.low and self.high <= self.margin
-            return (
-                "holds"
-                if inside
-                else "does not hold"
-                if self.low > self.margin or self.high < -self.margin
-                else "not resolved"
-            )
+        if self.expect in (">", "≈"):
+            if self.draws is None:
+                return self.judge(self.low, self.high)
+            if self.stopped:
+                return "not resolved"
+            return self.judge(*percentile_ci(self.draws, 1 - self.threshold))
         return (
             "holds" if self.estimate == (1.0 if self.expect == "all" else 0.0) else "does not hold"
         )
@@ -66,7 +95,34 @@ class Check:
         numbers = f"{scale * self.estimate:.{digits}f} [{scale * self.low:.{digits}f}, {scale * self.high:.{digits}f}]"
         paper = f"; paper: {self.paper}" if self.paper else ""
         margin = f"; comparable within ±{self.margin:.2f}" if self.expect == "≈" else ""
-        return f"{self.what}: {numbers} {self.unit} ({self.basis}{margin}){paper}: {self.verdict}"
+        holm_ = (
+            ""
+            if self.p is None
+            else f"; p = {self.p:.2g}, Holm threshold {self.threshold:.2g}"
+            + (", not reached: an earlier check undecided" if self.stopped else "")
+        )
+        return f"{self.what}: {numbers} {self.unit} ({self.basis}{margin}{holm_}){paper}: {self.verdict}"
+
+
+def from_draws(what: str, estimate: float, draws, unit: str, basis: str, **kw) -> Check:
+    """A check from bootstrap ``draws`` of its number: the 95% percentile interval, and the p-value
+    that orders the checks of a claim for Holm's rule (``expect`` ``>``: of zero; ``≈``: the
+    smaller of those of lying within and outside ``±margin``), each tail share counted as
+    ``(k + 1) / (B + 1)``."""
+    d = np.asarray(draws, dtype=float)
+    expect, margin = kw.pop("expect", ">"), kw.get("margin", 0.0)
+
+    def share(k) -> float:
+        return 2 * (int(k) + 1) / (d.size + 1)
+
+    if expect == "≈":
+        inside = max(share(np.sum(d <= -margin)), share(np.sum(d >= margin)))
+        outside = min(share(np.sum(d <= margin)), share(np.sum(d >= -margin)))
+        p = min(inside, outside)
+    else:
+        p = bootstrap_p(d)
+    low, high = percentile_ci(d)
+    return Check(what, estimate, low, high, expect, unit, basis, p=min(p, 1.0), draws=d, **kw)
 
 
 @dataclass
@@ -82,9 +138,28 @@ class Claim:
         says = f'"{self.says}"' if self.quoted else f"{self.says} (our reading of the table)"
         return says + (f"; checked: {self.how}" if self.how else "")
 
+    def settle(self) -> Claim:
+        """Holm's step-down over the checks with bootstrap draws: by p-value, the ``i``-th (from
+        0) of ``m`` is judged by its interval at level ``1 - LEVEL / (m - i)``
+        (:func:`~pipeline.report.stats.holm`'s thresholds); after the first undecided one, the
+        rest are not resolved."""
+        tested = [c for c in self.checks if c.draws is not None]
+        going = True
+        for check, threshold in zip(tested, holm([c.p for c in tested], LEVEL)[0]):
+            check.threshold, check.stopped = threshold, False
+        for check in sorted(tested, key=lambda c: c.threshold):
+            check.stopped = not going
+            going = going and check.verdict != "not resolved"
+        return self
+
+    @property
+    def recognised(self) -> bool:
+        """Whether a recogniser ran in its cells (a claim not checked: assumed so)."""
+        return not self.checks or any(c.recognised for c in self.checks)
+
     @property
     def verdict(self) -> str:
-        verdicts = [c.verdict for c in self.checks]
+        verdicts = [c.verdict for c in self.settle().checks]
         if self.missing or not verdicts:
             return "not checked"
         if "does not hold" in verdicts:
@@ -112,12 +187,22 @@ class Arm:
         return " / ".join(dict.fromkeys(method_name(c.info["method"]) for c in self.cells))
 
 
-class Data:
-    """Cells of the recorded experiments, selected by what they ran."""
+#: The paper's recogniser (section 3.2.1): its claims table comes first.
+PAPER_RECOGNISER = "relation_net"
 
-    def __init__(self, experiments: list[Experiment]):
+
+class Data:
+    """Cells of the recorded experiments of one recogniser (:func:`~pipeline.report.names.
+    recogniser_of`; the cells of methods without one belong to every recogniser), selected by what
+    they ran."""
+
+    def __init__(self, experiments: list[Experiment], recogniser: str | None = PAPER_RECOGNISER):
         self.experiments = experiments
         self.by_name = {e.name: e for e in experiments}
+        self.recogniser = recogniser
+
+    def mine(self, cell: Cell) -> bool:
+        return recogniser_of(cell.info, cell.config) in (None, self.recogniser)
 
     def cells(
         self, experiment: str, method: str, maze: str | None = None, ways=None, support=None
@@ -130,18 +215,20 @@ class Data:
             and maze in (None, c.maze)
             and (ways is None or c.info.get("substitution") in ways)
             and support in (None, c.info.get("support"))
-            and (c.info.get("recogniser") or {}).get("kind") not in BESIDE_THE_PAPER
+            and self.mine(c)
         ]
         if not found:
             where = ", ".join(str(x) for x in (method, maze, support) if x)
-            raise Missing(f"no records of {experiment} ({where})")
+            raise Missing(f"no records of {experiment} ({where}) with {self.recogniser}")
         return found
 
     def all(self, experiment: str) -> list[Cell]:
+        """The experiment's cells of this recogniser (Missing when it has none of them)."""
         exp = self.by_name.get(experiment)
-        if exp is None:
-            raise Missing(f"no records of {experiment}")
-        return [cell for _, cells in exp.rows() for cell in cells]
+        cells = [cell for _, cells in exp.rows() for cell in cells] if exp else []
+        if not any(recogniser_of(c.info, c.config) == self.recogniser for c in cells):
+            raise Missing(f"no records of {experiment} with {self.recogniser}")
+        return [c for c in cells if self.mine(c)]
 
     def arm(self, *args, first: int = 0, **kw) -> Arm:
         """The cells' collisions per run (from run index ``first`` on)."""
@@ -153,37 +240,77 @@ class Data:
 
     def paper(self, arm: Arm) -> str:
         """The paper's number for exactly these cells' setting (not one that pools more ways)."""
-        found = (
-            paper_for(arm.cells, self.experiments)
-            if len({c.maze for c in arm.cells}) == 1
-            else None
-        )
+        found = self.paper_value(arm)
         return found.value if found and not found.pools else ""
 
+    def paper_value(self, arm: Arm):
+        one_maze = len({c.maze for c in arm.cells}) == 1
+        return paper_for(arm.cells, self.experiments) if one_maze else None
 
-def fewer(data: Data, what: str, more: Arm, less: Arm) -> Check:
-    """``less`` collides less than ``more``: the difference ``more - less`` per run."""
-    paired = same_seeds(more.cells + less.cells) and more.values.index.equals(less.values.index)
-    est, lo, hi = bootstrap_difference(
-        more.values.to_numpy(), less.values.to_numpy(), paired=paired
+    def paper_words(self, arm: Arm) -> str:
+        """``Few-shot + DSS 7.145`` or why the paper prints no number for the arm."""
+        found = self.paper_value(arm)
+        if found is None:
+            return f"{arm.name}: no number printed"
+        if found.pools:
+            return f"{arm.name}: none for this way alone ({found.value} has {found.pools})"
+        return f"{arm.name} {found.value}"
+
+
+def recognised(cells: list[Cell]) -> bool:
+    return any(recogniser_of(c.info, c.config) is not None for c in cells)
+
+
+def fewer(data: Data, what: str, more: Arm, less: Arm, **expect) -> Check:
+    """``less`` collides less than ``more``: the difference ``more - less`` per run, paired over
+    run seeds only where all cells share them on one maze (``expect``: ``expect="≈"`` and
+    ``margin``, :func:`from_draws`)."""
+    cells = more.cells + less.cells
+    paired = (
+        same_seeds(cells)
+        and more.values.index.equals(less.values.index)
+        and len({c.maze for c in cells}) == 1
     )
+    a, b = more.values.to_numpy(), less.values.to_numpy()
     papers = [data.paper(more), data.paper(less)]
-    paper = f"{papers[0] or '—'} vs {papers[1] or '—'}" if any(papers) else ""
-    basis = f"{len(more.values)} run seeds{', paired' if paired else ''}"
-    return Check(what, est, lo, hi, ">", "collisions per run", basis, paper)
+    paper = (
+        f"{papers[0]} vs {papers[1]}"
+        if all(papers)
+        else "; ".join(data.paper_words(x) for x in (more, less))
+        if any(papers)
+        else ""
+    )
+    basis = (
+        f"{len(a)} run seeds, paired"
+        if paired
+        else f"{len(a)} and {len(b)} runs, unpaired"
+        + (" (different mazes)" if len({c.maze for c in cells}) > 1 else "")
+    )
+    draws = difference_draws(a, b, paired=paired)
+    return from_draws(
+        what,
+        float(a.mean() - b.mean()),
+        draws,
+        "collisions per run",
+        basis,
+        paper=paper,
+        recognised=recognised(cells),
+        **expect,
+    )
 
 
 def converged(what: str, cells: list[Cell], expect: str) -> Check:
     runs = [e for c in cells for e in c.converged_episode()]
     share = sum(e is not None for e in runs) / len(runs)
     return Check(
-        what, share, *wilson_ci(share, len(runs)), expect, "share of runs (%)", f"{len(runs)} runs"
+        what,
+        share,
+        *wilson_ci(share, len(runs)),
+        expect,
+        "share of runs (%)",
+        f"{len(runs)} runs",
+        recognised=recognised(cells),
     )
-
-
-#: Recognisers the paper did not use: their cells (fig8's Prototypical Network cells) are shown
-#: beside the paper's in the sections, not pooled into the claims about its Relation Network.
-BESIDE_THE_PAPER = ("protonet",)
 
 
 #: Table 3's rows, most collisions first: the order its numbers show on every maze.
@@ -203,6 +330,6 @@ def order_checks(data: Data, arm_of, order=TABLE3_ORDER, where: str = "") -> lis
 def checked(source: str, says: str, make, how: str = "", quoted: bool = True) -> Claim:
     """The claim with the checks ``make()`` returns, or "not checked" if their records are missing."""
     try:
-        return Claim(source, says, make(), how=how, quoted=quoted)
+        return Claim(source, says, make(), how=how, quoted=quoted).settle()
     except Missing as exc:
         return Claim(source, says, missing=str(exc), how=how, quoted=quoted)

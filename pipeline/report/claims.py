@@ -1,23 +1,20 @@
-"""The paper's qualitative claims, each checked against our data: the report's "Claims of the paper
-against our data" section and ``tables/claims.csv`` (one row per check).
+"""The paper's qualitative claims, each checked against our data with one recogniser's cells (the
+report's claims section: :mod:`pipeline.report.claims_section`).
 
 Each claim quotes the paper and is checked by one or more numbers computed from the records (or the
-accuracy study's data files), each with a 95% interval:
+accuracy study's data files), each with a 95% interval and a bootstrap p-value:
 
 * differences in collisions per run between cells: bootstrap over run seeds (2000 resamples, seed
-  0), paired where the cells share run seeds (run ``r`` of one against run ``r`` of the other), a
-  pooled arm (the four substitution ways) averaged per seed first (:mod:`pipeline.report.stats`);
+  0), paired where the cells share run seeds on one maze, unpaired across mazes, a pooled arm (the
+  four substitution ways) averaged per seed first (:mod:`pipeline.report.stats`);
 * shares of converged runs: Wilson score intervals over the runs;
-* accuracies of the accuracy study: conservative normal intervals over its independent random
-  draws (the data files keep sums over draws, not each draw: :class:`~pipeline.report.accuracy.Study`).
+* accuracies of the accuracy study: bootstrap over its random draws (``draws.csv``,
+  :class:`~pipeline.report.study.Study`), paired where the same draws are compared.
 
-A check **holds** when its interval lies on the claimed side of zero, **does not hold** when it lies
-on the other side, and is **not resolved** when it contains zero; "comparable" holds when the
-interval lies within a stated margin (and does not hold when it lies outside). A claim holds when
-all its checks hold and does not hold when one does not.
-The claims name the experiments by their recorded names (``fig8``...) and select cells by what they
-ran (method, maze, way, support set); a claim whose records are missing is "not checked". How a
-check is computed and judged: :mod:`pipeline.report.checks`.
+The verdict rule (Holm's correction across the checks of a claim) is
+:mod:`pipeline.report.checks`'. The claims name the experiments by their recorded names
+(``fig8``...) and select cells by what they ran (method, maze, way, support set, recogniser); a
+claim whose records are missing is "not checked".
 """
 
 from __future__ import annotations
@@ -28,9 +25,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from pipeline.report.accuracy import Estimate, Study
 from pipeline.report.checks import (
-    VERDICTS,
     Arm,
     Check,
     Claim,
@@ -38,13 +33,13 @@ from pipeline.report.checks import (
     checked,
     converged,
     fewer,
+    from_draws,
     order_checks,
 )
-from pipeline.report.experiments import Experiment
 from pipeline.report.names import method_name
-from pipeline.report.stats import bounded_sd
+from pipeline.report.study import Estimate, Study
 
-__all__ = ["Check", "Claim", "accuracy_claims", "claims_section", "rl_claims"]
+__all__ = ["Check", "Claim", "accuracy_claims", "rl_claims"]
 
 
 def rl_claims(data: Data) -> list[Claim]:
@@ -97,9 +92,9 @@ def rl_claims(data: Data) -> list[Claim]:
         margin = 0.2 * float(np.mean([arm.values.mean() for arm in ways.values()]))
         checks = []
         for a, b in combinations(ways, 2):
-            check = pair(ways[a], ways[b])
-            check.what, check.expect, check.margin = f"way {a} − way {b}", "≈", margin
-            checks.append(check)
+            checks.append(
+                fewer(data, f"way {a} − way {b}", ways[a], ways[b], expect="≈", margin=margin)
+            )
         return checks
 
     def long_term() -> list[Check]:
@@ -217,9 +212,10 @@ def rl_claims(data: Data) -> list[Claim]:
     return [checked(*c) for c in claims] + [checked(*c, quoted=False) for c in readings]
 
 
-def accuracy_claims(accuracy_dir: Path) -> list[Claim]:
-    """Section 4.2.1: Tables 1 and 2, from the accuracy study's data files (intervals over its
-    random draws: :class:`~pipeline.report.accuracy.Study`)."""
+def accuracy_claims(accuracy_dir: Path | None) -> list[Claim]:
+    """Section 4.2.1: Tables 1 and 2, from the accuracy study's data files (bootstrap over its
+    random draws: :class:`~pipeline.report.study.Study`); None or a folder without the study:
+    "not checked"."""
     gradually = (
         "the recognition accuracy increases gradually with the increase of substitution number"
     )
@@ -243,16 +239,16 @@ def accuracy_claims(accuracy_dir: Path) -> list[Claim]:
             "the previous result",
         ),
     ]
-    if not (accuracy_dir / "summary.json").exists():
+    if accuracy_dir is None or not (accuracy_dir / "summary.json").exists():
         for c in claims:
             c.missing = f"no accuracy study under {accuracy_dir}"
         return claims
     study = Study(accuracy_dir)
-    basis = f"{study.draws} random draws per category, conservative"
+    basis = f"bootstrap over {study.draws} random draws per category"
 
-    def rise(what: str, diff: Estimate, paper: tuple = ()) -> Check:
+    def rise(what: str, diff: Estimate, paper: tuple = (), basis: str = basis) -> Check:
         paper = " vs ".join(f"{100 * p:.2f}%" for p in paper) if paper and None not in paper else ""
-        return Check(what, diff.value, *diff.ci(), ">", "percentage points", basis, paper)
+        return from_draws(what, diff.value, diff.draws, "percentage points", basis, paper=paper)
 
     def table2(n: int, variant: str = "with_same") -> tuple[Estimate, float | None]:
         return study.substitutions(n, variant), study.paper(n, variant)
@@ -296,78 +292,16 @@ def accuracy_claims(accuracy_dir: Path) -> list[Claim]:
                 f"{n} substitution{'s' if n > 1 else ''} − {n - 1}",
                 now - before,
                 (paper_now, paper_before),
+                basis + (", independent draws" if n > 1 else ""),
             )
         )
     for n in range(1, top + 1):
-        d = table2(n)[0].value - table2(n, "no_same")[0].value
-        # one draw's difference lies in [-n/P, n/P] (P pictures, n of them substituted): paired draws
-        bound = n / study.pictures
-        se = bounded_sd(d, low=-bound, high=bound) / np.sqrt(len(study.names) * study.draws)
-        check = rise(
-            f"{n} substitution{'s' if n > 1 else ''}: counting the substituted pictures − not",
-            Estimate(d, se),
-            (table2(n)[1], table2(n, "no_same")[1]),
+        claims[4].checks.append(
+            rise(
+                f"{n} substitution{'s' if n > 1 else ''}: counting the substituted pictures − not",
+                table2(n)[0] - table2(n, "no_same")[0],  # the same draws, resampled alike: paired
+                (table2(n)[1], table2(n, "no_same")[1]),
+                basis + ", paired",
+            )
         )
-        check.basis = f"{study.draws} draws per category, paired, conservative"
-        claims[4].checks.append(check)
-    return claims
-
-
-# ------------------------------------------------------------------------------------ the section
-def claims_section(rep, experiments: list[Experiment], accuracy_dir: Path) -> list[Claim]:
-    """Write the claims section into ``rep`` and ``tables/claims.csv``; returns the claims."""
-    claims = accuracy_claims(accuracy_dir) + rl_claims(Data(experiments))
-    rows = [
-        {
-            "claim": i,
-            "source": c.source,
-            "claim text": c.text(),
-            "check": k.what,
-            "estimate": k.estimate,
-            "ci_low": k.low,
-            "ci_high": k.high,
-            "unit": k.unit,
-            "interval over": k.basis,
-            "paper": k.paper,
-            "check verdict": k.verdict,
-            "claim verdict": c.verdict,
-        }
-        for i, c in enumerate(claims, 1)
-        for k in (c.checks or [Check(c.missing, *[np.nan] * 3, "", "", "")])
-    ]
-    pd.DataFrame(rows).to_csv(
-        rep.out / "tables" / "claims.csv", index=False, lineterminator="\n", float_format="%.6g"
-    )
-    tally = [sum(c.verdict == v for c in claims) for v in VERDICTS]
-    counts = ", ".join(f"{n} {v}" for n, v in zip(tally, VERDICTS) if n)
-    summary = pd.DataFrame(
-        [
-            {"#": i, "where": c.source, "the paper": c.text(), "in our data": c.verdict}
-            for i, c in enumerate(claims, 1)
-        ]
-    ).to_markdown(index=False)
-    details = "\n\n".join(
-        f"{i}. **{c.source}: {c.verdict}.** {c.text()}\n"
-        + (
-            "\n".join(f"   - {k.text()}" for k in c.checks)
-            if c.checks
-            else f"   - not checked: {c.missing}"
-        )
-        for i, c in enumerate(claims, 1)
-    )
-    rep.add(
-        "## Claims of the paper against our data\n\n"
-        f"Generated from the records and the accuracy study's data files ({counts}). A check **holds** when its "
-        "95% interval lies on the claimed side of zero, **does not hold** when it lies on the other side and is "
-        '**not resolved** when it contains zero; "comparable" holds when the interval lies within the stated '
-        "margin, does not hold when it lies outside and is not resolved otherwise. "
-        "Differences in collisions are bootstrapped over run seeds (2000 resamples, seed 0), paired where the "
-        "cells share run seeds; a pooled row (the four substitution ways) is averaged per seed first. The runs "
-        "of a carried-over support set are one robot's consecutive experiments, not independent: their interval "
-        "treats them as if they were. Accuracy intervals are over the study's independent random draws, "
-        "conservative because its data files keep sums over draws, not each draw (they take the largest "
-        "spread the sums allow); with no substitution there is no draw and no interval. "
-        "Data: `tables/claims.csv`.\n\n"
-        f"{summary}\n\n{details}\n"
-    )
-    return claims
+    return [c.settle() for c in claims]

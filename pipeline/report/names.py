@@ -113,6 +113,34 @@ def recogniser_name(kind: str) -> str:
     return recogniser_names().get(kind, kind)
 
 
+@cache
+def recogniser_groups() -> dict[str, str]:
+    """The recognisers' config groups (``pipeline/conf/recogniser/<name>.yaml``) by the ``_target_``
+    each builds (the first name, sorted, where two share one)."""
+    import yaml
+
+    from pipeline.conf import conf_dir
+
+    found: dict[str, str] = {}
+    for path in sorted(conf_dir("recogniser").glob("*.yaml")):
+        target = (yaml.safe_load(path.read_text()) or {}).get("_target_")
+        found.setdefault(str(target), path.stem)
+    return found
+
+
+def recogniser_of(info: dict, config: dict | None) -> str | None:
+    """The recogniser a cell ran, from its records: None when its method looks at no pictures; else
+    the kind it recorded (``relation_net``, ``protonet``), else the config group whose
+    ``_target_`` its recorded config names (``fixed_accuracy``...), else that ``_target_``."""
+    if not sees_pictures(info["method"]):
+        return None
+    kind = (info.get("recogniser") or {}).get("kind")
+    if kind:
+        return kind
+    target = str(((config or {}).get("recogniser") or {}).get("_target_"))
+    return recogniser_groups().get(target, target)
+
+
 def settings(info: dict) -> dict[str, str]:
     """A cell's settings as words, by setting (the recorded ``info`` of its records)."""
     method = info["method"]

@@ -1,8 +1,9 @@
 """Summary statistics for the report: mean, standard deviation and a seeded 95% bootstrap interval
 of the mean (tables); per-episode means with a 95% t interval (the bands of learning curves);
 bootstrap intervals of differences between cells (the claims) and of break-even levels
-(:func:`break_even`); Wilson intervals of shares of runs; conservative normal intervals for
-accuracies of which only sums over draws are recorded (Tables 1 and 2: :func:`bounded_sd`).
+(:func:`break_even`); Wilson intervals of shares of runs; stratified bootstrap over the accuracy
+study's random draws (Tables 1 and 2: :func:`stratified_means`); bootstrap p-values
+(:func:`bootstrap_p`) and Holm's step-down correction across the checks of a claim (:func:`holm`).
 
 The independent unit of a trial is its run seed: the cells of an experiment (and the experiments
 recorded with the same seed and run count) share run ``r``'s obstacle placement and random
@@ -25,10 +26,54 @@ def bootstrap_ci(
         return (float("nan"), float("nan"))
     if v.size == 1:
         return (float(v[0]), float(v[0]))
+    return percentile_ci(bootstrap_means(v, resamples=resamples, seed=seed), level)
+
+
+def bootstrap_means(values, *, resamples: int = 2000, seed: int = 0) -> np.ndarray:
+    """The means of ``resamples`` resamples of ``values`` with replacement (seeded)."""
+    v = np.asarray(values, dtype=float)
     rng = np.random.default_rng(seed)
-    means = v[rng.integers(0, v.size, size=(resamples, v.size))].mean(axis=1)
-    lo, hi = np.quantile(means, [(1 - level) / 2, 1 - (1 - level) / 2])
+    return v[rng.integers(0, v.size, size=(resamples, v.size))].mean(axis=1)
+
+
+def stratified_means(values, *, resamples: int = 2000, seed: int = 0) -> np.ndarray:
+    """Bootstrap means of ``values`` (strata x draws, one row per stratum: the accuracy study's
+    substituted categories, each with its own ``repeats`` independent draws), resampling draws
+    within each stratum, so every resample keeps the design's draws per stratum (seeded)."""
+    v = np.atleast_2d(np.asarray(values, dtype=float))
+    rng = np.random.default_rng(seed)
+    index = rng.integers(0, v.shape[1], size=(resamples, *v.shape))
+    return np.take_along_axis(v[None], index, axis=2).mean(axis=(1, 2))
+
+
+def percentile_ci(draws, level: float = 0.95) -> tuple[float, float]:
+    """The percentile interval of bootstrap ``draws`` of a statistic."""
+    lo, hi = np.quantile(np.asarray(draws, dtype=float), [(1 - level) / 2, 1 - (1 - level) / 2])
     return (float(lo), float(hi))
+
+
+def bootstrap_p(draws, null: float = 0.0) -> float:
+    """Two-sided bootstrap p-value of ``null`` for a statistic with bootstrap ``draws``: twice the
+    smaller share of draws on either side of it (each share counted as ``(k + 1) / (B + 1)``), so
+    ``p <= a`` where the percentile interval at level ``1 - a`` excludes ``null``."""
+    d = np.asarray(draws, dtype=float)
+    below, above = np.sum(d <= null), np.sum(d >= null)
+    return float(min(1.0, 2 * (min(below, above) + 1) / (d.size + 1)))
+
+
+def holm(pvalues, level: float = 0.05) -> tuple[list[float], list[bool]]:
+    """Holm's step-down correction (Holm 1979) of ``m`` tests: sorted by p-value, the ``i``-th
+    smallest (from 0) is rejected when ``p <= level / (m - i)`` and every smaller one was; the family
+    errs with probability at most ``level``. Returns each test's threshold and whether it is
+    rejected, in the given order."""
+    p = np.asarray(pvalues, dtype=float)
+    thresholds, rejected = [0.0] * p.size, [False] * p.size
+    going = True
+    for i, k in enumerate(np.argsort(p, kind="stable")):
+        thresholds[k] = level / (p.size - i)
+        going = going and bool(p[k] <= thresholds[k])
+        rejected[k] = going
+    return thresholds, rejected
 
 
 def cluster_means(values, clusters) -> np.ndarray:
@@ -106,13 +151,18 @@ def bootstrap_difference(
     ``b[i]`` come from one run seed (resample seeds, the differences' mean); else the two are
     resampled independently."""
     a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    draws = difference_draws(a, b, paired=paired, resamples=resamples, seed=seed)
+    return (float(a.mean() - b.mean()), *percentile_ci(draws, level))
+
+
+def difference_draws(a, b, *, paired: bool, resamples: int = 2000, seed: int = 0) -> np.ndarray:
+    """Bootstrap draws of ``mean(a) - mean(b)`` (:func:`bootstrap_difference`'s resamples)."""
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
     if paired:
-        d = a - b
-        return (float(d.mean()), *bootstrap_ci(d, level=level, resamples=resamples, seed=seed))
+        return bootstrap_means(a - b, resamples=resamples, seed=seed)
     rng = np.random.default_rng(seed)
     means = [x[rng.integers(0, x.size, size=(resamples, x.size))].mean(axis=1) for x in (a, b)]
-    lo, hi = np.quantile(means[0] - means[1], [(1 - level) / 2, 1 - (1 - level) / 2])
-    return (float(a.mean() - b.mean()), float(lo), float(hi))
+    return means[0] - means[1]
 
 
 def break_even(
@@ -152,18 +202,3 @@ def wilson_ci(share: float, n: int) -> tuple[float, float]:
     centre = (share + z * z / (2 * n)) / (1 + z * z / n)
     half = z / (1 + z * z / n) * np.sqrt(share * (1 - share) / n + z * z / (4 * n * n))
     return (float(max(centre - half, 0.0)), float(min(centre + half, 1.0)))
-
-
-def bounded_sd(means, weights=None, low: float = 0.0, high: float = 1.0) -> float:
-    """The largest standard deviation of a weighted sum of parts, each in ``[low, high]`` with the
-    given mean: a part's variance is at most ``(high - mean) * (mean - low)`` (Bhatia-Davis), and
-    the standard deviations of a sum add at most. For accuracies of which only sums over draws are
-    recorded: the parts are what the sums give separately (Table 1's categories)."""
-    m = np.atleast_1d(np.asarray(means, dtype=float))
-    w = np.full(m.size, 1.0 / m.size) if weights is None else np.asarray(weights, dtype=float)
-    return float(np.sum(w * np.sqrt(np.clip((high - m) * (m - low), 0.0, None))))
-
-
-def normal_ci(value: float, se: float) -> tuple[float, float]:
-    """``value ± 1.96 se``: the 95% interval of an estimate with standard error ``se``."""
-    return (value - Z975 * se, value + Z975 * se)

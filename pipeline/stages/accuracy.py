@@ -4,7 +4,7 @@ On the rendered query and support pictures with the meta-trained checkpoint (doc
 
     python -m pipeline accuracy [recogniser=<name of pipeline/conf/recogniser/>] [recogniser.checkpoint=...] [study.repeats=...]
 
-Writes ``out_dir``/baseline.csv, table1.csv, table2.csv and summary.json (with the colour test:
+Writes ``out_dir``/baseline.csv, table1.csv, table2.csv, draws.csv (every random draw) and summary.json (with the colour test:
 the query pictures hue-turned by each of ``study.hue_shifts``, ``pipeline.fewshot.colour``) for the report stage.
 """
 
@@ -20,7 +20,13 @@ import numpy as np
 from pipeline.errors import ConfigError
 from pipeline.fewshot.accuracy_study import run_study
 from pipeline.fewshot.colour import colour_test
-from pipeline.fewshot.study_tables import baseline_frame, summary, table1_frame, table2_frame
+from pipeline.fewshot.study_tables import (
+    baseline_frame,
+    draws_frame,
+    summary,
+    table1_frame,
+    table2_frame,
+)
 from pipeline.files import write_json_atomic
 from pipeline.stages._common import stage_main
 from pipeline.stages._recognisers import (
@@ -76,6 +82,7 @@ def run(cfg: AccuracyConfig, overrides: list[str] = ()) -> dict:
     baseline_frame(result, names).to_csv(out / "baseline.csv", index=False)
     table1_frame(result, config.repeats).to_csv(out / "table1.csv", index=False)
     table2_frame(result).to_csv(out / "table2.csv", index=False)
+    draws_frame(result, names).to_csv(out / "draws.csv", index=False)
     data = summary(result, names)
     data["colour_test"] = (
         None if turned is None else colour_test(result.baseline_predictions, turned, categories)
