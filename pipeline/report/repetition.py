@@ -254,7 +254,7 @@ def repetition_section(rep, exp: Experiment, experiments: list[Experiment]) -> N
     fixed = next((k for k in curves if k.startswith("fixed")), None)
     net = curves[label]
     extra = (
-        f" At r = {net['r'][0]:g}, where few substituted pictures come back, the {label} still gains "
+        f" At r = {net['r'][0]:g}, where a substituted picture is never seen again, the {label} still gains "
         f"{100 * net['relative'][0][0]:.1f}% [{100 * net['relative'][1][0]:.1f}, "
         f"{100 * net['relative'][2][0]:.1f}]: what a new support picture teaches it about the others."
     )
