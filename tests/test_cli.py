@@ -143,8 +143,10 @@ def test_overwrite_removes_the_cells_the_previous_run_had_and_this_one_has_not(t
     assert done.returncode == 0, done.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == [
         "carry",
+        "carry_paper",
         "notes.txt",
         "restore",
+        "restore_paper",
         "summary.json",
     ]
 

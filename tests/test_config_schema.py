@@ -161,12 +161,14 @@ def test_experiment_overrides_apply_to_every_cell(tmp_path):
         "fewshot_dss",
         "fewshot_protonet",
         "fewshot_dss_protonet",
-    }  # the protonet cells keep their own recogniser
+        "fewshot_paper",
+        "fewshot_dss_paper",
+    }  # the protonet and paper_tables cells keep their own recogniser
     from pipeline.records import read_records
 
     for cell in index["cells"]:
         summary = json.loads((tmp_path / cell / "summary.json").read_text())
-        method = cell.removesuffix("_protonet")
+        method = cell.removesuffix("_protonet").removesuffix("_paper")
         assert summary["method_spec"]["alpha"] == 0.5 and summary["method"] == method
         config = read_records(tmp_path / cell / "records.mcap", pictures=False).meta.config
         assert (
@@ -202,7 +204,7 @@ def test_a_cell_keeps_what_it_pins():
     cells = experiment_cells(cfg, args)
     assert cells["way1"].method.alpha == 0.2 and cells["way2"].method.alpha == 0.5
     assert {c.method.gamma for c in cells.values()} == {0.8}
-    assert [c.substitution for c in cells.values()] == [1, 2, 3, 4]
+    assert [c.substitution for c in cells.values()] == [1, 2, 3, 4] * 2  # RN, then paper_tables
     only = load_config("trials", args)
     only.experiment.cells = {"way1": only.experiment.cells["way1"]}
     only.experiment.cells["way1"].params = {"alpha": 0.2}

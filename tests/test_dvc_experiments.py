@@ -120,7 +120,7 @@ def test_exp_run_set_param_reruns_trials_and_shows_param_and_metrics(tmp_path):
         "episodes": 20,
     }
     metrics = {Path(f).stem: m["data"] for f, m in two["metrics"].items()}
-    assert set(metrics) == {"restore", "carry"}
+    assert set(metrics) == {"restore", "carry", "restore_paper", "carry_paper"}
     assert set(metrics["restore"]) == {"collisions", "ci_low", "ci_high", "converged"}
     assert (
         base["params"]["pipeline/conf/profile/smoke.yaml"]["data"]["trials"]["runs"] == 2

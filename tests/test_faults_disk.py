@@ -91,7 +91,7 @@ def test_a_full_disk_stops_an_experiment_with_workers_in_one_line(mount_small):
         ),
         f"config key 'out': no space left on the device of {out}",
         "; cell 'way",  # the cell that met the full disk: what it needs, or that it could not start
-        "(one of 4 cells)",
+        "(one of 8 cells)",
     )
     assert [p.name for p in out.iterdir()] == []
 

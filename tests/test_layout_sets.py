@@ -57,16 +57,28 @@ def test_a_bad_set_is_refused_naming_its_key(entry, key):
     assert caught.value.key == key
 
 
-def test_two_sets_of_one_size_are_refused():
-    with pytest.raises(LayoutSetError, match="one set per size") as caught:
+def test_two_sets_of_one_size_need_seeds_that_do_not_overlap():
+    with pytest.raises(LayoutSetError, match="overlap set 0") as caught:
         expand(
             [
-                {"size": "5x5", "obstacles": 9, "count": 1},
-                {"size": "5x5", "obstacles": 8, "count": 1},
+                {"size": "5x5", "obstacles": 9, "count": 3},
+                {"size": "5x5", "obstacles": 8, "count": 1, "seed": 2},
             ],
             ["a"],
         )
-    assert caught.value.key == "1.size"
+    assert caught.value.key == "1.seed"
+    cells = expand(
+        [
+            {"size": "11x11", "obstacles": 20, "count": 2, "seed": 1000},
+            {"size": "11x11", "obstacles": 30, "count": 1, "seed": 2000},
+        ],
+        ["a"],
+    )
+    assert {n: c.maze for n, c in cells.items()} == {
+        "a_11x11_L1000": "random:11x11:20:1000:unique",
+        "a_11x11_L1001": "random:11x11:20:1001:unique",
+        "a_11x11_L2000": "random:11x11:30:2000:unique",
+    }
 
 
 def test_the_papers_sizes_generate_unique_layouts():

@@ -127,4 +127,9 @@ def test_the_installed_package_finds_its_configs(wheel, tmp_path):
     assert found["methods"] == sorted(p.stem for p in (CONF / "method").glob("*.yaml"))
     assert found["recognisers"] == sorted(p.stem for p in (CONF / "recogniser").glob("*.yaml"))
     assert found["maze"] == (CONF / "mazes" / "7x7.txt").read_text().split()
-    assert found["runs"] == 3 and found["cells"] == ["carry", "restore"]  # profile smoke, fig10
+    assert found["runs"] == 3 and found["cells"] == [
+        "carry",
+        "carry_paper",
+        "restore",
+        "restore_paper",
+    ]  # profile smoke, fig10

@@ -111,11 +111,15 @@ def test_paper_sections_come_from_their_report_blocks(built):
     fig8 = pd.read_csv(d / "reports" / "tables" / "fig8.csv")
     # FIG8_WITHOUT_MODELS gives the Prototypical Network's cells the oracle too (no pictures here), so
     # they read as the paper's few-shot rows; the smoke pipeline checks their own names
-    names = ["Q-learning", "Shield", "SSRL", "Few-shot (static support set)", "Few-shot + DSS"]
-    assert fig8["method"].tolist() == names + names[3:]
-    # the paper's numbers for Figure 8 are Table 3's for the same setting (recorded in table3's block)
+    # (the paper_tables cells tell them apart by recogniser)
+    few = ["Few-shot (static support set)", "Few-shot + DSS"]
+    names = ["Q-learning", "Shield", "SSRL", *(f"{n}, recogniser without a model" for n in few)]
+    tables = [f"{n}, paper's Tables 1-2 recogniser" for n in few]
+    assert fig8["method"].tolist() == names + names[3:] + tables
+    # the paper's numbers for Figure 8 are Table 3's for the same setting (recorded in table3's
+    # block); the paper_tables rows have no such setting there
     paper = ["", "", "", "8.77 (Table 3)", "7.145 (Table 3, ways 1-4 pooled)"]
-    assert fig8["paper"].fillna("").tolist() == paper + paper[3:]
+    assert fig8["paper"].fillna("").tolist() == paper + paper[3:] + ["", ""]
     for name in (
         "fig8_collisions.png",
         "fig8_learning_curves.png",
@@ -128,19 +132,14 @@ def test_paper_sections_come_from_their_report_blocks(built):
     curves = pd.read_csv(
         d / "reports" / "tables" / "fig8_learning_curves.csv"
     )  # dvc.yaml's plots read these columns
-    assert curves["series"].unique().tolist() == names and {
+    assert curves["series"].unique().tolist() == names + tables and {
         "episode",
         "mean",
         "ci_low",
         "ci_high",
     } <= set(curves)
     table3 = pd.read_csv(d / "reports" / "tables" / "table3.csv")
-    assert table3["method"].tolist() == [
-        "Sarsa",
-        "Constrained RL",
-        "Few-shot (static support set)",
-        "Few-shot + DSS",
-    ]
+    assert table3["method"].tolist() == ["Sarsa", "Constrained RL", *names[3:], *tables]
     assert table3.columns.tolist()[1:] == [
         "5x5 ours",
         "5x5 paper",
@@ -149,13 +148,13 @@ def test_paper_sections_come_from_their_report_blocks(built):
         "11x11 ours",
         "11x11 paper",
     ]
-    assert table3.set_index("method").loc["Few-shot + DSS", "5x5 paper"] == 7.145
+    assert table3.set_index("method").loc[names[4], "5x5 paper"] == 7.145
     assert table3.set_index("method").loc["Sarsa", "7x7 paper"] == "not converged"
     data = pd.read_csv(d / "reports" / "tables" / "table3_data.csv")
     dss = data[(data["row"] == "fewshot_dss") & (data["maze"] == "5x5")]
     assert dss["n"].tolist() == [12]  # the DSS row pools the four ways: 4 cells x 3 runs
     curves = pd.read_csv(d / "reports" / "tables" / "table3_learning_curves.csv")
-    assert "Few-shot + DSS (5x5)" in set(curves["series"])
+    assert f"{names[4]} (5x5)" in set(curves["series"])
 
 
 def test_claims_section_is_generated_from_the_records(built):

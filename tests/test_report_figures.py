@@ -182,6 +182,11 @@ def test_metrics_are_a_file_per_cell_and_per_template_and_size_over_layouts(tmp_
     assert tuple(shield) == KEYS and shield["collisions"] == 13.0 and shield["converged"] == 0.5
     assert shield["ci_low"] <= 13.0 <= shield["ci_high"]
     assert json.loads((folder / "ssrl_5x5.json").read_text())["collisions"] == 7.0
+    # sets that share a size (the repetition experiment) are told apart by their obstacles
+    exp.layouts.sizes.append(LayoutSet(size="5x5", obstacles=4, count=1, seed=10, unique=False))
+    summaries["shield_5x5_L10"] = summary([1, 3])
+    files = sorted(p.name for p in write_metrics(tmp_path / "n", exp, summaries).iterdir())
+    assert files == ["shield_5x5_4obstacles.json", "shield_5x5_9obstacles.json", "ssrl_5x5.json"]
 
 
 def test_the_index_of_a_folder_lists_every_file_with_its_hash(tmp_path):

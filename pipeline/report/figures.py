@@ -198,9 +198,14 @@ def curves(
 def long_term(series: dict[str, np.ndarray], title: str, path: Path, paper=None, styles=None):
     """Collisions of each consecutive experiment (numbered from 1, the runs in order) per label,
     and their means with 95% bootstrap intervals and the paper's numbers where given
-    (:func:`paper_marks`)."""
+    (:func:`paper_marks`). The bars' panel widens with their number (1.55 inches a bar from 2)."""
+    bars = max(len(series), 2)
     fig, (ax1, ax2) = plt.subplots(
-        1, 2, figsize=(10, 4.2), gridspec_kw={"width_ratios": [2.2, 1]}, layout="constrained"
+        1,
+        2,
+        figsize=(6.9 + 1.55 * bars, 4.2),
+        gridspec_kw={"width_ratios": [2.2, 0.5 * bars]},
+        layout="constrained",
     )
     for i, (label, values) in enumerate(series.items()):
         s = style(styles, label, i)

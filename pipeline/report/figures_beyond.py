@@ -171,3 +171,54 @@ def feature_scatter(df, features: dict[str, str], path: Path, fit, colours: dict
         frameon=False,
     )
     return save(fig, path)
+
+
+def gain_curves(curves: dict[str, dict], beside: dict[str, dict], path: Path):
+    """Two panels, the DSS gain and the relative gain against r: per recogniser (``curves``: label
+    -> ``r`` and ``gain``/``relative`` as ``(mean, ci_low, ci_high)`` arrays) a line with its band,
+    in the series colours by position; ``beside`` (label -> maze -> ``(r, gain, relative)``): points
+    named by maze (Table 3's), in black, filled for the first label and hollow for the second."""
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4.0))
+    for ax, key, unit in (
+        (axes[0], "gain", "DSS gain (collisions per run)"),
+        (axes[1], "relative", "relative DSS gain"),
+    ):
+        for i, (label, c) in enumerate(curves.items()):
+            mean, lo, hi = c[key]
+            colour = palette.SERIES[(i + 1) % len(palette.SERIES)]
+            ax.plot(c["r"], mean, "o-", color=colour, label=label, ms=4, lw=1.4)
+            ax.fill_between(c["r"], lo, hi, color=colour, alpha=0.2, lw=0)
+        for j, (label, points) in enumerate(beside.items()):
+            xs = [p[0] for p in points.values()]
+            ys = [p[1 if key == "gain" else 2] for p in points.values()]
+            ax.plot(
+                xs,
+                ys,
+                ls=":",
+                marker="s",
+                color=palette.PAPER,
+                mfc=palette.PAPER if j == 0 else "white",
+                lw=0.8,
+                ms=6,
+                label=label,
+            )
+        ax.set_xlabel("r: cells per physical obstacle")
+        ax.set_ylabel(unit)
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+        ax.set_ylim(bottom=min(0, ax.get_ylim()[0]))
+        ax.grid(alpha=0.3)
+    axes[1].yaxis.set_major_formatter(lambda v, _: f"{100 * v:.0f}%")
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(
+        handles,
+        labels,
+        fontsize=8,
+        loc="upper center",
+        bbox_to_anchor=(0.5, 0.0),
+        ncol=min(len(labels), 3),
+        frameon=False,
+    )
+    fig.suptitle(
+        "The DSS gain against obstacle repetition (11x11) and Table 3's mazes", fontsize=10
+    )
+    return save(fig, path)

@@ -96,10 +96,12 @@ def sees_pictures(method: dict) -> bool:
 def recogniser_names() -> dict[str, str]:
     """Display names of the recognisers that record a ``kind`` (``describe()`` in the records),
     by kind: each declares its own as ``display_name`` beside its ``kind``
-    (:class:`pipeline.fewshot.recogniser.SupportSetRecogniser`'s subclasses)."""
+    (:class:`pipeline.fewshot.recogniser.SupportSetRecogniser`'s subclasses, and
+    :class:`pipeline.fewshot.paper_tables.PaperTablesRecogniser`, which scores without a network)."""
+    from pipeline.fewshot.paper_tables import PaperTablesRecogniser
     from pipeline.fewshot.recogniser import SupportSetRecogniser
 
-    found, todo = {}, [SupportSetRecogniser]
+    found, todo = {}, [SupportSetRecogniser, PaperTablesRecogniser]
     while todo:
         cls = todo.pop()
         todo += cls.__subclasses__()

@@ -47,6 +47,7 @@ from pipeline.report.parts import (
     write_curves_table,
 )
 from pipeline.report.pooling import collisions, convergence, describe_runs, pool_note, pooled
+from pipeline.report.repetition import repetition_section
 from pipeline.report.spec import PER_CELL_KINDS
 from pipeline.report.stats import describe, fmt
 
@@ -69,7 +70,10 @@ def section(rep, exp: Experiment, experiments: list[Experiment] = ()) -> list[st
         text += f"\n{note}\n"
     rep.add(text)
     per_cell = exp.spec.kind in PER_CELL_KINDS  # no rows to put the paper's numbers beside
-    KINDS[exp.spec.kind](rep, exp, {} if per_cell else paper_values(exp, experiments))
+    if exp.spec.kind == "repetition":  # set beside Table 3's records
+        repetition_section(rep, exp, list(experiments))
+    else:
+        KINDS[exp.spec.kind](rep, exp, {} if per_cell else paper_values(exp, experiments))
     return missing
 
 

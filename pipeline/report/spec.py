@@ -32,10 +32,20 @@ from pipeline.schema import problem, setting
 #: per maze, the cells without a recogniser as reference lines, and the break-even accuracies.
 #: ``generalisation``: cells over generated layouts (``experiment.layouts``): per size, collisions
 #: over layouts per method, the fraction of layouts where each of the paper's claims holds, and
-#: collisions against layout features (:mod:`pipeline.report.generalisation`).
-KINDS = ("default", "bars", "long_term", "by_maze", "accuracy_curve", "generalisation")
+#: collisions against layout features (:mod:`pipeline.report.generalisation`). ``repetition``:
+#: cells over generated layouts of one size whose sets differ in obstacles: the DSS gain against
+#: how often each obstacle repeats, beside Table 3's (:mod:`pipeline.report.repetition`).
+KINDS = (
+    "default",
+    "bars",
+    "long_term",
+    "by_maze",
+    "accuracy_curve",
+    "generalisation",
+    "repetition",
+)
 #: Kinds that draw one point per cell (no pooled rows, no learning curves).
-PER_CELL_KINDS = ("accuracy_curve", "generalisation")
+PER_CELL_KINDS = ("accuracy_curve", "generalisation", "repetition")
 
 
 @dataclass

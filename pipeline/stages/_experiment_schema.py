@@ -66,7 +66,7 @@ class Layouts:
     the template on the layout of ``size`` with that seed."""
 
     sizes: list[LayoutSet] = field(default_factory=list)
-    """The sets of generated layouts, one per size."""
+    """The sets of generated layouts (sets of one size with seeds that do not overlap)."""
     cells: dict[str, Cell] = field(default_factory=dict)
     """Templates: cells without a maze (each generated cell gets its layout's)."""
 

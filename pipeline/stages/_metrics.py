@@ -3,7 +3,8 @@
 ``dvc metrics show`` prints one line per metrics file with a column per key, so an experiment's
 metrics are a folder (``metrics_dir``) of files with the same few keys: ``<cell>.json`` for each
 cell listed by hand, and ``<template>_<size>.json`` for each cell template over a set of generated
-layouts (the mean over layouts of each layout's mean collisions per run, with a 95% bootstrap
+layouts (``<template>_<size>_<obstacles>obstacles.json`` where several sets share the size: the
+``repetition`` experiment's) (the mean over layouts of each layout's mean collisions per run, with a 95% bootstrap
 interval over layouts). Every number per cell and per layout stays in the report's CSV tables.
 """
 
@@ -25,14 +26,18 @@ KEYS = ("collisions", "ci_low", "ci_high", "converged")
 
 def rows(experiment, summaries: dict[str, dict]) -> dict[str, list[dict]]:
     """The cells' summaries grouped into metric rows: a hand-listed cell alone, generated cells by
-    (template, size)."""
+    (template, size), and by obstacles where several sets share a size."""
     generated = {}
     if experiment is not None and experiment.layouts is not None:
         from pipeline.world.layout_sets import expand
 
         sets = [asdict(s) for s in experiment.layouts.sizes]
+        sizes = [s["size"] for s in sets]
         for name, g in expand(sets, list(experiment.layouts.cells)).items():
-            generated[name] = f"{g.template}_{sets[g.set_index]['size']}"
+            s = sets[g.set_index]
+            shared = sizes.count(s["size"]) > 1  # sets of one size: told apart by obstacles
+            tail = f"{s['size']}_{s['obstacles']}obstacles" if shared else s["size"]
+            generated[name] = f"{g.template}_{tail}"
     out: dict[str, list[dict]] = {}
     for name, summary in summaries.items():
         out.setdefault(generated.get(name, name), []).append(summary)

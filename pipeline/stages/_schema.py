@@ -63,6 +63,10 @@ class TrialsProfile:
     reads it as each set's ``count``)."""
     layout_runs: int = setting(ge=1)
     """Runs per cell of an experiment over generated layouts (``generalisation.yaml``'s ``runs``)."""
+    repetition_layouts: int = setting(ge=1)
+    """Generated layouts per repetition count of ``pipeline/conf/experiment/repetition.yaml``."""
+    repetition_runs: int = setting(ge=1)
+    """Runs per cell of ``repetition.yaml``."""
 
 
 @dataclass

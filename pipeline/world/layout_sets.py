@@ -71,10 +71,11 @@ def cell_name(template: str, size: str, seed: int) -> str:
 def expand(sets: list[dict], templates: list[str]) -> dict[str, GeneratedCell]:
     """Every cell of ``sets`` (dicts with ``size``, ``obstacles``, ``count``, ``seed``,
     ``unique``) crossed with ``templates``, by name: per set, per layout, per template (so
-    a layout's methods are neighbours). Two sets of one size give names that clash: refused
-    (:class:`LayoutSetError` with key ``<i>.size``)."""
+    a layout's methods are neighbours). Sets of one size need seeds that do not overlap (cell
+    names carry the size and the seed): overlapping ones are refused (:class:`LayoutSetError`
+    with key ``<i>.seed``)."""
     out: dict[str, GeneratedCell] = {}
-    sizes: dict[str, int] = {}
+    seeds: dict[str, dict[int, int]] = {}  # size -> seed -> the set that has it
     for i, s in enumerate(sets):
         try:
             mazes = layout_mazes(
@@ -82,13 +83,16 @@ def expand(sets: list[dict], templates: list[str]) -> dict[str, GeneratedCell]:
             )
         except LayoutSetError as exc:
             raise LayoutSetError(f"{i}.{exc.key}", str(exc)) from None
-        if s["size"] in sizes:
+        first = s.get("seed", 0)
+        taken = seeds.setdefault(s["size"], {})
+        clash = next((taken[k] for k in range(first, first + s["count"]) if k in taken), None)
+        if clash is not None:
             raise LayoutSetError(
-                f"{i}.size",
-                f"size {s['size']} is already set {sizes[s['size']]}: one set per size "
-                "(cell names carry the size), raise its count instead",
+                f"{i}.seed",
+                f"size {s['size']} seeds {first}..{first + s['count'] - 1} overlap set {clash}'s "
+                "(cell names carry the size and the seed): start this set after the other's seeds",
             )
-        sizes[s["size"]] = i
+        taken.update(dict.fromkeys(range(first, first + s["count"]), i))
         for k, maze in enumerate(mazes):
             for t in templates:
                 out[cell_name(t, s["size"], s.get("seed", 0) + k)] = GeneratedCell(t, i, k, maze)

@@ -1,0 +1,151 @@
+"""The repetition section (pipeline/report/repetition.py): the DSS gain per recogniser and r from
+the cells, and repetition's share of Table 3's growth, pinned on small exact cases; the section
+with its figure (no overlapping texts) from records made up here."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from pipeline.report import repetition as R
+from pipeline.report.experiments import Cell
+
+
+def cell(name, method, maze, per_run, recogniser=None, p=None, experiment="repetition", rows=()):
+    episodes = pd.DataFrame(
+        {"run": np.arange(len(per_run)), "episode": 0, "collisions": np.asarray(per_run)}
+    )
+    return Cell(
+        experiment=experiment,
+        name=name,
+        info={
+            "method": {"name": method, "dynamic_support": method.endswith("dss")},
+            "maze": maze,
+            "substitution": 1,
+            "recogniser": {"kind": recogniser} if recogniser else None,
+        },
+        layout=list(rows),
+        obstacles={},
+        episodes=episodes,
+        recognitions=pd.DataFrame(),
+        substitutions=pd.DataFrame(),
+        config={"seed": 0, "recogniser": {"p": p} if p is not None else {}},
+    )
+
+
+class Exp:
+    def __init__(self, cells, name="repetition"):
+        self.cells = {c.name: c for c in cells}
+        self.folder = self.name = name
+
+
+def repetition_cells(rel_by_r: dict[int, float], recogniser="relation_net", p=None):
+    """Two layouts per r, 10 collisions without the DSS, 10 * (1 - rel) with it, every run."""
+    out = []
+    for r, rel in rel_by_r.items():
+        for k in range(2):
+            maze = f"random:11x11:{10 * r}:{1000 * r + k}"
+            tag = recogniser or f"p{p}"
+            out.append(cell(f"a_{tag}_{r}_{k}", "fewshot", maze, [10.0] * 4, recogniser, p))
+            out.append(
+                cell(f"b_{tag}_{r}_{k}", "fewshot_dss", maze, [10 * (1 - rel)] * 4, recogniser, p)
+            )
+    return out
+
+
+def test_layout_rows_pair_the_methods_per_layout_and_recogniser():
+    cells = repetition_cells({1: 0.2, 4: 0.5}) + repetition_cells({1: 0.0, 4: 0.4}, None, 0.55)
+    df = R.layout_rows(Exp(cells))
+    assert sorted(df["recogniser"].unique()) == ["Relation Network", "fixed accuracy p = 0.55"]
+    assert sorted(df["r"].unique()) == [1.0, 4.0]
+    rn = df[df["recogniser"] == "Relation Network"].sort_values("r")
+    assert rn["gain"].tolist() == pytest.approx([2.0, 2.0, 5.0, 5.0])
+    rows, curves = R.curve_table(df)
+    c = curves["Relation Network"]
+    assert c["relative"][0] == pytest.approx([0.2, 0.5])  # no spread: the intervals collapse
+    assert c["relative"][1] == pytest.approx([0.2, 0.5]) and c["gain"][2] == pytest.approx([2, 5])
+    assert rows[0]["relative gain [95% CI]"] == "20.0% [20.0, 20.0]"
+
+
+def test_read_at_interpolates_and_holds_the_ends():
+    rs, v = np.array([1.0, 2.0, 5.0]), np.array([0.1, 0.3, 0.6])
+    assert R.at(rs, v, 0.9) == 0.1 and R.at(rs, v, 1.5) == pytest.approx(0.2)
+    assert R.at(rs, v, 4.9) == pytest.approx(0.59) and R.at(rs, v, 6) == 0.6
+
+
+def table3(rel5, rel11):
+    rows5 = ["SX" + "X" * 7]  # 9 obstacles: r = 0.9
+    rows11 = ["X" * 49]  # r = 4.9
+    runs = np.arange(4)
+    return {
+        "5x5": (0.9, pd.Series(10.0, index=runs), pd.Series(10 * (1 - rel5), index=runs)),
+        "11x11": (4.9, pd.Series(10.0, index=runs), pd.Series(10 * (1 - rel11), index=runs)),
+        "_rows": (rows5, rows11),
+    }
+
+
+def test_the_verdict_is_repetitions_share_of_table_3s_growth():
+    # at one size the relative gain goes 0.2 (r <= 1) -> 0.6 (r = 4.9, between 4 and 5): +0.4;
+    # Table 3's goes 0.0 -> 0.8: +0.8, so repetition accounts for half of it
+    df = R.layout_rows(Exp(repetition_cells({1: 0.2, 4: 0.6, 5: 0.6})))
+    t3 = table3(0.0, 0.8)
+    rows, n = R.verdict(df, {k: v for k, v in t3.items() if k != "_rows"}, "Relation Network")
+    est, lo, hi, rep_pts, t3_pts = n["relative gain"]
+    assert est == pytest.approx(0.5) and lo == pytest.approx(0.5) and hi == pytest.approx(0.5)
+    assert rep_pts == pytest.approx(40) and t3_pts == pytest.approx(80)
+    assert rows[0]["repetition's share [95% CI]"] == "50% [50, 50]"
+    assert R.words(0.7, 0.5, 0.9) == "most of it" and R.words(0.1, 0.05, 0.15) == "little of it"
+    assert R.words(0.95, 0.85, 1.1) == "nearly all of it" and R.words(0.3, 0.1, 0.5) == "part of it"
+
+
+def test_the_section_builds_with_table_3_beside(tmp_path):
+    from pipeline.report.build import Report
+
+    rep = Report(tmp_path)
+    rng = np.random.default_rng(0)
+    cells = []
+    for r in (1, 2, 3, 4):
+        for k in range(3):
+            maze = f"random:11x11:{10 * r}:{1000 * r + k}"
+            for rec, p in (("relation_net", None), (None, 0.55)):
+                tag = rec or "fixed"
+                w = 10 + 5 * r + rng.normal(0, 1, 5)
+                cells.append(cell(f"w_{tag}_{r}_{k}", "fewshot", maze, w, rec, p))
+                cells.append(
+                    cell(f"d_{tag}_{r}_{k}", "fewshot_dss", maze, w * (1 - 0.15 * r), rec, p)
+                )
+    t3 = []
+    for maze, n, rel in (("5x5", 9, 0.01), ("7x7", 16, 0.3), ("11x11", 49, 0.65)):
+        rows = ["X" * n]
+        w = 10 + rng.normal(0, 1, 6)
+        t3.append(
+            cell(
+                f"fewshot_{maze}",
+                "fewshot",
+                maze,
+                w,
+                "relation_net",
+                experiment="table3",
+                rows=rows,
+            )
+        )
+        for way in (1, 2, 3, 4):
+            t3.append(
+                cell(
+                    f"dss{way}_{maze}",
+                    "fewshot_dss",
+                    maze,
+                    w * (1 - rel),
+                    "relation_net",
+                    experiment="table3",
+                    rows=rows,
+                )
+            )
+    table = Exp(t3, "table3")
+    R.repetition_section(rep, Exp(cells), [table])
+    text = "\n".join(rep.sections)
+    assert "**Verdict.**" in text and "repetition accounts for" in text
+    assert (tmp_path / "figures" / "repetition.png").stat().st_size > 1000
+    verdict = pd.read_csv(tmp_path / "tables" / "repetition_verdict.csv")
+    assert verdict["scale"].tolist() == ["relative gain", "absolute gain (collisions per run)"]
