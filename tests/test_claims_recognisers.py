@@ -147,7 +147,7 @@ def test_across_mazes_the_interval_is_unpaired_and_holm_is_stated(tmp_path):
     assert "Holm's correction" in text and "1 − 0.05 / (m − i)" in text
     assert [line for line in text.splitlines() if line.startswith("### ")] == [
         "### With the Relation Network (the paper's recogniser)",
-        "### With the `paper_tables` recogniser",
+        "### With the paper's Tables 1-2",
         "### With the Prototypical Network",
     ]
     assert "—" not in text
