@@ -1,0 +1,168 @@
+"""The robot in MuJoCo (issue 30): the Burger's limits, range sensing, collisions as contacts,
+self-recovery, live camera pictures and few-shot reasoning with the oracle."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from pipeline.rl.agents import TabularAgent, run_episode
+from pipeline.rl.runner import make_run_world
+from pipeline.robot.env import PICTURE_SIZE, SafeNavigation3DEnv
+from pipeline.robot.live import LiveOracle
+from pipeline.robot.model import MAX_SPEED, MAX_TURN
+from pipeline.robot.sim import HEADINGS, RobotSim, wheel_limited
+from pipeline.world.geometry import build_geometry
+from pipeline.world.maze import load_layout
+from pipeline.world.pictures import N_CATEGORIES
+
+#: Self-recovery's stated tolerance (docs/robot3d.md): back within 2 cm of the previous centre.
+RECOVERY_TOLERANCE = 0.02
+
+
+@pytest.fixture(scope="module")
+def maze():
+    layout = load_layout("5x5")
+    geometry = build_geometry(layout)
+    world = make_run_world(geometry, seed=11, run=0)
+    return layout, geometry, RobotSim(layout, world.placement)
+
+
+def test_wheel_limits_keep_the_burgers_speeds():
+    for v, w in [(5.0, 0.0), (0.0, 50.0), (-3.0, -9.0), (0.1, 1.0)]:
+        v2, w2 = wheel_limited(v, w)
+        assert abs(v2) <= MAX_SPEED + 1e-12 and abs(w2) <= MAX_TURN + 1e-12
+    assert wheel_limited(0.1, 0.5) == pytest.approx((0.1, 0.5))
+
+
+def test_range_sensor_finds_exactly_the_occupied_neighbours(maze):
+    layout, geometry, sim = maze
+    for s in range(layout.n_cells):
+        if s in layout.obstacles:
+            continue
+        sim.reset(s, heading=s % 4)
+        scan = sim.scan()
+        for a in range(4):
+            if sim.inside(s, a):
+                assert sim.occupied(a, scan) == (geometry.obstacle[s, a] >= 0), (s, a)
+
+
+def test_driving_into_an_obstacle_is_one_contact_and_recovery_returns(maze):
+    layout, geometry, sim = maze
+    s, a = (int(x) for x in np.argwhere(geometry.obstacle >= 0)[0])
+    sim.reset(s)
+    result = sim.move(s, a)
+    assert result.collided and result.cell == s
+    o = geometry.obstacle[s, a]
+    assert result.contact_geom == f"obstacle{o}_box"
+    # the contact lies between the two cells' centres, on the obstacle's side
+    start, blocked = sim.map.centre(s), sim.map.centre(layout.obstacles[o])
+    along = np.dot(np.array(result.contact[:2]) - start, blocked - start) / sim.map.cell**2
+    assert 0.2 < along < 1.0
+    x, y, yaw = sim.pose()
+    assert np.hypot(x - start[0], y - start[1]) < RECOVERY_TOLERANCE
+    # poses at 10 Hz, speeds inside the Burger's limits
+    t, xs, ys, yaws = np.array(result.poses).T
+    assert np.allclose(np.diff(t), 0.1)
+    assert np.all(np.hypot(np.diff(xs), np.diff(ys)) / 0.1 <= MAX_SPEED + 1e-3)
+
+
+def test_free_move_arrives_and_off_grid_move_stays(maze):
+    layout, geometry, sim = maze
+    s = layout.start
+    a = next(a for a in range(4) if geometry.next_cell[s, a] != s)
+    sim.reset(s)
+    result = sim.move(s, a)
+    assert not result.collided and result.cell == geometry.next_cell[s, a]
+    x, y, yaw = sim.pose()
+    assert np.hypot(*(np.array([x, y]) - sim.map.centre(result.cell))) < 0.01
+    assert abs((yaw - HEADINGS[a] + np.pi) % (2 * np.pi) - np.pi) < 0.01
+    assert 1.0 / MAX_SPEED < result.sim_time < 1.0 / MAX_SPEED + 3.0
+    off = next(a for a in range(4) if not sim.inside(result.cell, a))
+    stay = sim.move(result.cell, off)
+    assert stay.cell == result.cell and stay.sim_time == 0.0 and not stay.collided
+
+
+def test_timestep_must_divide_the_control_period():
+    with pytest.raises(ValueError, match="timestep"):
+        RobotSim(
+            load_layout("5x5"),
+            make_run_world(build_geometry(load_layout("5x5")), 0, 0).placement,
+            timestep=0.03,
+        )
+
+
+def _episodes(env, n: int, seed: int):
+    agent = TabularAgent(env.method, env.layout.n_cells, 1234)
+    infos, results = [], []
+    step = env.step
+
+    def logged(a):
+        out = step(a)
+        infos.append(out[4])
+        return out
+
+    env.step = logged
+    for ep in range(n):
+        results.append(run_episode(env, agent, seed=seed if ep == 0 else None))
+    env.step = step
+    return results, infos
+
+
+def test_oracle_fewshot_reaches_the_goal_with_no_contact():
+    env = SafeNavigation3DEnv("5x5", "fewshot_dss", LiveOracle())
+    results, infos = _episodes(env, 8, seed=5)
+    assert not any(i["collided"] for i in infos)
+    assert sum(i["cost"] for i in infos) == 0.0
+    assert any(i["prevented"] for i in infos)  # it met obstacles and recognised them
+    assert all(r["rewards"][-1] == 1.0 for r in results)  # every episode reached the goal
+    env.close()
+
+
+def test_shield_collides_through_contacts_and_recovers():
+    env = SafeNavigation3DEnv("5x5", "shield")
+    results, infos = _episodes(env, 3, seed=5)
+    hits = [i for i in infos if i["collided"]]
+    assert hits and all(i["cost"] == 1.0 and i["contact"] is not None for i in hits)
+    assert all(i["camera"] is None for i in infos)  # shield sees no pictures
+    env.close()
+
+
+def test_same_seed_same_trajectory():
+    runs = []
+    for _ in range(2):
+        env = SafeNavigation3DEnv("5x5", "fewshot", LiveOracle())
+        results, infos = _episodes(env, 2, seed=9)
+        runs.append((results, [(i["poses"], i["contact"], i["sim_time"]) for i in infos]))
+        env.close()
+    (r1, i1), (r2, i2) = runs
+    assert i1 == i2
+    for a, b in zip(r1, r2):
+        assert all(np.array_equal(a[k], b[k]) for k in a)
+
+
+def test_live_picture_of_each_category_is_classified_by_the_oracle():
+    """The oracle names the category of the obstacle on the cell the live picture looks at: it
+    reads the world's ground truth there (``SafeNavigation3DEnv._truth_at``); the picture itself
+    must show an obstacle (not the empty floor), and pictures of different obstacles differ."""
+    env = SafeNavigation3DEnv("5x5", "fewshot", LiveOracle())
+    env.reset(seed=2)
+    g, cats = env.geometry, env.world.true_category
+    seen, pictures = set(), []
+    for s, a in np.argwhere(g.obstacle >= 0):
+        o = g.obstacle[s, a]
+        if cats[o] in seen:
+            continue
+        env.unsafe[:] = False
+        env._place(int(s))
+        _, _, _, _, info = env.step(int(a))
+        assert info["prevented"] and info["camera"].shape == (PICTURE_SIZE, PICTURE_SIZE, 3)
+        assert int(np.argmax(info["scores"])) == cats[o]
+        assert info["camera"].std() > 10  # something in view
+        seen.add(int(cats[o]))
+        pictures.append(info["camera"].astype(int))
+    assert seen == set(range(N_CATEGORIES))
+    for i in range(len(pictures)):
+        for j in range(i):
+            assert np.abs(pictures[i] - pictures[j]).mean() > 5
+    env.close()
