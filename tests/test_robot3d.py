@@ -166,3 +166,37 @@ def test_live_picture_of_each_category_is_classified_by_the_oracle():
         for j in range(i):
             assert np.abs(pictures[i] - pictures[j]).mean() > 5
     env.close()
+
+
+@pytest.fixture(scope="module")
+def live_relation():
+    from pipeline.fewshot.recogniser import RelationRecogniser
+    from pipeline.robot.live import LiveRelation
+
+    return LiveRelation(
+        RelationRecogniser.from_files(
+            "datasets/models/relation_net.pt", "datasets/images", substitution_way=1
+        )
+    )
+
+
+def test_relation_network_scores_live_pictures_and_substitutes_them(live_relation):
+    env = SafeNavigation3DEnv("5x5", "fewshot_dss", live_relation)
+    env.reset(seed=4)
+    s, a = (int(x) for x in np.argwhere(env.geometry.obstacle >= 0)[0])
+    env._place(s)
+    env.sim.face(a)
+    picture = env.sim.picture(PICTURE_SIZE)
+    scores = live_relation.live_scores(env.run_id, picture, truth=-1)
+    assert scores.shape == (N_CATEGORIES,) and np.all((scores >= 0) & (scores <= 1))
+    assert np.array_equal(scores, live_relation.live_scores(env.run_id, picture, truth=3))
+    category = int(np.argmin(scores))
+    position = live_relation.learn_from_live(env.run_id, picture, category)
+    assert 0 <= position < 5
+    members = live_relation.inner.support_members(env.run_id)
+    assert members[category, position] >= live_relation.LIVE_CODE_BASE
+    after = live_relation.live_scores(env.run_id, picture, truth=-1)
+    assert after[category] != scores[category]  # the class state now holds the live picture
+    others = [c for c in range(N_CATEGORIES) if c != category]
+    assert np.array_equal(after[others], scores[others])
+    env.close()

@@ -26,7 +26,8 @@ physics and the recogniser said (``_tables``), so the grid and the robot share o
 live picture, or None), ``scores``, ``contact`` (world point of the collision), ``sim_time``
 (simulated seconds of this step) and ``poses`` (t, x, y, yaw at 10 Hz).
 
-The recogniser must offer ``live_scores(run, image, truth) -> (n_categories,)``. ``truth`` is the
+The recogniser must offer ``live_scores(run, image, truth) -> (n_categories,)`` and
+``learn_from_live(run, image, category) -> position`` (:mod:`pipeline.robot.live`). ``truth`` is the
 world's ground-truth category of the obstacle on the cell the picture looks at: only the oracle
 reads it (it is the oracle: the upper bound of recognition); learned recognisers must ignore it.
 """
@@ -124,7 +125,7 @@ class SafeNavigation3DEnv(gym.Env):
         self._place(self.layout.start)
         return self.state, self._info(
             prevented=False, collided=False, cost=0.0, camera=None, scores=None, contact=None,
-            sim_time=0.0, poses=[], flags=0, added=[],
+            sim_time=0.0, poses=[], flags=0, added=[], substituted=-1,
         )  # fmt: skip
 
     def _target(self, s: int, a: int) -> int:
@@ -138,7 +139,7 @@ class SafeNavigation3DEnv(gym.Env):
         s, sim = self.state, self.sim
         sim_start, poses = sim.time, []
         camera = scores = contact = None
-        recognised = False
+        recognised, truth = False, -1
         inside = sim.inside(s, a)
         if self._sees and inside and sim.occupied(a):
             poses += sim.face(a).poses
@@ -162,12 +163,16 @@ class SafeNavigation3DEnv(gym.Env):
         added = [tuple(int(x) for x in self._added[k]) for k in range(n_added)]
         extra = dict(
             camera=camera, scores=None if scores is None else scores.tolist(), contact=contact,
-            sim_time=round(sim.time - sim_start, 6), poses=poses, added=added,
+            sim_time=round(sim.time - sim_start, 6), poses=poses, added=added, substituted=-1,
         )  # fmt: skip
         if out == Outcome.prevented:
             return s, 0.0, False, False, self._info(prevented=True, collided=False, cost=0.0,
                                                     flags=0, **extra)  # fmt: skip
         collided = out == Outcome.collided
+        if collided and self._params.dynamic and camera is not None:
+            # self-recovery's reflection (section 3.3): the live picture joins the support set of
+            # the category the robot collided with (the world tells it, as in the grid world)
+            extra["substituted"] = self.recogniser.learn_from_live(self.run_id, camera, truth)
         if collided and terminated:
             s2 = s  # the episode ends where the robot stopped; the grid state stays the last cell
         self.t += 1
