@@ -200,3 +200,36 @@ def test_relation_network_scores_live_pictures_and_substitutes_them(live_relatio
     others = [c for c in range(N_CATEGORIES) if c != category]
     assert np.array_equal(after[others], scores[others])
     env.close()
+
+
+def test_gymnasium_ids_check_env_and_six_values():
+    import gymnasium
+    from gymnasium.utils.env_checker import check_env
+
+    import pipeline
+    from pipeline.envs import SixValueStep
+
+    assert set(pipeline.ENV_IDS_3D) <= set(gymnasium.registry)
+    env = gymnasium.make(
+        "SafeNav3D-5x5-v0", method="fewshot", recogniser="oracle", render_mode="rgb_array"
+    )
+    check_env(env.unwrapped, skip_render_check=False)
+    with pytest.raises(ValueError, match="7x7"):
+        gymnasium.make("SafeNav3D-5x5-v0", maze="7x7")
+    with pytest.raises(ValueError, match="cannot score live"):
+        gymnasium.make("SafeNav3D-5x5-v0", method="fewshot", recogniser="fixed_accuracy")
+    for env_id in ("SafeNav3D-5x5-v0", "SafeNav-5x5-v0"):
+        wrapped = SixValueStep(gymnasium.make(env_id, method="shield"))
+        wrapped.reset(seed=0)
+        costs = []
+        for a in (1, 1, 2, 2, 1, 1, 2, 2):
+            obs, reward, cost, terminated, truncated, info = wrapped.step(a)
+            costs.append(cost)
+            assert cost == float(info["collided"])
+            if terminated or truncated:
+                break
+        assert 1.0 in costs  # the start's east neighbour is an obstacle
+    env.reset(seed=0)
+    frame = env.render()
+    assert frame.shape == (480, 640, 3) and frame.dtype == np.uint8
+    env.close()
