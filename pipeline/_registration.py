@@ -24,7 +24,7 @@ MAZES = ("5x5", "7x7", "11x11")
 ENV_IDS = ("SafeNav-v0", *(f"SafeNav-{maze}-v0" for maze in MAZES))
 #: ``SafeNav3D-<maze>-v0``: the same task with the camera robot in MuJoCo (``pipeline.robot``).
 ENV_IDS_3D = tuple(f"SafeNav3D-{maze}-v0" for maze in MAZES)
-ENTRY_POINT_3D = "pipeline.robot.gym:make_env3d"
+ENTRY_POINT_3D = "pipeline.envs3d:make_env3d"
 #: The method of the registered ids; other methods by keyword (``gymnasium.make(id, method=...)``).
 DEFAULT_METHOD = "shield"
 #: ``max_episode_steps`` of the ids: the default method's ``max_steps`` (``MethodSpec``; a test checks
