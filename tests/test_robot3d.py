@@ -233,3 +233,37 @@ def test_gymnasium_ids_check_env_and_six_values():
     frame = env.render()
     assert frame.shape == (480, 640, 3) and frame.dtype == np.uint8
     env.close()
+
+
+@pytest.mark.parametrize("method", ["shield", "fewshot_dss"])
+def test_robot_trials_match_the_grid_with_the_oracle(method):
+    """With the oracle the robot's outcomes are the grid's: the same placement, exploration and
+    collisions from the same seed (a collision is a contact exactly where the grid has one)."""
+    from pipeline.rl.methods import get_method
+    from pipeline.rl.runner import run_trials
+    from pipeline.robot.trials import run_robot_trials
+
+    class Sink:
+        def __init__(self):
+            self.batches, self.robot, self.subs = [], [], []
+
+        def episodes(self, **b):
+            self.batches.append(b)
+
+        def substitution(self, **k):
+            self.subs.append(k)
+
+        def episode(self, **k):
+            self.robot.append(k)
+
+    layout, spec, sink = load_layout("5x5"), get_method(method), Sink()
+    robot = run_robot_trials(layout, spec, 2, 3, 0, recogniser=LiveOracle(), sink=sink,
+                             robot_sink=sink)  # fmt: skip
+    grid = run_trials(layout, spec, 2, 3, 0, recogniser=LiveOracle(), progress=False)
+    for key in ("steps", "collisions", "returns", "reached_goal", "prevented", "greedy_optimal"):
+        assert np.array_equal(getattr(robot, key), getattr(grid, key)), key
+    assert len(sink.batches) == len(sink.robot) == 6
+    for b, r in zip(sink.batches, sink.robot):
+        assert r["sim_time"] > 0 and len(r["poses"]) >= 10 * r["sim_time"] - 1
+        assert len(r["contacts"]) == int(b["summary"]["collisions"][0])
+        assert len(r["pictures"]) == len(b["recognitions"]["episode"])

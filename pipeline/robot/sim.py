@@ -196,18 +196,26 @@ class RobotSim:
         raise RuntimeError(f"robot did not turn to {heading:.3f} rad in {MAX_TICKS} ticks")
 
     def _drive(self, target: np.ndarray, poses: list, backwards: bool, watch: bool):
-        """Drive straight to ``target``; returns the first contact when ``watch``, else None."""
+        """Drive to ``target`` (forwards, or backwards for self-recovery); returns the first
+        contact when ``watch``, else None. Far from the target (over 5 cm) a heading error over
+        0.2 rad is first turned away in place (a contact can twist the robot); near it the robot
+        drives straight and stops when the distance left along its heading is under the arrival
+        tolerance (a differential drive cannot move sideways)."""
         sign = -1.0 if backwards else 1.0
         for _ in range(MAX_TICKS):
             x, y, yaw = self.pose()
             delta = target - np.array([x, y])
             dist = float(np.hypot(*delta))
-            if dist < ARRIVE_TOLERANCE:
-                return None
             heading = np.arctan2(delta[1], delta[0]) + (np.pi if backwards else 0.0)
-            along = dist * np.cos(wrap(heading - yaw))
-            omega = wrap(heading - yaw) / self.dt if dist > 0.05 else 0.0
-            self._tick(sign * max(along, 0.0) / self.dt, omega, poses)
+            err = wrap(heading - yaw)
+            along = dist * np.cos(err)
+            if dist < ARRIVE_TOLERANCE or (dist <= 0.05 and along < ARRIVE_TOLERANCE):
+                return None
+            if dist > 0.05 and abs(err) > 0.2:
+                self._tick(0.0, err / self.dt, poses)
+            else:
+                omega = err / self.dt if dist > 0.05 else 0.0
+                self._tick(sign * max(along, 0.0) / self.dt, omega, poses)
             if watch:
                 hit = self._contact()
                 if hit is not None:
