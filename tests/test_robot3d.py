@@ -267,3 +267,51 @@ def test_robot_trials_match_the_grid_with_the_oracle(method):
         assert r["sim_time"] > 0 and len(r["poses"]) >= 10 * r["sim_time"] - 1
         assert len(r["contacts"]) == int(b["summary"]["collisions"][0])
         assert len(r["pictures"]) == len(b["recognitions"]["episode"])
+
+
+def test_trials_stage_runs_a_robot_cell_into_both_record_files(tmp_path):
+    from pipeline.records import read_records
+    from pipeline.robot.records import read_robot_records
+    from pipeline.stages._common import run_stage
+
+    args = ["method=fewshot", "world=robot3d", "recogniser=oracle", "runs=1", "episodes=3",
+            "progress=false", "robot.threshold=0.9"]  # fmt: skip
+    summary = run_stage("trials", [*args, f"out={tmp_path / 'a'}"])
+    assert summary["collisions"]["mean"] == 0.0
+    settings, episodes = read_robot_records(tmp_path / "a" / "robot.mcap")
+    assert settings["threshold"] == 0.9 and len(episodes) == 3
+    assert all(e["sim_time"] > 0 and e["poses"] for e in episodes)
+    pictures = [p for e in episodes for p in e["pictures"]]
+    assert pictures and all(np.argmax(p["scores"]) == p["true"] for p in pictures)
+    records = read_records(tmp_path / "a" / "records.mcap")
+    config = records.meta.config
+    assert config["world"] == "robot3d" and config["robot"]["threshold"] == 0.9
+    assert (records.recognitions["picture"] == -1).all()
+    run_stage("trials", [*args, f"out={tmp_path / 'b'}"])
+    for name in ("robot.mcap",):
+        assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes()
+
+
+@pytest.mark.parametrize(
+    "overrides,message",
+    [
+        (
+            ["method=shield", "robot.cell=0.8"],
+            "config key 'robot.cell': read only with world=robot3d",
+        ),
+        (
+            ["method=fewshot", "world=robot3d", "recogniser=fixed_accuracy"],
+            "config key 'recogniser'",
+        ),
+        (["method=shield", "world=mars"], "world"),
+        (["method=shield", "world=robot3d", "robot.timestep=0.03"], "timestep"),
+    ],
+)
+def test_robot_config_is_applied_or_refused(tmp_path, overrides, message):
+    from pipeline.errors import ConfigError
+    from pipeline.stages._common import run_stage
+
+    with pytest.raises((ConfigError, ValueError), match=message):
+        run_stage(
+            "trials", [*overrides, "runs=1", "episodes=1", f"out={tmp_path}", "progress=false"]
+        )
