@@ -69,6 +69,7 @@ def _batch(run: int, ep: int, arrays: dict, steps: list, agent, env) -> tuple[di
     )
     poses, pictures, contacts, sim_time = [], [], [], 0.0
     for s, a, info in steps:
+        started = sim_time
         sim_time += info["sim_time"]
         poses += info["poses"]
         if info["camera"] is not None:
@@ -77,7 +78,7 @@ def _batch(run: int, ep: int, arrays: dict, steps: list, agent, env) -> tuple[di
             for key, v in zip(rec, (ep, executed, s, a, -1, int(scores.argmax()), truth)):
                 rec[key].append(v)
             rec_scores.append(scores)
-            pictures.append({"step": executed, "state": s, "action": a, "image": info["camera"],
+            pictures.append({"step": executed, "time": round(started, 6), "state": s, "action": a, "image": info["camera"],
                              "scores": scores, "true": truth, "prevented": info["prevented"],
                              "substituted": info["substituted"]})  # fmt: skip
         for cell, action, source in info["added"]:
