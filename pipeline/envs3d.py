@@ -51,7 +51,7 @@ def make_env3d(
     run: int = 0,
     render_mode: str | None = None,
     cell: float = DEFAULT_CELL,
-    timestep: float = 0.01,
+    timestep: float = 0.02,
     threshold: float = 0.5,
     registered_maze: str | None = None,
 ) -> SafeNavigation3DEnv:

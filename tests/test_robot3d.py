@@ -315,3 +315,17 @@ def test_robot_config_is_applied_or_refused(tmp_path, overrides, message):
         run_stage(
             "trials", [*overrides, "runs=1", "episodes=1", f"out={tmp_path}", "progress=false"]
         )
+
+
+def test_an_experiment_mixing_worlds_shares_the_recogniser_but_wraps_it_for_the_robot():
+    from pipeline.stages._cell_plan import experiment_cells
+    from pipeline.stages._cell_run import make_recogniser
+    from pipeline.stages._common import load_config
+
+    cfg = load_config("trials", ["+experiment=robot3d", "recogniser=oracle"])
+    cells = experiment_cells(cfg, ["+experiment=robot3d", "recogniser=oracle"])
+    built = {}
+    grid = make_recogniser(cells["fewshot_5x5_grid"], built=built)
+    robot = make_recogniser(cells["fewshot_5x5_robot3d"], built=built)
+    assert callable(getattr(robot, "live_scores", None)) and robot is not grid
+    assert {c.world for c in cells.values()} == {"grid", "robot3d"}

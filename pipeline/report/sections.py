@@ -47,6 +47,7 @@ from pipeline.report.parts import (
     write_curves_table,
 )
 from pipeline.report.pooling import collisions, convergence, describe_runs, pool_note, pooled
+from pipeline.report.robot import robot_kind
 from pipeline.report.spec import PER_CELL_KINDS
 from pipeline.report.stats import describe, fmt
 
@@ -249,6 +250,7 @@ KINDS = {
     "by_maze": by_maze_kind,
     "accuracy_curve": accuracy_curve_kind,
     "generalisation": generalisation_kind,
+    "robot": robot_kind,
 }
 
 

@@ -33,7 +33,7 @@ from pipeline.schema import problem, setting
 #: ``generalisation``: cells over generated layouts (``experiment.layouts``): per size, collisions
 #: over layouts per method, the fraction of layouts where each of the paper's claims holds, and
 #: collisions against layout features (:mod:`pipeline.report.generalisation`).
-KINDS = ("default", "bars", "long_term", "by_maze", "accuracy_curve", "generalisation")
+KINDS = ("default", "bars", "long_term", "by_maze", "accuracy_curve", "generalisation", "robot")
 #: Kinds that draw one point per cell (no pooled rows, no learning curves).
 PER_CELL_KINDS = ("accuracy_curve", "generalisation")
 

@@ -66,7 +66,7 @@ class SafeNavigation3DEnv(gym.Env):
         run: int = 0,
         render_mode: str | None = None,
         cell: float = DEFAULT_CELL,
-        timestep: float = 0.01,
+        timestep: float = 0.02,
         threshold: float = 0.5,
     ):
         self.layout = maze if isinstance(maze, Layout) else load_layout(maze)

@@ -8,7 +8,7 @@ maze"), as a MuJoCo body added to an ``MjSpec`` (no XML): the TurtleBot3 Burger'
   controller (:mod:`pipeline.robot.sim`) commands the two wheel speeds, limited to the
   Burger's 0.22 m/s and 2.84 rad/s, and turns them into the base's (v, omega) by the
   differential-drive kinematics ``v = r (wl + wr) / 2``, ``omega = r (wr - wl) / L``. Wheel-floor
-  friction is not simulated (no slip): this keeps the physics stable at a 10 ms step, which the
+  friction is not simulated (no slip): this keeps the physics stable at a 20 ms step, which the
   cost budget needs (docs/robot3d.md).
 * Camera: forward, the Raspberry Pi Camera v2's field of view, 62.2 x 48.8 degrees (a 4:3 frame).
 * Range sensor: :data:`N_RAYS` MuJoCo rangefinders in a ring at the LDS-01's height, one every

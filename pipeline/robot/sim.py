@@ -10,7 +10,7 @@ backwards to the previous cell's centre (section 3.3).
 
 Cost (issue 30, "What it costs"): the control loop runs at :data:`CONTROL_HZ` (10 Hz, also the rate
 at which the pose is recorded) and each tick is one ``mj_step(model, data, nstep=k)`` call of
-``k = 1 / (CONTROL_HZ * timestep)`` physics steps (10 at the 10 ms step), so Python runs once per
+``k = 1 / (CONTROL_HZ * timestep)`` physics steps (5 at the default 20 ms step), so Python runs once per
 tick, not once per step. Sensors (36 rangefinders) are disabled while driving and computed only
 when the range sensor is read (:meth:`RobotSim.scan`).
 """
@@ -53,7 +53,7 @@ def wrap(angle: float) -> float:
 def wheel_limited(v: float, omega: float) -> tuple[float, float]:
     """``(v, omega)`` after limiting the two wheel speeds to the Burger's (both scaled by the same
     factor, so the path's curvature is kept) and omega to its 2.84 rad/s."""
-    omega = float(np.clip(omega, -MAX_TURN, MAX_TURN))
+    omega = max(-MAX_TURN, min(MAX_TURN, float(omega)))
     left = (v - omega * WHEEL_SEPARATION / 2) / WHEEL_RADIUS
     right = (v + omega * WHEEL_SEPARATION / 2) / WHEEL_RADIUS
     scale = max(1.0, abs(left) / MAX_WHEEL, abs(right) / MAX_WHEEL)
@@ -85,7 +85,7 @@ class RobotSim:
         layout: Layout,
         placement: Placement,
         cell: float = DEFAULT_CELL,
-        timestep: float = 0.01,
+        timestep: float = 0.02,
         render_seed: int = 0,
     ):
         substeps = round(1.0 / (CONTROL_HZ * timestep))

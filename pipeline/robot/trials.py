@@ -37,7 +37,7 @@ class RobotSettings:
     """The robot world's settings (``pipeline/conf/world/robot3d.yaml``)."""
 
     cell: float = DEFAULT_CELL
-    timestep: float = 0.01
+    timestep: float = 0.02
     threshold: float = 0.5
 
 

@@ -112,7 +112,7 @@ def build_world(
         )
     spec = mujoco.MjSpec()
     spec.modelname = "robot_maze"
-    spec.option.timestep = 0.01
+    spec.option.timestep = 0.02
     spec.option.gravity = [0.0, 0.0, -9.81]
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
     spec.visual.global_.offwidth = 640

@@ -78,16 +78,17 @@ def make_recogniser(cfg: TrialsConfig, key: str = "recogniser", built: dict | No
         return None
     share = recogniser_key(cfg) if built is not None else None
     if share is not None and share in built:
-        return built[share]
-    way = cfg.substitution if method.dynamic_support else 0
-    recogniser = build_recogniser(
-        cfg.recogniser, substitution_way=way, carry_over=cfg.support == "carry", key=key
-    )
-    if cfg.world == "robot3d":
-        recogniser = live_recogniser(recogniser, key)
-    if share is not None:
-        built[share] = recogniser
-    return recogniser
+        recogniser = built[share]
+    else:
+        way = cfg.substitution if method.dynamic_support else 0
+        recogniser = build_recogniser(
+            cfg.recogniser, substitution_way=way, carry_over=cfg.support == "carry", key=key
+        )
+        if share is not None:
+            built[share] = recogniser
+    # the robot's cells share the grid's recogniser (each run restores its support set) and see
+    # live pictures through a wrapper of their own
+    return live_recogniser(recogniser, key) if cfg.world == "robot3d" else recogniser
 
 
 def live_recogniser(recogniser, key: str):

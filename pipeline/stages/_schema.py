@@ -113,7 +113,7 @@ class RobotConfig:
 
     cell: float = setting(1.0, gt=0)
     """Metres per grid cell: 1.0, the cell the query pictures were rendered for (``render.maze.cell``)."""
-    timestep: float = setting(0.01, gt=0, le=0.1)
+    timestep: float = setting(0.02, gt=0, le=0.1)
     """MuJoCo's physics step (s); it must divide the controller's 0.1 s tick."""
     threshold: float = setting(0.5, gt=0, le=1)
     """A live picture whose top score reaches this is an obstacle the robot does not drive into."""
