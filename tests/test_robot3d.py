@@ -329,3 +329,22 @@ def test_an_experiment_mixing_worlds_shares_the_recogniser_but_wraps_it_for_the_
     robot = make_recogniser(cells["fewshot_5x5_robot3d"], built=built)
     assert callable(getattr(robot, "live_scores", None)) and robot is not grid
     assert {c.world for c in cells.values()} == {"grid", "robot3d"}
+
+
+def test_3d_replay_holds_scene_path_pictures_and_collisions(tmp_path):
+    import rerun.chunk
+
+    from pipeline.robot.replay import build_robot_replay
+    from pipeline.stages._common import run_stage
+
+    cell = tmp_path / "cell"
+    run_stage("trials", ["method=fewshot", "world=robot3d", "recogniser=oracle", "runs=1",
+                         "episodes=1", "robot.threshold=1.0", f"out={cell}", "progress=false"])  # fmt: skip
+    rrd = build_robot_replay(cell, 0, 0, tmp_path / "replay.rrd")
+    chunks = rerun.chunk.RrdReader(str(rrd)).stream().to_chunks()
+    paths = {str(c.entity_path) for c in chunks}
+    assert {"/robot/path", "/robot/body", "/camera/picture", "/camera/scores"} <= paths
+    assert any(p.startswith("/scene/obstacle") for p in paths)
+    assert any(p.startswith("/scene/wall") for p in paths)
+    with pytest.raises(ValueError, match="no run 0 episode 5"):
+        build_robot_replay(cell, 0, 5, tmp_path / "x.rrd")
