@@ -119,6 +119,7 @@ def test_oracle_fewshot_reaches_the_goal_with_no_contact():
     env.close()
 
 
+@pytest.mark.slow
 def test_shield_collides_through_contacts_and_recovers():
     env = SafeNavigation3DEnv("5x5", "shield")
     results, infos = _episodes(env, 3, seed=5)
@@ -235,6 +236,7 @@ def test_gymnasium_ids_check_env_and_six_values():
     env.close()
 
 
+@pytest.mark.slow  # 10-20 s
 @pytest.mark.parametrize("method", ["shield", "fewshot_dss"])
 def test_robot_trials_match_the_grid_with_the_oracle(method):
     """With the oracle the robot's outcomes are the grid's: the same placement, exploration and
@@ -287,9 +289,10 @@ def test_trials_stage_runs_a_robot_cell_into_both_record_files(tmp_path):
     config = records.meta.config
     assert config["world"] == "robot3d" and config["robot"]["threshold"] == 0.9
     assert (records.recognitions["picture"] == -1).all()
-    run_stage("trials", [*args, f"out={tmp_path / 'b'}"])
-    for name in ("robot.mcap",):
-        assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes()
+    first = {n: (tmp_path / "a" / n).read_bytes() for n in ("records.mcap", "robot.mcap")}
+    run_stage("trials", [*args, f"out={tmp_path / 'a'}", "overwrite=true"])  # the same seed again
+    for name, data in first.items():
+        assert (tmp_path / "a" / name).read_bytes() == data, name  # byte for byte
 
 
 @pytest.mark.parametrize(
@@ -331,6 +334,7 @@ def test_an_experiment_mixing_worlds_shares_the_recogniser_but_wraps_it_for_the_
     assert {c.world for c in cells.values()} == {"grid", "robot3d"}
 
 
+@pytest.mark.slow  # 10-20 s
 def test_3d_replay_holds_scene_path_pictures_and_collisions(tmp_path):
     import rerun.chunk
 
@@ -348,3 +352,20 @@ def test_3d_replay_holds_scene_path_pictures_and_collisions(tmp_path):
     assert any(p.startswith("/scene/wall") for p in paths)
     with pytest.raises(ValueError, match="no run 0 episode 5"):
         build_robot_replay(cell, 0, 5, tmp_path / "x.rrd")
+
+
+@pytest.mark.slow  # 30-60 s: 20 small cells and a report
+def test_report_section_on_a_simulated_robot(tmp_path):
+    from pipeline.stages._common import run_stage
+
+    runs = tmp_path / "runs"
+    run_stage("trials", ["+experiment=robot3d", "recogniser=oracle", "runs=2", "episodes=2",
+                         "workers=1", f"out={runs / 'robot3d'}", "progress=false"])  # fmt: skip
+    run_stage("report", [f"runs_dir={runs}", f"out={tmp_path / 'report'}", "allow_missing=true"])
+    text = (tmp_path / "report" / "index.md").read_text()
+    assert "On a simulated robot" in text
+    table = (tmp_path / "report" / "tables" / "robot3d.csv").read_text()
+    assert "collisions, robot (MuJoCo)" in table and "collisions, grid" in table
+    accuracy = (tmp_path / "report" / "tables" / "robot3d_recognition.csv").read_text()
+    assert "live camera pictures (robot)" in accuracy and "1.00" in accuracy  # the oracle
+    assert (tmp_path / "report" / "tables" / "robot3d_robot_time.csv").exists()
