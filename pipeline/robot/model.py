@@ -1,6 +1,6 @@
 """The robot of the paper's future work (section 5: "the turtlebot3 robot ... in a manually created
-maze"), as a MuJoCo body added to an ``MjSpec`` (no XML): the TurtleBot3 Burger's published figures
-(FIELD-NOTES "For a simulated robot").
+maze"), as a MuJoCo body added to an ``MjSpec`` (no XML), with the TurtleBot3 Burger's published
+figures (ROBOTIS).
 
 * Body: a box of the Burger's footprint and height, 178 mm long (x, forward), 138 mm wide (y),
   192 mm high; two wheels of radius 0.033 m, 0.160 m apart (drawn; see Drive below).
