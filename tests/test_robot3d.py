@@ -277,7 +277,7 @@ def test_trials_stage_runs_a_robot_cell_into_both_record_files(tmp_path):
     from pipeline.stages._common import run_stage
 
     args = ["method=fewshot", "world=robot3d", "recogniser=oracle", "runs=1", "episodes=3",
-            "progress=false", "robot.threshold=0.9"]  # fmt: skip
+            "progress=false", "robot.threshold=0.9", "overwrite=true"]  # fmt: skip
     summary = run_stage("trials", [*args, f"out={tmp_path / 'a'}"])
     assert summary["collisions"]["mean"] == 0.0
     settings, episodes = read_robot_records(tmp_path / "a" / "robot.mcap")
@@ -290,7 +290,7 @@ def test_trials_stage_runs_a_robot_cell_into_both_record_files(tmp_path):
     assert config["world"] == "robot3d" and config["robot"]["threshold"] == 0.9
     assert (records.recognitions["picture"] == -1).all()
     first = {n: (tmp_path / "a" / n).read_bytes() for n in ("records.mcap", "robot.mcap")}
-    run_stage("trials", [*args, f"out={tmp_path / 'a'}", "overwrite=true"])  # the same seed again
+    run_stage("trials", [*args, f"out={tmp_path / 'a'}"])  # the same seed again
     for name, data in first.items():
         assert (tmp_path / "a" / name).read_bytes() == data, name  # byte for byte
 
