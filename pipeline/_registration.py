@@ -22,6 +22,9 @@ import sys
 #: ``SafeNav-v0`` takes any maze by keyword (``gymnasium.make("SafeNav-v0", maze="random:7x7:16:3")``).
 MAZES = ("5x5", "7x7", "11x11")
 ENV_IDS = ("SafeNav-v0", *(f"SafeNav-{maze}-v0" for maze in MAZES))
+#: ``SafeNav3D-<maze>-v0``: the same task with the camera robot in MuJoCo (``pipeline.robot``).
+ENV_IDS_3D = tuple(f"SafeNav3D-{maze}-v0" for maze in MAZES)
+ENTRY_POINT_3D = "pipeline.envs3d:make_env3d"
 #: The method of the registered ids; other methods by keyword (``gymnasium.make(id, method=...)``).
 DEFAULT_METHOD = "shield"
 #: ``max_episode_steps`` of the ids: the default method's ``max_steps`` (``MethodSpec``; a test checks
@@ -44,6 +47,14 @@ def register_envs(registration=None) -> None:
                 entry_point=ENTRY_POINT,
                 max_episode_steps=MAX_EPISODE_STEPS,
                 kwargs={**fixed, "method": DEFAULT_METHOD},
+            )
+    for env_id, maze in zip(ENV_IDS_3D, MAZES):
+        if env_id not in registration.registry:
+            registration.register(
+                id=env_id,
+                entry_point=ENTRY_POINT_3D,
+                max_episode_steps=MAX_EPISODE_STEPS,
+                kwargs={"registered_maze": maze, "method": DEFAULT_METHOD},
             )
 
 

@@ -163,3 +163,26 @@ make_env.metadata = {
     **SafeNavigationEnv.metadata,
     "render_modes": [*SafeNavigationEnv.metadata["render_modes"], "human"],
 }
+
+
+class SixValueStep:
+    """Safety-Gymnasium's ``step`` for the grid and the robot environments alike: ``(observation,
+    reward, cost, terminated, truncated, info)``, with ``cost`` 1.0 on a collision and 0.0
+    otherwise (``info["cost"]`` where the environment gives it, else ``info["collided"]``). Every
+    other call goes to the wrapped environment::
+
+        env = SixValueStep(gymnasium.make("SafeNav3D-5x5-v0"))
+        obs, info = env.reset(seed=0)
+        obs, reward, cost, terminated, truncated, info = env.step(1)
+    """
+
+    def __init__(self, env):
+        self.env = env
+
+    def step(self, action):
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        cost = float(info.get("cost", 1.0 if info.get("collided") else 0.0))
+        return obs, reward, cost, terminated, truncated, info
+
+    def __getattr__(self, name):
+        return getattr(self.env, name)

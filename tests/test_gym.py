@@ -84,7 +84,8 @@ def test_import_pipeline_registers_without_importing_gymnasium_torch_or_fewshot(
         "env = gymnasium.make('SafeNav-5x5-v0'); env.reset(seed=0); env.step(1)\n"
         "print('torch' in sys.modules, 'pipeline.fewshot' in sys.modules)\n"
     )
-    assert out.splitlines() == ["[]", str(sorted(pipeline.ENV_IDS)), "False", "False False"]
+    ids = sorted(pipeline.ENV_IDS + pipeline.ENV_IDS_3D)
+    assert out.splitlines() == ["[]", str(ids), "False", "False False"]
 
 
 @pytest.mark.parametrize(

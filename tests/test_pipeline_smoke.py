@@ -127,6 +127,18 @@ def smoke(tmp_path_factory):
         "progress=false",
         "workers=1",
     )
+    # the camera robot beside the grid (10 robot cells): one run of two episodes each
+    stage(
+        "trials",
+        "+experiment=robot3d",
+        f"out={runs}/robot3d",
+        f"recogniser.checkpoint={models}/rn.pt",
+        f"recogniser.images_dir={images}",
+        "runs=1",
+        "episodes=2",
+        "workers=1",
+        "progress=false",
+    )
     report_args = [
         f"runs_dir={runs}",
         f"accuracy_dir={acc}",

@@ -48,6 +48,7 @@ from pipeline.report.parts import (
 )
 from pipeline.report.pooling import collisions, convergence, describe_runs, pool_note, pooled
 from pipeline.report.repetition import repetition_section
+from pipeline.report.robot import robot_kind
 from pipeline.report.spec import PER_CELL_KINDS
 from pipeline.report.stats import describe, fmt
 
@@ -253,6 +254,7 @@ KINDS = {
     "by_maze": by_maze_kind,
     "accuracy_curve": accuracy_curve_kind,
     "generalisation": generalisation_kind,
+    "robot": robot_kind,
 }
 
 

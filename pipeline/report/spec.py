@@ -43,6 +43,7 @@ KINDS = (
     "accuracy_curve",
     "generalisation",
     "repetition",
+    "robot",
 )
 #: Kinds that draw one point per cell (no pooled rows, no learning curves).
 PER_CELL_KINDS = ("accuracy_curve", "generalisation", "repetition")

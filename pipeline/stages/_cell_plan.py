@@ -26,7 +26,7 @@ from pipeline.stages._schema import Experiment, TrialsConfig
 
 #: Keys a cell may pin; the top level (experiment globals, command line) gives the others. A cell
 #: also pins method fields (``params``) and recogniser arguments (``recogniser``).
-CELL_KEYS = ("maze", "substitution", "support")
+CELL_KEYS = ("maze", "substitution", "support", "world")
 
 
 def parse_overrides(overrides: list[str]) -> dict[str, Any]:
@@ -107,6 +107,7 @@ def experiment_cells(cfg: TrialsConfig, overrides: list[str]) -> dict[str, Trial
                 cell.recogniser_group,
                 cell.substitution,
                 cell.support,
+                cell.world,
             ],
             default=str,
         )
@@ -184,6 +185,11 @@ def refuse_inapplicable(configs: dict[str, TrialsConfig], given: dict[str, Any])
     """An override that no cell reads would change nothing: refuse it, naming the key."""
     for key in given:
         head = key.split(".")[0]
+        if head == "robot" and not any(c.world == "robot3d" for c in configs.values()):
+            raise ConfigError(
+                f"config key '{key}': read only with world=robot3d; this run has none: "
+                "the override cannot apply"
+            )
         if head in ONLY_FOR:
             who, uses = ONLY_FOR[head]
             if not any(uses(c.method) for c in configs.values()):

@@ -78,14 +78,35 @@ def make_recogniser(cfg: TrialsConfig, key: str = "recogniser", built: dict | No
         return None
     share = recogniser_key(cfg) if built is not None else None
     if share is not None and share in built:
-        return built[share]
-    way = cfg.substitution if method.dynamic_support else 0
-    recogniser = build_recogniser(
-        cfg.recogniser, substitution_way=way, carry_over=cfg.support == "carry", key=key
+        recogniser = built[share]
+    else:
+        way = cfg.substitution if method.dynamic_support else 0
+        recogniser = build_recogniser(
+            cfg.recogniser, substitution_way=way, carry_over=cfg.support == "carry", key=key
+        )
+        if share is not None:
+            built[share] = recogniser
+    # the robot's cells share the grid's recogniser (each run restores its support set) and see
+    # live pictures through a wrapper of their own
+    return live_recogniser(recogniser, key) if cfg.world == "robot3d" else recogniser
+
+
+def live_recogniser(recogniser, key: str):
+    """The robot's recogniser of live camera pictures around a built one: the oracle's, or the
+    Relation Network's (``pipeline.robot.live``); another is refused, naming the key."""
+    from pipeline.rl.oracle import OracleRecogniser
+    from pipeline.robot.live import LiveOracle, LiveRelation
+
+    if isinstance(recogniser, (LiveOracle, LiveRelation)):
+        return recogniser
+    if isinstance(recogniser, OracleRecogniser):
+        return LiveOracle(recogniser.substitution_way, recogniser.carry_over)
+    if getattr(recogniser, "kind", "") == "relation_net":
+        return LiveRelation(recogniser)
+    raise ConfigError(
+        f"config key '{key}': world=robot3d scores live camera pictures with the oracle or the "
+        f"Relation Network (recogniser=oracle|relation_net), not {type(recogniser).__name__}"
     )
-    if share is not None:
-        built[share] = recogniser
-    return recogniser
 
 
 def pictures_dir(cfg: TrialsConfig) -> str | None:
@@ -204,6 +225,28 @@ def _space_needed(cell: CellRun, folder: Path, writer) -> str:
     )
 
 
+def _run_robot(cell: CellRun, folder: Path, writer):
+    """A ``world=robot3d`` cell: :func:`pipeline.robot.trials.run_robot_trials` into the grid's
+    records and ``robot.mcap`` (:mod:`pipeline.robot.records`)."""
+    from pipeline.robot.records import RobotRecordWriter
+    from pipeline.robot.trials import RobotSettings, run_robot_trials
+
+    cfg = cell.config
+    if cfg.support == "carry":
+        raise ConfigError("config key 'support': world=robot3d runs support=restore only")
+    settings = RobotSettings(cfg.robot.cell, cfg.robot.timestep, cfg.robot.threshold)
+    robot_writer = None
+    if cfg.record != "none":
+        robot_writer = RobotRecordWriter(
+            folder / "robot.mcap", {**asdict(settings), "control_hz": 10, "maze": cell.layout.name}
+        )
+    result = run_robot_trials(
+        cell.layout, cell.method, cfg.runs, cfg.episodes, cfg.seed, recogniser=cell.recogniser,
+        sink=writer, robot_sink=robot_writer, settings=settings,
+    )  # fmt: skip
+    return result, robot_writer
+
+
 def run_cell(cell: CellRun, folder: Path, progress: bool | None = None) -> tuple[dict, float]:
     """Run one cell into ``folder`` (records, ``summary.json``); its summary and trial seconds.
     ``progress``: the runner's per-episode bar (default ``cfg.progress``)."""
@@ -215,18 +258,22 @@ def run_cell(cell: CellRun, folder: Path, progress: bool | None = None) -> tuple
             disk_problem(exc, folder, f"{_named(cell)} could not start its records") or exc
         ) from None
     t0 = time.perf_counter()
+    robot_writer = None
     try:
-        result = run_trials(
-            cell.layout,
-            method,
-            cfg.runs,
-            cfg.episodes,
-            cfg.seed,
-            recogniser=cell.recogniser,
-            sink=writer,
-            progress=cfg.progress if progress is None else progress,
-            shared_support=cfg.support == "carry",
-        )
+        if cfg.world == "robot3d":
+            result, robot_writer = _run_robot(cell, folder, writer)
+        else:
+            result = run_trials(
+                cell.layout,
+                method,
+                cfg.runs,
+                cfg.episodes,
+                cfg.seed,
+                recogniser=cell.recogniser,
+                sink=writer,
+                progress=cfg.progress if progress is None else progress,
+                shared_support=cfg.support == "carry",
+            )
     except (KeyboardInterrupt, Interrupted) as exc:
         code = exc.code if isinstance(exc, Interrupted) else 130
         if writer is None:
@@ -256,6 +303,8 @@ def run_cell(cell: CellRun, folder: Path, progress: bool | None = None) -> tuple
     try:
         if writer is not None:
             writer.close()
+        if robot_writer is not None:
+            robot_writer.close()
         # no wall-clock figures: same seed, same bytes
         write_json_atomic(folder / "summary.json", summary)
     except OSError as exc:

@@ -16,6 +16,8 @@ from pipeline.report.spec import ReportSpec
 from pipeline.schema import setting
 
 SUPPORT_MODES = ("restore", "carry")
+#: Where the methods run: the grid world, or the camera robot in MuJoCo (``pipeline/robot``).
+WORLDS = ("grid", "robot3d")
 SUBSTITUTION_WAYS = (1, 2, 3, 4)
 
 
@@ -32,6 +34,8 @@ class Cell:
     """The cell's substitution way (as the top-level ``substitution``); none: the top level's."""
     support: str | None = setting(None, choices=SUPPORT_MODES)
     """The cell's support-set mode (as the top-level ``support``); none: the top level's."""
+    world: str | None = setting(None, choices=WORLDS)
+    """The cell's world (as the top-level ``world``); none: the top level's."""
     params: dict[str, Any] = field(default_factory=dict)
     """Method fields this cell pins (``{alpha: 0.05}``); the command line does not change them."""
     recogniser: dict[str, Any] = field(default_factory=dict)

@@ -24,6 +24,7 @@ from pipeline.schema import setting
 from pipeline.stages._experiment_schema import (  # noqa: F401  (the experiment group's schema)
     SUBSTITUTION_WAYS,
     SUPPORT_MODES,
+    WORLDS,
     Cell,
     Experiment,
     Layouts,
@@ -111,6 +112,18 @@ class Profile:
 
 # ---------------------------------------------------------------- trials
 @dataclass
+class RobotConfig:
+    """The camera robot's world (``world=robot3d``, docs/robot3d.md)."""
+
+    cell: float = setting(1.0, gt=0)
+    """Metres per grid cell: 1.0, the cell the query pictures were rendered for (``render.maze.cell``)."""
+    timestep: float = setting(0.02, gt=0, le=0.1)
+    """MuJoCo's physics step (s); it must divide the controller's 0.1 s tick."""
+    threshold: float = setting(0.5, gt=0, le=1)
+    """A live picture whose top score reaches this is an obstacle the robot does not drive into."""
+
+
+@dataclass
 class TrialsConfig:
     """``python -m pipeline trials``: independent runs of a method on a maze (or every cell of an
     experiment), every episode recorded to MCAP."""
@@ -128,6 +141,10 @@ class TrialsConfig:
     ``random:<W>x<H>:<obstacles>:<seed>[:unique]`` (``pipeline/world/generate.py``)."""
     substitution: int = setting(choices=SUBSTITUTION_WAYS)
     """Dynamic support set: substitution way 1-4 (section 3.3); used by methods with dynamic_support."""
+    world: str = setting("grid", choices=WORLDS)
+    """``grid``: the grid world (the paper's); ``robot3d``: the camera robot in MuJoCo (docs/robot3d.md)."""
+    robot: RobotConfig = field(default_factory=RobotConfig)
+    """The robot world's settings; read only with ``world=robot3d``."""
     support: str = setting(choices=SUPPORT_MODES)
     """``restore`` the support set before each run, or ``carry`` it over (long-term autonomy)."""
     images_dir: str | None = None

@@ -1,0 +1,371 @@
+"""The robot in MuJoCo (issue 30): the Burger's limits, range sensing, collisions as contacts,
+self-recovery, live camera pictures and few-shot reasoning with the oracle."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from pipeline.rl.agents import TabularAgent, run_episode
+from pipeline.rl.runner import make_run_world
+from pipeline.robot.env import PICTURE_SIZE, SafeNavigation3DEnv
+from pipeline.robot.live import LiveOracle
+from pipeline.robot.model import MAX_SPEED, MAX_TURN
+from pipeline.robot.sim import HEADINGS, RobotSim, wheel_limited
+from pipeline.world.geometry import build_geometry
+from pipeline.world.maze import load_layout
+from pipeline.world.pictures import N_CATEGORIES
+
+#: Self-recovery's stated tolerance (docs/robot3d.md): back within 2 cm of the previous centre.
+RECOVERY_TOLERANCE = 0.02
+
+
+@pytest.fixture(scope="module")
+def maze():
+    layout = load_layout("5x5")
+    geometry = build_geometry(layout)
+    world = make_run_world(geometry, seed=11, run=0)
+    return layout, geometry, RobotSim(layout, world.placement)
+
+
+def test_wheel_limits_keep_the_burgers_speeds():
+    for v, w in [(5.0, 0.0), (0.0, 50.0), (-3.0, -9.0), (0.1, 1.0)]:
+        v2, w2 = wheel_limited(v, w)
+        assert abs(v2) <= MAX_SPEED + 1e-12 and abs(w2) <= MAX_TURN + 1e-12
+    assert wheel_limited(0.1, 0.5) == pytest.approx((0.1, 0.5))
+
+
+def test_range_sensor_finds_exactly_the_occupied_neighbours(maze):
+    layout, geometry, sim = maze
+    for s in range(layout.n_cells):
+        if s in layout.obstacles:
+            continue
+        sim.reset(s, heading=s % 4)
+        scan = sim.scan()
+        for a in range(4):
+            if sim.inside(s, a):
+                assert sim.occupied(a, scan) == (geometry.obstacle[s, a] >= 0), (s, a)
+
+
+def test_driving_into_an_obstacle_is_one_contact_and_recovery_returns(maze):
+    layout, geometry, sim = maze
+    s, a = (int(x) for x in np.argwhere(geometry.obstacle >= 0)[0])
+    sim.reset(s)
+    result = sim.move(s, a)
+    assert result.collided and result.cell == s
+    o = geometry.obstacle[s, a]
+    assert result.contact_geom == f"obstacle{o}_box"
+    # the contact lies between the two cells' centres, on the obstacle's side
+    start, blocked = sim.map.centre(s), sim.map.centre(layout.obstacles[o])
+    along = np.dot(np.array(result.contact[:2]) - start, blocked - start) / sim.map.cell**2
+    assert 0.2 < along < 1.0
+    x, y, yaw = sim.pose()
+    assert np.hypot(x - start[0], y - start[1]) < RECOVERY_TOLERANCE
+    # poses at 10 Hz, speeds inside the Burger's limits
+    t, xs, ys, yaws = np.array(result.poses).T
+    assert np.allclose(np.diff(t), 0.1)
+    assert np.all(np.hypot(np.diff(xs), np.diff(ys)) / 0.1 <= MAX_SPEED + 1e-3)
+
+
+def test_free_move_arrives_and_off_grid_move_stays(maze):
+    layout, geometry, sim = maze
+    s = layout.start
+    a = next(a for a in range(4) if geometry.next_cell[s, a] != s)
+    sim.reset(s)
+    result = sim.move(s, a)
+    assert not result.collided and result.cell == geometry.next_cell[s, a]
+    x, y, yaw = sim.pose()
+    assert np.hypot(*(np.array([x, y]) - sim.map.centre(result.cell))) < 0.01
+    assert abs((yaw - HEADINGS[a] + np.pi) % (2 * np.pi) - np.pi) < 0.01
+    assert 1.0 / MAX_SPEED < result.sim_time < 1.0 / MAX_SPEED + 3.0
+    off = next(a for a in range(4) if not sim.inside(result.cell, a))
+    stay = sim.move(result.cell, off)
+    assert stay.cell == result.cell and stay.sim_time == 0.0 and not stay.collided
+
+
+def test_timestep_must_divide_the_control_period():
+    with pytest.raises(ValueError, match="timestep"):
+        RobotSim(
+            load_layout("5x5"),
+            make_run_world(build_geometry(load_layout("5x5")), 0, 0).placement,
+            timestep=0.03,
+        )
+
+
+def _episodes(env, n: int, seed: int):
+    agent = TabularAgent(env.method, env.layout.n_cells, 1234)
+    infos, results = [], []
+    step = env.step
+
+    def logged(a):
+        out = step(a)
+        infos.append(out[4])
+        return out
+
+    env.step = logged
+    for ep in range(n):
+        results.append(run_episode(env, agent, seed=seed if ep == 0 else None))
+    env.step = step
+    return results, infos
+
+
+def test_oracle_fewshot_reaches_the_goal_with_no_contact():
+    env = SafeNavigation3DEnv("5x5", "fewshot_dss", LiveOracle())
+    results, infos = _episodes(env, 8, seed=5)
+    assert not any(i["collided"] for i in infos)
+    assert sum(i["cost"] for i in infos) == 0.0
+    assert any(i["prevented"] for i in infos)  # it met obstacles and recognised them
+    assert all(r["rewards"][-1] == 1.0 for r in results)  # every episode reached the goal
+    env.close()
+
+
+@pytest.mark.slow
+def test_shield_collides_through_contacts_and_recovers():
+    env = SafeNavigation3DEnv("5x5", "shield")
+    results, infos = _episodes(env, 3, seed=5)
+    hits = [i for i in infos if i["collided"]]
+    assert hits and all(i["cost"] == 1.0 and i["contact"] is not None for i in hits)
+    assert all(i["camera"] is None for i in infos)  # shield sees no pictures
+    env.close()
+
+
+def test_same_seed_same_trajectory():
+    runs = []
+    for _ in range(2):
+        env = SafeNavigation3DEnv("5x5", "fewshot", LiveOracle())
+        results, infos = _episodes(env, 2, seed=9)
+        runs.append((results, [(i["poses"], i["contact"], i["sim_time"]) for i in infos]))
+        env.close()
+    (r1, i1), (r2, i2) = runs
+    assert i1 == i2
+    for a, b in zip(r1, r2):
+        assert all(np.array_equal(a[k], b[k]) for k in a)
+
+
+def test_live_picture_of_each_category_is_classified_by_the_oracle():
+    """The oracle names the category of the obstacle on the cell the live picture looks at: it
+    reads the world's ground truth there (``SafeNavigation3DEnv._truth_at``); the picture itself
+    must show an obstacle (not the empty floor), and pictures of different obstacles differ."""
+    env = SafeNavigation3DEnv("5x5", "fewshot", LiveOracle())
+    env.reset(seed=2)
+    g, cats = env.geometry, env.world.true_category
+    seen, pictures = set(), []
+    for s, a in np.argwhere(g.obstacle >= 0):
+        o = g.obstacle[s, a]
+        if cats[o] in seen:
+            continue
+        env.unsafe[:] = False
+        env._place(int(s))
+        _, _, _, _, info = env.step(int(a))
+        assert info["prevented"] and info["camera"].shape == (PICTURE_SIZE, PICTURE_SIZE, 3)
+        assert int(np.argmax(info["scores"])) == cats[o]
+        assert info["camera"].std() > 10  # something in view
+        seen.add(int(cats[o]))
+        pictures.append(info["camera"].astype(int))
+    assert seen == set(range(N_CATEGORIES))
+    for i in range(len(pictures)):
+        for j in range(i):
+            assert np.abs(pictures[i] - pictures[j]).mean() > 5
+    env.close()
+
+
+@pytest.fixture(scope="module")
+def live_relation():
+    from pipeline.fewshot.recogniser import RelationRecogniser
+    from pipeline.robot.live import LiveRelation
+
+    return LiveRelation(
+        RelationRecogniser.from_files(
+            "datasets/models/relation_net.pt", "datasets/images", substitution_way=1
+        )
+    )
+
+
+def test_relation_network_scores_live_pictures_and_substitutes_them(live_relation):
+    env = SafeNavigation3DEnv("5x5", "fewshot_dss", live_relation)
+    env.reset(seed=4)
+    s, a = (int(x) for x in np.argwhere(env.geometry.obstacle >= 0)[0])
+    env._place(s)
+    env.sim.face(a)
+    picture = env.sim.picture(PICTURE_SIZE)
+    scores = live_relation.live_scores(env.run_id, picture, truth=-1)
+    assert scores.shape == (N_CATEGORIES,) and np.all((scores >= 0) & (scores <= 1))
+    assert np.array_equal(scores, live_relation.live_scores(env.run_id, picture, truth=3))
+    category = int(np.argmin(scores))
+    position = live_relation.learn_from_live(env.run_id, picture, category)
+    assert 0 <= position < 5
+    members = live_relation.inner.support_members(env.run_id)
+    assert members[category, position] >= live_relation.LIVE_CODE_BASE
+    after = live_relation.live_scores(env.run_id, picture, truth=-1)
+    assert after[category] != scores[category]  # the class state now holds the live picture
+    others = [c for c in range(N_CATEGORIES) if c != category]
+    assert np.array_equal(after[others], scores[others])
+    env.close()
+
+
+def test_gymnasium_ids_check_env_and_six_values():
+    import gymnasium
+    from gymnasium.utils.env_checker import check_env
+
+    import pipeline
+    from pipeline.envs import SixValueStep
+
+    assert set(pipeline.ENV_IDS_3D) <= set(gymnasium.registry)
+    env = gymnasium.make(
+        "SafeNav3D-5x5-v0", method="fewshot", recogniser="oracle", render_mode="rgb_array"
+    )
+    check_env(env.unwrapped, skip_render_check=False)
+    with pytest.raises(ValueError, match="7x7"):
+        gymnasium.make("SafeNav3D-5x5-v0", maze="7x7")
+    with pytest.raises(ValueError, match="cannot score live"):
+        gymnasium.make("SafeNav3D-5x5-v0", method="fewshot", recogniser="fixed_accuracy")
+    for env_id in ("SafeNav3D-5x5-v0", "SafeNav-5x5-v0"):
+        wrapped = SixValueStep(gymnasium.make(env_id, method="shield"))
+        wrapped.reset(seed=0)
+        costs = []
+        for a in (1, 1, 2, 2, 1, 1, 2, 2):
+            obs, reward, cost, terminated, truncated, info = wrapped.step(a)
+            costs.append(cost)
+            assert cost == float(info["collided"])
+            if terminated or truncated:
+                break
+        assert 1.0 in costs  # the start's east neighbour is an obstacle
+    env.reset(seed=0)
+    frame = env.render()
+    assert frame.shape == (480, 640, 3) and frame.dtype == np.uint8
+    env.close()
+
+
+@pytest.mark.slow  # 10-20 s
+@pytest.mark.parametrize("method", ["shield", "fewshot_dss"])
+def test_robot_trials_match_the_grid_with_the_oracle(method):
+    """With the oracle the robot's outcomes are the grid's: the same placement, exploration and
+    collisions from the same seed (a collision is a contact exactly where the grid has one)."""
+    from pipeline.rl.methods import get_method
+    from pipeline.rl.runner import run_trials
+    from pipeline.robot.trials import run_robot_trials
+
+    class Sink:
+        def __init__(self):
+            self.batches, self.robot, self.subs = [], [], []
+
+        def episodes(self, **b):
+            self.batches.append(b)
+
+        def substitution(self, **k):
+            self.subs.append(k)
+
+        def episode(self, **k):
+            self.robot.append(k)
+
+    layout, spec, sink = load_layout("5x5"), get_method(method), Sink()
+    robot = run_robot_trials(layout, spec, 2, 3, 0, recogniser=LiveOracle(), sink=sink,
+                             robot_sink=sink)  # fmt: skip
+    grid = run_trials(layout, spec, 2, 3, 0, recogniser=LiveOracle(), progress=False)
+    for key in ("steps", "collisions", "returns", "reached_goal", "prevented", "greedy_optimal"):
+        assert np.array_equal(getattr(robot, key), getattr(grid, key)), key
+    assert len(sink.batches) == len(sink.robot) == 6
+    for b, r in zip(sink.batches, sink.robot):
+        assert r["sim_time"] > 0 and len(r["poses"]) >= 10 * r["sim_time"] - 1
+        assert len(r["contacts"]) == int(b["summary"]["collisions"][0])
+        assert len(r["pictures"]) == len(b["recognitions"]["episode"])
+
+
+def test_trials_stage_runs_a_robot_cell_into_both_record_files(tmp_path):
+    from pipeline.records import read_records
+    from pipeline.robot.records import read_robot_records
+    from pipeline.stages._common import run_stage
+
+    args = ["method=fewshot", "world=robot3d", "recogniser=oracle", "runs=1", "episodes=3",
+            "progress=false", "robot.threshold=0.9", "overwrite=true"]  # fmt: skip
+    summary = run_stage("trials", [*args, f"out={tmp_path / 'a'}"])
+    assert summary["collisions"]["mean"] == 0.0
+    settings, episodes = read_robot_records(tmp_path / "a" / "robot.mcap")
+    assert settings["threshold"] == 0.9 and len(episodes) == 3
+    assert all(e["sim_time"] > 0 and e["poses"] for e in episodes)
+    pictures = [p for e in episodes for p in e["pictures"]]
+    assert pictures and all(np.argmax(p["scores"]) == p["true"] for p in pictures)
+    records = read_records(tmp_path / "a" / "records.mcap")
+    config = records.meta.config
+    assert config["world"] == "robot3d" and config["robot"]["threshold"] == 0.9
+    assert (records.recognitions["picture"] == -1).all()
+    first = {n: (tmp_path / "a" / n).read_bytes() for n in ("records.mcap", "robot.mcap")}
+    run_stage("trials", [*args, f"out={tmp_path / 'a'}"])  # the same seed again
+    for name, data in first.items():
+        assert (tmp_path / "a" / name).read_bytes() == data, name  # byte for byte
+
+
+@pytest.mark.parametrize(
+    "overrides,message",
+    [
+        (
+            ["method=shield", "robot.cell=0.8"],
+            "config key 'robot.cell': read only with world=robot3d",
+        ),
+        (
+            ["method=fewshot", "world=robot3d", "recogniser=fixed_accuracy"],
+            "config key 'recogniser'",
+        ),
+        (["method=shield", "world=mars"], "world"),
+        (["method=shield", "world=robot3d", "robot.timestep=0.03"], "timestep"),
+    ],
+)
+def test_robot_config_is_applied_or_refused(tmp_path, overrides, message):
+    from pipeline.errors import ConfigError
+    from pipeline.stages._common import run_stage
+
+    with pytest.raises((ConfigError, ValueError), match=message):
+        run_stage(
+            "trials", [*overrides, "runs=1", "episodes=1", f"out={tmp_path}", "progress=false"]
+        )
+
+
+def test_an_experiment_mixing_worlds_shares_the_recogniser_but_wraps_it_for_the_robot():
+    from pipeline.stages._cell_plan import experiment_cells
+    from pipeline.stages._cell_run import make_recogniser
+    from pipeline.stages._common import load_config
+
+    cfg = load_config("trials", ["+experiment=robot3d", "recogniser=oracle"])
+    cells = experiment_cells(cfg, ["+experiment=robot3d", "recogniser=oracle"])
+    built = {}
+    grid = make_recogniser(cells["fewshot_5x5_grid"], built=built)
+    robot = make_recogniser(cells["fewshot_5x5_robot3d"], built=built)
+    assert callable(getattr(robot, "live_scores", None)) and robot is not grid
+    assert {c.world for c in cells.values()} == {"grid", "robot3d"}
+
+
+@pytest.mark.slow  # 10-20 s
+def test_3d_replay_holds_scene_path_pictures_and_collisions(tmp_path):
+    import rerun.chunk
+
+    from pipeline.robot.replay import build_robot_replay
+    from pipeline.stages._common import run_stage
+
+    cell = tmp_path / "cell"
+    run_stage("trials", ["method=fewshot", "world=robot3d", "recogniser=oracle", "runs=1",
+                         "episodes=1", "robot.threshold=1.0", f"out={cell}", "progress=false"])  # fmt: skip
+    rrd = build_robot_replay(cell, 0, 0, tmp_path / "replay.rrd")
+    chunks = rerun.chunk.RrdReader(str(rrd)).stream().to_chunks()
+    paths = {str(c.entity_path) for c in chunks}
+    assert {"/robot/path", "/robot/body", "/camera/picture", "/camera/scores"} <= paths
+    assert any(p.startswith("/scene/obstacle") for p in paths)
+    assert any(p.startswith("/scene/wall") for p in paths)
+    with pytest.raises(ValueError, match="no run 0 episode 5"):
+        build_robot_replay(cell, 0, 5, tmp_path / "x.rrd")
+
+
+@pytest.mark.slow  # 30-60 s: 20 small cells and a report
+def test_report_section_on_a_simulated_robot(tmp_path):
+    from pipeline.stages._common import run_stage
+
+    runs = tmp_path / "runs"
+    run_stage("trials", ["+experiment=robot3d", "recogniser=oracle", "runs=2", "episodes=2",
+                         "workers=1", f"out={runs / 'robot3d'}", "progress=false"])  # fmt: skip
+    run_stage("report", [f"runs_dir={runs}", f"out={tmp_path / 'report'}", "allow_missing=true"])
+    text = (tmp_path / "report" / "index.md").read_text()
+    assert "On a simulated robot" in text
+    table = (tmp_path / "report" / "tables" / "robot3d.csv").read_text()
+    assert "collisions, robot (MuJoCo)" in table and "collisions, grid" in table
+    accuracy = (tmp_path / "report" / "tables" / "robot3d_recognition.csv").read_text()
+    assert "live camera pictures (robot)" in accuracy and "1.00" in accuracy  # the oracle
+    assert (tmp_path / "report" / "tables" / "robot3d_robot_time.csv").exists()
