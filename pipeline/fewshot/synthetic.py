@@ -52,11 +52,13 @@ def write_synthetic_dataset(
     n_val: int = 4,
     n_test: int = 5,
     per_class: int = 20,
+    views_per_category: int = 0,
     size: int = 24,
     seed: int = 0,
 ) -> Path:
     """Write PNGs and ``manifest.csv`` under ``images_dir``; returns the manifest path. The train,
-    val and test splits hold ``n_train``, ``n_val`` and ``n_test`` classes; the query
+    val and test splits hold ``n_train``, ``n_val`` and ``n_test`` classes, the views split
+    ``views_per_category`` pictures of each query category (like its query pictures); the query
     and support splits hold 5 categories (2 instances x 4 faces, and 5 pictures each)."""
     images_dir = Path(images_dir)
     rng = np.random.default_rng(seed)
@@ -113,5 +115,7 @@ def write_synthetic_dataset(
             write(
                 "support", cls, category, name, k, 0, -1, 40.0
             )  # a different "catalogue" background
+        for k in range(views_per_category):
+            write("views", cls, category, name, k % 2, -1, -1, 0.0)
     pd.DataFrame(rows, columns=list(COLUMNS)).to_csv(images_dir / MANIFEST, index=False)
     return images_dir / MANIFEST
