@@ -109,3 +109,17 @@ def test_the_render_stage_passes_its_split_keys_on_and_refuses_bad_view_distance
     assert load_config("render").n_test_classes == 20  # the paper profile: Ravi and Larochelle's 20
     with pytest.raises(ConfigError, match=r"config key 'views_distance'"):
         plan_config(load_config("render", ["views_distance=[1.5,1.0]"]))
+
+
+def test_contact_sheet_rows_say_what_they_show(tmp_path):
+    from pipeline.world.render_plan import query_batch
+    from pipeline.world.sheet_labels import query_rows, views_rows
+
+    _, rows = query_batch(PlanConfig())
+    labels = [label for label, files in query_rows(rows, tmp_path)]
+    assert labels[:2] == [
+        "chair as it stands in the maze: seen from north, east, south, west",
+        "chair turned 45 degrees: seen from north, east, south, west",
+    ]
+    assert len(labels) == 10 and all(len(f) == 4 for _, f in query_rows(rows, tmp_path))
+    assert views_rows(rows, tmp_path, 8) == []  # no views rows: no sheet
