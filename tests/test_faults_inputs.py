@@ -56,7 +56,7 @@ def test_an_empty_mapping_merged_away_is_refused_not_ignored(tmp_path):
 
 def test_the_report_names_a_missing_metrics_file_in_its_cell(tmp_path):
     row = recogniser_row("Relation Network", tmp_path / "metrics.json", tmp_path / "study")
-    assert row["validation [95%]"] == f"no metrics file `{tmp_path / 'metrics.json'}`"
+    assert row["test [95%]"] == f"no metrics file `{tmp_path / 'metrics.json'}`"
     assert row["query pictures [95%]"] == f"no study `{tmp_path / 'study' / 'summary.json'}`"
 
 
@@ -81,11 +81,13 @@ def test_a_decompression_bomb_in_a_folder_tree_is_one_line(tmp_path, side):
 
 
 def _meta_train(tmp_path, train, val):
+    test = make_tree(tmp_path / "test", ["x0", "x1"], per_class=2)
     return cli(
         "meta_train",
         "data=folder",
         f"data.train_dir={train}",
         f"data.val_dir={val}",
+        f"data.test_dir={test}",
         "progress=false",
         *outputs(tmp_path / "m"),
         *SHRINK,

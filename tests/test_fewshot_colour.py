@@ -85,3 +85,34 @@ def test_recogniser_turns_only_its_query_pictures(tmp_path):
     )
     with pytest.raises(ValueError):
         RelationRecogniser.from_files(tmp_path / "rn.pt", images, query_hue_shift=float("nan"))
+
+
+def test_the_colour_test_on_the_views_of_the_query_obstacles(tmp_path):
+    """pipeline/fewshot/views.py: every views picture against the original support set, as
+    rendered and per hue shift; a whole turn changes nothing; a render without views has none."""
+    import torch
+
+    from pipeline.fewshot.checkpoint import save_checkpoint
+    from pipeline.fewshot.model import ModelConfig, RelationNetwork
+    from pipeline.fewshot.views import has_views, views_predictions
+
+    images, bare = tmp_path / "images", tmp_path / "bare"
+    write_synthetic_dataset(images, n_train=2, n_val=1, per_class=2, views_per_category=6, seed=1)
+    write_synthetic_dataset(bare, n_train=2, n_val=1, per_class=2, seed=1)
+    torch.manual_seed(0)
+    save_checkpoint(
+        tmp_path / "rn.pt",
+        RelationNetwork(ModelConfig(24, 1)),
+        normalisation={"mean": [0.5] * 3, "std": [0.25] * 3},
+        config={},
+        metrics={},
+    )
+    rec = RelationRecogniser.from_files(tmp_path / "rn.pt", images)
+    cats, original, turned = views_predictions(rec, images, [360.0, 180.0])
+    assert cats.tolist() == [c for c in range(5) for _ in range(6)] and original.shape == (30,)
+    assert np.array_equal(turned[360.0], original)
+    _, shifted, _ = views_predictions(rec, images, [], base_shift=180.0)
+    assert np.array_equal(shifted, turned[180.0])
+    counts = colour_test(original, turned, cats)
+    assert counts["pictures"] == 30 and counts["correct_per_shift"][1] == counts["correct_original"]
+    assert has_views(images) and not has_views(bare)

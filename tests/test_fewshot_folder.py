@@ -51,7 +51,8 @@ def outputs(folder):
 def trees(tmp_path):
     train = make_tree(tmp_path / "train", [f"t{c}" for c in range(6)])
     val = make_tree(tmp_path / "val", [f"v{c}" for c in range(5)], seed=1)
-    return train, val
+    test = make_tree(tmp_path / "test", [f"x{c}" for c in range(5)], seed=2)
+    return train, val, test
 
 
 def test_load_folder_reads_classes_in_name_order_resized(tmp_path):
@@ -103,16 +104,33 @@ def test_require_episodes_refuses_small_splits(tmp_path):
 
 
 def test_meta_train_on_folders(tmp_path, trees):
-    train, val = trees
+    train, val, test = trees
     out = tmp_path / "m"
-    args = ["data=folder", f"data.train_dir={train}", f"data.val_dir={val}", *outputs(out), *SHRINK]
+    args = [
+        "data=folder",
+        f"data.train_dir={train}",
+        f"data.val_dir={val}",
+        f"data.test_dir={test}",
+        *outputs(out),
+        *SHRINK,
+    ]
     metrics = run_stage("meta_train", args)
     info = json.loads((out / "rn.train_info.json").read_text())
-    assert (
-        info["train_dir"] == str(train) and info["val_dir"] == str(val) and "images_dir" not in info
+    assert info["train_dir"] == str(train) and info["val_dir"] == str(val)
+    assert info["test_dir"] == str(test) and "images_dir" not in info
+    scores = json.loads((out / "rn.validation.json").read_text())
+    assert (scores["n_train_classes"], scores["n_val_classes"], scores["n_test_classes"]) == (
+        6,
+        5,
+        5,
     )
-    assert info["n_train_classes"] == 6 and info["n_val_classes"] == 5
-    assert 0.0 <= metrics["val_accuracy"] <= 1.0 and (out / "rn.pt").is_file()
+    assert 0.0 <= metrics["test_accuracy"] <= 1.0 and (out / "rn.pt").is_file()
+    quoted = json.loads((out / "metrics.json").read_text())
+    assert quoted == {
+        "accuracy": pytest.approx(metrics["test_accuracy"]),
+        "ci_low": pytest.approx(metrics["test_accuracy"] - metrics["test_ci95"]),
+        "ci_high": pytest.approx(metrics["test_accuracy"] + metrics["test_ci95"]),
+    }
     first = (out / "metrics.json").read_bytes()
     run_stage("meta_train", args)  # the same trees and seed: the same model selection and figures
     assert (out / "metrics.json").read_bytes() == first
@@ -122,40 +140,93 @@ def test_meta_train_on_folders(tmp_path, trees):
     "extra, match",
     [
         (
-            ["data=folder", "data.train_dir={train}"],
+            ["data=folder", "data.train_dir={train}", "data.test_dir={test}"],
             r"config key 'data\.val_dir': data=folder needs it",
         ),
+        (  # a tree without test classes: refused, naming the key (docs/fewshot.md)
+            ["data=folder", "data.train_dir={train}", "data.val_dir={val}"],
+            r"config key 'data\.test_dir': data=folder needs it .*quoted accuracy",
+        ),
         (
-            ["data=folder", "data.train_dir={train}", "data.val_dir={train}"],
+            [
+                "data=folder",
+                "data.train_dir={train}",
+                "data.val_dir={train}",
+                "data.test_dir={test}",
+            ],
             r"config key 'data\.val_dir': it is data\.train_dir",
         ),
         (
-            ["data=folder", "data.train_dir={train}", "data.val_dir={val}", "images_dir={val}"],
+            ["data=folder", "data.train_dir={train}", "data.val_dir={val}", "data.test_dir={val}"],
+            r"config key 'data\.test_dir': it is data\.val_dir",
+        ),
+        (
+            [
+                "data=folder",
+                "data.train_dir={train}",
+                "data.val_dir={val}",
+                "data.test_dir={test}",
+                "images_dir={val}",
+            ],
             r"config key 'images_dir': data=folder reads",
         ),
         (
-            ["data=folder", "data.train_dir={train}", "data.val_dir={val}/missing"],
+            [
+                "data=folder",
+                "data.train_dir={train}",
+                "data.val_dir={val}/missing",
+                "data.test_dir={test}",
+            ],
             r"config key 'data\.val_dir': .*missing is not a folder",
         ),
         (["data.train_dir={train}"], r"config key 'data\.train_dir': read only with data=folder"),
+        (["data.test_dir={test}"], r"config key 'data\.test_dir': read only with data=folder"),
         (
-            ["data=folder", "data.train_dir={train}", "data.val_dir={val}", "train.n_query=8"],
+            [
+                "data=folder",
+                "data.train_dir={train}",
+                "data.val_dir={val}",
+                "data.test_dir={test}",
+                "train.n_query=8",
+            ],
             r"training classes .* too few in t0 \(10\)",
         ),
         (["data=bogus"], r"data"),
     ],
 )
 def test_keys_the_source_does_not_read_are_refused(tmp_path, trees, extra, match):
-    train, val = trees
-    args = [a.format(train=train, val=val) for a in extra]
+    train, val, test = trees
+    args = [a.format(train=train, val=val, test=test) for a in extra]
     with pytest.raises((ConfigError, DataError), match=match):
         run_stage("meta_train", [*SHRINK, *args, *outputs(tmp_path)])
+    assert not (tmp_path / "rn.pt").exists()
+
+
+def test_test_classes_must_be_held_out_from_training_and_validation(tmp_path):
+    train = make_tree(tmp_path / "train", ["a", "b", "c", "d", "e"])
+    val = make_tree(tmp_path / "val", ["f", "g", "h", "i", "j"])
+    test = make_tree(tmp_path / "test", ["j", "k", "l", "m", "n"])
+    with pytest.raises(
+        ConfigError, match=r"config key 'data\.test_dir': classes j are in data\.val_dir too"
+    ):
+        run_stage(
+            "meta_train",
+            [
+                "data=folder",
+                f"data.train_dir={train}",
+                f"data.val_dir={val}",
+                f"data.test_dir={test}",
+                *outputs(tmp_path),
+                *SHRINK,
+            ],
+        )
     assert not (tmp_path / "rn.pt").exists()
 
 
 def test_validation_classes_must_be_held_out(tmp_path):
     train = make_tree(tmp_path / "train", ["a", "b", "c", "d", "e"])
     val = make_tree(tmp_path / "val", ["e", "f", "g", "h", "i"])
+    test = make_tree(tmp_path / "test", ["x", "y", "z", "w", "v"])
     with pytest.raises(
         ConfigError, match=r"config key 'data\.val_dir': classes e are in data\.train_dir too"
     ):
@@ -165,6 +236,7 @@ def test_validation_classes_must_be_held_out(tmp_path):
                 "data=folder",
                 f"data.train_dir={train}",
                 f"data.val_dir={val}",
+                f"data.test_dir={test}",
                 *outputs(tmp_path),
                 *SHRINK,
             ],

@@ -44,14 +44,19 @@ def test_meta_train_then_accuracy(tmp_path):
     ]
     metrics = run_stage("meta_train", paths + SHRINK)
     on_disk = json.loads((tmp_path / "m" / "metrics.json").read_text())
-    assert (
-        on_disk["val_accuracy"] == pytest.approx(metrics["val_accuracy"])
-        and on_disk["val_episodes"] == 20
-    )
-    info = json.loads(
-        (tmp_path / "m" / "rn.train_info.json").read_text()
-    )  # metrics.json: metrics only
-    assert set(on_disk) == set(meta_train.METRIC_KEYS) and {
+    # metrics.json: the quoted test figure only (one DVC column each); the rest beside the checkpoint
+    assert on_disk == meta_train.quoted_metrics(metrics) and set(on_disk) == {
+        "accuracy",
+        "ci_low",
+        "ci_high",
+    }
+    assert on_disk["ci_low"] < on_disk["accuracy"] < on_disk["ci_high"]
+    scores = json.loads((tmp_path / "m" / "rn.validation.json").read_text())
+    assert set(scores) == set(meta_train.SCORE_KEYS) and scores["val_episodes"] == 20
+    assert scores["val_accuracy"] == pytest.approx(metrics["val_accuracy"])
+    assert scores["test_accuracy"] == pytest.approx(on_disk["accuracy"])
+    info = json.loads((tmp_path / "m" / "rn.train_info.json").read_text())
+    assert not set(info) & set(meta_train.SCORE_KEYS) and {
         "train_seconds",
         "torch_threads",
         "images_dir",
@@ -171,7 +176,7 @@ def test_protonet_meta_train_accuracy_and_report_tables(tmp_path):
     from pipeline.report.build import Report
 
     images = tmp_path / "images"
-    write_synthetic_dataset(images, n_train=6, n_val=5, per_class=10, seed=2)
+    write_synthetic_dataset(images, n_train=6, n_val=5, per_class=10, views_per_category=4, seed=2)
     shrink = [s for s in SHRINK if not s.startswith("train.relation_padding")]
     assert load_config("meta_train", ["model=protonet"]).checkpoint == "datasets/models/protonet.pt"
     with pytest.raises(
@@ -245,9 +250,30 @@ def test_protonet_meta_train_accuracy_and_report_tables(tmp_path):
     assert "## The recogniser" in text
     table = pd.read_csv(tmp_path / "report" / "tables" / "recogniser.csv")
     assert table.recogniser.tolist() == ["Relation Network", "Prototypical Network"]
+    # the quoted figure is the test families' (metrics.json), validation beside it (the checkpoint's)
+    assert (
+        table["test [95%]"]
+        .str.match(r"\d+\.\d\d% \[[\d.]+, [\d.]+\] \(20 episodes, 5 families\)")
+        .all()
+    )
+    assert (
+        table["validation [95%]"]
+        .str.match(r"\d+\.\d\d% \[[\d.]+, [\d.]+\] \(20 episodes, 5 families\)")
+        .all()
+    )
     assert table["query pictures [95%]"].str.match(r"\d+/40 = ").all()
-    assert table["hue-turned query pictures [95%]"].str.match(r"\d+/200 = ").all()
-    assert table["drop, points [95%]"].str.contains(r"\[").all()
+    assert table["views of the query obstacles [95%]"].str.match(r"\d+/20 = ").all()
+    colour = pd.read_csv(tmp_path / "report" / "tables" / "colour_test.csv")
+    assert (
+        colour.pictures.tolist()
+        == [
+            "the 40 query pictures (40)",
+            "views of the query obstacles (20)",
+        ]
+        * 2
+    )
+    assert colour["hue-turned [95%]"].str.match(r"\d+/(200|100) = ").all()
+    assert colour["drop, points [95%]"].str.contains(r"\[").all()
     assert "ours, Prototypical Network" in text
     t2 = pd.read_csv(tmp_path / "report" / "tables" / "table2.csv")
     assert (

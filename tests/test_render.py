@@ -17,13 +17,15 @@ from pipeline.world.camera import side_azimuth
 from pipeline.world.metaset import build_meta_instance, make_families
 from pipeline.world.obstacle_models import build_obstacle, category_index
 from pipeline.world.pictures import CATEGORIES, N_PICTURES, picture_id
-from pipeline.world.render_plan import MANIFEST_COLUMNS, PlanConfig, make_plan
+from pipeline.world.render_plan import MANIFEST_COLUMNS, SPLITS, PlanConfig, make_plan
 from pipeline.world.render_runner import render_batch
 
 SMALL = [
     "n_train_classes=3",
     "n_val_classes=2",
+    "n_test_classes=2",
     "per_class=4",
+    "views_per_obstacle=1",
     "views_per_instance=2",
     "size=32",
     "contact_sheets=true",
@@ -69,11 +71,12 @@ def test_counts_columns_and_query_faces(rendered):
     out = tmp / "images"
     rows = _manifest(out)
     assert tuple(rows[0].keys()) == MANIFEST_COLUMNS
-    by = {s: [r for r in rows if r["split"] == s] for s in ("query", "support", "train", "val")}
+    by = {s: [r for r in rows if r["split"] == s] for s in SPLITS}
     assert len(by["query"]) == N_PICTURES == 40
     assert len(by["support"]) == 5 * 5
-    assert len(by["train"]) == 3 * 4 and len(by["val"]) == 2 * 4
-    assert figures["pictures"] == len(rows) == 85
+    assert len(by["train"]) == 3 * 4 and len(by["val"]) == 2 * 4 and len(by["test"]) == 2 * 4
+    assert len(by["views"]) == 10  # the ten query obstacles, one view each
+    assert figures["pictures"] == len(rows) == 103
     for r in rows:  # every file exists and is a picture of the configured size
         from PIL import Image
 
@@ -89,9 +92,19 @@ def test_counts_columns_and_query_faces(rendered):
     assert {(int(r["category"]), int(r["instance"]), int(r["face"])) for r in by["query"]} == {
         (c, i, f) for c in range(5) for i in range(2) for f in range(4)
     }
-    for s in ("support", "train", "val"):
+    for s in ("support", "train", "val", "test", "views"):
         assert all(int(r["picture_id"]) == -1 and int(r["face"]) == -1 for r in by[s])
-    for name in ("contact_query", "contact_support", "contact_train", "contact_val"):
+    assert {
+        (int(r["category"]), int(r["instance"]), float(r["orientation_deg"])) for r in by["views"]
+    } == {(c, i, 45.0 * i) for c in range(5) for i in range(2)}
+    for name in (
+        "contact_query",
+        "contact_support",
+        "contact_train",
+        "contact_val",
+        "contact_test",
+        "contact_views",
+    ):
         assert (tmp / "figures" / f"{name}.png").is_file()
     assert not list(out.rglob("*.tmp"))
 
@@ -109,8 +122,10 @@ def test_splits_are_disjoint(rendered):
     }
     train = {r["class_name"] for r in rows if r["split"] == "train"}
     val = {r["class_name"] for r in rows if r["split"] == "val"}
-    assert len(train) == 3 and len(val) == 2 and train.isdisjoint(val)
-    assert not (train | val) & set(CATEGORIES)
+    test = {r["class_name"] for r in rows if r["split"] == "test"}
+    assert len(train) == 3 and len(val) == 2 and len(test) == 2
+    assert train.isdisjoint(val) and train.isdisjoint(test) and val.isdisjoint(test)
+    assert not (train | val | test) & set(CATEGORIES)
     files = [r["file"] for r in rows]
     assert len(set(files)) == len(files)
 
@@ -123,7 +138,15 @@ def test_same_config_same_bytes(rendered, tmp_path):
 
 
 def test_seed_changes_pictures(rendered, tmp_path):
-    cfg = PlanConfig(seed=1, n_train_classes=1, n_val_classes=0, per_class=1, views_per_instance=1)
+    cfg = PlanConfig(
+        seed=1,
+        n_train_classes=1,
+        n_val_classes=0,
+        per_class=1,
+        views_per_instance=1,
+        n_test_classes=0,
+        views_per_obstacle=0,
+    )
     batches, _ = make_plan(cfg)
     render_batch(batches[0], str(tmp_path), 32)
     f = batches[0].files[0]

@@ -37,7 +37,7 @@ COLUMNS = (
     "picture_id",
     "file",
 )
-SPLITS = ("query", "support", "train", "val")
+SPLITS = ("query", "support", "train", "val", "test", "views")
 #: File endings :func:`load_folder` reads as pictures (any case); other files are left alone.
 PICTURE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".webp")
 

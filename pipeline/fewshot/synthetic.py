@@ -50,15 +50,19 @@ def write_synthetic_dataset(
     *,
     n_train: int = 8,
     n_val: int = 4,
+    n_test: int = 5,
     per_class: int = 20,
+    views_per_category: int = 0,
     size: int = 24,
     seed: int = 0,
 ) -> Path:
-    """Write PNGs and ``manifest.csv`` under ``images_dir``; returns the manifest path. The query
+    """Write PNGs and ``manifest.csv`` under ``images_dir``; returns the manifest path. The train,
+    val and test splits hold ``n_train``, ``n_val`` and ``n_test`` classes, the views split
+    ``views_per_category`` pictures of each query category (like its query pictures); the query
     and support splits hold 5 categories (2 instances x 4 faces, and 5 pictures each)."""
     images_dir = Path(images_dir)
     rng = np.random.default_rng(seed)
-    n_classes = n_train + n_val + 5
+    n_classes = n_train + n_val + n_test + 5
     colours = rng.uniform(40, 255, (n_classes, 3))
     backgrounds = rng.uniform(0, 120, (n_classes, 3))
     shapes = [SHAPES[i % len(SHAPES)] for i in rng.permutation(n_classes)]
@@ -83,13 +87,17 @@ def write_synthetic_dataset(
         Image.fromarray(img).save(path)
         rows.append((split, label, name, instance, face, 0.0, pid, rel))
 
-    for split, first, count in (("train", 0, n_train), ("val", n_train, n_val)):
+    for split, first, count in (
+        ("train", 0, n_train),
+        ("val", n_train, n_val),
+        ("test", n_train + n_val, n_test),
+    ):
         for label in range(count):
             cls = first + label
             for i in range(per_class):
                 write(split, cls, label, f"{split}_class_{label:03d}", i, 0, -1, 0.0)
     for category in range(5):
-        cls = n_train + n_val + category
+        cls = n_train + n_val + n_test + category
         name = f"category_{category}"
         for instance in range(2):
             for face in range(4):
@@ -107,5 +115,7 @@ def write_synthetic_dataset(
             write(
                 "support", cls, category, name, k, 0, -1, 40.0
             )  # a different "catalogue" background
+        for k in range(views_per_category):
+            write("views", cls, category, name, k % 2, -1, -1, 0.0)
     pd.DataFrame(rows, columns=list(COLUMNS)).to_csv(images_dir / MANIFEST, index=False)
     return images_dir / MANIFEST

@@ -1,4 +1,4 @@
-"""Tables 1 and 2 (paper section 4.2.1) and the model's validation accuracy, from the accuracy
+"""Tables 1 and 2 (paper section 4.2.1), after the recogniser section (:mod:`.recogniser_table`), from the accuracy
 study's data files (``baseline.csv``, ``table1.csv``, ``table2.csv``, ``summary.json``) and the
 meta-training metrics. The paper's numbers come in those files' ``paper_*`` columns. The Relation
 Network (the paper's recogniser) fills the tables; other few-shot methods studied the same way
@@ -19,6 +19,7 @@ from matplotlib.ticker import MaxNLocator
 
 from pipeline import palette
 from pipeline.report import figures as F
+from pipeline.report.recogniser_table import recogniser_row, recogniser_section  # noqa: F401  (re-exported)
 from pipeline.report.stats import bootstrap_ci, wilson_ci
 from pipeline.report.study import RESAMPLES, SEED, VARIANTS, Estimate, Study
 
@@ -71,25 +72,10 @@ def accuracy_tables(
     (``accuracy_dir``, ``model_metrics``); ``others`` maps another method's name to its study folder
     and metrics file, shown beside the Relation Network (missing files: said, not shown)."""
     others = others or {}
-    rows = []
-    for name, (metrics, folder) in [
-        (MAIN, (model_metrics, accuracy_dir)),
-        *((n, (m, f)) for n, (f, m) in others.items()),
-    ]:
-        if metrics.exists() or (folder / "summary.json").exists():
-            rows.append(recogniser_row(name, metrics, folder))
-    if rows:
-        rep.add("## The recogniser\n")
-        rep.table(
-            "recogniser",
-            pd.DataFrame(rows),
-            "Validation: 5-way 5-shot accuracy on held-out procedural families, mean over the episodes "
-            "with its 95% interval (the model is selected on validation classes only). Query pictures: the "
-            "40 pictures the robot takes, against the original support set, with a Wilson 95% interval. "
-            "Colour test: every query picture's hue turned by each of the study's hue shifts (the support "
-            "set as rendered; `pipeline/fewshot/colour.py`), correct over pictures x shifts; its interval "
-            "and the drop's (paired, in points) are bootstrap 95% intervals over the 40 pictures.",
-        )
+    recogniser_section(
+        rep,
+        [(MAIN, model_metrics, accuracy_dir), *((n, m, f) for n, (f, m) in others.items())],
+    )
     if not (accuracy_dir / "table2.csv").exists():
         rep.add(f"Accuracy study: no data under `{accuracy_dir}`.\n")
         return
@@ -157,57 +143,6 @@ def accuracy_tables(
         f"{intervals_note(study)}",
     )
     table2_figure(rep, study, beside)
-
-
-def recogniser_row(name: str, metrics: Path, accuracy_dir: Path) -> dict:
-    """One row of the recogniser table: validation accuracy, query accuracy and the colour test
-    (blank where the study ran without the colour test; a missing file is named in its cell)."""
-    row = {
-        "recogniser": name,
-        "validation [95%]": "",
-        "query pictures [95%]": "",
-        "hue-turned query pictures [95%]": "",
-        "drop, points [95%]": "",
-    }
-    if metrics.exists():
-        m = json.loads(metrics.read_text())
-        row["validation [95%]"] = (
-            f"{100 * m['val_accuracy']:.2f}% ± {100 * m['val_ci95']:.2f} "
-            f"({m['val_episodes']} episodes)"
-        )
-    else:
-        row["validation [95%]"] = f"no metrics file `{metrics}`"
-    path = accuracy_dir / "summary.json"
-    if not path.is_file():
-        row["query pictures [95%]"] = f"no study `{path}`"
-        return row
-    summary = json.loads(path.read_text())
-    correct, total = (
-        int(sum(summary["baseline"]["correct"])),
-        int(sum(summary["baseline"]["total"])),
-    )
-    lo, hi = wilson_ci(correct / total, total)
-    row["query pictures [95%]"] = (
-        f"{correct}/{total} = {100 * correct / total:.1f}% [{100 * lo:.1f}, {100 * hi:.1f}]"
-    )
-    colour = summary.get("colour_test")
-    if not colour or not colour["shifts_deg"]:
-        return row
-    cats = np.asarray(colour["categories"])
-    turned = np.asarray(colour["predictions_per_shift"])  # (shifts, pictures)
-    original = (np.asarray(colour["predictions_original"]) == cats).astype(float)
-    per_picture = (turned == cats).mean(axis=0)
-    n = turned.size
-    lo, hi = bootstrap_ci(per_picture)
-    row["hue-turned query pictures [95%]"] = (
-        f"{int((turned == cats).sum())}/{n} = {100 * per_picture.mean():.1f}% "
-        f"[{100 * lo:.1f}, {100 * hi:.1f}]"
-    )
-    lo, hi = bootstrap_ci(original - per_picture)
-    row["drop, points [95%]"] = (
-        f"{100 * (original - per_picture).mean():.1f} [{100 * lo:.1f}, {100 * hi:.1f}]"
-    )
-    return row
 
 
 def table1(study: Study, variant: str, beside: dict[str, Study] | None = None) -> pd.DataFrame:

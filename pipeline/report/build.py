@@ -92,16 +92,19 @@ def accuracy_section(
 
 #: What each of the render stage's contact sheets shows (its row labels included), by file stem.
 SHEETS = {
-    "contact_query": "The query pictures the robot sees in the maze, a row per category: "
-    "instance 0 seen from the north, east, south and west (the first four), then instance 1 "
-    "(the same object turned 45 degrees) from the same four sides; the row label `(i0 N E S W | "
-    "i1)` says that order.",
-    "contact_support": "The support set: five catalogue pictures per category (other instances "
-    "in another setting than the maze), a row per category.",
-    "contact_train": "Meta-training classes (procedural families, any colour): a row per class, "
-    "five of its pictures.",
-    "contact_val": "Validation classes (held out from meta-training; they choose the checkpoint): "
-    "a row per class, five of its pictures.",
+    "contact_query": "The 40 query pictures the robot takes in the maze: two rows per category, the "
+    "obstacle as it stands and then turned 45 degrees, each seen from the north, east, south and "
+    "west (left to right).",
+    "contact_support": "The support set: five catalogue photographs per category, each of another "
+    "instance than the obstacle in the maze, a row per category.",
+    "contact_train": "The training families (procedural objects of any colour; a row per family, "
+    "its parts from the bottom up, five of its pictures).",
+    "contact_val": "The validation families: held out from training, they choose the checkpoint; "
+    "each at least the render's min_family_distance (2: two whole parts) from every training family.",
+    "contact_test": "The test families: held out from training and from the choice of checkpoint, each at "
+    "least the render's min_family_distance from every training family; the quoted accuracy is theirs.",
+    "contact_views": "Views of the query obstacles for the colour test: each of the ten obstacles "
+    "(a row each) from random sides and distances in the maze; the first few of its views.",
 }
 
 

@@ -45,8 +45,12 @@ class RenderProfile:
     """Meta-training classes (the paper: miniImageNet's 64)."""
     n_val_classes: int = setting(ge=0)
     """Held-out validation classes that pick the checkpoint."""
+    n_test_classes: int = setting(ge=0)
+    """Held-out test classes that give the quoted accuracy (Ravi and Larochelle: 20)."""
     per_class: int = setting(ge=1)
     """Pictures per meta-training class."""
+    views_per_obstacle: int = setting(ge=0)
+    """Pictures per query obstacle in the colour test's larger query-like set (split ``views``)."""
     workers: int = setting(ge=1)
     """Render processes."""
 
@@ -252,8 +256,17 @@ class RenderConfig:
     """Meta-training classes."""
     n_val_classes: int = setting(II("profile.render.n_val_classes"), ge=0)
     """Held-out validation classes that pick the checkpoint."""
+    n_test_classes: int = setting(II("profile.render.n_test_classes"), ge=0)
+    """Held-out test classes that give the quoted accuracy."""
+    min_family_distance: float = setting(ge=0)
+    """Least structural distance of every validation and test family from every training family
+    (``pipeline/world/family_split.py``)."""
     per_class: int = setting(II("profile.render.per_class"), ge=1)
     """Pictures per meta-training class."""
+    views_per_obstacle: int = setting(II("profile.render.views_per_obstacle"), ge=0)
+    """Pictures per query obstacle in the colour test's larger set (split ``views``; 0: none)."""
+    views_distance: list[float] = MISSING
+    """The range of camera distances of those pictures, metres [low, high]."""
     views_per_instance: int = setting(ge=1)
     """Pictures per jittered instance of a class."""
     support_per_category: int = setting(ge=1)
@@ -278,7 +291,7 @@ class RenderConfig:
 @dataclass
 class DataConfig:
     """Where meta-training's classes come from (``pipeline/conf/data/``): ``rendered``, the render stage's
-    ``train`` and ``val`` splits in ``images_dir``; ``folder``, two folder-per-class trees
+    ``train``, ``val`` and ``test`` splits in ``images_dir``; ``folder``, three folder-per-class trees
     (:func:`pipeline.fewshot.data.load_folder`), such as miniImageNet's."""
 
     source: str = setting(choices=DATA_SOURCES)
@@ -286,7 +299,9 @@ class DataConfig:
     train_dir: str | None = None
     """``data=folder``: the training classes, ``<train_dir>/<class>/<picture>``."""
     val_dir: str | None = None
-    """``data=folder``: the validation classes (model selection and the reported accuracy)."""
+    """``data=folder``: the validation classes (model selection; their accuracy is reported beside the test's)."""
+    test_dir: str | None = None
+    """``data=folder``: the test classes (the quoted accuracy); required: without it the run is refused."""
 
 
 @dataclass
@@ -303,7 +318,9 @@ class MetaTrainConfig:
     checkpoint: str = setting(nonempty=True)
     """The selected checkpoint (set by the ``model`` group)."""
     metrics_file: str = setting(nonempty=True)
-    """Its validation metrics (DVC metrics; ``<checkpoint stem>.train_info.json`` goes beside the checkpoint)."""
+    """Its test accuracy and 95% interval (DVC metrics: ``accuracy``, ``ci_low``, ``ci_high``;
+    ``<checkpoint stem>.validation.json`` (validation and selection) and ``.train_info.json``
+    (timings) go beside the checkpoint)."""
     history_file: str = setting(nonempty=True)
     """The training history, one row per evaluation (CSV)."""
     threads: int = setting(ge=1)

@@ -4,8 +4,10 @@ On the rendered query and support pictures with the meta-trained checkpoint (doc
 
     python -m pipeline accuracy [recogniser=<name of pipeline/conf/recogniser/>] [recogniser.checkpoint=...] [study.repeats=...]
 
-Writes ``out_dir``/baseline.csv, table1.csv, table2.csv, draws.csv (every random draw) and summary.json (with the colour test:
-the query pictures hue-turned by each of ``study.hue_shifts``, ``pipeline.fewshot.colour``) for the report stage.
+Writes ``out_dir``/baseline.csv, table1.csv, table2.csv, draws.csv (every random draw) and
+summary.json (with the colour test: the query pictures hue-turned by each of ``study.hue_shifts``,
+``pipeline.fewshot.colour``, and the same on the render's 400 ``views`` pictures of the query
+obstacles, ``pipeline.fewshot.views``) for the report stage.
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ from pipeline.fewshot.study_tables import (
     table1_frame,
     table2_frame,
 )
+from pipeline.fewshot.views import has_views, views_predictions
 from pipeline.files import write_json_atomic
 from pipeline.stages._common import stage_main
 from pipeline.stages._recognisers import (
@@ -68,6 +71,24 @@ def _hue_turned_predictions(
     return shifted
 
 
+def _views_colour_test(cfg: AccuracyConfig, recogniser) -> dict | None:
+    """The colour test on the ``views`` pictures (:mod:`pipeline.fewshot.views`): None for a
+    recogniser that reads no pictures, with ``study.hue_shifts`` empty, or when ``images_dir`` has
+    no views split (the report says so)."""
+    target, _ = recogniser_arguments(cfg.recogniser)
+    if "query_hue_shift" not in inspect.signature(target).parameters or not cfg.study.hue_shifts:
+        return None
+    if not has_views(cfg.recogniser["images_dir"]):
+        return None
+    categories, original, turned = views_predictions(
+        recogniser,
+        cfg.recogniser["images_dir"],
+        list(cfg.study.hue_shifts),
+        float(cfg.recogniser.get("query_hue_shift", 0.0)),
+    )
+    return colour_test(original, turned, categories)
+
+
 def run(cfg: AccuracyConfig, overrides: list[str] = ()) -> dict:
     config = cfg.study
     torch_budget(cfg.threads).apply()
@@ -87,6 +108,7 @@ def run(cfg: AccuracyConfig, overrides: list[str] = ()) -> dict:
     data["colour_test"] = (
         None if turned is None else colour_test(result.baseline_predictions, turned, categories)
     )
+    data["colour_test_views"] = _views_colour_test(cfg, recogniser)
     data["config"] = {"recogniser": dict(cfg.recogniser), **asdict(config)}
     if hasattr(recogniser, "checkpoint"):
         data["checkpoint_metrics"] = recogniser.checkpoint["metrics"]
@@ -107,6 +129,13 @@ def run(cfg: AccuracyConfig, overrides: list[str] = ()) -> dict:
         print(
             f"colour test, hue-turned query pictures: {sum(colour['correct_per_shift'])}/{n} "
             f"({100 * sum(colour['correct_per_shift']) / n:.1f}%) against {colour['correct_original']}/{colour['pictures']}"
+        )
+    views = data["colour_test_views"]
+    if views:
+        n = views["pictures"] * len(views["shifts_deg"])
+        print(
+            f"views of the query obstacles: {views['correct_original']}/{views['pictures']} correct; "
+            f"hue-turned {sum(views['correct_per_shift'])}/{n}"
         )
     for n, (w, ns) in sorted(result.table2.items()):
         print(f"  {n} substitution(s): {100 * w:.2f}%  (no same picture {100 * ns:.2f}%)")

@@ -2,7 +2,7 @@
 
     python -m pipeline render [key=value ...]            # config pipeline/conf/render.yaml
 
-Renders into ``<out_dir>/.staging-<pid>/``, moves ``{query,support,train,val}/`` into
+Renders into ``<out_dir>/.staging-<pid>/``, moves ``{query,support,train,val,test,views}/`` into
 ``<out_dir>`` when every picture is there (a failed render leaves the previous pictures and
 removes its staging folder), then writes ``<out_dir>/manifest.csv`` (last, atomically: a manifest
 exists only for a complete render), then contact sheets under
@@ -28,9 +28,9 @@ from pipeline.stages._common import stage_main
 from pipeline.stages._schema import RenderConfig
 from pipeline.world.contact_sheet import contact_sheet, save_png_atomic
 from pipeline.world.obstacle_models import category_index
-from pipeline.world.pictures import CATEGORIES
 from pipeline.world.render_plan import (
     MANIFEST_COLUMNS,
+    META_SPLITS,
     SPLITS,
     CatalogueCamera,
     MazeCamera,
@@ -39,6 +39,7 @@ from pipeline.world.render_plan import (
 )
 from pipeline.world.render_runner import render_all
 from pipeline.world.renderer_env import RendererUnavailable, backend_problem
+from pipeline.world.sheet_labels import family_rows, query_rows, support_rows, views_rows
 
 MANIFEST = "manifest.csv"
 
@@ -77,6 +78,10 @@ def plan_config(cfg: RenderConfig) -> PlanConfig:
         tuple(cfg.catalogue.turn),
         cfg.catalogue.fill,
     )
+    if len(cfg.views_distance) != 2 or not 0 < cfg.views_distance[0] <= cfg.views_distance[1]:
+        raise ConfigError(
+            f"config key 'views_distance': give [low, high] with 0 < low <= high; got {cfg.views_distance}"
+        )
     return PlanConfig(
         cfg.seed,
         tuple(cfg.categories),
@@ -87,6 +92,10 @@ def plan_config(cfg: RenderConfig) -> PlanConfig:
         cfg.support_per_category,
         mz,
         cc,
+        cfg.n_test_classes,
+        cfg.min_family_distance,
+        cfg.views_per_obstacle,
+        tuple(cfg.views_distance),
     )
 
 
@@ -101,38 +110,23 @@ def manifest_bytes(rows: list[dict]) -> bytes:
 def write_contact_sheets(
     rows: list[dict], out: Path, figures: Path, tile: int, n_classes: int, per_class: int
 ) -> list[Path]:
-    written = []
-    q = [r for r in rows if r["split"] == "query"]
-    sheet_rows = []
-    for c in sorted({r["category"] for r in q}):
-        rs = sorted((r for r in q if r["category"] == c), key=lambda r: r["picture_id"])
-        sheet_rows.append((f"{CATEGORIES[c]} (i0 N E S W | i1)", [out / r["file"] for r in rs]))
-    if sheet_rows:
-        save_png_atomic(contact_sheet(sheet_rows, tile), figures / "contact_query.png")
-        written.append(figures / "contact_query.png")
-    s = [r for r in rows if r["split"] == "support"]
-    sheet_rows = [
-        (CATEGORIES[c], [out / r["file"] for r in s if r["category"] == c])
-        for c in sorted({r["category"] for r in s})
+    """The contact sheets of every split the rows have, row labels in words
+    (:mod:`pipeline.world.sheet_labels`); returns the files written."""
+    sheets = [
+        ("contact_query", query_rows(rows, out), 190),
+        ("contact_support", support_rows(rows, out), 190),
+        *(
+            (f"contact_{split}", family_rows(rows, out, split, n_classes, per_class), 230)
+            for split in META_SPLITS
+        ),
+        ("contact_views", views_rows(rows, out, per_class + 3), 190),
     ]
-    if sheet_rows:
-        save_png_atomic(contact_sheet(sheet_rows, tile), figures / "contact_support.png")
-        written.append(figures / "contact_support.png")
-    for split in ("train", "val"):
-        t = [r for r in rows if r["split"] == split]
-        classes = sorted({r["category"] for r in t})[:n_classes]
-        sheet_rows = []
-        for c in classes:
-            rs = [r for r in t if r["category"] == c]
-            step = max(1, len(rs) // per_class)
-            sheet_rows.append(
-                (rs[0]["class_name"], [out / r["file"] for r in rs[::step][:per_class]])
-            )
+    written = []
+    for stem, sheet_rows, label_width in sheets:
         if sheet_rows:
-            save_png_atomic(
-                contact_sheet(sheet_rows, tile, label_width=190), figures / f"contact_{split}.png"
-            )
-            written.append(figures / f"contact_{split}.png")
+            path = figures / f"{stem}.png"
+            save_png_atomic(contact_sheet(sheet_rows, tile, label_width=label_width), path)
+            written.append(path)
     return written
 
 

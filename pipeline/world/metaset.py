@@ -26,6 +26,7 @@ query categories (chair, kettle, carton, basin, basket) is a meta-training class
 from __future__ import annotations
 
 import colorsys
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -160,24 +161,32 @@ def make_family(rng: np.random.Generator, index: int) -> Family:
     )
 
 
+def family_stream(seed: int) -> Iterator[Family]:
+    """Families with pairwise different signatures, one after another, deterministic in ``seed``
+    (a family's index in its name is its place in the stream)."""
+    rng = np.random.default_rng(np.random.SeedSequence([int(seed), 3]))
+    seen: set[tuple] = set()
+    tries = 0
+    while True:
+        tries += 1
+        if tries > 200 * (len(seen) + 1):
+            raise RuntimeError(
+                f"the grammar could not produce more than {len(seen)} distinct families"
+            )
+        f = make_family(rng, len(seen))
+        if f.signature() in seen:
+            continue
+        seen.add(f.signature())
+        tries = 0
+        yield f
+
+
 def make_families(n: int, seed: int) -> list[Family]:
     """``n`` families with pairwise different signatures, deterministic in ``seed``."""
     if n < 0:
         raise ValueError(f"number of classes must be >= 0, got {n}")
-    rng = np.random.default_rng(np.random.SeedSequence([int(seed), 3]))
-    out: list[Family] = []
-    seen: set[tuple] = set()
-    tries = 0
-    while len(out) < n:
-        tries += 1
-        if tries > 200 * (n + 1):
-            raise RuntimeError(f"the grammar could not produce {n} distinct families")
-        f = make_family(rng, len(out))
-        if f.signature() in seen:
-            continue
-        seen.add(f.signature())
-        out.append(f)
-    return out
+    stream = family_stream(seed)
+    return [next(stream) for _ in range(n)]
 
 
 def _tier_part(

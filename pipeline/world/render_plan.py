@@ -7,9 +7,15 @@
 * support (Figure 6 right): per category ``support_per_category`` OTHER geometric instances
   (instance ids 2, 3, ...), one catalogue picture each: studio backdrop, bright light, raised
   camera, a three-quarter front view, object framed to fill the picture.
-* train / val: meta-training families (``metaset.py``), ``per_class`` pictures per class from
+* train / val / test: meta-training families (``metaset.py``), split so that every validation
+  and test family is at least ``min_family_distance`` from every training family
+  (``family_split.py``); ``per_class`` pictures per class from
   ``ceil(per_class / views_per_instance)`` instances, random view, light, background and a
   little per-picture colour jitter.
+* views: the ten query obstacles (each category's instance 0, unturned and turned 45 degrees) in
+  the maze, ``views_per_obstacle`` pictures each by the robot's camera (at its height) from a
+  random side and a random distance in ``views_distance``: a larger query-like set for the
+  colour test (``pipeline/fewshot/colour.py``); never a support or query picture.
 
 Every random draw comes from a ``SeedSequence`` keyed by (seed, purpose, indices), so a picture
 does not depend on which worker renders it or in which order.
@@ -23,7 +29,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pipeline.world.camera import CameraPose, framing_distance, robot_camera
-from pipeline.world.metaset import Family, build_meta_instance, jitter_palette, make_families
+from pipeline.world.family_split import MIN_DISTANCE, split_families
+from pipeline.world.metaset import Family, build_meta_instance, jitter_palette
 from pipeline.world.obstacle_models import build_obstacle, category_index, hsv, obstacle_seed
 from pipeline.world.pictures import CATEGORIES, INSTANCES_PER_CATEGORY, N_FACES, picture_id
 from pipeline.world.renderer import Background, Lighting, Shot
@@ -40,7 +47,8 @@ MANIFEST_COLUMNS = (
     "picture_id",
     "file",
 )
-SPLITS = ("query", "support", "train", "val")
+SPLITS = ("query", "support", "train", "val", "test", "views")
+META_SPLITS = ("train", "val", "test")  # the meta-training families' splits
 QUERY_ORIENTATIONS_DEG = (0.0, 45.0)  # instance 1 = instance 0 turned 45 degrees clockwise
 
 
@@ -72,6 +80,10 @@ class PlanConfig:
     support_per_category: int = 5
     maze: MazeCamera = MazeCamera()
     catalogue: CatalogueCamera = CatalogueCamera()
+    n_test_classes: int = 20
+    min_family_distance: float = MIN_DISTANCE
+    views_per_obstacle: int = 40
+    views_distance: tuple[float, float] = (0.7, 1.8)
 
 
 @dataclass
@@ -164,6 +176,35 @@ def support_batch(cfg: PlanConfig) -> tuple[Batch, list[dict]]:
     return batch, rows
 
 
+def views_batch(cfg: PlanConfig) -> tuple[Batch, list[dict]]:
+    """The colour test's larger query-like set (module docstring): ``views_per_obstacle`` maze
+    pictures of each of the ten query obstacles, from random sides and distances."""
+    cats = [category_index(c) for c in cfg.categories]
+    objs = [build_obstacle(c, np.random.default_rng(obstacle_seed(cfg.seed, c, 0))) for c in cats]
+    batch, rows = Batch("views", "maze", objs), []
+    mz = cfg.maze
+    for k, c in enumerate(cats):
+        for inst in range(INSTANCES_PER_CATEGORY):
+            orient = QUERY_ORIENTATIONS_DEG[inst]
+            for j in range(cfg.views_per_obstacle):
+                r = _rng(cfg.seed, 7, c, inst, j)
+                distance = float(r.uniform(*cfg.views_distance))
+                azimuth = float(r.uniform(0.0, 360.0))
+                drop = mz.target_height - mz.camera_height
+                cam = CameraPose(
+                    (0.0, 0.0, mz.target_height),
+                    float(np.hypot(distance, drop)),
+                    azimuth,
+                    float(np.rad2deg(np.arctan2(drop, distance))),
+                    mz.fovy,
+                )
+                f = f"views/{CATEGORIES[c]}/v_i{inst}_{j:03d}.png"
+                batch.shots.append(Shot(k, -orient, objs[k].palette, cam))
+                batch.files.append(f)
+                rows.append(_row("views", c, CATEGORIES[c], inst, -1, orient, -1, f))
+    return batch, rows
+
+
 def meta_batch(cfg: PlanConfig, split: str, index: int, fam: Family) -> tuple[Batch, list[dict]]:
     """One meta-training class: ``per_class`` studio pictures of instances of ``fam``."""
     sid = SPLITS.index(split)
@@ -199,10 +240,12 @@ def meta_batch(cfg: PlanConfig, split: str, index: int, fam: Family) -> tuple[Ba
 
 
 def make_plan(cfg: PlanConfig) -> tuple[list[Batch], list[dict]]:
-    """All batches and the manifest rows (in manifest order: query, support, train, val)."""
+    """All batches and the manifest rows (in manifest order: query, support, train, val, test,
+    views)."""
     for key in (
         "n_train_classes",
         "n_val_classes",
+        "n_test_classes",
         "per_class",
         "views_per_instance",
         "support_per_category",
@@ -221,13 +264,27 @@ def make_plan(cfg: PlanConfig) -> tuple[list[Batch], list[dict]]:
         b, r = make(cfg)
         batches.append(b)
         rows += r
-    families = make_families(cfg.n_train_classes + cfg.n_val_classes, cfg.seed)
-    for split, lo, hi in (
-        ("train", 0, cfg.n_train_classes),
-        ("val", cfg.n_train_classes, cfg.n_train_classes + cfg.n_val_classes),
-    ):
-        for idx, fam in enumerate(families[lo:hi]):
+    if cfg.views_per_obstacle < 0:
+        raise ValueError(
+            f"views_per_obstacle must be a non-negative integer, got {cfg.views_per_obstacle!r}"
+        )
+    lo, hi = cfg.views_distance
+    if not 0 < lo <= hi:
+        raise ValueError(f"views_distance must be [low, high] with 0 < low <= high, got {[lo, hi]}")
+    families = split_families(
+        cfg.n_train_classes,
+        cfg.n_val_classes,
+        cfg.n_test_classes,
+        cfg.seed,
+        cfg.min_family_distance,
+    )
+    for split in META_SPLITS:
+        for idx, fam in enumerate(families[split]):
             b, r = meta_batch(cfg, split, idx, fam)
             batches.append(b)
             rows += r
+    if cfg.views_per_obstacle:
+        b, r = views_batch(cfg)
+        batches.append(b)
+        rows += r
     return batches, rows

@@ -1,0 +1,96 @@
+"""The meta-training families' split: train / validation / test, held apart by a structural distance.
+
+Ravi and Larochelle split miniImageNet's 100 classes 64 / 16 / 20: training classes, validation
+classes that pick the checkpoint, and test classes that give the quoted accuracy. Our classes are
+procedural families (``metaset.py``), and two families drawn independently can be near-twins (the
+same part kinds in reversed order, or the same tiers with a handle added): a validation or test
+family that twins a training family measures memory, not few-shot learning. So families are
+compared by their *structure*, and every validation and test family is kept at least
+``min_distance`` from every training family.
+
+:func:`family_distance` of two families is the sum of
+
+* the tiers: the cheapest matching of one family's tiers to the other's, *in any order* (so a
+  reversed stack is no different), where matching two tiers costs the Jaccard distance of their
+  allowed part kinds (0 for the same kinds, 1 for none shared) and a tier left unmatched costs 1;
+* 1 if the legs differ (none, a pedestal, a ring of legs), 1 if one has radial arms and the other
+  not, 1 if one has a side handle and the other not.
+
+Proportions, leg and arm counts and colours are what instances of one family vary in, so they do
+not count. With ``min_distance`` 2 (``render.yaml``'s ``min_family_distance``) a held-out family
+differs from every training family by at least two whole parts: a tier of another kind and the
+legs, say, or an extra tier and a handle.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from itertools import permutations
+
+from pipeline.world.metaset import Family, family_stream
+
+#: The default least distance between a held-out (validation or test) family and every training family.
+MIN_DISTANCE = 2.0
+
+
+def tier_distance(a: tuple[str, ...], b: tuple[str, ...]) -> float:
+    """Jaccard distance of two tiers' allowed part kinds: 0 the same kinds, 1 none shared."""
+    sa, sb = set(a), set(b)
+    return 1.0 - len(sa & sb) / len(sa | sb)
+
+
+def tiers_distance(a: list[tuple[str, ...]], b: list[tuple[str, ...]]) -> float:
+    """The cheapest matching of the tiers of ``a`` to those of ``b`` in any order; a tier left
+    unmatched costs 1 (families have at most 4 tiers: every matching is tried)."""
+    if len(a) > len(b):
+        a, b = b, a
+    best = float(len(b))
+    for chosen in permutations(range(len(b)), len(a)):
+        cost = sum(tier_distance(a[i], b[j]) for i, j in enumerate(chosen))
+        best = min(best, cost + len(b) - len(a))
+    return best
+
+
+def family_distance(a: Family, b: Family) -> float:
+    """The structural distance of two families (module docstring); symmetric, 0 for twins."""
+    return (
+        tiers_distance([t.kinds for t in a.tiers], [t.kinds for t in b.tiers])
+        + float(a.leg_style != b.leg_style)
+        + float((a.arm_counts != (0,)) != (b.arm_counts != (0,)))
+        + float(a.handle != b.handle)
+    )
+
+
+def nearest_distance(family: Family, others: list[Family]) -> float:
+    """The distance from ``family`` to the nearest of ``others`` (infinite if there are none)."""
+    return min((family_distance(family, o) for o in others), default=float("inf"))
+
+
+def split_families(
+    n_train: int, n_val: int, n_test: int, seed: int, min_distance: float = MIN_DISTANCE
+) -> dict[str, list[Family]]:
+    """Training, validation and test families, deterministic in ``seed``: the first ``n_train``
+    families of :func:`~pipeline.world.metaset.family_stream`, then the next families that are at
+    least ``min_distance`` from every training family, ``n_val`` for validation and ``n_test`` for
+    test, in the order drawn. Refuses (ValueError) when the grammar cannot give that many."""
+    for name, n in (("train", n_train), ("validation", n_val), ("test", n_test)):
+        if n < 0:
+            raise ValueError(f"number of {name} classes must be >= 0, got {n}")
+    if min_distance < 0:
+        raise ValueError(f"min_distance must be >= 0, got {min_distance}")
+    stream: Iterator[Family] = family_stream(seed)
+    train = [next(stream) for _ in range(n_train)]
+    held: list[Family] = []
+    tries, limit = 0, 200 * (n_val + n_test + 1)
+    while len(held) < n_val + n_test:
+        tries += 1
+        if tries > limit:
+            raise ValueError(
+                f"only {len(held)} of {n_val + n_test} held-out families are at distance "
+                f">= {min_distance} from the {n_train} training families after {limit} draws; "
+                "lower min_family_distance or the number of classes"
+            )
+        fam = next(stream)
+        if nearest_distance(fam, train) >= min_distance:
+            held.append(fam)
+    return {"train": train, "val": held[:n_val], "test": held[n_val:]}
