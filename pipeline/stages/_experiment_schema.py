@@ -18,6 +18,20 @@ from pipeline.schema import setting
 SUPPORT_MODES = ("restore", "carry")
 #: Where the methods run: the grid world, or the camera robot in MuJoCo (``pipeline/robot``).
 WORLDS = ("grid", "robot3d")
+
+
+@dataclass
+class RobotConfig:
+    """The camera robot's world (``world=robot3d``, docs/robot3d.md)."""
+
+    cell: float = setting(1.0, gt=0)
+    """Metres per grid cell: 1.0, the cell the query pictures were rendered for (``render.maze.cell``)."""
+    timestep: float = setting(0.02, gt=0, le=0.1)
+    """MuJoCo's physics step (s); it must divide the controller's 0.1 s tick."""
+    threshold: float = setting(0.5, gt=0, le=1)
+    """A live picture whose top score reaches this is an obstacle the robot does not drive into."""
+
+
 SUBSTITUTION_WAYS = (1, 2, 3, 4)
 
 

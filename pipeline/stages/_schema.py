@@ -29,6 +29,7 @@ from pipeline.stages._experiment_schema import (  # noqa: F401  (the experiment 
     Experiment,
     Layouts,
     LayoutSet,
+    RobotConfig,
 )
 
 VIEWERS = ("none", "web", "native")
@@ -64,8 +65,7 @@ class TrialsProfile:
     episodes: int = setting(ge=1)
     """Episodes per run."""
     layouts: int = setting(ge=1)
-    """Generated layouts per size of an experiment's layout sets (``pipeline/conf/experiment/generalisation.yaml``
-    reads it as each set's ``count``)."""
+    """Generated layouts per size of an experiment's layout sets (``generalisation.yaml`` reads it as each set's ``count``)."""
     layout_runs: int = setting(ge=1)
     """Runs per cell of an experiment over generated layouts (``generalisation.yaml``'s ``runs``)."""
     repetition_layouts: int = setting(ge=1)
@@ -116,21 +116,8 @@ class Profile:
 
 # ---------------------------------------------------------------- trials
 @dataclass
-class RobotConfig:
-    """The camera robot's world (``world=robot3d``, docs/robot3d.md)."""
-
-    cell: float = setting(1.0, gt=0)
-    """Metres per grid cell: 1.0, the cell the query pictures were rendered for (``render.maze.cell``)."""
-    timestep: float = setting(0.02, gt=0, le=0.1)
-    """MuJoCo's physics step (s); it must divide the controller's 0.1 s tick."""
-    threshold: float = setting(0.5, gt=0, le=1)
-    """A live picture whose top score reaches this is an obstacle the robot does not drive into."""
-
-
-@dataclass
 class TrialsConfig:
-    """``python -m pipeline trials``: independent runs of a method on a maze (or every cell of an
-    experiment), every episode recorded to MCAP."""
+    """``python -m pipeline trials``: independent runs of a method on a maze (or every cell of an experiment), every episode recorded to MCAP."""
 
     profile: Profile = field(default_factory=Profile)
     """The scale (``pipeline/conf/profile/``): ``runs`` and ``episodes`` default to its ``trials`` keys."""
@@ -141,8 +128,7 @@ class TrialsConfig:
     experiment: Experiment | None = None
     """An experiment (``+experiment=<name>``, ``pipeline/conf/experiment/``): several cells, one run each."""
     maze: str = setting(nonempty=True)
-    """A built-in layout (``pipeline/conf/mazes/<name>.txt``), a path to a layout file, or a generated layout
-    ``random:<W>x<H>:<obstacles>:<seed>[:unique]`` (``pipeline/world/generate.py``)."""
+    """A built-in layout (``pipeline/conf/mazes/<name>.txt``), a path to a layout file, or a generated layout ``random:<W>x<H>:<obstacles>:<seed>[:unique]`` (``pipeline/world/generate.py``)."""
     substitution: int = setting(choices=SUBSTITUTION_WAYS)
     """Dynamic support set: substitution way 1-4 (section 3.3); used by methods with dynamic_support."""
     world: str = setting("grid", choices=WORLDS)
@@ -152,9 +138,7 @@ class TrialsConfig:
     support: str = setting(choices=SUPPORT_MODES)
     """``restore`` the support set before each run, or ``carry`` it over (long-term autonomy)."""
     images_dir: str | None = None
-    """Rendered pictures (the render stage's folder) whose query pictures and initial support set the
-    records keep, for recognisers without pictures of their own (oracle, fixed_accuracy); relation_net
-    records those of its ``recogniser.images_dir``."""
+    """Rendered pictures (the render stage's folder) whose query pictures and initial support set the records keep, for recognisers without pictures of their own (oracle, fixed_accuracy); relation_net records those of its ``recogniser.images_dir``."""
     runs: int = setting(II("profile.trials.runs"), ge=1)
     """Independent runs (each with its own obstacle assignment and seed)."""
     episodes: int = setting(II("profile.trials.episodes"), ge=1)
@@ -164,18 +148,15 @@ class TrialsConfig:
     out: str = setting(nonempty=True)
     """Writes ``<out>/summary.json`` (+ ``records.mcap``); an experiment: ``<out>/<cell>/``."""
     overwrite: bool = MISSING
-    """Replace results already in ``out``; without it such an ``out`` is refused (dvc.yaml's
-    trials stages give it: DVC keeps their outs, ``persist``)."""
+    """Replace results already in ``out``; without it such an ``out`` is refused (dvc.yaml's trials stages give it: DVC keeps their outs, ``persist``)."""
     index_file: str | None = None
     """An experiment: every file of ``out`` with its SHA-256 (``pipeline.files.write_index``), for dvc.yaml."""
     metrics_dir: str | None = None
-    """An experiment's DVC metrics go to this folder (replaced): one small file per cell, or per
-    template and size over generated layouts (``pipeline/stages/_metrics.py``)."""
+    """An experiment's DVC metrics go to this folder (replaced): one small file per cell, or per template and size over generated layouts (``pipeline/stages/_metrics.py``)."""
     timing_file: str | None = None
     """Each cell's trial seconds are written here (kept out of ``out``, which is byte-reproducible)."""
     record: str = setting(choices=RECORD_LEVELS)
-    """What the MCAP records hold (docs/records.md "Record levels"): ``steps`` every step, ``episodes``
-    per-episode summaries and every recognition, substitution and unsafe pair, ``none`` no record file."""
+    """What the MCAP records hold (docs/records.md "Record levels"): ``steps`` every step, ``episodes`` per-episode summaries and every recognition, substitution and unsafe pair, ``none`` no record file."""
     flush_every: int = setting(ge=1)
     """Episodes per MCAP chunk (what a killed run may lose)."""
     progress: bool = MISSING
@@ -183,8 +164,7 @@ class TrialsConfig:
     threads: int = setting(ge=0)
     """numba threads; 0 = all cores (divided among the ``workers``)."""
     workers: int = setting(1, ge=1)
-    """Processes that run an experiment's cells side by side (each builds the recogniser once); the
-    results are the same bytes for any number."""
+    """Processes that run an experiment's cells side by side (each builds the recogniser once); the results are the same bytes for any number."""
 
 
 # ---------------------------------------------------------------- render
