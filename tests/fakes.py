@@ -77,3 +77,27 @@ FIG8_WITHOUT_MODELS = [
     f"experiment.cells.{cell}.recogniser_group=oracle"
     for cell in ("fewshot_protonet", "fewshot_dss_protonet")
 ]
+
+
+#: The input normalisation of :func:`untrained_relation_network`'s checkpoint.
+SYNTHETIC_NORM = {"mean": [0.4, 0.4, 0.4], "std": [0.25, 0.25, 0.25]}
+
+
+def untrained_relation_network(root):
+    """A synthetic picture set in ``root/images`` and an untrained 24 px Relation Network saved as
+    ``root/rn.pt`` (seeded): what tests of the recogniser's plumbing need, without rendered
+    pictures or a trained model. Returns ``(checkpoint, network)``."""
+    import torch
+
+    from pipeline.fewshot.checkpoint import save_checkpoint
+    from pipeline.fewshot.model import ModelConfig, RelationNetwork
+    from pipeline.fewshot.synthetic import write_synthetic_dataset
+
+    write_synthetic_dataset(root / "images", n_train=5, n_val=5, per_class=2, seed=1)
+    torch.manual_seed(0)
+    net = RelationNetwork(ModelConfig(24, 1))
+    with torch.no_grad():
+        net(torch.randn(5, 5, 3, 24, 24), torch.randn(10, 3, 24, 24))
+    net.eval()
+    ckpt = save_checkpoint(root / "rn.pt", net, normalisation=SYNTHETIC_NORM, config={}, metrics={})
+    return ckpt, net

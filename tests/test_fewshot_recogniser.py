@@ -7,27 +7,19 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
+from fakes import SYNTHETIC_NORM, untrained_relation_network
 
-from pipeline.fewshot.checkpoint import save_checkpoint
 from pipeline.fewshot.data import load_split, to_tensor
-from pipeline.fewshot.model import ModelConfig, RelationNetwork
 from pipeline.fewshot.recogniser import RelationRecogniser
-from pipeline.fewshot.synthetic import write_synthetic_dataset
 from pipeline.rl.recogniser import Recogniser
 
-NORM = {"mean": [0.4, 0.4, 0.4], "std": [0.25, 0.25, 0.25]}
+NORM = SYNTHETIC_NORM
 
 
 @pytest.fixture(scope="module")
 def setup(tmp_path_factory):
     root = tmp_path_factory.mktemp("fewshot_rec")
-    write_synthetic_dataset(root / "images", n_train=5, n_val=5, per_class=2, seed=1)
-    torch.manual_seed(0)
-    net = RelationNetwork(ModelConfig(24, 1))
-    with torch.no_grad():
-        net(torch.randn(5, 5, 3, 24, 24), torch.randn(10, 3, 24, 24))
-    net.eval()
-    ckpt = save_checkpoint(root / "rn.pt", net, normalisation=NORM, config={}, metrics={})
+    ckpt, net = untrained_relation_network(root)
     query = load_split(root / "images", "query", 24)
     support = load_split(root / "images", "support", 24)
     feats_q = net.embedding(to_tensor(query.images, **NORM)).detach()

@@ -173,24 +173,13 @@ def test_live_picture_of_each_category_is_classified_by_the_oracle():
 def live_relation(tmp_path_factory):
     """An untrained Relation Network on a synthetic picture set: what a fresh clone has (no
     rendered pictures); the test checks the plumbing, not the accuracy."""
-    import torch
+    from fakes import untrained_relation_network
 
-    from pipeline.fewshot.checkpoint import save_checkpoint
-    from pipeline.fewshot.model import RelationNetwork
     from pipeline.fewshot.recogniser import RelationRecogniser
-    from pipeline.fewshot.settings import ModelConfig
-    from pipeline.fewshot.synthetic import write_synthetic_dataset
     from pipeline.robot.live import LiveRelation
 
     root = tmp_path_factory.mktemp("live_relation")
-    write_synthetic_dataset(root / "images", n_train=5, n_val=5, per_class=2, seed=1)
-    torch.manual_seed(0)
-    net = RelationNetwork(ModelConfig(24, 1))
-    with torch.no_grad():
-        net(torch.randn(5, 5, 3, 24, 24), torch.randn(10, 3, 24, 24))
-    net.eval()
-    norm = {"mean": [0.4, 0.4, 0.4], "std": [0.25, 0.25, 0.25]}
-    ckpt = save_checkpoint(root / "rn.pt", net, normalisation=norm, config={}, metrics={})
+    ckpt, _ = untrained_relation_network(root)
     return LiveRelation(RelationRecogniser.from_files(ckpt, root / "images", substitution_way=1))
 
 
