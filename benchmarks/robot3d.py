@@ -4,13 +4,15 @@ Prints (and writes ``reports/benchmarks/robot3d.json``), for the camera robot of
 (docs/robot3d.md):
 
 * physics steps per second: raw ``mj_step`` on the 5x5 world (robot driving), and as the
-  controller uses it (10 Hz ticks of 10 steps, with contact checks and the pose), per grid move;
-* live pictures per second (the forward camera, 84 x 84 crop of a 112 x 84 frame) and the Relation
-  Network's live scores per second;
+  controller uses it (10 Hz ticks of 5 steps at the 20 ms timestep, with contact checks and the
+  pose), per grid move;
+* live pictures per second (the forward camera, 84 x 84 crop of a 112 x 84 frame) and the live
+  scores per second of each few-shot network (Relation and Prototypical);
 * the real-time factor: simulated robot seconds per wall-clock second of a few-shot run with the
   oracle (the controller, range sensor, camera and rules);
 * with ``--cell``: one cell of the ``robot3d`` experiment at its scale (fewshot_dss, 7x7, relation_net,
-  10 runs x 100 episodes) in this process: its wall time and real-time factor.
+  10 runs x 100 episodes) in this process: its wall time and real-time factor;
+* the 1-minute load average before and after: other work on the 2 cores lowers every rate.
 """
 
 from __future__ import annotations
@@ -25,8 +27,9 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 import numpy as np  # noqa: E402
 
 from benchmarks._output import write_figures  # noqa: E402
+from pipeline.rl.oracle import OracleRecogniser  # noqa: E402
 from pipeline.rl.runner import make_run_world  # noqa: E402
-from pipeline.robot.live import LiveOracle  # noqa: E402
+from pipeline.robot.live import LiveView, live  # noqa: E402
 from pipeline.robot.sim import RobotSim  # noqa: E402
 from pipeline.world.geometry import build_geometry  # noqa: E402
 from pipeline.world.maze import load_layout  # noqa: E402
@@ -66,21 +69,24 @@ def physics() -> dict:
     }
 
 
-def relation_scores() -> dict | None:
-    if not os.path.exists("datasets/models/relation_net.pt"):
-        return None
-    from pipeline.fewshot.recogniser import RelationRecogniser
-    from pipeline.robot.live import LiveRelation
+def live_scores() -> dict | None:
+    """Live scores per second of each few-shot network whose checkpoint is on disk."""
+    from pipeline.fewshot.recogniser import ProtoRecogniser, RelationRecogniser
 
-    rec = LiveRelation(
-        RelationRecogniser.from_files("datasets/models/relation_net.pt", "datasets/images")
-    )
-    rec.start_run(0, 0)
+    out = {}
     image = np.random.default_rng(0).integers(0, 255, (84, 84, 3), dtype=np.uint8)
-    t0 = time.perf_counter()
-    for _ in range(100):
-        rec.live_scores(0, image, -1)
-    return {"relation_net_live_scores_per_s": round(100 / (time.perf_counter() - t0), 1)}
+    view = LiveView(image, truth=-1, picture=-1)
+    for cls, checkpoint in ((RelationRecogniser, "datasets/models/relation_net.pt"),
+                            (ProtoRecogniser, "datasets/models/protonet.pt")):  # fmt: skip
+        if not os.path.exists(checkpoint) or not os.path.exists("datasets/images"):
+            continue
+        rec = live(cls.from_files(checkpoint, "datasets/images"))
+        rec.start_run(0, 0)
+        t0 = time.perf_counter()
+        for _ in range(100):
+            rec.live_scores(0, view)
+        out[f"{cls.kind}_live_scores_per_s"] = round(100 / (time.perf_counter() - t0), 1)
+    return out or None
 
 
 def real_time_factor(maze: str, method: str, runs: int, episodes: int, recogniser=None) -> dict:
@@ -99,7 +105,7 @@ def real_time_factor(maze: str, method: str, runs: int, episodes: int, recognise
     t0 = time.perf_counter()
     result = run_robot_trials(
         load_layout(maze), get_method(method), runs, episodes, 0,
-        recogniser=recogniser or LiveOracle(), robot_sink=clock,
+        recogniser=recogniser or OracleRecogniser(), robot_sink=clock,
     )  # fmt: skip
     wall = time.perf_counter() - t0
     return {
@@ -120,26 +126,21 @@ def main() -> None:
     ap.add_argument("--cell", action="store_true", help="also one robot3d cell at its scale")
     ap.add_argument("--out", default="reports/benchmarks/robot3d.json")
     args = ap.parse_args()
+    load_before = round(os.getloadavg()[0], 2)  # other work on the 2 cores lowers every rate
     figures = {
         "machine": {"cpus": os.cpu_count(), "python": platform.python_version()},
         "physics": physics(),
-        "recognition": relation_scores(),
+        "recognition": live_scores(),
         "few_shot_oracle_5x5": real_time_factor("5x5", "fewshot_dss", 2, 20),
     }
     if args.cell:
         from pipeline.fewshot.recogniser import RelationRecogniser
-        from pipeline.robot.live import LiveRelation
 
-        rec = LiveRelation(
-            RelationRecogniser.from_files("datasets/models/relation_net.pt", "datasets/images")
-        )
+        rec = RelationRecogniser.from_files("datasets/models/relation_net.pt", "datasets/images")
         figures["cell_fewshot_dss_7x7_relation_net"] = real_time_factor(
             "7x7", "fewshot_dss", 10, 100, rec
         )
-    figures["notes"] = (
-        "one process; other jobs shared the 2 cores while this ran (a busy machine): "
-        "treat the rates as lower bounds"
-    )
+    figures["load_average_1min"] = {"before": load_before, "after": round(os.getloadavg()[0], 2)}
     path = write_figures(args.out, figures, "benchmarks.robot3d")
     print(path.read_text())
 

@@ -4,9 +4,9 @@
     gymnasium.make("SafeNav3D-5x5-v0", method="fewshot_dss", recogniser="relation_net",
                    render_mode="rgb_array")
 
-``recogniser`` by name: ``oracle`` (:class:`~pipeline.robot.live.LiveOracle`) or ``relation_net``
-(:class:`~pipeline.robot.live.LiveRelation` around the recogniser ``pipeline/conf/recogniser/
-relation_net.yaml`` builds, as the trials stage builds it); or an object with ``live_scores``.
+``recogniser`` by name (any of ``pipeline/conf/recogniser/``, built as the trials stage builds
+it, then :func:`pipeline.robot.live.live`: the few-shot networks score the live picture, the models
+of recognition answer as for the grid's query picture), or a recogniser object.
 ``render()`` is the maze from above and behind the robot; the camera's picture of a step is
 ``info["camera"]`` (None when the robot took none). ``info["cost"]`` is 1.0 on a collision;
 :class:`pipeline.envs.SixValueStep` gives Safety-Gymnasium's six-value ``step``.
@@ -20,25 +20,13 @@ from typing import Any
 from pipeline.envs import make_recogniser
 from pipeline.rl.methods import MethodSpec, get_method
 from pipeline.robot.env import SafeNavigation3DEnv
-from pipeline.robot.live import LiveOracle, LiveRelation
+from pipeline.robot.live import live
 from pipeline.robot.world import DEFAULT_CELL
-
-#: The recognisers of live pictures, by name.
-LIVE_RECOGNISERS = ("oracle", "relation_net")
 
 
 def live_recogniser(name: str, options: Mapping[str, Any] | None = None, substitution_way: int = 0):
-    """A recogniser of live pictures by name (:data:`LIVE_RECOGNISERS`)."""
-    if name == "oracle":
-        if options:
-            raise ValueError(f"recogniser 'oracle' takes no options, got {sorted(options)}")
-        return LiveOracle(substitution_way=substitution_way)
-    if name == "relation_net":
-        return LiveRelation(make_recogniser(name, options, substitution_way=substitution_way))
-    raise ValueError(
-        f"recogniser {name!r} cannot score live camera pictures; the robot's are "
-        f"{', '.join(LIVE_RECOGNISERS)}"
-    )
+    """A recogniser of live pictures by its config name (``pipeline/conf/recogniser/<name>.yaml``)."""
+    return live(make_recogniser(name, options, substitution_way=substitution_way))
 
 
 def make_env3d(

@@ -7,8 +7,10 @@ chromium (Playwright with the system browser, as ``tests/test_replay_browser.py`
     python scripts/replay_screenshot.py                                   # -> docs/replay.png
     python scripts/replay_screenshot.py --file datasets/runs/fig8/fewshot_dss/records.mcap --run 3 --episode 120
     python scripts/replay_screenshot.py recogniser.images_dir=/elsewhere/images   # trials overrides
+    python scripts/replay_screenshot.py --out docs/robot3d_replay.png --settle 20 world=robot3d
 
-The viewer's WASM takes 20-60 s to start with software WebGL on 2 cores.
+A robot cell (``world=robot3d``) replays in 3D. The viewer's WASM takes 20-60 s to start with
+software WebGL on 2 cores.
 """
 
 from __future__ import annotations

@@ -79,25 +79,34 @@ FIG8_WITHOUT_MODELS = [
 ]
 
 
-#: The input normalisation of :func:`untrained_relation_network`'s checkpoint.
+#: The input normalisation of :func:`untrained_network`'s checkpoints.
 SYNTHETIC_NORM = {"mean": [0.4, 0.4, 0.4], "std": [0.25, 0.25, 0.25]}
 
 
-def untrained_relation_network(root):
-    """A synthetic picture set in ``root/images`` and an untrained 24 px Relation Network saved as
-    ``root/rn.pt`` (seeded): what tests of the recogniser's plumbing need, without rendered
-    pictures or a trained model. Returns ``(checkpoint, network)``."""
+def untrained_network(root, kind: str = "relation_net"):
+    """A synthetic picture set in ``root/images`` and an untrained 24 px network of ``kind``
+    (``relation_net`` or ``protonet``) saved as ``root/<kind>.pt`` (seeded): what tests of the
+    recognisers' plumbing need, without rendered pictures or a trained model. Returns
+    ``(checkpoint, network)``."""
     import torch
 
     from pipeline.fewshot.checkpoint import save_checkpoint
     from pipeline.fewshot.model import ModelConfig, RelationNetwork
+    from pipeline.fewshot.protonet import PrototypicalNetwork
+    from pipeline.fewshot.settings import ProtoConfig
     from pipeline.fewshot.synthetic import write_synthetic_dataset
 
-    write_synthetic_dataset(root / "images", n_train=5, n_val=5, per_class=2, seed=1)
+    if not (root / "images").exists():
+        write_synthetic_dataset(root / "images", n_train=5, n_val=5, per_class=2, seed=1)
     torch.manual_seed(0)
-    net = RelationNetwork(ModelConfig(24, 1))
-    with torch.no_grad():
-        net(torch.randn(5, 5, 3, 24, 24), torch.randn(10, 3, 24, 24))
+    if kind == "relation_net":
+        net = RelationNetwork(ModelConfig(24, 1))
+        with torch.no_grad():
+            net(torch.randn(5, 5, 3, 24, 24), torch.randn(10, 3, 24, 24))
+    else:
+        net = PrototypicalNetwork(ProtoConfig(24))
     net.eval()
-    ckpt = save_checkpoint(root / "rn.pt", net, normalisation=SYNTHETIC_NORM, config={}, metrics={})
+    ckpt = save_checkpoint(
+        root / f"{kind}.pt", net, normalisation=SYNTHETIC_NORM, config={}, metrics={}
+    )
     return ckpt, net

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
-from fakes import SYNTHETIC_NORM, untrained_relation_network
+from fakes import SYNTHETIC_NORM, untrained_network
 
 from pipeline.fewshot.data import load_split, to_tensor
 from pipeline.fewshot.recogniser import RelationRecogniser
@@ -19,7 +19,7 @@ NORM = SYNTHETIC_NORM
 @pytest.fixture(scope="module")
 def setup(tmp_path_factory):
     root = tmp_path_factory.mktemp("fewshot_rec")
-    ckpt, net = untrained_relation_network(root)
+    ckpt, net = untrained_network(root)
     query = load_split(root / "images", "query", 24)
     support = load_split(root / "images", "support", 24)
     feats_q = net.embedding(to_tensor(query.images, **NORM)).detach()

@@ -7,9 +7,10 @@ import numpy as np
 import pytest
 
 from pipeline.rl.agents import TabularAgent, run_episode
+from pipeline.rl.oracle import OracleRecogniser
 from pipeline.rl.runner import make_run_world
 from pipeline.robot.env import PICTURE_SIZE, SafeNavigation3DEnv
-from pipeline.robot.live import LiveOracle
+from pipeline.robot.live import LiveView
 from pipeline.robot.model import MAX_SPEED, MAX_TURN
 from pipeline.robot.sim import HEADINGS, RobotSim, wheel_limited
 from pipeline.world.geometry import build_geometry
@@ -110,7 +111,7 @@ def _episodes(env, n: int, seed: int):
 
 
 def test_oracle_fewshot_reaches_the_goal_with_no_contact():
-    env = SafeNavigation3DEnv("5x5", "fewshot_dss", LiveOracle())
+    env = SafeNavigation3DEnv("5x5", "fewshot_dss", OracleRecogniser())
     results, infos = _episodes(env, 8, seed=5)
     assert not any(i["collided"] for i in infos)
     assert sum(i["cost"] for i in infos) == 0.0
@@ -132,7 +133,7 @@ def test_shield_collides_through_contacts_and_recovers():
 def test_same_seed_same_trajectory():
     runs = []
     for _ in range(2):
-        env = SafeNavigation3DEnv("5x5", "fewshot", LiveOracle())
+        env = SafeNavigation3DEnv("5x5", "fewshot", OracleRecogniser())
         results, infos = _episodes(env, 2, seed=9)
         runs.append((results, [(i["poses"], i["contact"], i["sim_time"]) for i in infos]))
         env.close()
@@ -146,7 +147,7 @@ def test_live_picture_of_each_category_is_classified_by_the_oracle():
     """The oracle names the category of the obstacle on the cell the live picture looks at: it
     reads the world's ground truth there (``SafeNavigation3DEnv._truth_at``); the picture itself
     must show an obstacle (not the empty floor), and pictures of different obstacles differ."""
-    env = SafeNavigation3DEnv("5x5", "fewshot", LiveOracle())
+    env = SafeNavigation3DEnv("5x5", "fewshot", OracleRecogniser())
     env.reset(seed=2)
     g, cats = env.geometry, env.world.true_category
     seen, pictures = set(), []
@@ -169,40 +170,67 @@ def test_live_picture_of_each_category_is_classified_by_the_oracle():
     env.close()
 
 
-@pytest.fixture(scope="module")
-def live_relation(tmp_path_factory):
-    """An untrained Relation Network on a synthetic picture set: what a fresh clone has (no
+@pytest.fixture(scope="module", params=["relation_net", "protonet"])
+def live_network(request, tmp_path_factory):
+    """An untrained few-shot network on a synthetic picture set: what a fresh clone has (no
     rendered pictures); the test checks the plumbing, not the accuracy."""
-    from fakes import untrained_relation_network
+    from fakes import untrained_network
 
-    from pipeline.fewshot.recogniser import RelationRecogniser
-    from pipeline.robot.live import LiveRelation
+    from pipeline.fewshot.recogniser import ProtoRecogniser, RelationRecogniser
+    from pipeline.robot.live import live
 
-    root = tmp_path_factory.mktemp("live_relation")
-    ckpt, _ = untrained_relation_network(root)
-    return LiveRelation(RelationRecogniser.from_files(ckpt, root / "images", substitution_way=1))
+    cls = {"relation_net": RelationRecogniser, "protonet": ProtoRecogniser}[request.param]
+    root = tmp_path_factory.mktemp(request.param)
+    ckpt, _ = untrained_network(root, request.param)
+    return live(cls.from_files(ckpt, root / "images", substitution_way=1))
 
 
-def test_relation_network_scores_live_pictures_and_substitutes_them(live_relation):
-    env = SafeNavigation3DEnv("5x5", "fewshot_dss", live_relation)
+def test_few_shot_networks_score_live_pictures_and_substitute_them(live_network):
+    env = SafeNavigation3DEnv("5x5", "fewshot_dss", live_network)
     env.reset(seed=4)
     s, a = (int(x) for x in np.argwhere(env.geometry.obstacle >= 0)[0])
     env._place(s)
     env.sim.face(a)
     picture = env.sim.picture(PICTURE_SIZE)
-    scores = live_relation.live_scores(env.run_id, picture, truth=-1)
+    scores = live_network.live_scores(env.run_id, LiveView(picture, -1, -1))
     assert scores.shape == (N_CATEGORIES,) and np.all((scores >= 0) & (scores <= 1))
-    assert np.array_equal(scores, live_relation.live_scores(env.run_id, picture, truth=3))
+    # a network reads the picture only, never the world's truth or the query picture's id
+    assert np.array_equal(scores, live_network.live_scores(env.run_id, LiveView(picture, 3, 17)))
     category = int(np.argmin(scores))
-    position = live_relation.learn_from_live(env.run_id, picture, category)
+    position = live_network.learn_from_live(env.run_id, LiveView(picture, category, -1))
     assert 0 <= position < 5
-    members = live_relation.inner.support_members(env.run_id)
-    assert members[category, position] >= live_relation.LIVE_CODE_BASE
-    after = live_relation.live_scores(env.run_id, picture, truth=-1)
+    members = live_network.inner.support_members(env.run_id)
+    assert members[category, position] >= live_network.LIVE_CODE_BASE
+    after = live_network.live_scores(env.run_id, LiveView(picture, -1, -1))
     assert after[category] != scores[category]  # the class state now holds the live picture
-    others = [c for c in range(N_CATEGORIES) if c != category]
-    assert np.array_equal(after[others], scores[others])
+    if live_network.inner.kind == "relation_net":  # protonet's softmax couples the categories
+        others = [c for c in range(N_CATEGORIES) if c != category]
+        assert np.array_equal(after[others], scores[others])
     env.close()
+
+
+def test_a_model_of_recognition_answers_a_live_picture_as_its_query_picture():
+    """fixed_accuracy on the robot: the side of an obstacle is recognised exactly when the grid's
+    model recognises its query picture, and a collision teaches that picture (``learn``)."""
+    from pipeline.rl.fixed_accuracy import FixedAccuracyRecogniser
+    from pipeline.robot.live import live
+
+    model = FixedAccuracyRecogniser(p=0.5)
+    rec = live(model)
+    rec.start_run(0, seed=3)
+    truth = OracleRecogniser().predictions(0)
+    predicted = model.predictions(0)
+    image = np.zeros((PICTURE_SIZE, PICTURE_SIZE, 3), np.uint8)
+    for picture in range(len(truth)):
+        scores = rec.live_scores(0, LiveView(image, int(truth[picture]), picture))
+        if predicted[picture] == truth[picture]:
+            assert scores[truth[picture]] == 1.0 and scores.sum() == 1.0
+        else:
+            assert not scores.any()  # not recognised: no score reaches any threshold
+    wrong = int(np.flatnonzero(predicted != truth)[0])
+    rec.learn_from_live(0, LiveView(image, int(truth[wrong]), wrong))
+    assert rec.live_scores(0, LiveView(image, int(truth[wrong]), wrong)).max() == 1.0
+    assert rec.describe() is None  # as on the grid, the model records no description
 
 
 def test_gymnasium_ids_check_env_and_six_values():
@@ -219,8 +247,14 @@ def test_gymnasium_ids_check_env_and_six_values():
     check_env(env.unwrapped, skip_render_check=False)
     with pytest.raises(ValueError, match="7x7"):
         gymnasium.make("SafeNav3D-5x5-v0", maze="7x7")
-    with pytest.raises(ValueError, match="cannot score live"):
-        gymnasium.make("SafeNav3D-5x5-v0", method="fewshot", recogniser="fixed_accuracy")
+    made = gymnasium.make("SafeNav3D-5x5-v0", method="fewshot", recogniser="fixed_accuracy",
+                          recogniser_options={"p": 0.25})  # fmt: skip
+    assert made.unwrapped.recogniser.inner.p == 0.25
+    with pytest.raises(ValueError, match="nonesuch"):
+        gymnasium.make("SafeNav3D-5x5-v0", method="fewshot", recogniser="nonesuch")
+    with pytest.raises(ValueError, match="colour"):
+        gymnasium.make("SafeNav3D-5x5-v0", method="fewshot", recogniser="oracle",
+                       recogniser_options={"colour": 1})  # fmt: skip
     for env_id in ("SafeNav3D-5x5-v0", "SafeNav-5x5-v0"):
         wrapped = SixValueStep(gymnasium.make(env_id, method="shield"))
         wrapped.reset(seed=0)
@@ -238,11 +272,21 @@ def test_gymnasium_ids_check_env_and_six_values():
     env.close()
 
 
-@pytest.mark.slow  # 10-20 s
-@pytest.mark.parametrize("method", ["shield", "fewshot_dss"])
-def test_robot_trials_match_the_grid_with_the_oracle(method):
-    """With the oracle the robot's outcomes are the grid's: the same placement, exploration and
-    collisions from the same seed (a collision is a contact exactly where the grid has one)."""
+@pytest.mark.slow  # 10-20 s each
+@pytest.mark.parametrize(
+    "method,recogniser",
+    [("shield", "oracle"), ("fewshot_dss", "oracle"), ("fewshot", "fixed_accuracy"),
+     ("fewshot_dss", "fixed_accuracy")],
+)  # fmt: skip
+def test_robot_trials_match_the_grid_with_a_model_of_recognition(method, recogniser):
+    """With the oracle or ``fixed_accuracy`` the robot's outcomes are the grid's: the same
+    placement, exploration, recognitions and collisions from the same seed (a collision is a
+    contact exactly where the grid has one; a model answers a live picture as its query picture)."""
+    from pipeline.rl.fixed_accuracy import FixedAccuracyRecogniser
+
+    def model():
+        return OracleRecogniser() if recogniser == "oracle" else FixedAccuracyRecogniser(p=0.5)
+
     from pipeline.rl.methods import get_method
     from pipeline.rl.runner import run_trials
     from pipeline.robot.trials import run_robot_trials
@@ -261,9 +305,9 @@ def test_robot_trials_match_the_grid_with_the_oracle(method):
             self.robot.append(k)
 
     layout, spec, sink = load_layout("5x5"), get_method(method), Sink()
-    robot = run_robot_trials(layout, spec, 2, 3, 0, recogniser=LiveOracle(), sink=sink,
+    robot = run_robot_trials(layout, spec, 2, 3, 0, recogniser=model(), sink=sink,
                              robot_sink=sink)  # fmt: skip
-    grid = run_trials(layout, spec, 2, 3, 0, recogniser=LiveOracle(), progress=False)
+    grid = run_trials(layout, spec, 2, 3, 0, recogniser=model(), progress=False)
     for key in ("steps", "collisions", "returns", "reached_goal", "prevented", "greedy_optimal"):
         assert np.array_equal(getattr(robot, key), getattr(grid, key)), key
     assert len(sink.batches) == len(sink.robot) == 6
@@ -297,16 +341,29 @@ def test_trials_stage_runs_a_robot_cell_into_both_record_files(tmp_path):
         assert (tmp_path / "a" / name).read_bytes() == data, name  # byte for byte
 
 
+def test_fixed_accuracy_runs_on_the_robot_with_the_given_p(tmp_path):
+    """Every recogniser runs with world=robot3d; its keys are applied (the recorded config is the
+    one that ran) and p=0 recognises nothing, so no live picture stops the robot."""
+    from pipeline.records import read_records
+    from pipeline.robot.records import read_robot_records
+    from pipeline.stages._common import run_stage
+
+    run_stage("trials", ["method=fewshot", "world=robot3d", "recogniser=fixed_accuracy",
+                         "recogniser.p=0.0", "runs=1", "episodes=2", "progress=false",
+                         f"out={tmp_path}"])  # fmt: skip
+    assert read_records(tmp_path / "records.mcap").meta.config["recogniser"]["p"] == 0.0
+    _, episodes = read_robot_records(tmp_path / "robot.mcap")
+    pictures = [p for e in episodes for p in e["pictures"]]
+    assert pictures and not any(p["prevented"] for p in pictures)
+    assert all(not np.any(p["scores"]) for p in pictures)
+
+
 @pytest.mark.parametrize(
     "overrides,message",
     [
         (
             ["method=shield", "robot.cell=0.8"],
             "config key 'robot.cell': read only with world=robot3d",
-        ),
-        (
-            ["method=fewshot", "world=robot3d", "recogniser=fixed_accuracy"],
-            "config key 'recogniser'",
         ),
         (["method=shield", "world=mars"], "world"),
         (["method=shield", "world=robot3d", "robot.timestep=0.03"], "timestep"),
@@ -337,23 +394,37 @@ def test_an_experiment_mixing_worlds_shares_the_recogniser_but_wraps_it_for_the_
 
 
 @pytest.mark.slow  # 10-20 s
-def test_3d_replay_holds_scene_path_pictures_and_collisions(tmp_path):
+def test_the_replay_stage_replays_a_robot_cell_in_3d(tmp_path):
     import rerun.chunk
 
-    from pipeline.robot.replay import build_robot_replay
+    from pipeline.errors import ConfigError
     from pipeline.stages._common import run_stage
 
     cell = tmp_path / "cell"
     run_stage("trials", ["method=fewshot", "world=robot3d", "recogniser=oracle", "runs=1",
                          "episodes=1", "robot.threshold=1.0", f"out={cell}", "progress=false"])  # fmt: skip
-    rrd = build_robot_replay(cell, 0, 0, tmp_path / "replay.rrd")
+    replay = ["run=0", "viewer=none"]
+    rrd = run_stage("replay", [f"file={cell / 'records.mcap'}", *replay, "episode=0",
+                               f"out={tmp_path / 'replay.rrd'}"])  # fmt: skip
     chunks = rerun.chunk.RrdReader(str(rrd)).stream().to_chunks()
     paths = {str(c.entity_path) for c in chunks}
     assert {"/robot/path", "/robot/body", "/camera/picture", "/camera/scores"} <= paths
     assert any(p.startswith("/scene/obstacle") for p in paths)
     assert any(p.startswith("/scene/wall") for p in paths)
-    with pytest.raises(ValueError, match="no run 0 episode 5"):
-        build_robot_replay(cell, 0, 5, tmp_path / "x.rrd")
+    # robot.mcap names the same cell; without an episode, the first with a recognition
+    again = run_stage("replay", [f"file={cell / 'robot.mcap'}", *replay,
+                                 f"out={tmp_path / 'again.rrd'}"])  # fmt: skip
+    again_chunks = rerun.chunk.RrdReader(str(again)).stream().to_chunks()
+    assert sorted(str(c.entity_path) for c in again_chunks) == sorted(
+        str(c.entity_path) for c in chunks
+    )  # the same episode (an .rrd holds wall-clock log times: not the same bytes)
+    with pytest.raises(ConfigError, match="'run'/'episode': .*no run 0 episode 5"):
+        run_stage("replay", [f"file={cell / 'records.mcap'}", *replay, "episode=5",
+                             f"out={tmp_path / 'x.rrd'}"])  # fmt: skip
+    with pytest.raises(ConfigError, match="'whole_run'"):
+        run_stage("replay", [f"file={cell / 'records.mcap'}", *replay, "whole_run=true",
+                             f"out={tmp_path / 'y.rrd'}"])  # fmt: skip
+    assert not (tmp_path / "x.rrd").exists() and not (tmp_path / "y.rrd").exists()
 
 
 @pytest.mark.slow  # 30-60 s: 20 small cells and a report

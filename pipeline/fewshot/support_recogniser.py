@@ -134,6 +134,15 @@ class SupportSetRecogniser(abc.ABC):
     def _column(self, state: torch.Tensor) -> np.ndarray:
         """Raw scores (P,) of every query picture against one category's state, all in one batch."""
 
+    @abc.abstractmethod
+    def _outside_parts(self, f: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """A picture from outside the query set (embedding ``f``, (1, ...)): its part of a class
+        state and what scoring it against a class state needs."""
+
+    @abc.abstractmethod
+    def _outside_row(self, state: torch.Tensor, query_part: torch.Tensor) -> np.ndarray:
+        """Raw scores (C,) of that picture against every category's state ``state``."""
+
     def _scores(self, table: np.ndarray) -> np.ndarray:
         """The reported per-category scores of rows of the raw table (identity by default)."""
         return table
@@ -281,6 +290,37 @@ class SupportSetRecogniser(abc.ABC):
         """(C, K) member codes of run ``run``'s support set: a query picture id (>= 0) or
         ``-(j + 1)`` for original support picture ``j``."""
         return self._run(run).support.members.copy()
+
+    # -- pictures from outside the query set (the robot's camera, pipeline.robot.live) --------
+    @torch.no_grad()
+    def outside_parts(self, image: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """(class part, query part) of one normalised picture ``image`` (1, 3, H, W)."""
+        f = embed_all(self.network, image, channels_last=False)
+        class_part, query_part = self._outside_parts(f)
+        return class_part[0], query_part[0]
+
+    @torch.no_grad()
+    def score_outside(self, run: int, query_part: torch.Tensor) -> np.ndarray:
+        """Scores (C,) of an outside picture (its query part) under run ``run``'s support set."""
+        row = self._outside_row(self._run(run).state, query_part)
+        return self._scores(row[None])[0]
+
+    def substitute_outside(
+        self, run: int, code: int, class_part: torch.Tensor, category: int
+    ) -> int:
+        """Substitute an outside picture, member code ``code`` (>= ``n_pictures``, the same code for
+        the same picture) with class part ``class_part``, into ``category`` at the position the
+        substitution way chooses; return it, or -1 for a static support set."""
+        if code < self.n_pictures:
+            raise ValueError(f"an outside picture's code must be >= {self.n_pictures}, got {code}")
+        if not 0 <= category < self.n_way:
+            raise ValueError(f"category {category} out of range 0..{self.n_way - 1}")
+        self._part[int(code)] = class_part
+        state = self._run(run)
+        pos = state.support.substitute(int(category), int(code))
+        if pos >= 0:
+            self._refresh(state, int(category))
+        return pos
 
     # -- internals ---------------------------------------------------------------------------
     def _run(self, run: int) -> _Run:

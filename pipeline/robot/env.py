@@ -14,8 +14,10 @@ from. At a cell centre the robot:
    picture with its own camera and asks the recogniser for the live picture's scores
    (:meth:`live_scores`). It treats the move as dangerous when the top score reaches
    ``threshold``: (s, a) joins A_d and the move is not executed (Algorithm 1, lines 4-10).
-   The decision reads the scores only, never the layout's categories. (The grid's rule compares
-   the prediction with the true category, which a robot cannot know; docs/robot3d.md.)
+   The decision reads the scores only: a network's scores never read the layout's categories.
+   (The grid's rule compares the prediction with the true category, which a robot cannot know; a
+   model of recognition, which answers as the grid, stops exactly where the grid's rule would;
+   docs/robot3d.md.)
 3. otherwise drives (:meth:`RobotSim.move`). A collision is a MuJoCo contact with an obstacle's
    body; self-recovery drives the robot back to the previous cell centre.
 
@@ -26,10 +28,9 @@ physics and the recogniser said (``_tables``), so the grid and the robot share o
 live picture, or None), ``scores``, ``contact`` (world point of the collision), ``sim_time``
 (simulated seconds of this step) and ``poses`` (t, x, y, yaw at 10 Hz).
 
-The recogniser must offer ``live_scores(run, image, truth) -> (n_categories,)`` and
-``learn_from_live(run, image, category) -> position`` (:mod:`pipeline.robot.live`). ``truth`` is the
-world's ground-truth category of the obstacle on the cell the picture looks at: only the oracle
-reads it (it is the oracle: the upper bound of recognition); learned recognisers must ignore it.
+The recogniser is any of the grid's, wrapped by :func:`pipeline.robot.live.live`: a few-shot
+network scores the live picture itself; a model of recognition (the oracle, ``fixed_accuracy``,
+``paper_tables``) answers it as the grid answers the query picture of the same obstacle's side.
 """
 
 from __future__ import annotations
@@ -46,6 +47,7 @@ from pipeline.rl.rng import run_seeds
 from pipeline.rl.rules import apply_action, empty_added, reasons_with_pictures
 from pipeline.rl.runner import make_run_world
 from pipeline.rl.structs import MethodParams
+from pipeline.robot.live import LiveView, live
 from pipeline.robot.sim import RobotSim
 from pipeline.robot.world import DEFAULT_CELL
 from pipeline.world.geometry import build_geometry
@@ -73,11 +75,12 @@ class SafeNavigation3DEnv(gym.Env):
         self.method = method if isinstance(method, MethodSpec) else get_method(method)
         self._params = MethodParams.of(self.method)
         self._sees = reasons_with_pictures(self._params.safety)
-        if self._sees and not callable(getattr(recogniser, "live_scores", None)):
-            raise ValueError(
-                f"method {self.method.name!r} reasons with pictures and needs a recogniser with "
-                "live_scores(run, image, truth) (pipeline.robot.live.LiveOracle has one)"
-            )
+        if self._sees:
+            if recogniser is None:
+                raise ValueError(
+                    f"method {self.method.name!r} reasons with pictures: pass a recogniser"
+                )
+            recogniser = live(recogniser)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode={render_mode!r}: expected 'rgb_array' or None")
         if not 0.0 < threshold <= 1.0:
@@ -139,13 +142,15 @@ class SafeNavigation3DEnv(gym.Env):
         s, sim = self.state, self.sim
         sim_start, poses = sim.time, []
         camera = scores = contact = None
-        recognised, truth = False, -1
+        recognised, view = False, None
         inside = sim.inside(s, a)
         if self._sees and inside and sim.occupied(a):
             poses += sim.face(a).poses
             camera = sim.picture(PICTURE_SIZE)
-            truth = self._truth_at(self._target(s, a))
-            scores = np.asarray(self.recogniser.live_scores(self.run_id, camera, truth), float)
+            view = LiveView(
+                camera, self._truth_at(self._target(s, a)), int(self.world.pictures[s, a])
+            )
+            scores = np.asarray(self.recogniser.live_scores(self.run_id, view), float)
             recognised = bool(scores.max() >= self.threshold)
         o, s_next = -1, s
         if recognised:
@@ -172,7 +177,7 @@ class SafeNavigation3DEnv(gym.Env):
         if collided and self._params.dynamic and camera is not None:
             # self-recovery's reflection (section 3.3): the live picture joins the support set of
             # the category the robot collided with (the world tells it, as in the grid world)
-            extra["substituted"] = self.recogniser.learn_from_live(self.run_id, camera, truth)
+            extra["substituted"] = self.recogniser.learn_from_live(self.run_id, view)
         if collided and terminated:
             s2 = s  # the episode ends where the robot stopped; the grid state stays the last cell
         self.t += 1
@@ -185,7 +190,8 @@ class SafeNavigation3DEnv(gym.Env):
         return self.state, float(reward), bool(terminated), bool(truncated), info
 
     def _truth_at(self, cell: int) -> int:
-        """Ground-truth category on ``cell`` (for the oracle only), or -1 for no obstacle."""
+        """Ground-truth category on ``cell`` (for models of recognition, the substitution and the
+        records; a network's decision never reads it), or -1 for no obstacle."""
         obstacles = self.layout.obstacles
         return int(self.world.true_category[obstacles.index(cell)]) if cell in obstacles else -1
 

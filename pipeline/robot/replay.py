@@ -3,20 +3,19 @@ walls, the run's obstacle meshes as MuJoCo built them), the robot moving along i
 its camera picture at each recognition with the relation scores, and the collisions marked where
 they happened.
 
-    python -m pipeline.robot.replay <cell folder> [--run R] [--episode E] [--out file.rrd]
-
-The cell folder holds a robot cell's ``records.mcap`` (the maze and each run's placement) and
-``robot.mcap`` (poses, pictures, contacts). Timeline ``sim_time``: the episode's simulated seconds.
+``python -m pipeline replay file=<robot cell>/records.mcap run=R episode=E`` builds it for a robot
+cell (one with ``robot.mcap`` beside its ``records.mcap``: the maze and each run's placement there;
+poses, pictures and contacts here). Timeline ``sim_time``: the episode's simulated seconds.
 """
 
 from __future__ import annotations
 
-import argparse
 from pathlib import Path
 
 import numpy as np
 import rerun as rr
 
+from pipeline.files import disk_problem, size_text, write_atomic
 from pipeline.records import read_records
 from pipeline.robot.model import HEIGHT, LENGTH, WIDTH
 from pipeline.robot.records import read_robot_records
@@ -33,7 +32,7 @@ def _quat_xyzw(xmat: np.ndarray) -> np.ndarray:
     return np.array([q[1], q[2], q[3], q[0]])
 
 
-def log_scene(model, data) -> None:
+def log_scene(rec, model, data) -> None:
     """Every drawn static geom of the world (group 0-2; not the robot, not collision boxes)."""
     G = mujoco.mjtGeom
     robot_body = model.body("robot").id
@@ -51,13 +50,13 @@ def log_scene(model, data) -> None:
             v0, nv = model.mesh_vertadr[m], model.mesh_vertnum[m]
             f0, nf = model.mesh_faceadr[m], model.mesh_facenum[m]
             verts = model.mesh_vert[v0 : v0 + nv] @ xmat.T + pos
-            rr.log(path, rr.Mesh3D(vertex_positions=verts, triangle_indices=model.mesh_face[f0 : f0 + nf],
+            rec.log(path, rr.Mesh3D(vertex_positions=verts, triangle_indices=model.mesh_face[f0 : f0 + nf],
                                    albedo_factor=colour), static=True)  # fmt: skip
         elif kind == G.mjGEOM_PLANE:
-            rr.log(path, rr.Boxes3D(centers=[pos], half_sizes=[[size[0], size[1], 0.001]],
+            rec.log(path, rr.Boxes3D(centers=[pos], half_sizes=[[size[0], size[1], 0.001]],
                                     colors=[[150, 145, 135]], fill_mode="solid"), static=True)  # fmt: skip
         elif kind == G.mjGEOM_BOX:
-            rr.log(path, rr.Boxes3D(centers=[pos], half_sizes=[size], quaternions=[quat],
+            rec.log(path, rr.Boxes3D(centers=[pos], half_sizes=[size], quaternions=[quat],
                                     colors=[colour], fill_mode="solid"), static=True)  # fmt: skip
         elif kind in (G.mjGEOM_CYLINDER, G.mjGEOM_CAPSULE):
             make = rr.Cylinders3D if kind == G.mjGEOM_CYLINDER else rr.Capsules3D
@@ -66,15 +65,18 @@ def log_scene(model, data) -> None:
             kw["centers" if kind == G.mjGEOM_CYLINDER else "translations"] = [
                 pos if kind == G.mjGEOM_CYLINDER else shift
             ]
-            rr.log(path, make(**kw), static=True)
+            rec.log(path, make(**kw), static=True)
         elif kind in (G.mjGEOM_SPHERE, G.mjGEOM_ELLIPSOID):
             half = [size[0]] * 3 if kind == G.mjGEOM_SPHERE else size
-            rr.log(path, rr.Ellipsoids3D(centers=[pos], half_sizes=[half], quaternions=[quat],
+            rec.log(path, rr.Ellipsoids3D(centers=[pos], half_sizes=[half], quaternions=[quat],
                                          colors=[colour], fill_mode="solid"), static=True)  # fmt: skip
 
 
 def build_robot_replay(folder: Path, run: int, episode: int, out: Path) -> Path:
-    """Write the replay of ``run``/``episode`` of the robot cell in ``folder`` to ``out`` (.rrd)."""
+    """Write the replay of ``run``/``episode`` of the robot cell in ``folder`` to ``out`` (.rrd,
+    written whole or not at all). A run or episode the records lack is a ``ValueError``; a full or
+    read-only disk a :class:`pipeline.files.DiskError`."""
+    folder, out = Path(folder), Path(out)
     meta = read_records(folder / "records.mcap").meta
     settings, episodes = read_robot_records(folder / "robot.mcap")
     chosen = [e for e in episodes if e["run"] == run and e["episode"] == episode]
@@ -91,46 +93,41 @@ def build_robot_replay(folder: Path, run: int, episode: int, out: Path) -> Path:
     model = spec.compile()
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
-    rr.init("robot3d_replay", recording_id=f"{folder.name}-run{run}-ep{episode}")
-    rr.save(str(out))
-    rr.log("/", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
-    log_scene(model, data)
+    rec = rr.RecordingStream(
+        "robot3d_replay", send_properties=False, recording_id=f"{folder.name}-run{run}-ep{episode}"
+    )
+    stream = rec.binary_stream()  # in memory, then written atomically
+    rec.log("/", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+    log_scene(rec, model, data)
     poses = np.array(ep["poses"], float)
     path = np.c_[poses[:, 1:3], np.full(len(poses), 0.02)]
-    rr.log("robot/path", rr.LineStrips3D([path], colors=[[30, 120, 220]], radii=0.01), static=True)
+    rec.log("robot/path", rr.LineStrips3D([path], colors=[[30, 120, 220]], radii=0.01), static=True)
     for t, x, y, yaw in poses:
-        rr.set_time("sim_time", duration=float(t))
+        rec.set_time("sim_time", duration=float(t))
         quat = rr.Quaternion(xyzw=[0.0, 0.0, np.sin(yaw / 2), np.cos(yaw / 2)])
-        rr.log("robot/body", rr.Boxes3D(centers=[[x, y, HEIGHT / 2]], half_sizes=[[LENGTH / 2, WIDTH / 2, HEIGHT / 2]],
-                                        quaternions=[quat], colors=[[40, 40, 45]], fill_mode="solid"))  # fmt: skip
+        rec.log("robot/body", rr.Boxes3D(centers=[[x, y, HEIGHT / 2]], half_sizes=[[LENGTH / 2, WIDTH / 2, HEIGHT / 2]],
+                                         quaternions=[quat], colors=[[40, 40, 45]], fill_mode="solid"))  # fmt: skip
     for c in ep["contacts"]:
-        rr.set_time("sim_time", duration=float(c["time"]))
-        rr.log("collisions", rr.Points3D([c["point"]], colors=[[230, 30, 30]], radii=0.06))
+        rec.set_time("sim_time", duration=float(c["time"]))
+        rec.log("collisions", rr.Points3D([c["point"]], colors=[[230, 30, 30]], radii=0.06))
     for k, p in enumerate(ep["pictures"]):
-        rr.set_time("sim_time", duration=float(p["time"]) + 0.001 * k)
-        rr.log("camera/picture", rr.Image(p["image"]))
+        rec.set_time("sim_time", duration=float(p["time"]) + 0.001 * k)
+        rec.log("camera/picture", rr.Image(p["image"]))
         scores = ", ".join(f"{c} {s:.2f}" for c, s in zip(CATEGORIES, p["scores"]))
         verdict = "stopped (recognised)" if p["prevented"] else "drove on"
         truth = CATEGORIES[p["true"]] if p["true"] >= 0 else "none"
-        rr.log(
+        rec.log(
             "camera/scores",
             rr.TextDocument(f"step {p['step']}: {verdict}; truth {truth}\n{scores}"),
         )
-    rr.disconnect()
+    data = stream.read(flush=True) or b""
+    rec.disconnect()
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        write_atomic(out, data)
+    except OSError as exc:
+        problem = disk_problem(exc, out.parent, f"the replay needs {size_text(len(data))}")
+        if problem is None:
+            raise
+        raise problem from None
     return out
-
-
-def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("folder", type=Path, help="a robot cell's folder (records.mcap, robot.mcap)")
-    ap.add_argument("--run", type=int, default=0)
-    ap.add_argument("--episode", type=int, default=0)
-    ap.add_argument("--out", type=Path, default=None)
-    args = ap.parse_args(argv)
-    out = args.out or Path(f"replays/robot-{args.folder.name}-run{args.run}-ep{args.episode}.rrd")
-    out.parent.mkdir(parents=True, exist_ok=True)
-    print(f"wrote {build_robot_replay(args.folder, args.run, args.episode, out)}")
-
-
-if __name__ == "__main__":
-    main()

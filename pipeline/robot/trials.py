@@ -9,8 +9,9 @@ functions, in the kernel's order), so the methods run unchanged.
 
 What only the robot has goes to ``robot_sink.episode(...)`` (:mod:`pipeline.robot.records`): the
 pose at 10 Hz, every classified live picture with its scores, each collision's contact point and
-the simulated time of the episode. A live picture has no query-picture id: its recognition row says
-``picture = -1``; ``true`` is the world's category there, kept for the accuracy, never decided on.
+the simulated time of the episode. A live picture is not a query picture: its recognition row says
+``picture = -1``, ``predicted`` the category its scores name (-1 for none); ``true`` is the world's
+category there, kept for the accuracy (a network never decides on it).
 """
 
 from __future__ import annotations
@@ -75,7 +76,7 @@ def _batch(run: int, ep: int, arrays: dict, steps: list, agent, env) -> tuple[di
         if info["camera"] is not None:
             truth = env._truth_at(env._target(s, a))
             scores = np.asarray(info["scores"], np.float32)
-            for key, v in zip(rec, (ep, executed, s, a, -1, int(scores.argmax()), truth)):
+            for key, v in zip(rec, (ep, executed, s, a, -1, _named(scores), truth)):
                 rec[key].append(v)
             rec_scores.append(scores)
             pictures.append({"step": executed, "time": round(started, 6), "state": s, "action": a, "image": info["camera"],
@@ -167,7 +168,7 @@ def run_robot_trials(
                     placements.append(env.world.placement)
                     if sink is not None and env._sees:
                         sink.substitution(run=r, episode=0, step=0, picture=-1, category=-1,
-                                          position=-1, support_accuracy=_support_accuracy(recogniser, r))  # fmt: skip
+                                          position=-1, support_accuracy=env.recogniser.support_accuracy(r))  # fmt: skip
                 batch, robot = _batch(r, ep, arrays, steps, agent, env)
                 for k, key in (("steps", "steps"), ("collisions", "collisions"),
                                ("returns", "return_"), ("reached_goal", "reached_goal"),
@@ -179,7 +180,7 @@ def run_robot_trials(
                         if pic["substituted"] >= 0:
                             sink.substitution(run=r, episode=ep, step=pic["step"], picture=-1,
                                               category=pic["true"], position=pic["substituted"],
-                                              support_accuracy=_support_accuracy(recogniser, r))  # fmt: skip
+                                              support_accuracy=env.recogniser.support_accuracy(r))  # fmt: skip
                     sink.episodes(**batch)
                 if robot_sink is not None:
                     robot_sink.episode(**robot)
@@ -190,9 +191,7 @@ def run_robot_trials(
     return TrialResult(layout, method, seed, placements=placements, **out)
 
 
-def _support_accuracy(recogniser, run: int) -> float:
-    """The share of the query pictures the run's support set recognises (1.0 for the oracle)."""
-    inner = getattr(recogniser, "inner", None)
-    if inner is None:
-        return 1.0
-    return float(np.mean(inner.predictions(run) == inner.query_categories))
+def _named(scores: np.ndarray) -> int:
+    """The category a live picture's scores name: the top one, or -1 when all are 0 (a model of
+    recognition that did not recognise the picture, :class:`pipeline.robot.live.LiveByPicture`)."""
+    return int(scores.argmax()) if scores.max() > 0 else -1

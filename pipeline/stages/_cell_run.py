@@ -92,21 +92,14 @@ def make_recogniser(cfg: TrialsConfig, key: str = "recogniser", built: dict | No
 
 
 def live_recogniser(recogniser, key: str):
-    """The robot's recogniser of live camera pictures around a built one: the oracle's, or the
-    Relation Network's (``pipeline.robot.live``); another is refused, naming the key."""
-    from pipeline.rl.oracle import OracleRecogniser
-    from pipeline.robot.live import LiveOracle, LiveRelation
+    """The robot's recogniser of live camera pictures around a built one (``pipeline.robot.live``);
+    one that cannot be asked about them is refused, naming the key."""
+    from pipeline.robot.live import live
 
-    if isinstance(recogniser, (LiveOracle, LiveRelation)):
-        return recogniser
-    if isinstance(recogniser, OracleRecogniser):
-        return LiveOracle(recogniser.substitution_way, recogniser.carry_over)
-    if getattr(recogniser, "kind", "") == "relation_net":
-        return LiveRelation(recogniser)
-    raise ConfigError(
-        f"config key '{key}': world=robot3d scores live camera pictures with the oracle or the "
-        f"Relation Network (recogniser=oracle|relation_net), not {type(recogniser).__name__}"
-    )
+    try:
+        return live(recogniser)
+    except ValueError as exc:
+        raise ConfigError(f"config key '{key}': world=robot3d: {exc}") from None
 
 
 def pictures_dir(cfg: TrialsConfig) -> str | None:

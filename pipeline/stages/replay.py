@@ -3,6 +3,7 @@
     python -m pipeline replay file=<file.mcap> run=3 episode=120 [whole_run=true] [viewer=web|native]
 
 Without ``episode`` the replay opens the run's first episode with a recognition (and says so).
+A robot cell's records (``robot.mcap`` beside ``records.mcap``, docs/robot3d.md) replay in 3D.
 
 The file may also be given positionally (``python -m pipeline replay <file.mcap> run=3 ...``).
 Logic in :mod:`pipeline.replay`; this is the thin entry point (pipeline/conf/replay.yaml) and
@@ -62,6 +63,8 @@ def write_replay(path: Path, cfg: ReplayConfig) -> Path:
     from pipeline.records import RecordsWarning
     from pipeline.replay import ReplayError, build_replay, opening_episode, replay_stem
 
+    if path.name == "robot.mcap":  # a robot cell: its records.mcap names the maze and runs
+        path = path.with_name("records.mcap")
     if cfg.whole_run and cfg.episode is not None:
         raise ConfigError("config key 'episode': whole_run=true replays every episode; give one")
     episode = cfg.episode
@@ -77,6 +80,8 @@ def write_replay(path: Path, cfg: ReplayConfig) -> Path:
     out = Path(out).resolve()
     if out.suffix != ".rrd":
         raise ConfigError(f"config key 'out': must end in .rrd, got {out}")
+    if path.with_name("robot.mcap").is_file():
+        return write_robot_replay(path.parent, cfg.run, episode, out)
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", RecordsWarning)
@@ -90,6 +95,24 @@ def write_replay(path: Path, cfg: ReplayConfig) -> Path:
         if issubclass(w.category, RecordsWarning):
             print(f"warning: {w.message}", file=sys.stderr, flush=True)
     return Path(rrd)
+
+
+def write_robot_replay(folder: Path, run: int, episode: int | None, out: Path) -> Path:
+    """A robot cell's episode in 3D (:mod:`pipeline.robot.replay`): the scene, the robot's path,
+    its camera pictures with their scores, the collisions."""
+    from pipeline.robot.replay import build_robot_replay
+
+    if episode is None:
+        raise ConfigError(
+            "config key 'whole_run': a robot cell replays one episode in 3D; give episode"
+        )
+    print(f"{folder.name} is a robot cell (robot.mcap beside it): the replay is in 3D", flush=True)
+    try:
+        return build_robot_replay(folder, run, episode, out)
+    except ValueError as exc:
+        raise ConfigError(f"config keys 'run'/'episode': {exc}") from None
+    except DiskError as exc:
+        raise ConfigError(f"config key 'out': {exc}") from None
 
 
 # ---------------------------------------------------------------- the web viewer
