@@ -126,12 +126,17 @@ def build_replay(
     replay.draw(episodes, empty)
     data = stream.read(flush=True) or b""
     rec.disconnect()
+    return write_rrd(out, data)
+
+
+def write_rrd(out: Path, data: bytes) -> Path:
+    """Write a replay's bytes to ``out`` whole or not at all, creating its folder; a full or
+    read-only disk is a :class:`pipeline.files.DiskError` saying how much the replay needs."""
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
-        write_atomic(out, data)
+        return write_atomic(out, data)
     except OSError as exc:
         problem = disk_problem(exc, out.parent, f"the replay needs {size_text(len(data))}")
         if problem is None:
             raise
         raise problem from None
-    return out

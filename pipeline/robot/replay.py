@@ -15,7 +15,6 @@ from pathlib import Path
 import numpy as np
 import rerun as rr
 
-from pipeline.files import disk_problem, size_text, write_atomic
 from pipeline.records import read_records
 from pipeline.robot.model import HEIGHT, LENGTH, WIDTH
 from pipeline.robot.records import read_robot_records
@@ -72,11 +71,10 @@ def log_scene(rec, model, data) -> None:
                                          colors=[colour], fill_mode="solid"), static=True)  # fmt: skip
 
 
-def build_robot_replay(folder: Path, run: int, episode: int, out: Path) -> Path:
-    """Write the replay of ``run``/``episode`` of the robot cell in ``folder`` to ``out`` (.rrd,
-    written whole or not at all). A run or episode the records lack is a ``ValueError``; a full or
-    read-only disk a :class:`pipeline.files.DiskError`."""
-    folder, out = Path(folder), Path(out)
+def robot_replay(folder: Path, run: int, episode: int) -> bytes:
+    """The ``.rrd`` bytes of the replay of ``run``/``episode`` of the robot cell in ``folder``; a
+    run or episode the records lack is a ``ValueError``."""
+    folder = Path(folder)
     meta = read_records(folder / "records.mcap").meta
     settings, episodes = read_robot_records(folder / "robot.mcap")
     chosen = [e for e in episodes if e["run"] == run and e["episode"] == episode]
@@ -96,7 +94,7 @@ def build_robot_replay(folder: Path, run: int, episode: int, out: Path) -> Path:
     rec = rr.RecordingStream(
         "robot3d_replay", send_properties=False, recording_id=f"{folder.name}-run{run}-ep{episode}"
     )
-    stream = rec.binary_stream()  # in memory, then written atomically
+    stream = rec.binary_stream()  # in memory: the stage writes it whole (replay.build.write_rrd)
     rec.log("/", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
     log_scene(rec, model, data)
     poses = np.array(ep["poses"], float)
@@ -122,12 +120,4 @@ def build_robot_replay(folder: Path, run: int, episode: int, out: Path) -> Path:
         )
     data = stream.read(flush=True) or b""
     rec.disconnect()
-    try:
-        out.parent.mkdir(parents=True, exist_ok=True)
-        write_atomic(out, data)
-    except OSError as exc:
-        problem = disk_problem(exc, out.parent, f"the replay needs {size_text(len(data))}")
-        if problem is None:
-            raise
-        raise problem from None
-    return out
+    return data
