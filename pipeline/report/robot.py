@@ -1,8 +1,8 @@
 """The report's section "On a simulated robot" (kind ``robot``; experiment ``robot3d``, issue 30,
 docs/robot3d.md): the same methods with the camera robot in MuJoCo and on the grid, same seeds.
 
-* collisions per run of each method, on the robot beside the grid, per maze;
-* live recognition accuracy per category (the robot's own camera pictures) beside the accuracy on
+* collisions per run of each method, on the robot beside the grid, per maze and recogniser;
+* live recognition accuracy per category and recogniser (the robot's own camera pictures) beside the accuracy on
   the pre-rendered query pictures the same methods met on the grid (the gap between what a robot
   sees and the photographs the paper used);
 * the simulated robot time per run (what a real Burger would spend: the safety layer and
@@ -24,7 +24,7 @@ import numpy as np
 import pandas as pd
 from mcap.reader import make_reader
 
-from pipeline.report.names import method_name, method_order
+from pipeline.report.names import method_name, method_order, recogniser_name, recogniser_of
 from pipeline.report.stats import describe, fmt, wilson_ci
 from pipeline.world.pictures import CATEGORIES
 
@@ -65,15 +65,21 @@ def _share(correct: int, n: int) -> str:
     return f"{correct / n:.2f} [{lo:.2f}, {hi:.2f}] (n={n})"
 
 
+def _recogniser(cell) -> str:
+    """The display name of the recogniser a cell ran ("none": its method looks at no pictures)."""
+    kind = recogniser_of(cell.info, cell.config)
+    return recogniser_name(kind) if kind else "none"
+
+
 def robot_kind(rep, exp, paper) -> None:
     cells = list(exp.cells.values())
-    keys = sorted({(method_order(c.method), c.method, c.maze) for c in cells})
+    keys = sorted({(method_order(c.method), c.method, c.maze, _recogniser(c)) for c in cells})
     rows, times = [], []
-    for _, method, maze in keys:
-        pair = {w: [c for c in cells if c.method == method and c.maze == maze and world(c) == w]
-                for w in ("grid", "robot3d")}  # fmt: skip
+    for _, method, maze, recogniser in keys:
+        pair = {w: [c for c in cells if c.method == method and c.maze == maze and world(c) == w
+                    and _recogniser(c) == recogniser] for w in ("grid", "robot3d")}  # fmt: skip
         info = (pair["robot3d"] or pair["grid"])[0].info
-        row = {"method": method_name(info["method"]), "maze": maze}
+        row = {"method": method_name(info["method"]), "recogniser": recogniser, "maze": maze}
         for w, label in (("grid", "grid"), ("robot3d", "robot (MuJoCo)")):
             runs = [c.collisions_per_run() for c in pair[w]]
             row[f"collisions, {label}"] = fmt(describe(np.concatenate(runs))) if runs else "-"
@@ -82,7 +88,7 @@ def robot_kind(rep, exp, paper) -> None:
             t = sim_time_per_run(c)
             if t is not None:
                 steps = c.episodes.groupby("run")["steps"].sum().to_numpy()
-                times.append({"method": row["method"], "maze": maze,
+                times.append({"method": row["method"], "recogniser": recogniser, "maze": maze,
                               "simulated robot time per run (min)": fmt(describe(t / 60), 1),
                               "grid moves per run": fmt(describe(steps), 0),
                               "seconds per move": f"{t.sum() / max(steps.sum(), 1):.2f}"})  # fmt: skip
@@ -90,28 +96,28 @@ def robot_kind(rep, exp, paper) -> None:
         exp.folder,
         pd.DataFrame(rows),
         "Collisions per run (mean ± s.d. [95% bootstrap CI] over runs), the same methods and seeds on "
-        "the grid and with the robot in MuJoCo (collisions: contacts).",
+        "the grid and with the robot in MuJoCo (collisions: contacts). Recogniser none: the method "
+        "looks at no pictures.",
     )
-    by_world = {
-        w: _accuracy([c.recognitions for c in cells if world(c) == w and len(c.recognitions)])
-        for w in ("grid", "robot3d")
-    }
+    seeing = sorted({_recogniser(c) for c in cells if len(c.recognitions)})
+    columns = {}
+    for name in seeing:
+        for w, label in (("grid", "query pictures (grid)"), ("robot3d", "live pictures (robot)")):
+            chosen = [c.recognitions for c in cells
+                      if world(c) == w and _recogniser(c) == name and len(c.recognitions)]  # fmt: skip
+            columns[f"{name}: {label}"] = _accuracy(chosen)
     acc = pd.DataFrame(
         [
-            {
-                "category": name,
-                "pre-rendered query pictures (grid)": _share(*by_world["grid"][c]),
-                "live camera pictures (robot)": _share(*by_world["robot3d"][c]),
-            }
-            for c, name in enumerate(CATEGORIES)
+            {"category": cat, **{col: _share(*by[c]) for col, by in columns.items()}}
+            for c, cat in enumerate(CATEGORIES)
         ]
     )
     rep.table(
         f"{exp.folder}_recognition",
         acc,
-        "Recognition accuracy per category: every picture the few-shot cells classified (argmax of "
-        "the scores against the true category; share [95% Wilson CI], n pictures). Grid: the "
-        "pre-rendered query pictures; robot: the robot's own camera pictures.",
+        "Recognition accuracy per category and recogniser: every picture the few-shot cells "
+        "classified (the category its scores name against the true one; share [95% Wilson CI], "
+        "n pictures). Grid: the pre-rendered query pictures; robot: the robot's own camera pictures.",
     )
     if times:
         rep.table(

@@ -30,7 +30,13 @@ from pipeline.world.obstacle_models import build_obstacle, obstacle_seed
 from pipeline.world.pictures import INSTANCES_PER_CATEGORY
 from pipeline.world.placement import Placement
 from pipeline.world.renderer_env import mujoco
-from pipeline.world.scenes import _add_materials, _add_part, _material, _texture
+from pipeline.world.scenes import (
+    WALL_RGBA,
+    _add_materials,
+    _add_part,
+    add_floor_tiles,
+    add_sky,
+)
 from pipeline.world.shapes import ObjectModel, yaw_quat
 
 DEFAULT_CELL = 1.0
@@ -120,29 +126,9 @@ def build_world(
     spec.visual.map.znear = 0.01
     spec.visual.quality.shadowsize = 1024
     _add_materials(spec)
-    B, G = mujoco.mjtBuiltin, mujoco.mjtGeom
-    spec.add_texture(
-        name="sky",
-        type=mujoco.mjtTexture.mjTEXTURE_SKYBOX,
-        builtin=B.mjBUILTIN_GRADIENT,
-        width=64,
-        height=64,
-        rgb1=[0.35, 0.33, 0.30],
-        rgb2=[0.12, 0.12, 0.12],
-    )
-    _texture(
-        spec,
-        "tiles",
-        B.mjBUILTIN_CHECKER,
-        (0.62, 0.60, 0.55),
-        (0.55, 0.53, 0.49),
-        128,
-        mujoco.mjtMark.mjMARK_EDGE,
-        (0.25, 0.25, 0.25),
-    )
-    _material(
-        spec, "tiles", "tiles", texrepeat=(0.5 / cell, 0.5 / cell), texuniform=True, specular=0.1
-    )
+    G = mujoco.mjtGeom
+    add_sky(spec, "maze")
+    add_floor_tiles(spec, cell)
     wb = spec.worldbody
     hx, hy = layout.width * cell / 2, layout.height * cell / 2
     wb.add_geom(
@@ -162,7 +148,7 @@ def build_world(
             type=G.mjGEOM_BOX,
             size=[sx, sy, WALL_HEIGHT / 2],
             pos=[x, y, WALL_HEIGHT / 2],
-            rgba=[0.78, 0.80, 0.84, 1.0],
+            rgba=list(WALL_RGBA),
             material="bg_plain",
         )
     wmap = WorldMap(layout, float(cell), tuple(layout.obstacles), ())

@@ -173,6 +173,47 @@ def _add_part(spec, body, part: Part, name: str, mesh_name: str) -> None:
     body.add_geom(type=gtype, size=size, **kw)
 
 
+#: Each setting's sky, a vertical gradient (top, bottom).
+SKIES = {
+    "maze": ((0.35, 0.33, 0.30), (0.12, 0.12, 0.12)),
+    "catalogue": ((1.0, 1.0, 1.0), (0.85, 0.85, 0.88)),
+    "studio": ((0.6, 0.65, 0.7), (0.2, 0.2, 0.22)),
+}
+#: The maze's border walls (the query pictures' and the robot's).
+WALL_RGBA = (0.78, 0.80, 0.84, 1.0)
+
+
+def add_sky(spec, setting: str) -> None:
+    """The skybox of ``setting`` (:data:`SKIES`)."""
+    top, bottom = SKIES[setting]
+    spec.add_texture(
+        name="sky",
+        type=mujoco.mjtTexture.mjTEXTURE_SKYBOX,
+        builtin=mujoco.mjtBuiltin.mjBUILTIN_GRADIENT,
+        width=64,
+        height=64,
+        rgb1=list(top),
+        rgb2=list(bottom),
+    )
+
+
+def add_floor_tiles(spec, cell: float) -> None:
+    """The maze floor's material ``tiles``: a checker of 0.5 m squares, whatever the cell size."""
+    _texture(
+        spec,
+        "tiles",
+        mujoco.mjtBuiltin.mjBUILTIN_CHECKER,
+        (0.62, 0.60, 0.55),
+        (0.55, 0.53, 0.49),
+        128,
+        mujoco.mjtMark.mjMARK_EDGE,
+        (0.25, 0.25, 0.25),
+    )
+    _material(
+        spec, "tiles", "tiles", texrepeat=(0.5 / cell, 0.5 / cell), texuniform=True, specular=0.1
+    )
+
+
 def build_scene(
     setting: str,
     objects: list[ObjectModel],
@@ -193,41 +234,11 @@ def build_scene(
     spec.visual.global_.offheight = 512
     spec.visual.map.znear = 0.01
     _add_materials(spec)
-    B, G = mujoco.mjtBuiltin, mujoco.mjtGeom
+    G = mujoco.mjtGeom
     wb = spec.worldbody
-    sky = {
-        "maze": ((0.35, 0.33, 0.30), (0.12, 0.12, 0.12)),
-        "catalogue": ((1.0, 1.0, 1.0), (0.85, 0.85, 0.88)),
-        "studio": ((0.6, 0.65, 0.7), (0.2, 0.2, 0.22)),
-    }[setting]
-    spec.add_texture(
-        name="sky",
-        type=mujoco.mjtTexture.mjTEXTURE_SKYBOX,
-        builtin=B.mjBUILTIN_GRADIENT,
-        width=64,
-        height=64,
-        rgb1=list(sky[0]),
-        rgb2=list(sky[1]),
-    )
+    add_sky(spec, setting)
     if setting == "maze":
-        _texture(
-            spec,
-            "tiles",
-            B.mjBUILTIN_CHECKER,
-            (0.62, 0.60, 0.55),
-            (0.55, 0.53, 0.49),
-            128,
-            mujoco.mjtMark.mjMARK_EDGE,
-            (0.25, 0.25, 0.25),
-        )
-        _material(
-            spec,
-            "tiles",
-            "tiles",
-            texrepeat=(0.5 / cell, 0.5 / cell),
-            texuniform=True,
-            specular=0.1,
-        )
+        add_floor_tiles(spec, cell)
         wb.add_geom(
             name="floor",
             type=G.mjGEOM_PLANE,
@@ -236,7 +247,6 @@ def build_scene(
             pos=[0.0, 0.0, 0.0],
         )
         half, hw, wh = 2.5 * cell, 0.05, 0.6
-        wall_rgba = [0.78, 0.80, 0.84, 1.0]
         for k, (x, y, sx, sy) in enumerate(
             [(0, half, half, hw), (0, -half, half, hw), (half, 0, hw, half), (-half, 0, hw, half)]
         ):
@@ -245,7 +255,7 @@ def build_scene(
                 type=G.mjGEOM_BOX,
                 size=[sx + hw, sy + hw, wh / 2],
                 pos=[x, y, wh / 2],
-                rgba=wall_rgba,
+                rgba=list(WALL_RGBA),
                 material="bg_plain",
             )
         for k, (cx, cy) in enumerate([(-2, 1), (1, -2), (2, 2)]):  # other obstacles: dark blocks
