@@ -358,6 +358,57 @@ def test_fixed_accuracy_runs_on_the_robot_with_the_given_p(tmp_path):
     assert all(not np.any(p["scores"]) for p in pictures)
 
 
+def _robot_records(path):
+    from pipeline.robot.records import RobotRecordWriter
+
+    writer = RobotRecordWriter(path, {"cell": 1.0, "threshold": 0.5})
+    picture = {"step": 0, "time": 0.0, "state": 1, "action": 2, "scores": [0.1] * 5, "true": 3,
+               "prevented": True, "substituted": -1,
+               "image": np.full((8, 8, 3), 7, np.uint8)}  # fmt: skip
+    for ep in range(3):
+        writer.episode(run=0, episode=ep, sim_time=1.5, poses=[(0.0, 0.0, 0.0, 0.0)],
+                       pictures=[dict(picture)], contacts=[])  # fmt: skip
+    return writer.close()
+
+
+@pytest.mark.parametrize("damage", ["cut", "garbage", "not_robot"])
+def test_a_damaged_robot_record_file_is_named_in_one_error(tmp_path, damage):
+    from pipeline.robot.records import RobotRecordsError, read_robot_records
+
+    path = _robot_records(tmp_path / "robot.mcap")
+    settings, episodes = read_robot_records(path)
+    assert settings["cell"] == 1.0 and len(episodes) == 3
+    assert episodes[2]["pictures"][0]["image"].shape == (8, 8, 3)
+    data = path.read_bytes()
+    if damage == "cut":
+        path.write_bytes(data[: len(data) // 2])
+    elif damage == "garbage":
+        path.write_bytes(data[:200] + bytes(range(256)) * 8 + data[-100:])
+    else:  # an MCAP file without the robot's metadata
+        from mcap.writer import Writer
+
+        with open(path, "wb") as f:
+            w = Writer(f)
+            w.start()
+            w.finish()
+    with pytest.raises(RobotRecordsError, match=str(path)):
+        read_robot_records(path)
+
+
+def test_the_report_names_a_damaged_robot_record_file(tmp_path):
+    from types import SimpleNamespace
+
+    from pipeline.report.experiments import ReportInputError
+    from pipeline.report.robot import sim_time_per_run
+
+    path = _robot_records(tmp_path / "robot.mcap")
+    cell = SimpleNamespace(path=tmp_path / "records.mcap")
+    assert sim_time_per_run(cell).tolist() == [4.5]  # run 0: three episodes of 1.5 s
+    path.write_bytes(path.read_bytes()[:300])
+    with pytest.raises(ReportInputError, match="robot.mcap: cannot read the robot's records"):
+        sim_time_per_run(cell)
+
+
 @pytest.mark.parametrize(
     "overrides,message",
     [
@@ -421,10 +472,17 @@ def test_the_replay_stage_replays_a_robot_cell_in_3d(tmp_path):
     with pytest.raises(ConfigError, match="'run'/'episode': .*no run 0 episode 5"):
         run_stage("replay", [f"file={cell / 'records.mcap'}", *replay, "episode=5",
                              f"out={tmp_path / 'x.rrd'}"])  # fmt: skip
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    (bad / "records.mcap").write_bytes((cell / "records.mcap").read_bytes())
+    (bad / "robot.mcap").write_bytes((cell / "robot.mcap").read_bytes()[:3000])
+    with pytest.raises(ConfigError, match="'file': .*robot.mcap: cannot read the robot's records"):
+        run_stage("replay", [f"file={bad / 'records.mcap'}", *replay, "episode=0",
+                             f"out={tmp_path / 'z.rrd'}"])  # fmt: skip
     with pytest.raises(ConfigError, match="'whole_run'"):
         run_stage("replay", [f"file={cell / 'records.mcap'}", *replay, "whole_run=true",
                              f"out={tmp_path / 'y.rrd'}"])  # fmt: skip
-    assert not (tmp_path / "x.rrd").exists() and not (tmp_path / "y.rrd").exists()
+    assert not any((tmp_path / n).exists() for n in ("x.rrd", "y.rrd", "z.rrd"))
 
 
 @pytest.mark.slow  # 30-60 s: 20 small cells and a report

@@ -24,6 +24,7 @@ import numpy as np
 import pandas as pd
 from mcap.reader import make_reader
 
+from pipeline.report.experiments import ReportInputError
 from pipeline.report.names import method_name, method_order, recogniser_name, recogniser_of
 from pipeline.report.stats import describe, fmt, wilson_ci
 from pipeline.world.pictures import CATEGORIES
@@ -41,11 +42,17 @@ def sim_time_per_run(cell) -> np.ndarray | None:
     if path is None or not path.exists():
         return None
     totals: dict[int, float] = {}
-    with open(path, "rb") as f:
-        for _, channel, message in make_reader(f).iter_messages(log_time_order=False):
-            if channel.topic == "/robot/episode":
-                ep = json.loads(message.data)
-                totals[ep["run"]] = totals.get(ep["run"], 0.0) + ep["sim_time"]
+    try:
+        with open(path, "rb") as f:
+            for _, channel, message in make_reader(f).iter_messages(log_time_order=False):
+                if channel.topic == "/robot/episode":
+                    ep = json.loads(message.data)
+                    totals[ep["run"]] = totals.get(ep["run"], 0.0) + ep["sim_time"]
+    except Exception as exc:  # mcap's and JSON's errors on a damaged file
+        raise ReportInputError(
+            f"{path}: cannot read the robot's records ({type(exc).__name__}: "
+            f"{(str(exc).splitlines() or [''])[0]}); re-run its trials"
+        ) from None
     return np.array([totals[r] for r in sorted(totals)])
 
 

@@ -28,6 +28,7 @@ from mcap.reader import make_reader
 from mcap.writer import Writer
 from PIL import Image
 
+from pipeline.errors import UserError
 from pipeline.records import schema as S
 
 LIBRARY = "pipeline.robot/1"
@@ -93,9 +94,36 @@ def _plain(o):
     raise TypeError(f"cannot record {type(o).__name__}")
 
 
+class RobotRecordsError(UserError):
+    """A ``robot.mcap`` that cannot be read: damaged, cut short, or not a robot's records."""
+
+
 def read_robot_records(path: str | Path) -> tuple[dict, list[dict]]:
     """``(settings, episodes)`` of a ``robot.mcap``; each episode's pictures get their ``image``
-    (H, W, 3 uint8) back."""
+    (H, W, 3 uint8) back. A file that cannot be read whole is a :class:`RobotRecordsError` naming
+    it (its ``records.mcap``, written beside it, is read on its own)."""
+    try:
+        settings, episodes, images = _read(path)
+    except Exception as exc:  # mcap's, zstd's, JSON's, PNG's errors on a damaged file
+        first = (str(exc).splitlines() or [""])[0]
+        raise RobotRecordsError(
+            f"{path}: cannot read the robot's records ({type(exc).__name__}: {first})"
+        ) from None
+    if not settings:
+        raise RobotRecordsError(f"{path}: not a robot's records (no 'robot' metadata)")
+    wanted = sum(len(ep["pictures"]) for ep in episodes)
+    if wanted != len(images):
+        raise RobotRecordsError(
+            f"{path}: its episodes list {wanted} live pictures, the file holds {len(images)}"
+        )
+    it = iter(images)
+    for ep in episodes:
+        for p in ep["pictures"]:
+            p["image"] = next(it)
+    return settings, episodes
+
+
+def _read(path: str | Path) -> tuple[dict, list[dict], list[np.ndarray]]:
     with open(path, "rb") as f:
         reader = make_reader(f)
         settings = {}
@@ -110,8 +138,4 @@ def read_robot_records(path: str | Path) -> tuple[dict, list[dict]]:
                 img = S.CompressedImage()
                 img.ParseFromString(message.data)
                 images.append(np.asarray(Image.open(io.BytesIO(img.data)).convert("RGB")))
-    it = iter(images)
-    for ep in episodes:
-        for p in ep["pictures"]:
-            p["image"] = next(it)
-    return settings, episodes
+    return settings, episodes, images

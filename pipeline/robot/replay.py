@@ -95,6 +95,7 @@ def robot_replay(folder: Path, run: int, episode: int) -> bytes:
         "robot3d_replay", send_properties=False, recording_id=f"{folder.name}-run{run}-ep{episode}"
     )
     stream = rec.binary_stream()  # in memory: the stage writes it whole (replay.build.write_rrd)
+    rec.send_recording_name(f"{folder.name}: run {run}, episode {episode} (the robot in 3D)")
     rec.log("/", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
     log_scene(rec, model, data)
     poses = np.array(ep["poses"], float)

@@ -101,6 +101,7 @@ def write_robot_replay(folder: Path, run: int, episode: int | None, out: Path) -
     """A robot cell's episode in 3D (:mod:`pipeline.robot.replay`): the scene, the robot's path,
     its camera pictures with their scores, the collisions."""
     from pipeline.replay.build import write_rrd
+    from pipeline.robot.records import RobotRecordsError
     from pipeline.robot.replay import robot_replay
 
     if episode is None:
@@ -110,6 +111,8 @@ def write_robot_replay(folder: Path, run: int, episode: int | None, out: Path) -
     print(f"{folder.name} is a robot cell (robot.mcap beside it): the replay is in 3D", flush=True)
     try:
         return write_rrd(out, robot_replay(folder, run, episode))
+    except RobotRecordsError as exc:
+        raise ConfigError(f"config key 'file': {exc}") from None
     except ValueError as exc:
         raise ConfigError(f"config keys 'run'/'episode': {exc}") from None
     except DiskError as exc:
