@@ -35,6 +35,7 @@ from pipeline.world.scenes import (
     _add_materials,
     _add_part,
     add_floor_tiles,
+    add_maze_lights,
     add_sky,
 )
 from pipeline.world.shapes import ObjectModel, yaw_quat
@@ -179,25 +180,7 @@ def build_world(
             conaffinity=1,
         )
         boxes.append(box.name)
-    wb.add_light(
-        name="key",
-        type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL,
-        pos=[0, 0, 3],
-        dir=[-0.35, -0.25, -1],
-        diffuse=[0.70, 0.63, 0.52],
-        specular=[0.2, 0.2, 0.2],
-        ambient=[0.36, 0.34, 0.32],
-        castshadow=bool(shadows),
-    )
-    wb.add_light(
-        name="fill",
-        type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL,
-        pos=[0, 0, 3],
-        dir=[0.3, 0.5, -0.7],
-        diffuse=[0.22, 0.22, 0.25],
-        specular=[0.0, 0.0, 0.0],
-        castshadow=False,
-    )
+    add_maze_lights(wb, shadows)
     spec.visual.headlight.ambient = [0.1, 0.1, 0.1]
     spec.visual.headlight.diffuse = [0.2, 0.2, 0.2]
     spec.visual.headlight.specular = [0.0, 0.0, 0.0]

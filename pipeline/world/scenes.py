@@ -214,6 +214,30 @@ def add_floor_tiles(spec, cell: float) -> None:
     )
 
 
+def add_maze_lights(worldbody, shadows: bool) -> None:
+    """The maze's light: a warm key light from above (casting shadows with ``shadows``) and a
+    cool fill."""
+    worldbody.add_light(
+        name="key",
+        type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL,
+        pos=[0, 0, 3],
+        dir=[-0.35, -0.25, -1],
+        diffuse=[0.70, 0.63, 0.52],
+        specular=[0.2, 0.2, 0.2],
+        ambient=[0.36, 0.34, 0.32],
+        castshadow=bool(shadows),
+    )
+    worldbody.add_light(
+        name="fill",
+        type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL,
+        pos=[0, 0, 3],
+        dir=[0.3, 0.5, -0.7],
+        diffuse=[0.22, 0.22, 0.25],
+        specular=[0.0, 0.0, 0.0],
+        castshadow=False,
+    )
+
+
 def build_scene(
     setting: str,
     objects: list[ObjectModel],
@@ -267,25 +291,7 @@ def build_scene(
                 rgba=[0.12, 0.12, 0.13, 1.0],
                 material="bg_plain",
             )
-        wb.add_light(
-            name="key",
-            type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL,
-            pos=[0, 0, 3],
-            dir=[-0.35, -0.25, -1],
-            diffuse=[0.70, 0.63, 0.52],
-            specular=[0.2, 0.2, 0.2],
-            ambient=[0.36, 0.34, 0.32],
-            castshadow=True,
-        )
-        wb.add_light(
-            name="fill",
-            type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL,
-            pos=[0, 0, 3],
-            dir=[0.3, 0.5, -0.7],
-            diffuse=[0.22, 0.22, 0.25],
-            specular=[0.0, 0.0, 0.0],
-            castshadow=False,
-        )
+        add_maze_lights(wb, shadows=True)
         has_backdrop = False
     else:
         wb.add_geom(
