@@ -84,11 +84,6 @@ def smoke(tmp_path_factory):
         f"recogniser.checkpoint={models}/pn.pt",
         f"out_dir={d}/accuracy_protonet",
     )
-    protonet_cells = [
-        f"+experiment.cells.{c}.recogniser.{k}={v}"
-        for c in ("fewshot_protonet", "fewshot_dss_protonet")
-        for k, v in (("checkpoint", f"{models}/pn.pt"), ("images_dir", images))
-    ]
     for exp in ("fig8", "fig9", "fig10", "table3"):
         stage(
             "trials",
@@ -98,7 +93,7 @@ def smoke(tmp_path_factory):
             f"recogniser.images_dir={images}",
             "progress=false",
             f"metrics_dir={d}/metrics/{exp}",
-            *(protonet_cells if exp == "fig8" else []),
+            *protonet_pins(exp, f"{models}/pn.pt", images),
         )
     stage(
         "trials", "+experiment=accuracy_curve", f"out={runs}/accuracy_curve", "progress=false"
@@ -119,21 +114,18 @@ def smoke(tmp_path_factory):
         f"out={runs}/repetition",
         f"recogniser.checkpoint={models}/rn.pt",
         f"recogniser.images_dir={images}",
-        *(
-            f"+experiment.layouts.cells.{c}.recogniser.{k}={v}"
-            for c in ("fewshot_protonet", "fewshot_dss_protonet")
-            for k, v in (("checkpoint", f"{models}/pn.pt"), ("images_dir", images))
-        ),
+        *protonet_pins("repetition", f"{models}/pn.pt", images),
         "progress=false",
         "workers=1",
     )
-    # the camera robot beside the grid (10 robot cells): one run of two episodes each
+    # the camera robot beside the grid (14 robot cells): one run of two episodes each
     stage(
         "trials",
         "+experiment=robot3d",
         f"out={runs}/robot3d",
         f"recogniser.checkpoint={models}/rn.pt",
         f"recogniser.images_dir={images}",
+        *protonet_pins("robot3d", f"{models}/pn.pt", images),
         "runs=1",
         "episodes=2",
         "workers=1",
@@ -149,6 +141,26 @@ def smoke(tmp_path_factory):
     ]
     stage("report", *report_args, f"out={d}/reports")
     return d, report_args
+
+
+def protonet_pins(experiment: str, checkpoint, images) -> list[str]:
+    """Overrides that point every cell of ``pipeline/conf/experiment/<experiment>.yaml`` that runs
+    the Prototypical Network (``recogniser_group: protonet``, listed or a layout template) at the
+    smoke checkpoint and pictures."""
+    import yaml
+
+    from pipeline.conf import conf_dir
+
+    spec = yaml.safe_load((conf_dir("experiment") / f"{experiment}.yaml").read_text())["experiment"]
+    groups = {"experiment.cells": spec.get("cells") or {}}
+    groups["experiment.layouts.cells"] = (spec.get("layouts") or {}).get("cells") or {}
+    return [
+        f"+{where}.{name}.recogniser.{key}={value}"
+        for where, cells in groups.items()
+        for name, cell in cells.items()
+        if cell.get("recogniser_group") == "protonet"
+        for key, value in (("checkpoint", checkpoint), ("images_dir", images))
+    ]
 
 
 def test_every_experiment_is_recorded_and_reported(smoke):
@@ -193,6 +205,8 @@ def test_every_experiment_is_recorded_and_reported(smoke):
         "fixed accuracy p = 0.55",
     } and set(gains["layouts"]) == {2}
     assert "paper's Tables 1-2 recogniser" in index  # the *_paper cells of fig8-10, table3
+    robot = pd.read_csv(d / "reports" / "tables" / "robot3d.csv")
+    assert set(robot["recogniser"]) == {"none", "Relation Network", "Prototypical Network"}
 
 
 def test_report_is_rebuilt_byte_for_byte(smoke):
