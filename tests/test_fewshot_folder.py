@@ -202,42 +202,18 @@ def test_keys_the_source_does_not_read_are_refused(tmp_path, trees, extra, match
     assert not (tmp_path / "rn.pt").exists()
 
 
-def test_test_classes_must_be_held_out_from_training_and_validation(tmp_path):
-    train = make_tree(tmp_path / "train", ["a", "b", "c", "d", "e"])
-    val = make_tree(tmp_path / "val", ["f", "g", "h", "i", "j"])
-    test = make_tree(tmp_path / "test", ["j", "k", "l", "m", "n"])
-    with pytest.raises(
-        ConfigError, match=r"config key 'data\.test_dir': classes j are in data\.val_dir too"
-    ):
-        run_stage(
-            "meta_train",
-            [
-                "data=folder",
-                f"data.train_dir={train}",
-                f"data.val_dir={val}",
-                f"data.test_dir={test}",
-                *outputs(tmp_path),
-                *SHRINK,
-            ],
-        )
+@pytest.mark.parametrize(
+    "val_classes,test_classes,match",
+    [
+        ("fghij", "jklmn", r"config key 'data\.test_dir': classes j are in data\.val_dir too"),
+        ("efghi", "vwxyz", r"config key 'data\.val_dir': classes e are in data\.train_dir too"),
+    ],
+)
+def test_validation_and_test_classes_must_be_held_out(tmp_path, val_classes, test_classes, match):
+    train = make_tree(tmp_path / "train", list("abcde"))
+    val = make_tree(tmp_path / "val", list(val_classes))
+    test = make_tree(tmp_path / "test", list(test_classes))
+    folders = [f"data.train_dir={train}", f"data.val_dir={val}", f"data.test_dir={test}"]
+    with pytest.raises(ConfigError, match=match):
+        run_stage("meta_train", ["data=folder", *folders, *outputs(tmp_path), *SHRINK])
     assert not (tmp_path / "rn.pt").exists()
-
-
-def test_validation_classes_must_be_held_out(tmp_path):
-    train = make_tree(tmp_path / "train", ["a", "b", "c", "d", "e"])
-    val = make_tree(tmp_path / "val", ["e", "f", "g", "h", "i"])
-    test = make_tree(tmp_path / "test", ["x", "y", "z", "w", "v"])
-    with pytest.raises(
-        ConfigError, match=r"config key 'data\.val_dir': classes e are in data\.train_dir too"
-    ):
-        run_stage(
-            "meta_train",
-            [
-                "data=folder",
-                f"data.train_dir={train}",
-                f"data.val_dir={val}",
-                f"data.test_dir={test}",
-                *outputs(tmp_path),
-                *SHRINK,
-            ],
-        )
