@@ -77,6 +77,29 @@ def make_recogniser(
     return recogniser
 
 
+def recogniser_for(
+    spec: MethodSpec,
+    recogniser: Recogniser | str | None,
+    options: Mapping[str, Any] | None,
+    substitution: int,
+) -> Recogniser | None:
+    """The recogniser an environment of method ``spec`` runs with: a name of
+    ``pipeline/conf/recogniser/`` is built (with ``options`` over its keys) only for a method that
+    reasons with pictures, like the trials stage, with substitution way ``substitution`` for
+    ``fewshot_dss``; an object is used as it is; ``options`` without a name are refused."""
+    if isinstance(recogniser, str):
+        _check_name(recogniser)
+        if not spec.uses_recogniser:
+            return None
+        way = substitution if spec.dynamic_support else 0
+        return make_recogniser(recogniser, options, substitution_way=way)
+    if options:
+        raise ValueError(
+            "recogniser_options go with a recogniser name (recogniser='fixed_accuracy', ...)"
+        )
+    return recogniser
+
+
 def make_env(
     maze: str | Layout | None = None,
     method: str | MethodSpec = "shield",
@@ -128,18 +151,8 @@ def make_env(
             )
         )
     spec = method if isinstance(method, MethodSpec) else get_method(method)
-    if isinstance(recogniser, str):
-        _check_name(recogniser)
-        if spec.uses_recogniser:
-            way = substitution if spec.dynamic_support else 0
-            recogniser = make_recogniser(recogniser, recogniser_options, substitution_way=way)
-        else:
-            recogniser = None
-    elif recogniser_options:
-        raise ValueError(
-            "recogniser_options go with a recogniser name (recogniser='fixed_accuracy', ...)"
-        )
-    elif recogniser is None and spec.uses_recogniser:
+    recogniser = recogniser_for(spec, recogniser, recogniser_options, substitution)
+    if recogniser is None and spec.uses_recogniser:
         raise ValueError(
             f"method {spec.name!r} reasons with pictures and needs a recogniser: pass "
             "recogniser=<name> with a name of pipeline/conf/recogniser/ "

@@ -4,9 +4,10 @@
     gymnasium.make("SafeNav3D-5x5-v0", method="fewshot_dss", recogniser="relation_net",
                    render_mode="rgb_array")
 
-``recogniser`` by name (any of ``pipeline/conf/recogniser/``, built as the trials stage builds
-it, then :func:`pipeline.robot.live.live`: the few-shot networks score the live picture, the models
-of recognition answer as for the grid's query picture), or a recogniser object.
+``recogniser`` by name (any of ``pipeline/conf/recogniser/``, built as for ``SafeNav-*``:
+:func:`pipeline.envs.recogniser_for`) or a recogniser object; the environment asks it about live
+pictures (:func:`pipeline.robot.live.live`: the few-shot networks score the live picture, the
+models of recognition answer as for the grid's query picture).
 ``render()`` is the maze from above and behind the robot; the camera's picture of a step is
 ``info["camera"]`` (None when the robot took none). ``info["cost"]`` is 1.0 on a collision;
 :class:`pipeline.envs.SixValueStep` gives Safety-Gymnasium's six-value ``step``.
@@ -17,16 +18,10 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from pipeline.envs import make_recogniser
+from pipeline.envs import recogniser_for
 from pipeline.rl.methods import MethodSpec, get_method
 from pipeline.robot.env import SafeNavigation3DEnv
-from pipeline.robot.live import live
 from pipeline.robot.world import DEFAULT_CELL
-
-
-def live_recogniser(name: str, options: Mapping[str, Any] | None = None, substitution_way: int = 0):
-    """A recogniser of live pictures by its config name (``pipeline/conf/recogniser/<name>.yaml``)."""
-    return live(make_recogniser(name, options, substitution_way=substitution_way))
 
 
 def make_env3d(
@@ -51,17 +46,10 @@ def make_env3d(
             )
         maze = registered_maze
     spec = method if isinstance(method, MethodSpec) else get_method(method)
-    if isinstance(recogniser, str):
-        way = substitution if spec.dynamic_support else 0
-        recogniser = (
-            live_recogniser(recogniser, recogniser_options, way) if spec.uses_recogniser else None
-        )
-    elif recogniser_options:
-        raise ValueError("recogniser_options go with a recogniser name (recogniser='relation_net')")
-    return SafeNavigation3DEnv(
+    return SafeNavigation3DEnv(  # it asks any recogniser about live pictures (robot.live.live)
         "5x5" if maze is None else maze,
         spec,
-        recogniser,
+        recogniser_for(spec, recogniser, recogniser_options, substitution),
         run=run,
         render_mode=render_mode,
         cell=cell,
