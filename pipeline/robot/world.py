@@ -24,6 +24,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from pipeline.robot.limits import check_settings
 from pipeline.robot.model import add_robot
 from pipeline.world.layout import Layout
 from pipeline.world.obstacle_models import build_obstacle, obstacle_seed
@@ -111,8 +112,7 @@ def build_world(
 ):
     """``(MjSpec, WorldMap)``: floor, walls, the placed obstacles and the robot (at the origin;
     :class:`pipeline.robot.sim.RobotSim` puts it on the start cell)."""
-    if not cell > 0:
-        raise ValueError(f"cell size must be positive, got {cell}")
+    check_settings(cell, 0.02)
     if len(placement.physical) != len(layout.obstacles):
         raise ValueError(
             f"placement has {len(placement.physical)} obstacles, layout {len(layout.obstacles)}"

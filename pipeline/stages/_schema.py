@@ -29,6 +29,7 @@ from pipeline.stages._experiment_schema import (  # noqa: F401  (the experiment 
     Experiment,
     Layouts,
     LayoutSet,
+    RULES,
     RobotConfig,
 )
 
@@ -135,6 +136,10 @@ class TrialsConfig:
     """``grid``: the grid world (the paper's); ``robot3d``: the camera robot in MuJoCo (docs/robot3d.md)."""
     robot: RobotConfig = field(default_factory=RobotConfig)
     """The robot world's settings; read only with ``world=robot3d``."""
+    rule: str = setting("paper", choices=RULES)
+    """When a picture stops the robot (methods that recognise pictures), the same in every world: ``paper`` (the prediction names the obstacle's true category), ``open_set`` (its top score reaches ``threshold``) or ``range`` (the range sensor alone: every occupied cell)."""
+    threshold: float = setting(0.5, gt=0, le=1)
+    """``rule=open_set``: the top score at which a picture stops the robot."""
     support: str = setting(choices=SUPPORT_MODES)
     """``restore`` the support set before each run, or ``carry`` it over (long-term autonomy)."""
     images_dir: str | None = None
