@@ -12,6 +12,7 @@ its substitution stream.
 from __future__ import annotations
 
 import abc
+import hashlib
 from dataclasses import dataclass
 
 import numpy as np
@@ -92,8 +93,8 @@ class SupportSetRecogniser(abc.ABC):
             None  # config and metrics of the checkpoint, when loaded from files
         )
         with torch.no_grad():
-            query_f = embed_all(network, query_images, channels_last=False)
-            support_f = embed_all(network, support_images, channels_last=False)
+            query_f = _embedded(network, query_images)
+            support_f = _embedded(network, support_images)
             query_parts, support_parts = self._prepare(query_f, support_f)
         # the part each support member contributes to its category's state: query picture p -> p,
         # original support picture j -> -(j + 1) (the member codes of support_set.py)
@@ -291,7 +292,9 @@ class SupportSetRecogniser(abc.ABC):
         normalised with the checkpoint's statistics; ``categories`` their true categories. Its
         picture ids are the rows of ``images``; its substitution way and carry-over are this one's."""
         if self.checkpoint is None:
-            raise ValueError("other pictures need a recogniser loaded from a checkpoint (from_files)")
+            raise ValueError(
+                "other pictures need a recogniser loaded from a checkpoint (from_files)"
+            )
         size = self.network.config.input_size
         resized = np.stack([_resized(im, size) for im in images]) if len(images) else images
         norm = self.checkpoint["normalisation"]
@@ -349,3 +352,21 @@ def _resized(image: np.ndarray, size: int) -> np.ndarray:
     if im.size != (size, size):
         im = im.resize((size, size), Image.Resampling.BILINEAR)
     return np.asarray(im)
+
+
+#: Embeddings of picture batches already embedded, by (network, the batch's bytes): the robot's
+#: cells of one process ask the same network about the same live pictures (one rendering a run)
+#: under several methods and rules. Bounded: the oldest go first.
+_EMBEDDINGS: dict[tuple[int, bytes], tuple[object, torch.Tensor]] = {}
+MAX_EMBEDDINGS = 4096
+
+
+def _embedded(network, images: torch.Tensor) -> torch.Tensor:
+    """``embed_all`` of ``images`` (eval mode), computed once per network and batch."""
+    data = images.detach().contiguous().numpy().tobytes()
+    key = (id(network), hashlib.sha256(data).digest())
+    if key not in _EMBEDDINGS or _EMBEDDINGS[key][0] is not network:  # an id reused
+        if len(_EMBEDDINGS) >= MAX_EMBEDDINGS:
+            del _EMBEDDINGS[next(iter(_EMBEDDINGS))]
+        _EMBEDDINGS[key] = (network, embed_all(network, images, channels_last=False))
+    return _EMBEDDINGS[key][1]

@@ -126,7 +126,11 @@ class SafeNavigationEnv(gym.Env):
         self._params = MethodParams.of(self.method, rule)
         if not 0.0 < float(threshold) <= 1.0:
             raise ValueError(f"threshold={threshold}: must lie in (0, 1]")
-        self.rule, self.threshold, self.world_model = Rule(self._params.rule), float(threshold), world
+        self.rule, self.threshold, self.world_model = (
+            Rule(self._params.rule),
+            float(threshold),
+            world,
+        )
         self._sees_pictures = reasons_with_pictures(self._params.safety)
         if isinstance(recogniser, str):
             raise TypeError(

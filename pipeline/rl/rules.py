@@ -56,7 +56,9 @@ class Rule(IntEnum):
 
     paper = 0  #: the paper's: the prediction names the obstacle's true category (Algorithm 1)
     open_set = 1  #: the top score of the picture is at least the threshold, whatever it names
-    range = 2  #: the range sensor alone: every occupied cell ahead (the picture is still classified)
+    range = (
+        2  #: the range sensor alone: every occupied cell ahead (the picture is still classified)
+    )
 
 
 @dataclass(frozen=True)
@@ -147,19 +149,19 @@ def apply_action(
     added,
 ):
     """Apply action ``a`` in cell ``s`` for a method with safety rule ``safety`` (a ``Safety``),
-    decision rule ``rule`` (a :class:`Rule`), ``recovery`` and ``constrained``
-    (``structs.MethodParams``).
+        decision rule ``rule`` (a :class:`Rule`), ``recovery`` and ``constrained``
+        (``structs.MethodParams``).
 
-    ``next_cell``, ``obstacle``, ``ssrl_pairs`` and ``goal`` are the maze's (``structs.MazeArrays``);
-    ``pictures[s, a]`` is the run's picture id table, ``true_category[o]`` the category of
-    obstacle ``o``, ``predicted[picture]`` the recogniser's current answer and ``confident[picture]``
-whether its top score reaches the open-set threshold. ``unsafe`` (A_d) is
-    updated in place; each addition is written to a row ``(cell, action, source)`` of ``added``
-    (``empty_added``; ``source`` a ``Source``).
+        ``next_cell``, ``obstacle``, ``ssrl_pairs`` and ``goal`` are the maze's (``structs.MazeArrays``);
+        ``pictures[s, a]`` is the run's picture id table, ``true_category[o]`` the category of
+        obstacle ``o``, ``predicted[picture]`` the recogniser's current answer and ``confident[picture]``
+    whether its top score reaches the open-set threshold. ``unsafe`` (A_d) is
+        updated in place; each addition is written to a row ``(cell, action, source)`` of ``added``
+        (``empty_added``; ``source`` a ``Source``).
 
-    Returns ``(outcome, next_state, reward, terminal, flags, picture, n_added)``: an ``Outcome``
-    value (an int: numba hands enum members to Python slowly), ``StepFlag`` bits, the picture seen
-    (or -1) and the number of rows written to ``added``.
+        Returns ``(outcome, next_state, reward, terminal, flags, picture, n_added)``: an ``Outcome``
+        value (an int: numba hands enum members to Python slowly), ``StepFlag`` bits, the picture seen
+        (or -1) and the number of rows written to ``added``.
     """
     n_added = 0
     o = obstacle[s, a]

@@ -10,7 +10,6 @@ Usage::
 from __future__ import annotations
 
 import contextlib
-from dataclasses import dataclass
 
 import numpy as np
 from tqdm.auto import tqdm

@@ -51,7 +51,9 @@ class LiveRecogniser:
         self.substitution_way = getattr(inner, "substitution_way", 0)
         self.carry_over = getattr(inner, "carry_over", False)
         self.network = isinstance(inner, SupportSetRecogniser)
-        self._runs: dict[int, tuple[int, object]] = {}  # run -> (first id, network over its pictures)
+        self._runs: dict[
+            int, tuple[int, object]
+        ] = {}  # run -> (first id, network over its pictures)
 
     def describe(self) -> dict | None:
         describe = getattr(self.inner, "describe", None)

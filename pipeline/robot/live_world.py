@@ -29,9 +29,9 @@ import numpy as np
 from PIL import Image
 
 from pipeline.rl.run_world import RunWorld, run_placement
+from pipeline.robot.limits import check_settings
 from pipeline.robot.motion import motion_table
 from pipeline.robot.sim import RobotSim
-from pipeline.robot.limits import check_settings
 from pipeline.robot.world import DEFAULT_CELL
 from pipeline.world.geometry import Geometry, build_geometry
 from pipeline.world.layout import Layout, parse_layout
@@ -64,7 +64,9 @@ class RenderedRun:
 
 
 @lru_cache(maxsize=1024)
-def rendered_run(rows: tuple[str, ...], seed: int, run: int, settings: RobotSettings) -> RenderedRun:
+def rendered_run(
+    rows: tuple[str, ...], seed: int, run: int, settings: RobotSettings
+) -> RenderedRun:
     """Render run ``run``'s live pictures in the maze ``rows`` (and check its range sensor)."""
     layout = parse_layout("\n".join(rows))
     geometry = build_geometry(layout)
@@ -109,7 +111,9 @@ def png(image: np.ndarray) -> bytes:
 
 
 @lru_cache(maxsize=1024)
-def run_pngs(rows: tuple[str, ...], seed: int, run: int, settings: RobotSettings) -> tuple[bytes, ...]:
+def run_pngs(
+    rows: tuple[str, ...], seed: int, run: int, settings: RobotSettings
+) -> tuple[bytes, ...]:
     """Run ``run``'s live pictures as PNG bytes (what the records keep), encoded once."""
     return tuple(png(im) for im in rendered_run(rows, seed, run, settings).images)
 

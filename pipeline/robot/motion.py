@@ -66,7 +66,9 @@ def motion_table(cell: float, timestep: float) -> dict:
     ``k`` quarter turns counter-clockwise; ``drives[key]`` (:func:`drive_key`): ``poses`` of the
     drive with self-recovery, ``stopped`` (ticks up to the stop after the contact; the drive without
     self-recovery ends there) and the first ``contact`` point."""
-    empty = RobotSim(FREE_WORLD, Placement(np.zeros(0, np.int16), np.zeros(0, np.int8)), cell, timestep)
+    empty = RobotSim(
+        FREE_WORLD, Placement(np.zeros(0, np.int16), np.zeros(0, np.int8)), cell, timestep
+    )
     turns = []
     for k in range(4):
         empty.place(CENTRE, EAST)
@@ -123,62 +125,89 @@ def centre_of(cell: int, width: int, height: int, size: float) -> np.ndarray:
     return np.array([(col - (width - 1) / 2) * size, ((height - 1) / 2 - row) * size])
 
 
-def episode_path(table: dict, layout, obstacles: list[dict], steps, recognitions) -> dict:
-    """The robot's path through one recorded episode, from the motion ``table`` (as recorded).
+class PathBuilder:
+    """The robot's path through an episode, move by move, from the motion ``table`` (as recorded):
+    every episode starts on the start cell facing north. ``obstacles``: the run's placement as
+    recorded (``cell``, ``physical``, ``orientation``). Poses are (x m, y m, yaw rad) at 10 Hz."""
 
-    ``obstacles``: the run's placement as recorded (``cell``, ``physical``, ``orientation``);
-    ``steps``: rows with ``state``, ``action`` and ``flags`` (the executed moves, in order);
-    ``recognitions``: rows with ``step`` and ``action`` (each picture, taken after turning toward it,
-    before step ``step`` moves). Returns ``poses`` (n, 4: t s, x m, y m, yaw rad at 10 Hz, the
-    start pose at t = 0), ``contacts`` (tick, x, y) and ``pictures`` (the tick of each recognition).
-    """
-    from pipeline.records.schema import FLAG_COLLIDED, FLAG_RECOVERED
+    def __init__(self, table: dict, layout, obstacles: list[dict]):
+        self.table, self.layout = table, layout
+        self.size = float(table["cell"])
+        self.by_cell = {int(o["cell"]): o for o in obstacles}
+        self.heading = 0
+        self.segments = [self._world([[0, 0, 0]], layout.start, HEADINGS[0])]
+        self.ticks = 1
+        self.contacts: list[tuple[float, float, float]] = []
+        self.pictures: list[int] = []
 
-    w, h, size = layout.width, layout.height, float(table["cell"])
-    by_cell = {int(o["cell"]): o for o in obstacles}
-    start = int(layout.start)
-    heading = 0  # every episode starts on the start cell facing north (action 0)
-    segments = [_to_world([[0, 0, 0]], centre_of(start, w, h, size), HEADINGS[heading])]
-    contacts, pictures, ticks = [], [], 1
-    picture_steps = [(int(r["step"]), int(r["action"])) for r in recognitions]
-    k = 0
+    def _world(self, rows, cell: int, heading: float) -> np.ndarray:
+        w, h = self.layout.width, self.layout.height
+        return _to_world(rows, centre_of(cell, w, h, self.size), heading)
 
-    def turn(cell: int, action: int) -> None:
-        nonlocal heading, ticks
-        rel = (QUARTERS[action] - QUARTERS[heading]) % 4
-        rows = table["turns"][rel]
-        segments.append(_to_world(rows, centre_of(cell, w, h, size), HEADINGS[heading]))
-        ticks += len(rows)
-        heading = action
+    def _add(self, poses: np.ndarray) -> None:
+        self.segments.append(poses)
+        self.ticks += len(poses)
 
-    for t, (s, a, flags) in enumerate(steps):
-        s, a, flags = int(s), int(a), int(flags)
-        while k < len(picture_steps) and picture_steps[k][0] == t:
-            turn(s, picture_steps[k][1])
-            pictures.append(ticks - 1)
-            k += 1
-        row, col = divmod(s, w)
-        dr, dc = MOVES[a]
+    def turn(self, cell: int, action: int) -> None:
+        """Turn in place on ``cell``'s centre to ``action``'s heading."""
+        rel = (QUARTERS[action] - QUARTERS[self.heading]) % 4
+        self._add(self._world(self.table["turns"][rel], cell, HEADINGS[self.heading]))
+        self.heading = action
+
+    def look(self, cell: int, action: int) -> None:
+        """Turn toward ``action``'s neighbour and take a picture (at the last tick of the turn)."""
+        self.turn(cell, action)
+        self.pictures.append(self.ticks - 1)
+
+    def move(self, cell: int, action: int, flags: int) -> None:
+        """One executed move (``flags``: the step's ``StepFlag`` bits, as recorded): off the grid
+        the robot stays put (it knows the maze's size); else it turns and drives, into the
+        obstacle there when there is one (a contact; back to ``cell`` with self-recovery)."""
+        from pipeline.records.schema import FLAG_COLLIDED, FLAG_RECOVERED
+
+        w, h = self.layout.width, self.layout.height
+        row, col = divmod(int(cell), w)
+        dr, dc = MOVES[action]
         if not (0 <= row + dr < h and 0 <= col + dc < w):
-            continue  # off the grid: the robot knows the maze's size and stays put
-        turn(s, a)
-        target = by_cell.get(s + dr * w + dc)
+            return
+        self.turn(cell, action)
+        target = self.by_cell.get(int(cell) + dr * w + dc)
         if target is None:
-            drive = table["drives"]["free"]
-            rows = drive["poses"]
-        else:
-            key = drive_key(target["physical"], relative_orientation(target["orientation"], a))
-            drive = table["drives"][key]
-            recovered = bool(flags & FLAG_RECOVERED) or not flags & FLAG_COLLIDED
-            rows = drive["poses"] if recovered else drive["poses"][: drive["stopped"]]
-            point = _to_world([[*drive["contact"][:2], 0]], centre_of(s, w, h, size), HEADINGS[a])
-            contacts.append((ticks + drive["stopped"] - 2, *point[0, :2]))
-        segments.append(_to_world(rows, centre_of(s, w, h, size), HEADINGS[a]))
-        ticks += len(rows)
-    poses = np.concatenate(segments)
-    t = np.arange(len(poses), dtype=np.float64) / CONTROL_HZ
+            self._add(self._world(self.table["drives"]["free"]["poses"], cell, HEADINGS[action]))
+            return
+        key = drive_key(target["physical"], relative_orientation(target["orientation"], action))
+        drive = self.table["drives"][key]
+        recovered = bool(flags & FLAG_RECOVERED) or not flags & FLAG_COLLIDED
+        rows = drive["poses"] if recovered else drive["poses"][: drive["stopped"]]
+        point = self._world([[*drive["contact"][:2], 0]], cell, HEADINGS[action])[0]
+        self.contacts.append((self.ticks + drive["stopped"] - 2, point[0], point[1]))
+        self._add(self._world(rows, cell, HEADINGS[action]))
+
+    def poses(self, since: int = 0) -> np.ndarray:
+        """(n, 4) rows t (s), x, y, yaw of the ticks from tick ``since`` on."""
+        poses = np.concatenate(self.segments)[since:]
+        t = np.arange(since, since + len(poses), dtype=np.float64) / CONTROL_HZ
+        return np.column_stack([t, poses])
+
+
+def episode_path(table: dict, layout, obstacles: list[dict], steps, recognitions) -> dict:
+    """The robot's path through one recorded episode (:class:`PathBuilder`).
+
+    ``steps``: rows ``(state, action, flags)`` (the executed moves, in order); ``recognitions``:
+    rows with ``step`` and ``action`` (each picture, taken after turning toward it, before step
+    ``step`` moves). Returns ``poses`` (n, 4: t s, x m, y m, yaw rad at 10 Hz, the start pose at
+    t = 0), ``contacts`` (tick, x, y) and ``pictures`` (the tick of each recognition).
+    """
+    path = PathBuilder(table, layout, obstacles)
+    looks = [(int(r["step"]), int(r["action"])) for r in recognitions]
+    k = 0
+    for t, (s, a, flags) in enumerate(steps):
+        while k < len(looks) and looks[k][0] == t:
+            path.look(int(s), looks[k][1])
+            k += 1
+        path.move(int(s), int(a), int(flags))
     return {
-        "poses": np.column_stack([t, poses]),
-        "contacts": np.array(contacts, np.float64).reshape(-1, 3),
-        "pictures": np.array(pictures, np.int64),
+        "poses": path.poses(),
+        "contacts": np.array(path.contacts, np.float64).reshape(-1, 3),
+        "pictures": np.array(path.pictures, np.int64),
     }

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from pipeline.robot.limits import check_settings
 from pipeline.robot.model import (
     CAMERA,
     GEOM,
@@ -29,7 +30,6 @@ from pipeline.robot.model import (
     WHEEL_SEPARATION,
     ray_angles,
 )
-from pipeline.robot.limits import check_settings
 from pipeline.robot.world import DEFAULT_CELL, WorldMap, build_world
 from pipeline.world.layout import MOVES, Layout
 from pipeline.world.placement import Placement
@@ -106,9 +106,13 @@ class RobotSim:
     def place(self, cell: int, action: int = 0) -> None:
         """The robot at rest exactly on ``cell``'s centre, facing ``action``'s heading: the settled
         pose every grid move starts from (the robot re-localises at each centre)."""
-        mujoco.mj_resetData(self.model, self.data)
         x, y = self.map.centre(cell)
-        self.data.qpos[:] = [x, y, HEADINGS[action]]
+        self.put(x, y, HEADINGS[action])
+
+    def put(self, x: float, y: float, yaw: float) -> None:
+        """The robot at rest at ``(x, y)`` facing ``yaw`` (radians)."""
+        mujoco.mj_resetData(self.model, self.data)
+        self.data.qpos[:] = [x, y, yaw]
         mujoco.mj_forward(self.model, self.data)
 
     def pose(self) -> tuple[float, float, float]:

@@ -208,8 +208,8 @@ def open_records(cell: CellRun, folder: Path, world=None, recogniser=None):
                 "substitution": cfg.substitution,
                 "support": cfg.support,
                 "recogniser": describe() if describe is not None else None,
-                **({"robot": world.describe()} if robot else {}),
             },
+            **({"robot": world.describe()} if robot else {}),
         },
         maze={
             "layout": list(layout.rows),
@@ -218,9 +218,7 @@ def open_records(cell: CellRun, folder: Path, world=None, recogniser=None):
             "actions": ACTION_NAMES,
             "moves": MOVES,
         },
-        runs=[
-            run_placement(geometry, seed, r).as_records(layout.obstacles) for r in range(runs)
-        ],
+        runs=[run_placement(geometry, seed, r).as_records(layout.obstacles) for r in range(runs)],
         pictures=pictures,
         support_pictures=cell.support,
         flush_every=cfg.flush_every,

@@ -13,8 +13,8 @@ from typing import Any
 
 from pipeline.errors import ConfigError
 from pipeline.report.spec import ReportSpec
-from pipeline.schema import setting
 from pipeline.robot.limits import CELL_RANGE, TIMESTEP_RANGE
+from pipeline.schema import setting
 
 SUPPORT_MODES = ("restore", "carry")
 #: Where the methods run: the grid world, or the camera robot in MuJoCo (``pipeline/robot``).

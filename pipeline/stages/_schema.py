@@ -22,6 +22,7 @@ from pipeline.fewshot.settings import StudyConfig, TrainConfig
 from pipeline.rl.methods import MethodSpec
 from pipeline.schema import setting
 from pipeline.stages._experiment_schema import (  # noqa: F401  (the experiment group's schema)
+    RULES,
     SUBSTITUTION_WAYS,
     SUPPORT_MODES,
     WORLDS,
@@ -29,7 +30,6 @@ from pipeline.stages._experiment_schema import (  # noqa: F401  (the experiment 
     Experiment,
     Layouts,
     LayoutSet,
-    RULES,
     RobotConfig,
 )
 
