@@ -21,7 +21,8 @@ robot's own live pictures instead of the pre-rendered query pictures.
   figures read here: wall-clock figures are never in the records.
 
 Only records are read (.importlinter: the report does not import ``pipeline.robot``); a robot cell
-whose records do not match its cell, or that has no grid twin, is refused (:func:`check_cell`).
+whose records do not match its cell, or that has no grid twin, is refused (:func:`check_cell`,
+:func:`pairs`).
 """
 
 from __future__ import annotations
