@@ -13,7 +13,7 @@ import pytest
 
 from pipeline.report.build import Report
 from pipeline.report.experiments import ReportInputError, load_experiment
-from pipeline.report.robot import check_cell, per_run, robot_kind
+from pipeline.report.robot import check_cell, per_run, read_extra, robot_kind
 from pipeline.stages._common import run_stage
 
 RUNS = 2
@@ -82,10 +82,10 @@ def test_the_paper_rule_has_no_false_stops_and_the_range_sensor_stops_on_every_p
     folder, _, _ = recorded
     exp = load_experiment(folder)
     for name, cell in exp.cells.items():
+        figures = per_run(cell, read_extra(cell))
         if name.startswith("fewshot") and name.endswith("_paper"):
-            assert per_run(cell).false_stops.sum() == 0, name
+            assert figures.false_stops.sum() == 0, name
         if name.endswith("_range"):
-            figures = per_run(cell)
             pictures = cell.recognitions.groupby("run").size().reindex(figures.runs, fill_value=0)
             assert (figures.right_stops + figures.false_stops).tolist() == pictures.tolist()
             assert figures.collisions.sum() == 0, name
@@ -151,10 +151,11 @@ def test_a_robot_cell_without_its_grid_twin_is_refused(recorded, tmp_path):
 def test_a_robot_cell_must_hold_its_motion_table(recorded):
     folder, _, _ = recorded
     cell = load_experiment(folder).cells["shield_5x5_robot3d"]
-    check_cell(cell)
-    without = dataclasses.replace(cell, info={k: v for k, v in cell.info.items() if k != "robot"})
-    with pytest.raises(ReportInputError, match="no motion table"):
-        check_cell(without)
+    extra = read_extra(cell)
+    assert extra.robot["cell"] == 1.0 and set(extra.robot["drives"]) >= {"free"}
+    check_cell(cell, extra)
+    with pytest.raises(ReportInputError, match=re.escape(f"{cell.path}: a robot cell (world")):
+        check_cell(cell, dataclasses.replace(extra, robot=None))
     other = dataclasses.replace(cell, config={**cell.config, "robot": {"cell": 0.8}})
     with pytest.raises(ReportInputError, match=r"motion table is for 1.0 m cells.*robot.cell=0.8"):
-        check_cell(other)
+        check_cell(other, extra)

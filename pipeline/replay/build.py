@@ -1,30 +1,33 @@
 """Replay a recorded episode (or a whole run) in Rerun from the MCAP records alone (the entities:
-docs/records.md "Replay it in Rerun"); timelines ``step`` (global across the replayed episodes)
-and ``episode``. Moves, action and category names come from the file's maze metadata; a file
-without moves gets :data:`.draw.NESW`, there and nowhere else. The drawing is :class:`.draw.Replay`.
+docs/records.md "Replay it in Rerun"). Moves, action and category names come from the file's maze
+metadata; a file without moves gets :data:`.story.NESW`, there and nowhere else.
+
+A grid cell is drawn by :class:`.draw.Replay` (timelines ``step``, global across the replayed
+episodes, and ``episode``); a robot cell, one whose recorded config says ``world: robot3d``, by
+:class:`pipeline.robot.replay.RobotReplay` in 3D (timeline ``sim_time``). Both read the one
+record file through :func:`pipeline.records.read_records` and share what is not the world's
+(:class:`.story.Story`).
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from pipeline.errors import UserError
 from pipeline.files import disk_problem, size_text, write_atomic
 from pipeline.records import FileMeta, Records, RecordsError, read_records
 
 from .draw import Replay
 from .notes import empty_views, first_recognition
+from .story import ReplayError
 
 APPLICATION = "fewshot_safe_rl_replay"
+#: The recorded config's ``world`` of a robot cell (``pipeline/stages/_experiment_schema.WORLDS``).
+ROBOT_WORLD = "robot3d"
 
 
-class ReplayError(UserError):
-    """The run/episode is not in the records, or they cannot be drawn; ``key`` is the config key to
-    blame (``"file"`` for a record file that cannot be read or drawn)."""
-
-    def __init__(self, message: str, key: str = "run/episode"):
-        super().__init__(message)
-        self.key = key
+def world_of(meta: FileMeta) -> str:
+    """The world a record file was recorded in: its config's ``world`` (``grid`` when none)."""
+    return (meta.config or {}).get("world") or "grid"
 
 
 def cell_of(path: str | Path) -> tuple[str, str]:
@@ -114,10 +117,14 @@ def build_replay(
     shown = None if whole_run else int(episode)
     recs = read_run(path, run, shown)
     have = recs.episodes.episode[recs.episodes.run == run]
+    if world_of(recs.meta) == ROBOT_WORLD:
+        from pipeline.robot.replay import RobotReplay as Drawing
+    else:
+        Drawing = Replay
     rec = rr.RecordingStream(
         APPLICATION, send_properties=False, recording_id=replay_stem(path, run, shown)
     )
-    replay, name = Replay(rec, recs, run), recording_name(recs.meta, run, shown)
+    replay, name = Drawing(rec, recs, run), recording_name(recs.meta, run, shown)
     episodes = sorted(set(have)) if whole_run else [shown]
     empty = empty_views(recs, run, episodes)
     stream = rec.binary_stream()  # in memory, then written atomically: a full or read-only

@@ -86,7 +86,27 @@ def recogniser(cell: Cell) -> str:
     return recogniser_name(kind) if kind else "none"
 
 
-def check_cell(cell: Cell) -> None:
+@dataclass
+class Extra:
+    """What a cell's records hold beyond the report's :class:`Cell`."""
+
+    robot: dict | None
+    """The robot's motion table (the ``info`` metadata's ``robot``; None on the grid)."""
+    recognised: pd.DataFrame
+    """The unsafe additions by recognition (:data:`STOP_KEY` columns); empty for a method that
+    sees no pictures."""
+
+
+def read_extra(cell: Cell) -> Extra:
+    """:class:`Extra` of ``cell``, read from its records; of a method that sees no pictures only
+    its first episode (it needs the metadata alone)."""
+    window = {} if rule(cell) is not None else {"run": int(cell.runs()[0]), "episode": 0}
+    recs = read_records(cell.path, pictures=False, **window)
+    added = recs.unsafe.loc[recs.unsafe["source"] == RECOGNITION, STOP_KEY]
+    return Extra(recs.meta.info.get("robot"), added.astype("int64"))
+
+
+def check_cell(cell: Cell, extra: Extra) -> None:
     """Refuse records that do not match their cell: the recorded maze must be the layout of the
     maze its recorded config names and of the maze the experiment declares for the cell's folder (a
     file copied from another cell fails this); a robot cell (``world: robot3d``) must hold its
@@ -113,7 +133,7 @@ def check_cell(cell: Cell) -> None:
             )
     if world(cell) != "robot3d":
         return
-    table = cell.info.get("robot")
+    table = extra.robot
     if not table:
         raise ReportInputError(
             f"{cell.path}: a robot cell (world robot3d) whose records hold no motion table "
@@ -127,15 +147,13 @@ def check_cell(cell: Cell) -> None:
         )
 
 
-def stops(cell: Cell) -> pd.DataFrame:
+def stops(cell: Cell, extra: Extra) -> pd.DataFrame:
     """The recognitions that stopped the robot: those whose (run, episode, step, state, action) has
     an unsafe addition by recognition (each dangerous (s, a) is recognised at most once a run: it
     then joins A_d). A right stop's prediction names the true category, a false stop's another."""
-    unsafe = read_records(cell.path, pictures=False).unsafe
-    added = unsafe.loc[unsafe["source"] == RECOGNITION, STOP_KEY].astype("int64")
     seen = cell.recognitions
     hit = pd.MultiIndex.from_frame(seen[STOP_KEY].astype("int64")).isin(
-        pd.MultiIndex.from_frame(added)
+        pd.MultiIndex.from_frame(extra.recognised)
     )
     return seen[hit]
 
@@ -150,14 +168,14 @@ class PerRun:
     false_stops: np.ndarray
 
 
-def per_run(cell: Cell) -> PerRun:
+def per_run(cell: Cell, extra: Extra) -> PerRun:
     """Collisions, right stops and false stops of each run of ``cell``."""
     runs = cell.runs()
     collisions = cell.episodes.groupby("run")["collisions"].sum().reindex(runs).to_numpy()
     if rule(cell) is None:
         zero = np.zeros(len(runs), dtype=np.int64)
         return PerRun(runs, collisions, zero, zero)
-    stopped = stops(cell)
+    stopped = stops(cell, extra)
     right = stopped["predicted"] == stopped["true"]
 
     def count(rows: pd.DataFrame) -> np.ndarray:
@@ -193,7 +211,7 @@ class Pair:
         return method_name(self.robot.info["method"])
 
 
-def pairs(cells: list[Cell]) -> list[Pair]:
+def pairs(cells: list[Cell], extras: dict[str, Extra]) -> list[Pair]:
     """Every robot cell with its grid twin (:func:`twin_key`), in the tables' order. A robot cell
     without exactly one grid twin, or whose runs are not its twin's, is refused."""
     grid: dict[tuple, list[Cell]] = {}
@@ -212,7 +230,8 @@ def pairs(cells: list[Cell]) -> list[Pair]:
                 f"{cell.maze}, rule, recogniser and threshold{': ' if twins else ''}"
                 f"{', '.join(t.name for t in twins)}); record exactly one beside it"
             )
-        on_robot, on_grid = per_run(cell), per_run(twins[0])
+        on_robot = per_run(cell, extras[cell.name])
+        on_grid = per_run(twins[0], extras[twins[0].name])
         if not np.array_equal(on_robot.runs, on_grid.runs):
             raise ReportInputError(
                 f"{cell.path}: runs {on_robot.runs.tolist()}, but its grid twin "
@@ -437,9 +456,10 @@ def robot_kind(rep, exp, paper) -> None:
     """The section: the statement on the range sensor, a table per decision rule, the methods
     that see no pictures, recognition accuracy per category, the real-time factor."""
     cells = list(exp.cells.values())
+    extras = {cell.name: read_extra(cell) for cell in cells}
     for cell in cells:
-        check_cell(cell)
-    found = pairs(cells)
+        check_cell(cell, extras[cell.name])
+    found = pairs(cells, extras)
     if not found:
         rep.add("No robot cell (world robot3d) has records.\n")
         return
