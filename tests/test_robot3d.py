@@ -4,6 +4,8 @@ robot's outcomes against the grid's, the Gymnasium ids and bad input."""
 
 from __future__ import annotations
 
+import signal
+
 import numpy as np
 import pytest
 
@@ -357,3 +359,62 @@ def test_settings_are_checked_where_the_robot_world_is_built():
         with pytest.raises(ValueError):
             RobotSettings(cell, timestep)
     assert HEADINGS[1] == 0.0
+
+
+@pytest.mark.filterwarnings("ignore::pipeline.records.RecordsWarning")  # a .partial, as expected
+@pytest.mark.parametrize(
+    "sig",
+    [  # about 20 s each; the grid's runs test SIGTERM and SIGINT by default (tests/test_faults.py)
+        pytest.param(signal.SIGTERM, marks=pytest.mark.slow),
+        pytest.param(signal.SIGINT, marks=pytest.mark.slow),
+        signal.SIGKILL,
+    ],
+)
+def test_a_killed_robot_run_keeps_what_it_handed_over_poses_and_pictures_included(tmp_path, sig):
+    """The robot's records are the one writer's: a killed robot run keeps every episode handed
+    over two seconds before the signal, with its live pictures and its motion table (its poses)."""
+    import subprocess
+    import sys
+    import time
+
+    from entry import ROOT
+
+    from pipeline.records import read_records
+
+    args = [
+        "method=fewshot_dss",
+        "world=robot3d",
+        "recogniser=fixed_accuracy",
+        "runs=8",
+        "episodes=2000000",  # long enough to be running when the signal comes
+        "flush_every=100000",
+        "progress=false",
+        f"out={tmp_path}",
+    ]
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "pipeline", "trials", *args],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    t0 = time.time()
+    while not list(tmp_path.glob(".staging-*/records.mcap.partial")):
+        assert time.time() - t0 < 60 and proc.poll() is None, proc.stderr and proc.stderr.read()
+        time.sleep(0.1)
+    time.sleep(3.0)  # past the writer's 2 s flush: what it had by then is on disk
+    proc.send_signal(sig)
+    proc.communicate(timeout=60)
+    partial = next(tmp_path.glob(".staging-*/records.mcap.partial"))
+    records = read_records(partial)
+    assert len(records.episodes) > 0 and len(records.recognitions) > 0
+    assert set(records.recognitions["picture"]) <= set(records.meta.pictures)
+    table = records.meta.info["robot"]
+    layout = load_layout(records.meta.config["maze"])
+    first = records.steps[(records.steps["run"] == 0) & (records.steps["episode"] == 0)]
+    steps = first[["state", "action", "flags"]].to_numpy()
+    looks = records.recognitions[
+        (records.recognitions["run"] == 0) & (records.recognitions["episode"] == 0)
+    ]
+    path = episode_path(table, layout, records.meta.obstacles[0], steps, looks.to_dict("records"))
+    assert len(path["poses"]) > len(steps) and len(path["pictures"]) == len(looks)
