@@ -1,8 +1,8 @@
-"""The report's robot section (:mod:`pipeline.report.robot`) on the robot3d experiment at a tiny scale
-(2 runs x 3 episodes a cell, ``fixed_accuracy``: no model; MuJoCo renders the robot cells' live
-pictures): a table per decision rule, robot and grid paired by run, the methods that see no pictures
-equal run by run, the range sensor never colliding, and records that do not match their cell
-refused, naming the file."""
+"""The report's robot section (:mod:`pipeline.report.robot`) on the robot3d experiment at a tiny
+scale (2 runs x 3 episodes a cell, ``fixed_accuracy``: no model; MuJoCo renders the robot cells'
+live pictures): a table per decision rule, robot and grid paired by run, the methods that see no
+pictures equal run by run, the range sensor never colliding, and records that do not match their
+cell refused, naming the file."""
 
 import dataclasses
 import re
@@ -99,10 +99,8 @@ def test_range_rule_never_collides(recorded):
     assert (t["collisions, robot - grid (paired)"] == "+0.00 [+0.00, +0.00]").all()
     first = rep.sections[0]  # the section's first paragraph
     assert first.startswith("**What recognition adds over the range sensor")
-    assert (
-        f"none of its {len(FEW_SHOT_ROWS) * RUNS} robot runs (nor their grid twins) collided"
-        in (first)
-    )
+    runs = len(FEW_SHOT_ROWS) * RUNS  # the range rule's robot runs
+    assert f"none of its {runs} robot runs (nor their grid twins) collided" in first
     assert "0.00 (0.00) under `range`" in first
 
 
@@ -155,7 +153,10 @@ def test_a_robot_cell_must_hold_its_motion_table(recorded):
     assert extra.robot["cell"] == 1.0 and set(extra.robot["drives"]) >= {"free"}
     check_cell(cell, extra)
     with pytest.raises(ReportInputError, match=re.escape(f"{cell.path}: a robot cell (world")):
-        check_cell(cell, dataclasses.replace(extra, robot=None))
+        check_cell(cell, extra._replace(robot=None))
     other = dataclasses.replace(cell, config={**cell.config, "robot": {"cell": 0.8}})
-    with pytest.raises(ReportInputError, match=r"motion table is for 1.0 m cells.*robot.cell=0.8"):
+    with pytest.raises(
+        ReportInputError,
+        match=r"robot.cell=0.8\) whose records hold the motion table of 1.0 m cells",
+    ):
         check_cell(other, extra)

@@ -1,27 +1,17 @@
 """The report's section "On a simulated robot" (kind ``robot``; experiment ``robot3d``, issue 38,
 docs/robot3d.md): the methods with the camera robot in MuJoCo beside the grid, the same seeds.
 
-Every cell, grid or robot, is one ``records.mcap`` of the one runner; a robot cell's recorded config
-has ``world: robot3d`` and its ``info`` the robot's motion table (``info.robot``). A robot cell and
-its grid twin (same method, maze, decision rule and recogniser) share run seeds: run ``r`` of each
-meets the same obstacles, so they are paired by run. The robot's moves have the grid's outcomes
-(the motion table checks it), so a robot cell differs from its twin only in its pictures: the
-robot's own live pictures instead of the pre-rendered query pictures.
+A robot cell (recorded config ``world: robot3d``; its records hold the robot's motion table, the
+``info`` metadata's ``robot``) and its grid twin (same method, maze, decision rule, recogniser)
+share run seeds: run ``r`` of each meets the same obstacles, so they are paired by run. The robot's
+moves have the grid's outcomes, so the two differ only in their pictures (live, not pre-rendered).
 
-* First, what recognition adds over the range sensor and at what cost in false stops
-  (:func:`range_statement`).
-* One table per decision rule (:class:`pipeline.rl.rules.Rule`; the paper's rule is Algorithm 1,
-  section 3.2.2; ``open_set`` and ``range`` are ours) for the few-shot methods: collisions per run
-  on the grid and on the robot, their paired difference, and the stops (:func:`stops`) that named
-  a wrong (false) or the true (right) category. The robot is set beside the grid under one rule
-  only.
-* The methods that see no pictures (shield, SSRL): robot and grid collide alike, run by run.
-* Recognition accuracy per category: the robot's live pictures beside the grid's query pictures.
-* The real-time factor, from the benchmark (``reports/benchmarks/robot3d.json``) when it holds the
-  figures read here: wall-clock figures are never in the records.
-
-Only records are read (.importlinter: the report does not import ``pipeline.robot``); a robot cell
-whose records do not match its cell, or that has no grid twin, is refused (:func:`check_cell`,
+The section: what recognition adds over the range sensor, at what cost in false stops
+(:func:`range_statement`); one table per decision rule (:class:`pipeline.rl.rules.Rule`: the
+paper's is Algorithm 1, section 3.2.2; ``open_set`` and ``range`` are ours), the robot beside the
+grid under one rule only; the methods that see no pictures; recognition accuracy per category; the
+real-time factor, when the benchmark holds it. Only records are read (.importlinter); records that
+do not match their cell, or a robot cell without its grid twin, are refused (:func:`check_cell`,
 :func:`pairs`).
 """
 
@@ -30,6 +20,7 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -45,13 +36,12 @@ from pipeline.world.maze import load_layout
 from pipeline.world.pictures import CATEGORIES
 
 BENCHMARK = Path("reports/benchmarks/robot3d.json")
-
 #: The unsafe additions of a stop (records schema ``UnsafeAdditions.source``).
 RECOGNITION = SOURCE_NAMES.index("recognition")
-#: What identifies the picture of a stop: the recognition and its unsafe addition share it.
+#: What a stop's recognition and its unsafe addition share.
 STOP_KEY = ["run", "episode", "step", "state", "action"]
 
-#: Each decision rule in words (captions); ``{threshold}`` is the cells' recorded threshold.
+#: Each decision rule in words (captions); ``{threshold}``: the cells' recorded threshold.
 RULE_WORDS = {
     Rule.paper: "the paper's rule (Algorithm 1, section 3.2.2): a picture stops the robot when its "
     "prediction names the obstacle's true category, so every stop is a right stop",
@@ -68,14 +58,13 @@ def world(cell: Cell) -> str:
 
 
 def rule(cell: Cell) -> Rule | None:
-    """The cell's decision rule as recorded; None when its method looks at no pictures (the
-    recorded default rule then applies to nothing)."""
+    """The cell's decision rule as recorded; None when its method looks at no pictures."""
     if recogniser_of(cell.info, cell.config) is None:
         return None
     name = (cell.config or {}).get("rule", "paper")
     if name not in Rule.__members__:
         raise ReportInputError(
-            f"{cell.path}: decision rule {name!r} is none of {', '.join(Rule.__members__)}"
+            f"{cell.path}: decision rule {name!r} is none of {[r.name for r in Rule]}"
         )
     return Rule[name]
 
@@ -86,20 +75,16 @@ def recogniser(cell: Cell) -> str:
     return recogniser_name(kind) if kind else "none"
 
 
-@dataclass
-class Extra:
+class Extra(NamedTuple):
     """What a cell's records hold beyond the report's :class:`Cell`."""
 
-    robot: dict | None
-    """The robot's motion table (the ``info`` metadata's ``robot``; None on the grid)."""
-    recognised: pd.DataFrame
-    """The unsafe additions by recognition (:data:`STOP_KEY` columns); empty for a method that
-    sees no pictures."""
+    robot: dict | None  # the motion table (the ``info`` metadata's ``robot``); None on the grid
+    recognised: pd.DataFrame  # the unsafe additions by recognition (:data:`STOP_KEY` columns)
 
 
 def read_extra(cell: Cell) -> Extra:
-    """:class:`Extra` of ``cell``, read from its records; of a method that sees no pictures only
-    its first episode (it needs the metadata alone)."""
+    """:class:`Extra` of ``cell``; of a method that sees no pictures only its first episode is read
+    (it needs the metadata alone)."""
     window = {} if rule(cell) is not None else {"run": int(cell.runs()[0]), "episode": 0}
     recs = read_records(cell.path, pictures=False, **window)
     added = recs.unsafe.loc[recs.unsafe["source"] == RECOGNITION, STOP_KEY]
@@ -108,54 +93,29 @@ def read_extra(cell: Cell) -> Extra:
 
 def check_cell(cell: Cell, extra: Extra) -> None:
     """Refuse records that do not match their cell: the recorded maze must be the layout of the
-    maze its recorded config names and of the maze the experiment declares for the cell's folder (a
+    maze the recorded config names and of the one the experiment declares for the cell's folder (a
     file copied from another cell fails this); a robot cell (``world: robot3d``) must hold its
-    motion table (``info.robot``) for the cell size it ran with (``robot.cell``)."""
+    motion table for the cell size it ran with (``robot.cell``)."""
     config = cell.config or {}
     declared = ((config.get("experiment") or {}).get("cells") or {}).get(cell.name) or {}
-    for where, maze in (
-        ("its recorded config", config.get("maze")),
-        (f"the experiment's cell {cell.name}", declared.get("maze")),
-    ):
-        if maze is None:
-            continue
+    for maze in dict.fromkeys(m for m in (config.get("maze"), declared.get("maze")) if m):
         try:
             rows = list(load_layout(maze).rows)
         except UserError as exc:
-            raise ReportInputError(
-                f"{cell.path}: cannot load maze {maze!r} named by {where} ({exc})"
-            ) from None
+            raise ReportInputError(f"{cell.path}: cannot load maze {maze!r} ({exc})") from None
         if rows != list(cell.layout):
             raise ReportInputError(
                 f"{cell.path}: the records hold a {len(cell.layout[0])}x{len(cell.layout)} maze "
-                f"({'/'.join(cell.layout)}), not maze {maze!r} of {where}; these are another "
-                f"cell's records: re-run the trials of {cell.name}"
+                f"({'/'.join(cell.layout)}), not maze {maze!r} of cell {cell.name}; these are "
+                "another cell's records: re-run its trials"
             )
-    if world(cell) != "robot3d":
-        return
-    table = extra.robot
-    if not table:
+    table, ran = extra.robot or {}, (config.get("robot") or {}).get("cell")
+    if world(cell) == "robot3d" and table.get("cell") != ran:
+        why = f"the motion table of {table['cell']} m cells" if table else "no motion table"
         raise ReportInputError(
-            f"{cell.path}: a robot cell (world robot3d) whose records hold no motion table "
-            "(info.robot); re-run its trials"
+            f"{cell.path}: a robot cell (world robot3d, robot.cell={ran}) whose records hold "
+            f"{why} (info.robot); re-run its trials"
         )
-    ran = (config.get("robot") or {}).get("cell")
-    if table.get("cell") != ran:
-        raise ReportInputError(
-            f"{cell.path}: the motion table is for {table.get('cell')} m cells, but the cell ran "
-            f"with robot.cell={ran}; re-run its trials"
-        )
-
-
-def stops(cell: Cell, extra: Extra) -> pd.DataFrame:
-    """The recognitions that stopped the robot: those whose (run, episode, step, state, action) has
-    an unsafe addition by recognition (each dangerous (s, a) is recognised at most once a run: it
-    then joins A_d). A right stop's prediction names the true category, a false stop's another."""
-    seen = cell.recognitions
-    hit = pd.MultiIndex.from_frame(seen[STOP_KEY].astype("int64")).isin(
-        pd.MultiIndex.from_frame(extra.recognised)
-    )
-    return seen[hit]
 
 
 @dataclass
@@ -169,19 +129,22 @@ class PerRun:
 
 
 def per_run(cell: Cell, extra: Extra) -> PerRun:
-    """Collisions, right stops and false stops of each run of ``cell``."""
+    """Collisions, right and false stops of each run. A stop is a recognition whose (run, episode,
+    step, state, action) has an unsafe addition by recognition (each dangerous (s, a) is recognised
+    at most once a run: it then joins A_d); a right stop's prediction names the true category, a
+    false stop's another."""
     runs = cell.runs()
     collisions = cell.episodes.groupby("run")["collisions"].sum().reindex(runs).to_numpy()
-    if rule(cell) is None:
-        zero = np.zeros(len(runs), dtype=np.int64)
-        return PerRun(runs, collisions, zero, zero)
-    stopped = stops(cell, extra)
-    right = stopped["predicted"] == stopped["true"]
+    seen = cell.recognitions
+    stop = pd.MultiIndex.from_frame(seen[STOP_KEY].astype("int64")).isin(
+        pd.MultiIndex.from_frame(extra.recognised)
+    )
+    right = np.asarray(seen["predicted"] == seen["true"])
 
-    def count(rows: pd.DataFrame) -> np.ndarray:
-        return rows.groupby("run").size().reindex(runs, fill_value=0).to_numpy()
+    def count(chosen: np.ndarray) -> np.ndarray:
+        return seen[chosen].groupby("run").size().reindex(runs, fill_value=0).to_numpy()
 
-    return PerRun(runs, collisions, count(stopped[right]), count(stopped[~right]))
+    return PerRun(runs, collisions, count(stop & right), count(stop & ~right))
 
 
 def twin_key(cell: Cell) -> tuple:
@@ -214,21 +177,14 @@ class Pair:
 def pairs(cells: list[Cell], extras: dict[str, Extra]) -> list[Pair]:
     """Every robot cell with its grid twin (:func:`twin_key`), in the tables' order. A robot cell
     without exactly one grid twin, or whose runs are not its twin's, is refused."""
-    grid: dict[tuple, list[Cell]] = {}
-    for cell in cells:
-        if world(cell) == "grid":
-            grid.setdefault(twin_key(cell), []).append(cell)
-    out = []
-    for cell in cells:
-        if world(cell) != "robot3d":
-            continue
-        twins = grid.get(twin_key(cell), [])
+    grid, out = [c for c in cells if world(c) == "grid"], []
+    for cell in (c for c in cells if world(c) == "robot3d"):
+        twins = [g for g in grid if twin_key(g) == twin_key(cell)]
         if len(twins) != 1:
-            what = "no grid twin" if not twins else f"{len(twins)} grid twins"
             raise ReportInputError(
-                f"{cell.path}: a robot cell with {what} (a grid cell with the same method, maze "
-                f"{cell.maze}, rule, recogniser and threshold{': ' if twins else ''}"
-                f"{', '.join(t.name for t in twins)}); record exactly one beside it"
+                f"{cell.path}: a robot cell with {len(twins) or 'no'} grid twin(s) (grid cells of "
+                f"the same method, maze {cell.maze}, rule, recogniser and threshold"
+                f"{''.join(f', {t.name}' for t in twins)}); record exactly one beside it"
             )
         on_robot = per_run(cell, extras[cell.name])
         on_grid = per_run(twins[0], extras[twins[0].name])
@@ -253,71 +209,43 @@ def paired_difference(a, b) -> str:
     return f"{estimate:+.2f} [{lo:+.2f}, {hi:+.2f}]"
 
 
-def _share(correct: int, n: int) -> str:
-    if n == 0:
-        return "-"
-    lo, hi = wilson_ci(correct / n, n)
-    return f"{correct / n:.2f} [{lo:.2f}, {hi:.2f}] (n={n})"
-
-
-def _row_names(pair: Pair, several_recognisers: bool) -> dict:
-    row = {"method": pair.method, "maze": pair.robot.maze}
-    if several_recognisers:
-        row["recogniser"] = recogniser(pair.robot)
-    return row | {"runs": len(pair.on_robot.runs)}
-
-
-def rule_table(chosen: list[Pair], several_recognisers: bool) -> pd.DataFrame:
-    """One row per few-shot robot cell of one rule and its grid twin."""
+def pair_table(chosen: list[Pair], several_recognisers: bool) -> pd.DataFrame:
+    """One row per robot cell and its grid twin: collisions on each; with pictures, their paired
+    difference and the false and right stops on each; without, the runs where they are equal."""
     rows = []
     for p in chosen:
         robot, grid = p.on_robot, p.on_grid
-        rows.append(
-            _row_names(p, several_recognisers)
-            | {
-                "collisions, grid": mean_ci(grid.collisions),
-                "collisions, robot": mean_ci(robot.collisions),
-                "collisions, robot - grid (paired)": paired_difference(
-                    robot.collisions, grid.collisions
-                ),
-                "false stops, grid": mean_ci(grid.false_stops),
-                "false stops, robot": mean_ci(robot.false_stops),
-                "right stops, grid": mean_ci(grid.right_stops),
-                "right stops, robot": mean_ci(robot.right_stops),
-            }
-        )
+        row = {"method": p.method, "maze": p.robot.maze}
+        row |= {"recogniser": recogniser(p.robot)} if several_recognisers else {}
+        row["runs"] = len(robot.runs)
+        row["collisions, grid"] = mean_ci(grid.collisions)
+        row["collisions, robot"] = mean_ci(robot.collisions)
+        if rule(p.robot) is None:
+            same = int(np.sum(robot.collisions == grid.collisions))
+            row["runs where robot = grid"] = f"{same} of {len(robot.runs)}"
+        else:
+            difference = paired_difference(robot.collisions, grid.collisions)
+            row["collisions, robot - grid (paired)"] = difference
+            for kind in ("false", "right"):
+                row[f"{kind} stops, grid"] = mean_ci(getattr(grid, f"{kind}_stops"))
+                row[f"{kind} stops, robot"] = mean_ci(getattr(robot, f"{kind}_stops"))
+        rows.append(row)
     return pd.DataFrame(rows)
 
 
 def rule_caption(r: Rule, chosen: list[Pair]) -> str:
-    thresholds = sorted({(p.robot.config or {}).get("threshold") for p in chosen}, key=str)
-    words = RULE_WORDS[r].format(threshold=", ".join(str(t) for t in thresholds))
+    """The caption of rule ``r``'s table (its threshold: the cells' recorded one)."""
+    thresholds = sorted({str((p.robot.config or {}).get("threshold")) for p in chosen})
     return (
-        f"Decision rule `{r.name}`: {words}. Few-shot methods on the grid (the query pictures) and "
-        "with the robot in MuJoCo (its live pictures), the same seeds; per run, mean [95% "
-        "bootstrap CI] over runs. Robot - grid: the mean of the run-by-run differences (run r of "
-        "both meets the same obstacles) with a paired bootstrap 95% interval; the robot's moves "
-        "have the grid's outcomes, so a difference comes from the pictures alone. A stop: a "
-        "picture after which its (state, action) joined the unsafe set by recognition; a false "
-        "stop's prediction names a wrong category, a right stop's the true one. The robot is set "
-        "beside the grid under this rule only."
+        f"Decision rule `{r.name}`: {RULE_WORDS[r].format(threshold=', '.join(thresholds))}. "
+        "Few-shot methods on the grid (the query pictures) and with the robot in MuJoCo (its live "
+        "pictures), the same seeds; per run, mean [95% bootstrap CI] over runs. Robot - grid: the "
+        "mean of the run-by-run differences (run r of both meets the same obstacles) with a paired "
+        "bootstrap 95% interval; the robot's moves have the grid's outcomes, so a difference comes "
+        "from the pictures alone. A stop: a picture after which its (state, action) joined the "
+        "unsafe set by recognition; a false stop's prediction names a wrong category, a right "
+        "stop's the true one. The robot is set beside the grid under this rule only."
     )
-
-
-def blind_table(chosen: list[Pair]) -> pd.DataFrame:
-    """One row per robot cell of a method that sees no pictures and its grid twin."""
-    rows = []
-    for p in chosen:
-        same = int(np.sum(p.on_robot.collisions == p.on_grid.collisions))
-        rows.append(
-            _row_names(p, False)
-            | {
-                "collisions, grid": mean_ci(p.on_grid.collisions),
-                "collisions, robot": mean_ci(p.on_robot.collisions),
-                "runs where robot = grid": f"{same} of {len(p.on_robot.runs)}",
-            }
-        )
-    return pd.DataFrame(rows)
 
 
 BLIND_CAPTION = (
@@ -330,23 +258,23 @@ BLIND_CAPTION = (
 )
 
 
-def _mean(values) -> str:
-    return f"{np.mean(values):.2f}"
+def _means(pair: Pair, field: str) -> str:
+    return f"{getattr(pair.on_robot, field).mean():.2f} ({getattr(pair.on_grid, field).mean():.2f})"
 
 
 def range_statement(few: list[Pair]) -> str:
     """What recognition adds over the range sensor, and at what cost in false stops: per maze and
-    method, the collisions under the rules that look at the picture against the range sensor's,
-    and the false stops under the open-set rule and the range sensor (the paper's rule has none: it
-    stops only on the true category). From the records; robot first, the grid in brackets."""
+    method, the collisions under each rule (the range sensor's against the rules that look at the
+    picture) and the false stops under ``open_set`` and ``range`` (``paper`` has none: it stops only
+    on the true category). From the records; robot first, the grid in brackets."""
     by = {(p.method, p.robot.maze, rule(p.robot)): p for p in few}
     text = "**What recognition adds over the range sensor, and at what cost in false stops.** "
     ranged = [p for p in few if rule(p.robot) == Rule.range]
     if ranged:
         worst = max(max(p.on_robot.collisions.max(), p.on_grid.collisions.max()) for p in ranged)
-        runs = sum(len(p.on_robot.runs) for p in ranged)
         text += "The range sensor alone stops before every occupied cell ahead: " + (
-            f"none of its {runs} robot runs (nor their grid twins) collided. "
+            f"none of its {sum(len(p.on_robot.runs) for p in ranged)} robot runs (nor their grid "
+            "twins) collided. "
             if worst == 0
             else f"yet a run collided {int(worst)} times (robot or grid): check its cells. "
         )
@@ -357,67 +285,56 @@ def range_statement(few: list[Pair]) -> str:
         "stop is a stop whose picture names a wrong category. Per run, on the robot (on the grid "
         "in brackets):\n\n"
     )
-    lines, fewest = [], []
+    fewest = []
     for method, maze in dict.fromkeys((p.method, p.robot.maze) for p in few):
         here = {r: by[method, maze, r] for r in Rule if (method, maze, r) in by}
-        collisions = [
-            f"{_mean(p.on_robot.collisions)} ({_mean(p.on_grid.collisions)}) under `{r.name}`"
-            for r, p in here.items()
+        parts = [
+            "collisions "
+            + ", ".join(f"{_means(p, 'collisions')} under `{r.name}`" for r, p in here.items())
         ]
         false = [
-            f"{_mean(p.on_robot.false_stops)} ({_mean(p.on_grid.false_stops)}) under `{r.name}`"
+            f"{_means(p, 'false_stops')} under `{r.name}`"
             for r, p in here.items()
             if r != Rule.paper
         ]
-        parts = ["collisions " + ", ".join(collisions)]
-        if false:
-            parts.append("false stops " + ", ".join(false))
-        lines.append(f"- {maze}, {method}: " + "; ".join(parts) + ".")
+        parts += ["false stops " + ", ".join(false)] if false else []
+        text += f"- {maze}, {method}: " + "; ".join(parts) + ".\n"
         if Rule.range in here and len(here) > 1:
             means = {r: p.on_robot.collisions.mean() for r, p in here.items()}
             fewest.append(means[Rule.range] <= min(means.values()))
-    text += "\n".join(lines) + "\n"
     if fewest:
-        verdict = (
-            ": recognition adds the category of what the robot stops before, not fewer collisions"
-            if all(fewest)
-            else ""
-        )
-        text += (
-            f"\nOn the robot the range sensor collides least in {sum(fewest)} of {len(fewest)} "
-            f"rows{verdict}.\n"
-        )
+        verdict = ": recognition adds the category of what it stops before, not fewer collisions"
+        text += f"\nOn the robot the range sensor collides least in {sum(fewest)} of {len(fewest)} "
+        text += f"rows{verdict if all(fewest) else ''}.\n"
     return text
 
 
+#: The columns of the accuracy table of each recogniser: which pictures, from which cell of a pair.
+SIDES = (("grid", "query pictures (grid)"), ("robot", "live pictures (robot)"))
+
+
 def accuracy_table(few: list[Pair]) -> pd.DataFrame:
-    """Per rule and category, the share of pictures whose prediction names the true category: the
-    grid's query pictures beside the robot's live pictures, each recogniser apart."""
+    """Per rule and category, the share of pictures whose prediction names the true category
+    (95% Wilson CI): the grid's query pictures beside the robot's live pictures, per recogniser."""
+    seen = pd.concat(
+        getattr(p, side)
+        .recognitions[["true", "predicted"]]
+        .assign(rule=rule(p.robot).value, column=f"{recogniser(p.robot)}: {label}")
+        for p in few
+        for side, label in SIDES
+    )
+    columns = [
+        f"{n}: {label}" for n in sorted({recogniser(p.robot) for p in few}) for _, label in SIDES
+    ]
     rows = []
-    names = sorted({recogniser(p.robot) for p in few})
-    for r in Rule:
-        chosen = [p for p in few if rule(p.robot) == r]
-        if not chosen:
-            continue
-        columns = {}
-        for name in names:
-            for side, label in (
-                ("grid", "query pictures (grid)"),
-                ("robot", "live pictures (robot)"),
-            ):
-                seen = [
-                    getattr(p, side).recognitions for p in chosen if recogniser(p.robot) == name
-                ]
-                columns[f"{name}: {label}"] = pd.concat(seen) if seen else None
-        for c, category in enumerate(CATEGORIES):
-            row = {"rule": r.name, "category": category}
-            for column, frame in columns.items():
-                if frame is None:
-                    row[column] = "-"
-                    continue
-                sel = frame[frame["true"] == c]
-                row[column] = _share(int((sel["predicted"] == c).sum()), len(sel))
-            rows.append(row)
+    for r, c in ((r, c) for r in sorted(set(seen["rule"])) for c in range(len(CATEGORIES))):
+        row = {"rule": Rule(r).name, "category": CATEGORIES[c]}
+        for column in columns:
+            sel = seen[(seen["rule"] == r) & (seen["column"] == column) & (seen["true"] == c)]
+            share, n = float((sel["predicted"] == c).mean()) if len(sel) else 0.0, len(sel)
+            lo, hi = wilson_ci(share, n)
+            row[column] = f"{share:.2f} [{lo:.2f}, {hi:.2f}] (n={n})" if n else "-"
+        rows.append(row)
     return pd.DataFrame(rows)
 
 
@@ -432,23 +349,17 @@ ACCURACY_CAPTION = (
 
 def benchmark_line() -> str | None:
     """The real-time factor and physics rates from the benchmark file, when it holds them."""
-    if not BENCHMARK.exists():
-        return None
     try:
         bench = json.loads(BENCHMARK.read_text())
-    except ValueError:
-        return None
-    cell = bench.get("few_shot_oracle_5x5") if isinstance(bench, dict) else None
-    physics = bench.get("physics") if isinstance(bench, dict) else None
-    keys = ("physics_steps_per_s_controlled", "pictures_per_s")
-    if not isinstance(cell, dict) or "real_time_factor" not in cell:
-        return None
-    if not isinstance(physics, dict) or not all(k in physics for k in keys):
+        rtf = bench["few_shot_oracle_5x5"]["real_time_factor"]
+        steps, pictures = (
+            bench["physics"][k] for k in ("physics_steps_per_s_controlled", "pictures_per_s")
+        )
+    except (OSError, ValueError, KeyError, TypeError):  # no file, or not the figures read here
         return None
     return (
-        f"Real-time factor (benchmark `{BENCHMARK}`): {cell['real_time_factor']} simulated seconds "
-        f"per wall-clock second; {physics[keys[0]]} physics steps/s under the controller, "
-        f"{physics[keys[1]]} live pictures/s.\n"
+        f"Real-time factor (benchmark `{BENCHMARK}`): {rtf} simulated seconds per wall-clock "
+        f"second; {steps} physics steps/s under the controller, {pictures} live pictures/s.\n"
     )
 
 
@@ -460,34 +371,28 @@ def robot_kind(rep, exp, paper) -> None:
     for cell in cells:
         check_cell(cell, extras[cell.name])
     found = pairs(cells, extras)
-    if not found:
-        rep.add("No robot cell (world robot3d) has records.\n")
-        return
-    several = len({recogniser(p.robot) for p in found if rule(p.robot) is not None}) > 1
     few = [p for p in found if rule(p.robot) is not None]
     blind = [p for p in found if rule(p.robot) is None]
+    several = len({recogniser(p.robot) for p in few}) > 1
+    if not found:
+        rep.add("No robot cell (world robot3d) has records.\n")
     if few:
         rep.add(range_statement(few))
     for r in Rule:
         chosen = [p for p in few if rule(p.robot) == r]
         if chosen:
             rep.table(
-                f"{exp.folder}_{r.name}", rule_table(chosen, several), rule_caption(r, chosen)
+                f"{exp.folder}_{r.name}", pair_table(chosen, several), rule_caption(r, chosen)
             )
     if blind:
-        rep.table(f"{exp.folder}_no_pictures", blind_table(blind), BLIND_CAPTION)
-        differ = [
-            p.robot.name
-            for p in blind
-            if not np.array_equal(p.on_robot.collisions, p.on_grid.collisions)
-        ]
-        if differ:
+        rep.table(f"{exp.folder}_no_pictures", pair_table(blind, False), BLIND_CAPTION)
+        same = [np.array_equal(p.on_robot.collisions, p.on_grid.collisions) for p in blind]
+        if differ := [p.robot.name for p, equal in zip(blind, same) if not equal]:
             rep.add(
                 f"**Robot and grid differ** in cells {', '.join(differ)}: their moves should have "
                 "the grid's outcomes; the robot world has a fault.\n"
             )
     if few:
         rep.table(f"{exp.folder}_recognition", accuracy_table(few), ACCURACY_CAPTION)
-    line = benchmark_line()
-    if line:
+    if line := benchmark_line():
         rep.add(line)
