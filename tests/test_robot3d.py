@@ -235,6 +235,10 @@ def test_the_gymnasium_robot_refuses_what_it_cannot_run(kwargs, message):
         (["method=shield", "rule=open_set"], "config key 'rule': read only by methods"),
         (["method=fewshot", "recogniser=oracle", "threshold=0.9"], "rule=open_set"),
         (["method=fewshot", "recogniser=oracle", "rule=maybe"], "rule"),
+        (
+            ["method=fewshot", "recogniser=oracle", "world=robot3d", "maze=random:100x100:5000:0"],
+            "config key 'maze': world=robot3d: maze random:100x100:5000:0 has 5,000 obstacles",
+        ),
     ],
 )
 def test_robot_and_rule_config_is_applied_or_refused(tmp_path, overrides, message):

@@ -32,7 +32,7 @@ from pipeline.rl.run_world import RunWorld, run_placement
 from pipeline.robot.limits import check_settings
 from pipeline.robot.motion import motion_table
 from pipeline.robot.sim import RobotSim
-from pipeline.robot.world import DEFAULT_CELL
+from pipeline.robot.world import DEFAULT_CELL, MAX_SEEN_OBSTACLES, RENDER_GEOMS
 from pipeline.world.geometry import Geometry, build_geometry
 from pipeline.world.layout import Layout, parse_layout
 from pipeline.world.placement import picture_table
@@ -125,6 +125,13 @@ class RobotWorld:
     name = "robot3d"
 
     def __init__(self, layout: Layout, settings: RobotSettings, live_pictures: bool = True):
+        n = len(layout.obstacles)
+        if live_pictures and n > MAX_SEEN_OBSTACLES:
+            raise ValueError(
+                f"maze {layout.name} has {n:,} obstacles; the robot's camera sees a maze of at "
+                f"most {MAX_SEEN_OBSTACLES:,} (MuJoCo's renderer draws {RENDER_GEOMS:,} geoms, an "
+                "obstacle up to 8): use a smaller maze, world=grid, or a method without pictures"
+            )
         self.layout, self.settings, self.live_pictures = layout, settings, live_pictures
         self._rendered: dict[tuple[int, int], int] = {}  # (seed, run) -> index in _order
         self._order: list[tuple[int, int, int, RenderedRun]] = []  # (first id, seed, run, pictures)

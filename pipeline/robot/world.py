@@ -42,6 +42,11 @@ from pipeline.world.scenes import (
 from pipeline.world.shapes import ObjectModel, yaw_quat
 
 DEFAULT_CELL = 1.0
+ARENA_BYTES, ARENA_BYTES_PER_OBSTACLE = 64 * 2**20, 16 * 2**10
+#: The most geoms MuJoCo's renderer draws (``mujoco.Renderer``'s ``max_geom``); an obstacle is at
+#: most 8 drawn parts, the robot, floor and walls fewer than 100: the live pictures' limit.
+RENDER_GEOMS, GEOMS_PER_OBSTACLE, OTHER_GEOMS = 10_000, 8, 100
+MAX_SEEN_OBSTACLES = (RENDER_GEOMS - OTHER_GEOMS) // GEOMS_PER_OBSTACLE
 WALL_HEIGHT = 0.4
 WALL_HALF_THICKNESS = 0.05
 FOOTPRINT_CAP = 0.45  # of a cell: an obstacle's collision box stays inside its cell
@@ -119,6 +124,8 @@ def build_world(
         )
     spec = mujoco.MjSpec()
     spec.modelname = "robot_maze"
+    # MuJoCo's arena (its stack): the collision pass of a large maze needs about 10 kB an obstacle
+    spec.memory = ARENA_BYTES + ARENA_BYTES_PER_OBSTACLE * len(layout.obstacles)
     spec.option.timestep = 0.02
     spec.option.gravity = [0.0, 0.0, -9.81]
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST

@@ -113,7 +113,10 @@ def cell_world(cell: CellRun):
         settings = RobotSettings(cfg.robot.cell, cfg.robot.timestep)
     except ValueError as exc:
         raise ConfigError(f"config key 'robot': {exc}") from None
-    world = RobotWorld(cell.layout, settings, live_pictures=cell.method.uses_recogniser)
+    try:
+        world = RobotWorld(cell.layout, settings, live_pictures=cell.method.uses_recogniser)
+    except ValueError as exc:
+        raise ConfigError(f"config key 'maze': world=robot3d: {exc}") from None
     world.describe()  # the motion table: a cell size it cannot run is refused before any run
     if not world.live_pictures:
         return world, cell.recogniser
