@@ -4,30 +4,61 @@ metadata; a file without moves gets :data:`.story.NESW`, there and nowhere else.
 
 A grid cell is drawn by :class:`.draw.Replay` (timelines ``step``, global across the replayed
 episodes, and ``episode``); a robot cell, one whose recorded config says ``world: robot3d``, by
-:class:`pipeline.robot.replay.RobotReplay` in 3D (timeline ``sim_time``). Both read the one
-record file through :func:`pipeline.records.read_records` and share what is not the world's
-(:class:`.story.Story`).
+:class:`.robot3d.RobotReplay` in 3D (timeline ``sim_time``), with what the robot's records say read
+by the world's own reader (``worlds``: :func:`pipeline.robot.replay.robot_run`, which the stage
+``replay`` hands in). Both read the one record file through :func:`pipeline.records.read_records`
+and share what is not the world's (:class:`.story.Story`).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping
 from pathlib import Path
+from typing import Any
 
+from pipeline.errors import UserError
 from pipeline.files import disk_problem, size_text, write_atomic
 from pipeline.records import FileMeta, Records, RecordsError, read_records
 
 from .draw import Replay
 from .notes import empty_views, first_recognition
-from .story import ReplayError
+from .story import ReplayError, Story
 
 APPLICATION = "fewshot_safe_rl_replay"
-#: The recorded config's ``world`` of a robot cell (``pipeline/stages/_experiment_schema.WORLDS``).
-ROBOT_WORLD = "robot3d"
+#: The recorded config's ``world`` values (``pipeline/stages/_experiment_schema.WORLDS``).
+GRID_WORLD, ROBOT_WORLD = "grid", "robot3d"
 
 
-def world_of(meta: FileMeta) -> str:
-    """The world a record file was recorded in: its config's ``world`` (``grid`` when none)."""
-    return (meta.config or {}).get("world") or "grid"
+#: How a world other than the grid reads a run of its records for the replay, by the recorded
+#: config's ``world``: ``(meta, run) -> what its drawing needs``, raising a ``UserError`` for
+#: records it cannot use (``{"robot3d": pipeline.robot.replay.robot_run}``).
+Worlds = Mapping[str, Callable[[FileMeta, int], Any]]
+
+
+def drawing_of(rec, recs: Records, run: int, worlds: Worlds) -> Story:
+    """The drawing of run ``run`` of ``recs`` into ``rec``, by the ``world`` of the recorded config:
+    the grid's :class:`.draw.Replay` (also for a file without the key), or the robot's in 3D with
+    the run as ``worlds["robot3d"]`` reads it."""
+    meta = recs.meta
+    world = (meta.config if isinstance(meta.config, dict) else {}).get("world") or GRID_WORLD
+    if world == GRID_WORLD:
+        return Replay(rec, recs, run)
+    if world != ROBOT_WORLD:
+        raise ReplayError(
+            f"{meta.path}: config world: {world!r} is not a world the replay draws "
+            f"({GRID_WORLD}, {ROBOT_WORLD})",
+            key="file",
+        )
+    if world not in worlds:
+        raise ReplayError(
+            f"{meta.path}: a robot cell (config world: {world}): its replay reads the robot's "
+            "records with pipeline.robot.replay.robot_run; pass worlds={'robot3d': robot_run} "
+            "(python -m pipeline replay does)",
+            key="file",
+        )
+    from .robot3d import RobotReplay
+
+    return RobotReplay(rec, recs, run, worlds[world](meta, run))
 
 
 def cell_of(path: str | Path) -> tuple[str, str]:
@@ -105,10 +136,12 @@ def build_replay(
     *,
     out: str | Path,
     whole_run: bool = False,
+    worlds: Worlds | None = None,
 ) -> Path:
     """Write a Rerun ``.rrd`` replaying ``episode`` of ``run`` of the record file ``path`` (every
-    episode of the run with ``whole_run=True``) and return its path. The reader's warnings about a
-    damaged or cut file pass through to the caller."""
+    episode of the run with ``whole_run=True``) and return its path; ``worlds``: the readers of
+    worlds other than the grid (:data:`Worlds`). The reader's warnings about a damaged or cut file
+    pass through to the caller; a world's ``UserError`` is a :class:`ReplayError` of the file."""
     import rerun as rr
 
     path, out = Path(path), Path(out)
@@ -117,20 +150,21 @@ def build_replay(
     shown = None if whole_run else int(episode)
     recs = read_run(path, run, shown)
     have = recs.episodes.episode[recs.episodes.run == run]
-    if world_of(recs.meta) == ROBOT_WORLD:
-        from pipeline.robot.replay import RobotReplay as Drawing
-    else:
-        Drawing = Replay
     rec = rr.RecordingStream(
         APPLICATION, send_properties=False, recording_id=replay_stem(path, run, shown)
     )
-    replay, name = Drawing(rec, recs, run), recording_name(recs.meta, run, shown)
     episodes = sorted(set(have)) if whole_run else [shown]
-    empty = empty_views(recs, run, episodes)
-    stream = rec.binary_stream()  # in memory, then written atomically: a full or read-only
-    rec.send_blueprint(replay.blueprint(name, empty))  # disk is an OSError here, never a cut .rrd
-    rec.send_recording_name(name)
-    replay.draw(episodes, empty)
+    empty, name = empty_views(recs, run, episodes), recording_name(recs.meta, run, shown)
+    try:
+        replay = drawing_of(rec, recs, run, worlds or {})
+        stream = rec.binary_stream()  # in memory, then written atomically: a full or read-only
+        rec.send_blueprint(replay.blueprint(name, empty))  # disk is an OSError, never a cut .rrd
+        rec.send_recording_name(name)
+        replay.draw(episodes, empty)
+    except ReplayError:
+        raise
+    except UserError as exc:  # a world's reader refused its records: the file's
+        raise ReplayError(str(exc), key="file") from None
     data = stream.read(flush=True) or b""
     rec.disconnect()
     return write_rrd(out, data)

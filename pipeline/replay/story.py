@@ -6,7 +6,7 @@ scores (eq. 2) and the verdict: the robot stopped or drove on), the events log, 
 
 :class:`Story` draws them. A world's replay subclasses it with its scene and its clock:
 :class:`.draw.Replay` (the grid, timeline ``step``) and
-:class:`pipeline.robot.replay.RobotReplay` (the robot in 3D, timeline ``sim_time``). A subclass
+:class:`.robot3d.RobotReplay` (the robot in 3D, timeline ``sim_time``). A subclass
 says when a step's events happened (:meth:`Story.when`, :meth:`Story.at`) and draws A_d in its
 scene (:meth:`Story.log_unsafe`).
 """
@@ -96,7 +96,9 @@ class Story:
         odd = rows[~rows["true"].between(0, n - 1) | ~rows["predicted"].between(-1, n - 1)]
         if len(odd):
             r = odd.iloc[0]
-            field, value = ("true", r["true"]) if not 0 <= r["true"] < n else ("predicted", r["predicted"])
+            field, value = (
+                ("true", r["true"]) if not 0 <= r["true"] < n else ("predicted", r["predicted"])
+            )
             raise ReplayError(
                 f"{self.meta.path}: recognitions.{field}: category {int(value)} at run {self.run} "
                 f"episode {int(r.episode)} step {int(r.step)} is not one of the file's {n} "
@@ -110,7 +112,16 @@ class Story:
 
         self.rec.log(entity, rr.TextLog(what, level=level) if isinstance(what, str) else what, **kw)
 
-    # ---------------------------------------------------------------- the clock (a world's)
+    # ---------------------------------------------------------------- the world's (a subclass's)
+    def blueprint(self, name: str, empty: EmptyViews):
+        """The viewer's layout (:meth:`layout` around the world's views); ``name``: the recording's."""
+        raise NotImplementedError
+
+    def draw(self, episodes: list[int], empty: EmptyViews) -> None:
+        """Every step of ``episodes`` (consecutive recorded episodes of the run), after what the run
+        held before them (:meth:`begin`); ``empty``: why views stay empty."""
+        raise NotImplementedError
+
     def when(self, t: int, picture: int | None = None, contact: bool = False) -> float:
         """The moment of step ``t`` of the episode being drawn, on the world's timeline; ``picture``:
         of the episode's recognition number ``picture``; ``contact``: of step ``t``'s collision."""
