@@ -1,4 +1,4 @@
-"""Rerun replay of the episode records (docs/records.md "Replay it in Rerun"; a robot cell's in 3D:
+"""Rerun replay of the episode records (docs/replay.md; a robot cell's in 3D:
 docs/robot3d.md "Replay"): what every world's replay shows (:mod:`.story`: recognitions, events,
 support set, A_d), the grid's own views (:mod:`.draw`, :mod:`.panels`), the robot's scene in 3D
 (:mod:`.robot3d`), and the recording built from a record file alone (:mod:`.build`).

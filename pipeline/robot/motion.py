@@ -27,6 +27,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from pipeline.records.schema import FLAG_COLLIDED, FLAG_RECOVERED
 from pipeline.robot.sim import CONTROL_HZ, HEADINGS, RobotSim, wrap
 from pipeline.world.layout import MOVES, parse_layout
 from pipeline.world.pictures import N_PHYSICAL_OBSTACLES
@@ -163,8 +164,6 @@ class PathBuilder:
         """One executed move (``flags``: the step's ``StepFlag`` bits, as recorded): off the grid
         the robot stays put (it knows the maze's size); else it turns and drives, into the
         obstacle there when there is one (a contact; back to ``cell`` with self-recovery)."""
-        from pipeline.records.schema import FLAG_COLLIDED, FLAG_RECOVERED
-
         w, h = self.layout.width, self.layout.height
         row, col = divmod(int(cell), w)
         dr, dc = MOVES[action]
@@ -196,12 +195,14 @@ def episode_path(table: dict, layout, obstacles: list[dict], steps, recognitions
     ``steps``: rows ``(state, action, flags)`` (the executed moves, in order); ``recognitions``:
     rows with ``step`` and ``action`` (each picture, taken after turning toward it, before step
     ``step`` moves). Returns ``poses`` (n, 4: t s, x m, y m, yaw rad at 10 Hz, the start pose at
-    t = 0), ``contacts`` (tick, x, y) and ``pictures`` (the tick of each recognition).
+    t = 0), ``contacts`` (tick, x, y), ``pictures`` (the tick of each recognition) and ``starts``
+    (the tick each step begins at).
     """
     path = PathBuilder(table, layout, obstacles)
     looks = [(int(r["step"]), int(r["action"])) for r in recognitions]
-    k = 0
+    k, starts = 0, []
     for t, (s, a, flags) in enumerate(steps):
+        starts.append(path.ticks - 1)
         while k < len(looks) and looks[k][0] == t:
             path.look(int(s), looks[k][1])
             k += 1
@@ -210,4 +211,5 @@ def episode_path(table: dict, layout, obstacles: list[dict], steps, recognitions
         "poses": path.poses(),
         "contacts": np.array(path.contacts, np.float64).reshape(-1, 3),
         "pictures": np.array(path.pictures, np.int64),
+        "starts": np.array(starts, np.int64),
     }

@@ -15,7 +15,6 @@ naming the file and the field, never a traceback.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -95,8 +94,7 @@ class EpisodePath:
     pictures: np.ndarray
     contact_tick: dict[int, int]  # step -> tick of its collision
     decided: dict[int, int]  # step -> tick of its last picture
-    #: step -> the tick it begins at (:meth:`start_tick`'s cache)
-    starts: dict[int, int] = dataclasses.field(default_factory=dict)
+    starts: dict[int, int]  # step -> the tick it begins at
 
     @property
     def seconds(self) -> float:
@@ -120,10 +118,7 @@ class EpisodePath:
         return float(self.poses[min(tick, len(self.poses) - 1), 0])
 
     def start_tick(self, t: int) -> int:
-        """The tick step ``t`` begins at: the length of the path of the steps before it."""
-        if t not in self.starts:
-            before = [r for r in self.seen if r["step"] < t]
-            self.starts[t] = len(self.run.path(self.steps[:t], before)["poses"]) - 1
+        """The tick step ``t`` begins at (``episode_path``'s ``starts``)."""
         return self.starts[t]
 
 
@@ -232,6 +227,7 @@ class RobotRun:
             path["pictures"],
             contact_tick={t: int(c[0]) for t, c in zip(collided, path["contacts"])},
             decided={r["step"]: int(k) for r, k in zip(seen, path["pictures"])},
+            starts={t: int(k) for t, k in enumerate(path["starts"])},
         )
 
 
