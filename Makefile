@@ -34,8 +34,12 @@ test-slow: $(STAMP)
 repro: $(STAMP)
 	MUJOCO_GL=$${MUJOCO_GL:-egl} PATH=$(abspath $(BIN)):$$PATH $(BIN)/dvc repro
 
+# Lists the benchmarks, then runs one (BENCH=<name>; default robot3d: the robot stage at the paper's
+# scale, about 5-10 minutes on 2 cores) and prints its figures.
+BENCH ?= robot3d
 bench: $(STAMP)
 	$(BIN)/python -m benchmarks
+	MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/python -m benchmarks.$(BENCH)
 
 # Re-resolves $(LOCK) from pyproject.toml (dependencies + the test extra) with hashes, keeping the
 # pins that still fit; `make lock LOCK_ARGS=--upgrade` (or `--upgrade-package NAME`) moves them.

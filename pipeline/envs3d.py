@@ -35,16 +35,32 @@ def make_env3d(
     render_mode: str | None = None,
     cell: float = DEFAULT_CELL,
     timestep: float = 0.02,
+    rule: str = "paper",
     threshold: float = 0.5,
     registered_maze: str | None = None,
 ) -> SafeNavigation3DEnv:
-    """The robot environment; ``registered_maze`` (the id's) refuses another ``maze``."""
+    """The robot environment; ``registered_maze`` (the id's) refuses another ``maze``.
+    ``render_mode="human"`` shows ``rgb_array`` frames in a window (Gymnasium's
+    ``HumanRendering``, which needs pygame and a display): refused at once without them."""
     if registered_maze is not None:
         if maze is not None and maze != registered_maze:
             raise ValueError(
                 f"maze={maze!r}: SafeNav3D-{registered_maze}-v0 is the {registered_maze} maze"
             )
         maze = registered_maze
+    if render_mode == "human":
+        return _human(
+            maze,
+            method,
+            recogniser,
+            recogniser_options,
+            substitution,
+            run,
+            cell,
+            timestep,
+            rule,
+            threshold,
+        )
     spec = method if isinstance(method, MethodSpec) else get_method(method)
     return SafeNavigation3DEnv(  # it asks any recogniser about live pictures (robot.live.live)
         "5x5" if maze is None else maze,
@@ -54,8 +70,45 @@ def make_env3d(
         render_mode=render_mode,
         cell=cell,
         timestep=timestep,
+        rule=rule,
         threshold=threshold,
     )
 
 
-make_env3d.metadata = dict(SafeNavigation3DEnv.metadata)
+def _human(maze, method, recogniser, options, substitution, run, cell, timestep, rule, threshold):
+    """``render_mode="human"``: the ``rgb_array`` environment in a window, or a clear refusal."""
+    import importlib.util
+    import os
+
+    if importlib.util.find_spec("pygame") is None:
+        raise ValueError(
+            "render_mode='human' opens a window through pygame, which is not installed "
+            "(pip install pygame); or use render_mode='rgb_array' (frames from env.render())"
+        )
+    if not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY"):
+        raise ValueError(
+            "render_mode='human' needs a display (DISPLAY is not set); use render_mode='rgb_array'"
+        )
+    from gymnasium.wrappers import HumanRendering
+
+    env = make_env3d(
+        maze,
+        method,
+        recogniser,
+        recogniser_options=options,
+        substitution=substitution,
+        run=run,
+        render_mode="rgb_array",
+        cell=cell,
+        timestep=timestep,
+        rule=rule,
+        threshold=threshold,
+    )
+    return HumanRendering(env)
+
+
+#: ``human`` is listed so that ``gymnasium.make`` hands it to :func:`make_env3d`, which checks it.
+make_env3d.metadata = {
+    **SafeNavigation3DEnv.metadata,
+    "render_modes": [*SafeNavigation3DEnv.metadata["render_modes"], "human"],
+}

@@ -118,7 +118,7 @@ def smoke(tmp_path_factory):
         "progress=false",
         "workers=1",
     )
-    # the camera robot beside the grid (14 robot cells): one run of two episodes each
+    # the camera robot beside the grid (16 robot cells): one run of two episodes each
     stage(
         "trials",
         "+experiment=robot3d",
@@ -205,8 +205,9 @@ def test_every_experiment_is_recorded_and_reported(smoke):
         "fixed accuracy p = 0.55",
     } and set(gains["layouts"]) == {2}
     assert "paper's Tables 1-2 recogniser" in index  # the *_paper cells of fig8-10, table3
-    robot = pd.read_csv(d / "reports" / "tables" / "robot3d.csv")
-    assert set(robot["recogniser"]) == {"none", "Relation Network", "Prototypical Network"}
+    for rule in ("paper", "open_set", "range"):  # one table per decision rule, robot beside grid
+        robot = pd.read_csv(d / "reports" / "tables" / f"robot3d_{rule}.csv")
+        assert set(robot["maze"]) == {"5x5", "7x7"} and len(robot) == 4
 
 
 def test_report_is_rebuilt_byte_for_byte(smoke):

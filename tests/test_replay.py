@@ -333,6 +333,29 @@ def test_the_scores_are_labelled_by_category(recorded, tmp_path):
     )
 
 
+def test_the_verdict_is_what_the_step_did(recorded, tmp_path):
+    """A recognition's verdict comes from its step (under any decision rule): a reselected step
+    stopped before the obstacle, a collided one drove on, its picture substituted (shared with the
+    robot's replay: pipeline.replay.story)."""
+    from collections import Counter
+
+    from pipeline.records import schema as S
+
+    path, written = recorded
+    f = next(w for w in written if len(set(w["flags"][w["recognitions"]["step"]])) > 1)
+    rrd = build_replay(path, f["run"], f["episode"], out=tmp_path / "v.rrd")
+    texts = _columns(rrd, "/recognition/result")
+    said = Counter(t[0].split("): ")[1].split("\n")[0] for t in texts["TextDocument:text"])
+    stopped = [
+        f"stopped before it: ({s}, {'NESW'[a]}) joins A_d, the action is reselected"
+        for s, a, t in zip(*(f["recognitions"][k] for k in ("state", "action", "step")))
+        if f["flags"][t] & S.FLAG_RESELECTED
+    ]
+    collided = int(((f["flags"][f["recognitions"]["step"]] & S.FLAG_COLLIDED) != 0).sum())
+    drove_on = "drove on: collision, self-recovery, the picture substitutes into the support set"
+    assert said == Counter(stopped) + Counter({drove_on: collided}) and stopped and collided
+
+
 def test_the_recording_is_named_by_experiment_cell_run_and_episode(with_support, tmp_path):
     path, _ = with_support
     rrd = build_replay(path, 0, 2, out=tmp_path / "p.rrd")

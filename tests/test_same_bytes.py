@@ -25,7 +25,10 @@ def _cpu_has(flag: str) -> bool:
 
 
 @pytest.mark.skipif(not _cpu_has("avx2"), reason="this CPU has no AVX2 kernels to compare with")
-def test_a_cell_gives_the_same_record_bytes_under_two_kernel_paths(tmp_path):
+@pytest.mark.parametrize(  # the robot's cell: live pictures, mm-rounded motion table (issue 38)
+    "world,runs", [("grid", 10), ("robot3d", 3)]
+)
+def test_a_cell_gives_the_same_record_bytes_under_two_kernel_paths(tmp_path, world, runs):
     images = tmp_path / "images"
     write_synthetic_dataset(images, n_train=6, n_val=5, per_class=4, seed=2)
     out = tmp_path / "out"  # the same out for both: the records keep the config
@@ -37,11 +40,11 @@ def test_a_cell_gives_the_same_record_bytes_under_two_kernel_paths(tmp_path):
             "ONEDNN_MAX_CPU_ISA": "ALL",
             "MKL_CBWR": "AUTO",
         }
-        args = ["method=fewshot_dss", "maze=5x5", "runs=10", "episodes=100", "progress=false"]
+        args = ["method=fewshot_dss", "maze=5x5", f"runs={runs}", "episodes=100", f"world={world}"]
         paths = [f"recogniser.checkpoint={CHECKPOINT}", f"recogniser.images_dir={images}"]
         proc = subprocess.run(
             [sys.executable, "-m", "pipeline", "trials", *args, *paths, f"images_dir={images}"]
-            + [f"out={out}", "overwrite=true"],
+            + [f"out={out}", "overwrite=true", "progress=false"],
             env=env,
             cwd=ROOT,
             capture_output=True,
@@ -52,5 +55,5 @@ def test_a_cell_gives_the_same_record_bytes_under_two_kernel_paths(tmp_path):
         got[capability] = {n: (out / n).read_bytes() for n in ("records.mcap", "summary.json")}
     assert got["default"] == got["avx2"]
     records = read_records(out / "records.mcap")
-    assert len(records.recognitions) > 100 and records.recognitions.score_0.notna().all()
+    assert len(records.recognitions) > 10 * runs and records.recognitions.score_0.notna().all()
     assert records.meta.config["recogniser"]["checkpoint"] == str(CHECKPOINT)

@@ -92,13 +92,6 @@ class RelationRecogniser(SupportSetRecogniser):
         h = state.unsqueeze(0) + self._query_half
         return self.network.relation.after_first_conv(h).numpy()
 
-    def _outside_parts(self, f):
-        return self.network.relation.first_conv_halves(f, f)
-
-    def _outside_row(self, state: torch.Tensor, query_part: torch.Tensor) -> np.ndarray:
-        h = state + query_part.unsqueeze(0)
-        return self.network.relation.after_first_conv(h).numpy().reshape(-1)
-
 
 class ProtoRecogniser(SupportSetRecogniser):
     """Prototypical Network recogniser (Snell et al. 2017, eqs. 1-2): a category's state is its
@@ -142,13 +135,6 @@ class ProtoRecogniser(SupportSetRecogniser):
     @torch.no_grad()
     def _column(self, state: torch.Tensor) -> np.ndarray:
         return negative_squared_distances(state.unsqueeze(0), self._queries)[:, 0].numpy()
-
-    def _outside_parts(self, f):
-        flat = f.flatten(1)
-        return flat, flat
-
-    def _outside_row(self, state: torch.Tensor, query_part: torch.Tensor) -> np.ndarray:
-        return negative_squared_distances(state, query_part.unsqueeze(0))[0].numpy()
 
     def _scores(self, table: np.ndarray) -> np.ndarray:
         return torch.softmax(torch.from_numpy(table), dim=1).numpy()

@@ -12,10 +12,12 @@ its substitution stream.
 from __future__ import annotations
 
 import abc
+import hashlib
 from dataclasses import dataclass
 
 import numpy as np
 import torch
+from PIL import Image
 
 from pipeline.kernels import kernel_path
 
@@ -81,6 +83,7 @@ class SupportSetRecogniser(abc.ABC):
             raise ValueError(f"query categories must lie in 0..{n_way - 1}")
         SupportSet(n_way, k_shot, substitution_way, 0)  # validates the way
         self.network = network.eval()
+        self._support_images = support_images
         self.n_way, self.k_shot = n_way, k_shot
         self.substitution_way, self.carry_over = substitution_way, carry_over
         self.query_categories = cats
@@ -90,8 +93,8 @@ class SupportSetRecogniser(abc.ABC):
             None  # config and metrics of the checkpoint, when loaded from files
         )
         with torch.no_grad():
-            query_f = embed_all(network, query_images, channels_last=False)
-            support_f = embed_all(network, support_images, channels_last=False)
+            query_f = _embedded(network, query_images)
+            support_f = _embedded(network, support_images)
             query_parts, support_parts = self._prepare(query_f, support_f)
         # the part each support member contributes to its category's state: query picture p -> p,
         # original support picture j -> -(j + 1) (the member codes of support_set.py)
@@ -133,15 +136,6 @@ class SupportSetRecogniser(abc.ABC):
     @abc.abstractmethod
     def _column(self, state: torch.Tensor) -> np.ndarray:
         """Raw scores (P,) of every query picture against one category's state, all in one batch."""
-
-    @abc.abstractmethod
-    def _outside_parts(self, f: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """A picture from outside the query set (embedding ``f``, (1, ...)): its part of a class
-        state and what scoring it against a class state needs."""
-
-    @abc.abstractmethod
-    def _outside_row(self, state: torch.Tensor, query_part: torch.Tensor) -> np.ndarray:
-        """Raw scores (C,) of that picture against every category's state ``state``."""
 
     def _scores(self, table: np.ndarray) -> np.ndarray:
         """The reported per-category scores of rows of the raw table (identity by default)."""
@@ -291,36 +285,32 @@ class SupportSetRecogniser(abc.ABC):
         ``-(j + 1)`` for original support picture ``j``."""
         return self._run(run).support.members.copy()
 
-    # -- pictures from outside the query set (the robot's camera, pipeline.robot.live) --------
-    @torch.no_grad()
-    def outside_parts(self, image: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """(class part, query part) of one normalised picture ``image`` (1, 3, H, W)."""
-        f = embed_all(self.network, image, channels_last=False)
-        class_part, query_part = self._outside_parts(f)
-        return class_part[0], query_part[0]
-
-    @torch.no_grad()
-    def score_outside(self, run: int, query_part: torch.Tensor) -> np.ndarray:
-        """Scores (C,) of an outside picture (its query part) under run ``run``'s support set."""
-        row = self._outside_row(self._run(run).state, query_part)
-        return self._scores(row[None])[0]
-
-    def substitute_outside(
-        self, run: int, code: int, class_part: torch.Tensor, category: int
-    ) -> int:
-        """Substitute an outside picture, member code ``code`` (>= ``n_pictures``, the same code for
-        the same picture) with class part ``class_part``, into ``category`` at the position the
-        substitution way chooses; return it, or -1 for a static support set."""
-        if code < self.n_pictures:
-            raise ValueError(f"an outside picture's code must be >= {self.n_pictures}, got {code}")
-        if not 0 <= category < self.n_way:
-            raise ValueError(f"category {category} out of range 0..{self.n_way - 1}")
-        self._part[int(code)] = class_part
-        state = self._run(run)
-        pos = state.support.substitute(int(category), int(code))
-        if pos >= 0:
-            self._refresh(state, int(category))
-        return pos
+    # -- another set of query pictures (the robot's live pictures, pipeline.robot.live) ------
+    def for_pictures(self, images: np.ndarray, categories: np.ndarray) -> SupportSetRecogniser:
+        """The same network and original support set over other query pictures: ``images``
+        (n, H, W, 3) uint8, resized to the network's input (bilinear, as ``data.load_image``) and
+        normalised with the checkpoint's statistics; ``categories`` their true categories. Its
+        picture ids are the rows of ``images``; its substitution way and carry-over are this one's."""
+        if self.checkpoint is None:
+            raise ValueError(
+                "other pictures need a recogniser loaded from a checkpoint (from_files)"
+            )
+        size = self.network.config.input_size
+        resized = np.stack([_resized(im, size) for im in images]) if len(images) else images
+        norm = self.checkpoint["normalisation"]
+        other = type(self)(
+            self.network,
+            to_tensor(resized, norm["mean"], norm["std"]),
+            np.asarray(categories),
+            self._support_images,
+            n_way=self.n_way,
+            k_shot=self.k_shot,
+            substitution_way=self.substitution_way,
+            carry_over=self.carry_over,
+        )
+        other.class_names, other.checkpoint = self.class_names, self.checkpoint
+        other.checkpoint_file = getattr(self, "checkpoint_file", None)
+        return other
 
     # -- internals ---------------------------------------------------------------------------
     def _run(self, run: int) -> _Run:
@@ -355,3 +345,28 @@ class SupportSetRecogniser(abc.ABC):
             state.table[:, c] = self._shared_column(state.support.members[c], state.state[c])
             state.valid[c] = True
         return state.table
+
+
+def _resized(image: np.ndarray, size: int) -> np.ndarray:
+    im = Image.fromarray(np.asarray(image, dtype=np.uint8))
+    if im.size != (size, size):
+        im = im.resize((size, size), Image.Resampling.BILINEAR)
+    return np.asarray(im)
+
+
+#: Embeddings of picture batches already embedded, by (network, the batch's bytes): the robot's
+#: cells of one process ask the same network about the same live pictures (one rendering a run)
+#: under several methods and rules. Bounded: the oldest go first.
+_EMBEDDINGS: dict[tuple[int, bytes], tuple[object, torch.Tensor]] = {}
+MAX_EMBEDDINGS = 4096
+
+
+def _embedded(network, images: torch.Tensor) -> torch.Tensor:
+    """``embed_all`` of ``images`` (eval mode), computed once per network and batch."""
+    data = images.detach().contiguous().numpy().tobytes()
+    key = (id(network), hashlib.sha256(data).digest())
+    if key not in _EMBEDDINGS or _EMBEDDINGS[key][0] is not network:  # an id reused
+        if len(_EMBEDDINGS) >= MAX_EMBEDDINGS:
+            del _EMBEDDINGS[next(iter(_EMBEDDINGS))]
+        _EMBEDDINGS[key] = (network, embed_all(network, images, channels_last=False))
+    return _EMBEDDINGS[key][1]

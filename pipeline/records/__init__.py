@@ -1,5 +1,5 @@
 """Episode records: the MCAP schema, writer and reader (including reading a truncated file)
-(docs/records.md; the Rerun replay of the files is :mod:`pipeline.replay`).
+(docs/records.md; the Rerun replay of the files is :mod:`pipeline.replay`, docs/replay.md).
 
 ``records`` imports nothing from ``world``, ``fewshot`` or ``rl``: the writer takes plain numpy
 arrays and dicts through the episode-sink protocol of ``pipeline/rl/sink.py``.

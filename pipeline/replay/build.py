@@ -1,12 +1,20 @@
 """Replay a recorded episode (or a whole run) in Rerun from the MCAP records alone (the entities:
-docs/records.md "Replay it in Rerun"); timelines ``step`` (global across the replayed episodes)
-and ``episode``. Moves, action and category names come from the file's maze metadata; a file
-without moves gets :data:`.draw.NESW`, there and nowhere else. The drawing is :class:`.draw.Replay`.
+docs/records.md "Replay it in Rerun"). Moves, action and category names come from the file's maze
+metadata; a file without moves gets :data:`.story.NESW`, there and nowhere else.
+
+A grid cell is drawn by :class:`.draw.Replay` (timelines ``step``, global across the replayed
+episodes, and ``episode``); a robot cell, one whose recorded config says ``world: robot3d``, by
+:class:`.robot3d.RobotReplay` in 3D (timeline ``sim_time``), with what the robot's records say read
+by the world's own reader (``worlds``: :func:`pipeline.robot.replay.robot_run`, which the stage
+``replay`` hands in). Both read the one record file through :func:`pipeline.records.read_records`
+and share what is not the world's (:class:`.story.Story`).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping
 from pathlib import Path
+from typing import Any
 
 from pipeline.errors import UserError
 from pipeline.files import disk_problem, size_text, write_atomic
@@ -14,17 +22,43 @@ from pipeline.records import FileMeta, Records, RecordsError, read_records
 
 from .draw import Replay
 from .notes import empty_views, first_recognition
+from .story import ReplayError, Story
 
 APPLICATION = "fewshot_safe_rl_replay"
+#: The recorded config's ``world`` values (``pipeline/stages/_experiment_schema.WORLDS``).
+GRID_WORLD, ROBOT_WORLD = "grid", "robot3d"
 
 
-class ReplayError(UserError):
-    """The run/episode is not in the records, or they cannot be drawn; ``key`` is the config key to
-    blame (``"file"`` for a record file that cannot be read or drawn)."""
+#: How a world other than the grid reads a run of its records for the replay, by the recorded
+#: config's ``world``: ``(meta, run) -> what its drawing needs``, raising a ``UserError`` for
+#: records it cannot use (``{"robot3d": pipeline.robot.replay.robot_run}``).
+Worlds = Mapping[str, Callable[[FileMeta, int], Any]]
 
-    def __init__(self, message: str, key: str = "run/episode"):
-        super().__init__(message)
-        self.key = key
+
+def drawing_of(rec, recs: Records, run: int, worlds: Worlds) -> Story:
+    """The drawing of run ``run`` of ``recs`` into ``rec``, by the ``world`` of the recorded config:
+    the grid's :class:`.draw.Replay` (also for a file without the key), or the robot's in 3D with
+    the run as ``worlds["robot3d"]`` reads it."""
+    meta = recs.meta
+    world = (meta.config if isinstance(meta.config, dict) else {}).get("world") or GRID_WORLD
+    if world == GRID_WORLD:
+        return Replay(rec, recs, run)
+    if world != ROBOT_WORLD:
+        raise ReplayError(
+            f"{meta.path}: config world: {world!r} is not a world the replay draws "
+            f"({GRID_WORLD}, {ROBOT_WORLD})",
+            key="file",
+        )
+    if world not in worlds:
+        raise ReplayError(
+            f"{meta.path}: a robot cell (config world: {world}): its replay reads the robot's "
+            "records with pipeline.robot.replay.robot_run; pass worlds={'robot3d': robot_run} "
+            "(python -m pipeline replay does)",
+            key="file",
+        )
+    from .robot3d import RobotReplay
+
+    return RobotReplay(rec, recs, run, worlds[world](meta, run))
 
 
 def cell_of(path: str | Path) -> tuple[str, str]:
@@ -102,10 +136,12 @@ def build_replay(
     *,
     out: str | Path,
     whole_run: bool = False,
+    worlds: Worlds | None = None,
 ) -> Path:
     """Write a Rerun ``.rrd`` replaying ``episode`` of ``run`` of the record file ``path`` (every
-    episode of the run with ``whole_run=True``) and return its path. The reader's warnings about a
-    damaged or cut file pass through to the caller."""
+    episode of the run with ``whole_run=True``) and return its path; ``worlds``: the readers of
+    worlds other than the grid (:data:`Worlds`). The reader's warnings about a damaged or cut file
+    pass through to the caller; a world's ``UserError`` is a :class:`ReplayError` of the file."""
     import rerun as rr
 
     path, out = Path(path), Path(out)
@@ -117,13 +153,18 @@ def build_replay(
     rec = rr.RecordingStream(
         APPLICATION, send_properties=False, recording_id=replay_stem(path, run, shown)
     )
-    replay, name = Replay(rec, recs, run), recording_name(recs.meta, run, shown)
     episodes = sorted(set(have)) if whole_run else [shown]
-    empty = empty_views(recs, run, episodes)
-    stream = rec.binary_stream()  # in memory, then written atomically: a full or read-only
-    rec.send_blueprint(replay.blueprint(name, empty))  # disk is an OSError here, never a cut .rrd
-    rec.send_recording_name(name)
-    replay.draw(episodes, empty)
+    empty, name = empty_views(recs, run, episodes), recording_name(recs.meta, run, shown)
+    try:
+        replay = drawing_of(rec, recs, run, worlds or {})
+        stream = rec.binary_stream()  # in memory, then written atomically: a full or read-only
+        rec.send_blueprint(replay.blueprint(name, empty))  # disk is an OSError, never a cut .rrd
+        rec.send_recording_name(name)
+        replay.draw(episodes, empty)
+    except ReplayError:
+        raise
+    except UserError as exc:  # a world's reader refused its records: the file's
+        raise ReplayError(str(exc), key="file") from None
     data = stream.read(flush=True) or b""
     rec.disconnect()
     return write_rrd(out, data)

@@ -1,82 +1,35 @@
-"""Drawing one run of the records into a Rerun recording stream (:class:`Replay`): the maze, the
-obstacles in their category colours, the unsafe set, the robot's path, every recognition with its
-scores and every support-set change, on the timelines ``step`` and ``episode``.
+"""The grid's replay (:class:`Replay`): one run of the records drawn into a Rerun recording stream
+on the timelines ``step`` and ``episode``: the maze, the obstacles in their category colours, the
+unsafe set, the robot's path, the return and the visits (or max Q) per cell; and what every
+world's replay shows (:class:`.story.Story`): every recognition with its scores and verdict, the
+support set and its substitutions, the events.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from pipeline import palette
 from pipeline.records import Records
 from pipeline.records import schema as S
 
-from .notes import EmptyViews, log_empty
-from .panels import (
-    SupportGrid,
-    blueprint,
-    categories_context,
-    colour,
-    heat_rgb,
-    legend_positions,
-)
-
-#: (d_row, d_col) of files without moves
-NESW = {"N": (-1, 0), "E": (0, 1), "S": (1, 0), "W": (0, -1)}
-P = palette
-FREE, START, GOAL, RED, ORANGE, ROBOT = map(
-    P.rgb, (P.FREE, P.START, P.GOAL, P.UNSAFE, P.RESELECTED, P.ROBOT)
-)
-SHOTS = (
-    5  # the support set's shots a category (the paper's K) when the file holds no support pictures
-)
+from .notes import EmptyViews
+from .panels import heat_rgb, legend_positions, maze_views
+from .story import FREE, GOAL, NESW, ORANGE, RED, ROBOT, START, Story
 
 
-class Replay:
-    """Run ``run`` of the records ``recs`` drawn into the recording stream ``rec``."""
+class Replay(Story):
+    """Run ``run`` of the records ``recs`` of a grid cell drawn into the recording stream ``rec``."""
 
     def __init__(self, rec, recs: Records, run: int):
-        meta, mz = recs.meta, recs.meta.maze
-        self.rec, self.meta, self.run = rec, meta, run
-        self.width, self.shape, self.cats = (
-            mz["width"],
-            (mz["height"], mz["width"]),
-            mz.get("categories") or [],
-        )
-        self.names = mz.get("actions") or list(NESW)
-        self.moves = np.array(mz.get("moves") or list(NESW.values()), np.float32)[
-            :, ::-1
-        ]  # as (x, y)
-        self.steps, self.recog, self.unsafe, self.subs = (
-            df[df.run == run]
-            for df in (recs.steps, recs.recognitions, recs.unsafe, recs.substitutions)
-        )
-        self.subs = self.subs[self.subs.picture >= 0]
-        self.score_cols = [c for c in self.recog.columns if c.startswith("score_")]
+        super().__init__(rec, recs, run)
+        mz = self.meta.maze
+        self.width, self.shape = mz["width"], (mz["height"], mz["width"])
+        moves = np.array(mz.get("moves") or list(NESW.values()), np.float32)
+        self.moves = moves[:, ::-1]  # as (x, y)
         self.q = {e: v for (_, r, e), v in recs.q_values.items() if r == run}
-        n_cats = max(
-            [
-                len(self.cats),
-                len(self.score_cols),
-                *(c + 1 for c, _ in meta.support_pictures),
-                *(self.subs.category + 1),
-                *(o["category"] + 1 for o in meta.obstacles.get(run, [])),
-            ]
-        )
-        self.labels = [self.cat(c) for c in range(n_cats)]
-        shots = max([0, *(p + 1 for _, p in meta.support_pictures), *(self.subs.position + 1)])
-        self.grid = SupportGrid(
-            rec, self.labels, shots if meta.support_pictures else max(shots, SHOTS)
-        )
-        self.ad: list[list[int]] = []
+        self.tick = 0  # the global step the episode being drawn starts at
 
-    # ---------------------------------------------------------------- names and geometry
-    def cat(self, c: int) -> str:
-        return self.cats[c] if 0 <= c < len(self.cats) else f"category {c}"
-
-    def act(self, a: int) -> str:
-        return self.names[a] if 0 <= a < len(self.names) else f"action {a}"
-
+    # ---------------------------------------------------------------- geometry and clock
     def xy(self, cells) -> np.ndarray:
         """Cell centres as (x, y) = (col, row) + 0.5."""
         rows, cols = np.divmod(np.asarray(cells, dtype=np.int64), self.width)
@@ -89,31 +42,26 @@ class Replay:
             mins=self.xy(cells) - size / 2, sizes=np.full((len(cells), 2), size), **kw
         )
 
-    def log(self, entity: str, what, level: str = "INFO", **kw) -> None:
-        """Log an archetype, or a text as a TextLog line of ``level``."""
-        import rerun as rr
+    def when(self, t: int, picture: int | None = None, contact: bool = False) -> float:
+        """Every event of step ``t`` happens at its global step (the grid has no finer time)."""
+        return self.tick + t
 
-        self.rec.log(entity, rr.TextLog(what, level=level) if isinstance(what, str) else what, **kw)
+    def at(self, moment: float) -> None:
+        self.rec.set_time("step", sequence=int(moment))
 
     # ---------------------------------------------------------------- what does not change
     def blueprint(self, name: str, empty: EmptyViews):
         """The viewer's layout, with views that fit this maze and support set; the scores view
         says in its name why it is empty (``empty``)."""
-        return blueprint(
-            name,
-            "max Q per cell" if self.q else "visits per cell (log scale)",
-            *self.shape,
-            legend_positions(*self.shape, len(self.labels) + 2)[1],
-            self.grid.bounds(),
-            "relation scores" + (f": {empty.scores_short}" if empty.scores else ""),
-        )
+        heat = "max Q per cell" if self.q else "visits per cell (log scale)"
+        bounds = legend_positions(*self.shape, len(self.labels) + 2)[1]
+        return self.layout(maze_views(name, heat, *self.shape, bounds), empty)
 
     def draw_static(self) -> None:
         """The maze (cells; obstacles in their category colours, named in the legend right of the
-        maze and on hover, so no text covers the robot), the category names and colours, the series."""
+        maze and on hover, so no text covers the robot), the series."""
         import rerun as rr
 
-        self.log("/", categories_context(self.labels), static=True)
         grid = np.array([list(r) for r in self.meta.maze["layout"]]).ravel()
         free = np.flatnonzero(grid != "X")
         self.log(
@@ -137,10 +85,7 @@ class Replay:
                     draw_order=1.0,
                     class_ids=[o["category"] for o in obstacles],
                     show_labels=False,
-                    labels=[
-                        f"{self.cat(o['category'])} #{o['instance']} r{o['orientation']}"
-                        for o in obstacles
-                    ],
+                    labels=[self.obstacle_label(o) for o in obstacles],
                 ),
                 static=True,
             )
@@ -199,86 +144,14 @@ class Replay:
             ),
         )
 
-    def picture(self, entity: str, pid: int) -> None:
-        import rerun as rr
-
-        if pid in self.meta.pictures:
-            self.log(
-                entity, rr.EncodedImage(contents=self.meta.pictures[pid], media_type="image/png")
-            )
-
-    def start_support(self, first: int) -> None:
-        """The support set the replay starts from: the file's initial pictures with the run's earlier
-        substitutions applied (framed); a note when the file holds no support pictures."""
-        self.grid.frame(bool(self.meta.support_pictures))
-        support = {k: (png, None) for k, png in self.meta.support_pictures.items()}
-        for s in self.subs[self.subs.episode < first].itertuples():
-            if int(s.picture) in self.meta.pictures:
-                support[(int(s.category), int(s.position))] = (
-                    self.meta.pictures[int(s.picture)],
-                    self.when(s),
-                )
-        for (c, p), (png, mark) in sorted(support.items()):
-            self.grid.put(c, p, png, mark)
-
-    @staticmethod
-    def when(s) -> str:
-        return f"ep {int(s.episode)} t {int(s.step)}"
-
-    def scores(self, r) -> list[float] | None:
-        """The relation scores of recognition ``r`` by category (None when the file has none), each
-        category its own bar chart: the chart's legend names the bars."""
-        import rerun as rr
-
-        sc = np.array([getattr(r, c) for c in self.score_cols], dtype=np.float32)
-        if not self.score_cols or np.isnan(sc).all():
-            return None
-        sc = np.nan_to_num(sc)
-        for c, value in enumerate(sc):
-            self.log(
-                f"recognition/scores/{rr.escape_entity_path_part(self.labels[c])}",
-                rr.BarChart([value], abscissa=[c], color=colour(c)),
-            )
-        return sc.tolist()
-
-    def recognition(self, r, e: int, t: int) -> None:
-        """The picture seen, its labelled scores and the verdict with a table of the scores."""
-        import rerun as rr
-
-        self.picture("recognition/picture", int(r.picture))
-        sc = self.scores(r)
-        table = (
-            ""
-            if sc is None
-            else "\n\n| category | relation score |\n|---|---|\n"
-            + "\n".join(
-                f"| {'**' + self.cat(c) + '**' if c == int(r.predicted) else self.cat(c)} | {v:.3f} |"
-                for c, v in enumerate(sc)
-            )
-        )
-        self.log(
-            "recognition/result",
-            rr.TextDocument(
-                f"### picture {int(r.picture)}\n\nrun {self.run}, episode {e}, step {t}, cell {int(r.state)}, "
-                f"action {self.act(int(r.action))}\n\npredicted **{self.cat(int(r.predicted))}**, true "
-                f"**{self.cat(int(r.true))}**: "
-                + (
-                    "recognised: unsafe pair added, action reselected"
-                    if r.predicted == r.true
-                    else "misrecognised: collision, picture substitutes into the support set"
-                )
-                + table,
-                media_type="text/markdown",
-            ),
-        )
-
     def draw(self, episodes: list[int], empty: EmptyViews) -> None:
         """Every step of ``episodes`` (consecutive recorded episodes of the run), after what the run
         held before them: A_d, the support set and the visits; ``empty``: why views stay empty."""
         first = episodes[0]
         self.draw_static()
-        log_empty(self.rec, empty)
-        self.ad = self.unsafe[self.unsafe.episode < first][["state", "action"]].to_numpy().tolist()
+        self.rec.set_time("step", sequence=0)
+        self.rec.set_time("episode", sequence=first)
+        self.begin(first, empty)
         visits = np.bincount(
             self.steps[self.steps.episode < first].state.to_numpy(),
             minlength=self.shape[0] * self.width,
@@ -287,8 +160,6 @@ class Replay:
         for e in episodes:
             self.rec.set_time("step", sequence=tick)
             self.rec.set_time("episode", sequence=e)
-            if e == first:
-                self.start_support(first)
             tick = self.episode(e, tick, visits)
 
     def episode(self, e: int, tick: int, visits: np.ndarray) -> int:
@@ -347,7 +218,8 @@ class Replay:
         if not self.q:
             self.heat("derived/visits", visits, "visits")
         visits += np.bincount(states, minlength=visits.size)
-        self.events(e, tick, states, actions, flags)
+        self.tick = tick
+        self.events(e, states, actions, flags)
         tick += n
         self.rec.set_time("step", sequence=max(tick - 1, 0))
         if not self.q:
@@ -355,45 +227,3 @@ class Replay:
         if e in self.q:
             self.heat("q_values/max", self.q[e].max(axis=1), "max Q")
         return tick
-
-    def events(self, e: int, tick: int, states, actions, flags) -> None:
-        """The steps of episode ``e`` where something happened: flags, recognitions, A_d, substitutions."""
-        seen, added, swapped = (
-            {int(t): list(g.itertuples()) for t, g in df[df.episode == e].groupby("step")}
-            for df in (self.recog, self.unsafe, self.subs)
-        )
-        for t in sorted(
-            {int(x) for x in np.flatnonzero(flags)} | seen.keys() | added.keys() | swapped.keys()
-        ):
-            self.rec.set_time("step", sequence=tick + t)
-            where = f"run {self.run} ep {e} step {t}: "
-            if f := int(flags[t]):
-                self.log(
-                    "events",
-                    f"{where}cell {int(states[t])} action {self.act(int(actions[t]))}: "
-                    + ", ".join(name for name, bit in S.FLAG_NAMES.items() if f & bit),
-                    level="ERROR"
-                    if f & S.FLAG_COLLIDED
-                    else "WARN"
-                    if f & S.FLAG_RESELECTED
-                    else "INFO",
-                )
-            for r in seen.get(t, ()):
-                self.recognition(r, e, t)
-            if t in added:
-                self.ad.extend([int(u.state), int(u.action)] for u in added[t])
-                self.log_unsafe()
-                for u in added[t]:
-                    self.log(
-                        "events",
-                        f"{where}({int(u.state)}, {self.act(int(u.action))}) joins A_d "
-                        f"({S.SOURCE_NAMES[int(u.source)]})",
-                    )
-            for s in swapped.get(t, ()):
-                c, p, pid = int(s.category), int(s.position), int(s.picture)
-                if pid in self.meta.pictures:
-                    self.grid.put(c, p, self.meta.pictures[pid], self.when(s))
-                self.log(
-                    "events",
-                    f"{where}picture {pid} replaces shot {p} of {self.cat(c)} in the support set",
-                )

@@ -1,6 +1,7 @@
-"""What the replay's views show beyond the maze itself: the layout of the viewer (:func:`blueprint`),
-category colours and names (:func:`categories_context`), the heat map of visits or max Q
-(:func:`heat_rgb`) and the support set as a grid of pictures (:class:`SupportGrid`).
+"""What the replay's views show beyond the world itself: the layout of the viewer, the same for
+every world (:func:`blueprint`; the grid's own views: :func:`maze_views`), category colours and
+names (:func:`categories_context`), the heat map of visits or max Q (:func:`heat_rgb`) and the
+support set as a grid of pictures (:class:`SupportGrid`).
 """
 
 from __future__ import annotations
@@ -39,35 +40,17 @@ def legend_positions(height: int, width: int, n: int) -> tuple[list[list[float]]
     return points, ((-0.1, width + 2.6), (-0.1, max(height, 0.75 * n) + 0.3))
 
 
-def blueprint(
-    name: str, heat_name: str, height: int, width: int, maze: Bounds, grid: Bounds, scores: str
-):
-    """The viewer's layout: maze (titled with the recording's ``name``), heat map and return; picture
-    seen, scores (the view named ``scores``) and the recognition; the support set grid and the
-    events. ``maze`` and ``grid``: the bounds of those views."""
+def blueprint(world, grid: Bounds, scores: str):
+    """The viewer's layout, the same for every world: the world's views (``world``: the grid's
+    :func:`maze_views`, or the robot in 3D) left; the picture seen, the scores (the view named
+    ``scores``) and the recognition; the support set grid (``grid``: its bounds) and the events."""
     import rerun.blueprint as rrb
 
     V, H = rrb.Vertical, rrb.Horizontal
-
-    def S2(bounds: Bounds, **kw):
-        return rrb.Spatial2DView(
-            visual_bounds=rrb.VisualBounds2D(x_range=bounds[0], y_range=bounds[1]), **kw
-        )
-
-    heat = S2(
-        ((0, width), (0, height + 0.8)),
-        origin="/",
-        name=heat_name,
-        contents=["/derived/**", "/q_values/**", "/maze/obstacles", "/maze/robot"],
-    )
     picture = rrb.Spatial2DView(origin="recognition/picture", name="picture seen")
     return rrb.Blueprint(
         H(
-            V(
-                S2(maze, origin="maze", name=f"maze: {name}"),
-                H(heat, rrb.TimeSeriesView(origin="metrics", name="return")),
-                row_shares=[3, 2],
-            ),
+            world,
             V(
                 picture,
                 rrb.BarChartView(  # bars in the category colours; the recognition names them
@@ -79,7 +62,7 @@ def blueprint(
                 row_shares=[2, 2, 3],
             ),
             V(
-                S2(
+                _view2d(
                     grid,
                     origin="support",
                     name="support set (framed: substituted at episode, step t)",
@@ -91,6 +74,32 @@ def blueprint(
         ),
         rrb.SelectionPanel(state="collapsed"),
         rrb.TimePanel(state="collapsed"),
+    )
+
+
+def maze_views(name: str, heat_name: str, height: int, width: int, maze: Bounds):
+    """The grid's views: the maze (titled with the recording's ``name``; ``maze``: its bounds) over
+    the heat map (``heat_name``) and the return."""
+    import rerun.blueprint as rrb
+
+    heat = _view2d(
+        ((0, width), (0, height + 0.8)),
+        origin="/",
+        name=heat_name,
+        contents=["/derived/**", "/q_values/**", "/maze/obstacles", "/maze/robot"],
+    )
+    return rrb.Vertical(
+        _view2d(maze, origin="maze", name=f"maze: {name}"),
+        rrb.Horizontal(heat, rrb.TimeSeriesView(origin="metrics", name="return")),
+        row_shares=[3, 2],
+    )
+
+
+def _view2d(bounds: Bounds, **kw):
+    import rerun.blueprint as rrb
+
+    return rrb.Spatial2DView(
+        visual_bounds=rrb.VisualBounds2D(x_range=bounds[0], y_range=bounds[1]), **kw
     )
 
 

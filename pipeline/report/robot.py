@@ -1,144 +1,398 @@
-"""The report's section "On a simulated robot" (kind ``robot``; experiment ``robot3d``, issue 30,
-docs/robot3d.md): the same methods with the camera robot in MuJoCo and on the grid, same seeds.
+"""The report's section "On a simulated robot" (kind ``robot``; experiment ``robot3d``, issue 38,
+docs/robot3d.md): the methods with the camera robot in MuJoCo beside the grid, the same seeds.
 
-* collisions per run of each method, on the robot beside the grid, per maze and recogniser;
-* live recognition accuracy per category and recogniser (the robot's own camera pictures) beside the accuracy on
-  the pre-rendered query pictures the same methods met on the grid (the gap between what a robot
-  sees and the photographs the paper used);
-* the simulated robot time per run (what a real Burger would spend: the safety layer and
-  self-recovery save it collisions and recoveries, and the prevented moves cost only a turn);
-* the real-time factor, from the benchmark (``reports/benchmarks/robot3d.json``): wall-clock
-  figures are never in the records.
+A robot cell (recorded config ``world: robot3d``; its records hold the robot's motion table, the
+``info`` metadata's ``robot``) and its grid twin (same method, maze, decision rule, recogniser)
+share run seeds: run ``r`` of each meets the same obstacles, so they are paired by run. The robot's
+moves have the grid's outcomes, so the two differ only in their pictures (live, not pre-rendered).
 
-A cell's world is its recorded config's ``world``; the robot's own records (``robot.mcap`` beside
-``records.mcap``, :mod:`pipeline.robot.records`) are read here with ``mcap`` directly, so the
-report does not import the robot package (.importlinter: siblings).
+The section: what recognition adds over the range sensor, at what cost in false stops
+(:func:`range_statement`); one table per decision rule (:class:`pipeline.rl.rules.Rule`: the
+paper's is Algorithm 1, section 3.2.2; ``open_set`` and ``range`` are ours), the robot beside the
+grid under one rule only; the methods that see no pictures; recognition accuracy per category; the
+real-time factor, when the benchmark holds it. Only records are read (.importlinter); records that
+do not match their cell, or a robot cell without its grid twin, are refused (:func:`check_cell`,
+:func:`pairs`).
 """
 
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
-from mcap.reader import make_reader
 
-from pipeline.report.experiments import ReportInputError
+from pipeline.errors import UserError
+from pipeline.records import read_records
+from pipeline.records.schema import SOURCE_NAMES
+from pipeline.report.experiments import Cell, ReportInputError
 from pipeline.report.names import method_name, method_order, recogniser_name, recogniser_of
-from pipeline.report.stats import describe, fmt, wilson_ci
+from pipeline.report.stats import bootstrap_difference, describe, wilson_ci
+from pipeline.rl.rules import Rule
+from pipeline.world.maze import load_layout
 from pipeline.world.pictures import CATEGORIES
 
 BENCHMARK = Path("reports/benchmarks/robot3d.json")
+#: The unsafe additions of a stop (records schema ``UnsafeAdditions.source``).
+RECOGNITION = SOURCE_NAMES.index("recognition")
+#: What a stop's recognition and its unsafe addition share.
+STOP_KEY = ["run", "episode", "step", "state", "action"]
+
+#: Each decision rule in words (captions); ``{threshold}``: the cells' recorded threshold.
+RULE_WORDS = {
+    Rule.paper: "the paper's rule (Algorithm 1, section 3.2.2): a picture stops the robot when its "
+    "prediction names the obstacle's true category, so every stop is a right stop",
+    Rule.open_set: "the open-set rule: a picture stops the robot when its top relation score is at "
+    "least the threshold ({threshold}), whatever category it names",
+    Rule.range: "the range sensor alone: the robot stops before every occupied cell ahead, so it "
+    "never collides; the picture is still classified and recorded",
+}
 
 
-def world(cell) -> str:
+def world(cell: Cell) -> str:
+    """The cell's world as recorded (``grid`` or ``robot3d``)."""
     return (cell.config or {}).get("world", "grid")
 
 
-def sim_time_per_run(cell) -> np.ndarray | None:
-    """Simulated seconds of each run, from the cell's ``robot.mcap`` (None without one)."""
-    path = cell.path.with_name("robot.mcap") if cell.path is not None else None
-    if path is None or not path.exists():
+def rule(cell: Cell) -> Rule | None:
+    """The cell's decision rule as recorded; None when its method looks at no pictures."""
+    if recogniser_of(cell.info, cell.config) is None:
         return None
-    totals: dict[int, float] = {}
-    try:
-        with open(path, "rb") as f:
-            for _, channel, message in make_reader(f).iter_messages(log_time_order=False):
-                if channel.topic == "/robot/episode":
-                    ep = json.loads(message.data)
-                    totals[ep["run"]] = totals.get(ep["run"], 0.0) + ep["sim_time"]
-    except Exception as exc:  # mcap's and JSON's errors on a damaged file
+    name = (cell.config or {}).get("rule", "paper")
+    if name not in Rule.__members__:
         raise ReportInputError(
-            f"{path}: cannot read the robot's records ({type(exc).__name__}: "
-            f"{(str(exc).splitlines() or [''])[0]}); re-run its trials"
-        ) from None
-    return np.array([totals[r] for r in sorted(totals)])
+            f"{cell.path}: decision rule {name!r} is none of {[r.name for r in Rule]}"
+        )
+    return Rule[name]
 
 
-def _accuracy(recognitions: list[pd.DataFrame]) -> dict[int, tuple[int, int]]:
-    frame = pd.concat(recognitions) if recognitions else pd.DataFrame(columns=["true", "predicted"])
-    out = {}
-    for c in range(len(CATEGORIES)):
-        sel = frame[frame["true"] == c]
-        out[c] = (int((sel["predicted"] == c).sum()), len(sel))
-    return out
-
-
-def _share(correct: int, n: int) -> str:
-    if n == 0:
-        return "-"
-    lo, hi = wilson_ci(correct / n, n)
-    return f"{correct / n:.2f} [{lo:.2f}, {hi:.2f}] (n={n})"
-
-
-def _recogniser(cell) -> str:
+def recogniser(cell: Cell) -> str:
     """The display name of the recogniser a cell ran ("none": its method looks at no pictures)."""
     kind = recogniser_of(cell.info, cell.config)
     return recogniser_name(kind) if kind else "none"
 
 
-def robot_kind(rep, exp, paper) -> None:
-    cells = list(exp.cells.values())
-    keys = sorted({(method_order(c.method), c.method, c.maze, _recogniser(c)) for c in cells})
-    rows, times = [], []
-    for _, method, maze, recogniser in keys:
-        pair = {w: [c for c in cells if c.method == method and c.maze == maze and world(c) == w
-                    and _recogniser(c) == recogniser] for w in ("grid", "robot3d")}  # fmt: skip
-        info = (pair["robot3d"] or pair["grid"])[0].info
-        row = {"method": method_name(info["method"]), "recogniser": recogniser, "maze": maze}
-        for w, label in (("grid", "grid"), ("robot3d", "robot (MuJoCo)")):
-            runs = [c.collisions_per_run() for c in pair[w]]
-            row[f"collisions, {label}"] = fmt(describe(np.concatenate(runs))) if runs else "-"
+class Extra(NamedTuple):
+    """What a cell's records hold beyond the report's :class:`Cell`."""
+
+    robot: dict | None  # the motion table (the ``info`` metadata's ``robot``); None on the grid
+    recognised: pd.DataFrame  # the unsafe additions by recognition (:data:`STOP_KEY` columns)
+
+
+def read_extra(cell: Cell) -> Extra:
+    """:class:`Extra` of ``cell``; of a method that sees no pictures only its first episode is read
+    (it needs the metadata alone)."""
+    window = {} if rule(cell) is not None else {"run": int(cell.runs()[0]), "episode": 0}
+    recs = read_records(cell.path, pictures=False, **window)
+    added = recs.unsafe.loc[recs.unsafe["source"] == RECOGNITION, STOP_KEY]
+    return Extra(recs.meta.info.get("robot"), added.astype("int64"))
+
+
+def check_cell(cell: Cell, extra: Extra) -> None:
+    """Refuse records that do not match their cell: the recorded maze must be the layout of the
+    maze the recorded config names and of the one the experiment declares for the cell's folder (a
+    file copied from another cell fails this); a robot cell (``world: robot3d``) must hold its
+    motion table for the cell size it ran with (``robot.cell``)."""
+    config = cell.config or {}
+    declared = ((config.get("experiment") or {}).get("cells") or {}).get(cell.name) or {}
+    for maze in dict.fromkeys(m for m in (config.get("maze"), declared.get("maze")) if m):
+        try:
+            rows = list(load_layout(maze).rows)
+        except UserError as exc:
+            raise ReportInputError(f"{cell.path}: cannot load maze {maze!r} ({exc})") from None
+        if rows != list(cell.layout):
+            raise ReportInputError(
+                f"{cell.path}: the records hold a {len(cell.layout[0])}x{len(cell.layout)} maze "
+                f"({'/'.join(cell.layout)}), not maze {maze!r} of cell {cell.name}; these are "
+                "another cell's records: re-run its trials"
+            )
+    table, ran = extra.robot or {}, (config.get("robot") or {}).get("cell")
+    if world(cell) == "robot3d" and table.get("cell") != ran:
+        why = f"the motion table of {table['cell']} m cells" if table else "no motion table"
+        raise ReportInputError(
+            f"{cell.path}: a robot cell (world robot3d, robot.cell={ran}) whose records hold "
+            f"{why} (info.robot); re-run its trials"
+        )
+
+
+@dataclass
+class PerRun:
+    """A cell's figures per run, in the order of its runs (:meth:`Cell.runs`)."""
+
+    runs: np.ndarray
+    collisions: np.ndarray
+    right_stops: np.ndarray
+    false_stops: np.ndarray
+
+
+def per_run(cell: Cell, extra: Extra) -> PerRun:
+    """Collisions, right and false stops of each run. A stop is a recognition whose (run, episode,
+    step, state, action) has an unsafe addition by recognition (each dangerous (s, a) is recognised
+    at most once a run: it then joins A_d); a right stop's prediction names the true category, a
+    false stop's another."""
+    runs = cell.runs()
+    collisions = cell.episodes.groupby("run")["collisions"].sum().reindex(runs).to_numpy()
+    seen = cell.recognitions
+    stop = pd.MultiIndex.from_frame(seen[STOP_KEY].astype("int64")).isin(
+        pd.MultiIndex.from_frame(extra.recognised)
+    )
+    right = np.asarray(seen["predicted"] == seen["true"])
+
+    def count(chosen: np.ndarray) -> np.ndarray:
+        return seen[chosen].groupby("run").size().reindex(runs, fill_value=0).to_numpy()
+
+    return PerRun(runs, collisions, count(stop & right), count(stop & ~right))
+
+
+def twin_key(cell: Cell) -> tuple:
+    """What a robot cell and its grid twin share: the method (all its recorded fields), the maze,
+    the decision rule, the recogniser and, under the open-set rule, the threshold."""
+    threshold = (cell.config or {}).get("threshold") if rule(cell) == Rule.open_set else None
+    method = json.dumps(cell.info["method"], sort_keys=True)
+    return (method, cell.maze, rule(cell), recogniser(cell), threshold)
+
+
+@dataclass
+class Pair:
+    """A robot cell, its grid twin and their figures per run (paired by run)."""
+
+    robot: Cell
+    grid: Cell
+    on_robot: PerRun
+    on_grid: PerRun
+
+    @property
+    def order(self) -> tuple:
+        size = len(self.robot.layout) * len(self.robot.layout[0])
+        return (method_order(self.robot.method), size, self.robot.maze, recogniser(self.robot))
+
+    @property
+    def method(self) -> str:
+        return method_name(self.robot.info["method"])
+
+
+def pairs(cells: list[Cell], extras: dict[str, Extra]) -> list[Pair]:
+    """Every robot cell with its grid twin (:func:`twin_key`), in the tables' order. A robot cell
+    without exactly one grid twin, or whose runs are not its twin's, is refused."""
+    grid, out = [c for c in cells if world(c) == "grid"], []
+    for cell in (c for c in cells if world(c) == "robot3d"):
+        twins = [g for g in grid if twin_key(g) == twin_key(cell)]
+        if len(twins) != 1:
+            raise ReportInputError(
+                f"{cell.path}: a robot cell with {len(twins) or 'no'} grid twin(s) (grid cells of "
+                f"the same method, maze {cell.maze}, rule, recogniser and threshold"
+                f"{''.join(f', {t.name}' for t in twins)}); record exactly one beside it"
+            )
+        on_robot = per_run(cell, extras[cell.name])
+        on_grid = per_run(twins[0], extras[twins[0].name])
+        if not np.array_equal(on_robot.runs, on_grid.runs):
+            raise ReportInputError(
+                f"{cell.path}: runs {on_robot.runs.tolist()}, but its grid twin "
+                f"{twins[0].path} has runs {on_grid.runs.tolist()}; re-run both with one setup"
+            )
+        out.append(Pair(cell, twins[0], on_robot, on_grid))
+    return sorted(out, key=lambda p: p.order)
+
+
+def mean_ci(values) -> str:
+    """``mean [lo, hi]``: the mean over runs and its 95% bootstrap interval."""
+    d = describe(values)
+    return f"{d['mean']:.2f} [{d['ci_low']:.2f}, {d['ci_high']:.2f}]"
+
+
+def paired_difference(a, b) -> str:
+    """``mean(a - b) [lo, hi]``: run ``i`` of ``a`` and of ``b`` share a seed (paired bootstrap)."""
+    estimate, lo, hi = bootstrap_difference(a, b, paired=True)
+    return f"{estimate:+.2f} [{lo:+.2f}, {hi:+.2f}]"
+
+
+def pair_table(chosen: list[Pair], several_recognisers: bool) -> pd.DataFrame:
+    """One row per robot cell and its grid twin: collisions on each; with pictures, their paired
+    difference and the false and right stops on each; without, the runs where they are equal."""
+    rows = []
+    for p in chosen:
+        robot, grid = p.on_robot, p.on_grid
+        row = {"method": p.method, "maze": p.robot.maze}
+        row |= {"recogniser": recogniser(p.robot)} if several_recognisers else {}
+        row["runs"] = len(robot.runs)
+        row["collisions, grid"] = mean_ci(grid.collisions)
+        row["collisions, robot"] = mean_ci(robot.collisions)
+        if rule(p.robot) is None:
+            same = int(np.sum(robot.collisions == grid.collisions))
+            row["runs where robot = grid"] = f"{same} of {len(robot.runs)}"
+        else:
+            difference = paired_difference(robot.collisions, grid.collisions)
+            row["collisions, robot - grid (paired)"] = difference
+            for kind in ("false", "right"):
+                row[f"{kind} stops, grid"] = mean_ci(getattr(grid, f"{kind}_stops"))
+                row[f"{kind} stops, robot"] = mean_ci(getattr(robot, f"{kind}_stops"))
         rows.append(row)
-        for c in pair["robot3d"]:
-            t = sim_time_per_run(c)
-            if t is not None:
-                steps = c.episodes.groupby("run")["steps"].sum().to_numpy()
-                times.append({"method": row["method"], "recogniser": recogniser, "maze": maze,
-                              "simulated robot time per run (min)": fmt(describe(t / 60), 1),
-                              "grid moves per run": fmt(describe(steps), 0),
-                              "seconds per move": f"{t.sum() / max(steps.sum(), 1):.2f}"})  # fmt: skip
-    rep.table(
-        exp.folder,
-        pd.DataFrame(rows),
-        "Collisions per run (mean ± s.d. [95% bootstrap CI] over runs), the same methods and seeds on "
-        "the grid and with the robot in MuJoCo (collisions: contacts). Recogniser none: the method "
-        "looks at no pictures.",
+    return pd.DataFrame(rows)
+
+
+def rule_caption(r: Rule, chosen: list[Pair]) -> str:
+    """The caption of rule ``r``'s table (its threshold: the cells' recorded one)."""
+    thresholds = sorted({str((p.robot.config or {}).get("threshold")) for p in chosen})
+    return (
+        f"Decision rule `{r.name}`: {RULE_WORDS[r].format(threshold=', '.join(thresholds))}. "
+        "Few-shot methods on the grid (the query pictures) and with the robot in MuJoCo (its live "
+        "pictures), the same seeds; per run, mean [95% bootstrap CI] over runs. Robot - grid: the "
+        "mean of the run-by-run differences (run r of both meets the same obstacles) with a paired "
+        "bootstrap 95% interval; the robot's moves have the grid's outcomes, so a difference comes "
+        "from the pictures alone. A stop: a picture after which its (state, action) joined the "
+        "unsafe set by recognition; a false stop's prediction names a wrong category, a right "
+        "stop's the true one. The robot is set beside the grid under this rule only."
     )
-    seeing = sorted({_recogniser(c) for c in cells if len(c.recognitions)})
-    columns = {}
-    for name in seeing:
-        for w, label in (("grid", "query pictures (grid)"), ("robot3d", "live pictures (robot)")):
-            chosen = [c.recognitions for c in cells
-                      if world(c) == w and _recogniser(c) == name and len(c.recognitions)]  # fmt: skip
-            columns[f"{name}: {label}"] = _accuracy(chosen)
-    acc = pd.DataFrame(
-        [
-            {"category": cat, **{col: _share(*by[c]) for col, by in columns.items()}}
-            for c, cat in enumerate(CATEGORIES)
+
+
+BLIND_CAPTION = (
+    "Methods that see no pictures (no decision rule applies): collisions per run (mean [95% "
+    "bootstrap CI] over runs) on the grid and with the robot in MuJoCo, the same seeds. They are "
+    "equal run by run by construction, not by chance: the robot's moves have the grid's outcomes "
+    "(a free neighbour is reached, an obstacle's box is always hit: the motion table checks both "
+    "when it is built), and the run's seed makes the agent's choices, so a run where they differ "
+    "is a fault of the robot world, not a finding."
+)
+
+
+def _means(pair: Pair, field: str) -> str:
+    return f"{getattr(pair.on_robot, field).mean():.2f} ({getattr(pair.on_grid, field).mean():.2f})"
+
+
+def range_statement(few: list[Pair]) -> str:
+    """What recognition adds over the range sensor, and at what cost in false stops: per maze and
+    method, the collisions under each rule (the range sensor's against the rules that look at the
+    picture) and the false stops under ``open_set`` and ``range`` (``paper`` has none: it stops only
+    on the true category). From the records; robot first, the grid in brackets."""
+    by = {(p.method, p.robot.maze, rule(p.robot)): p for p in few}
+    text = "**What recognition adds over the range sensor, and at what cost in false stops.** "
+    ranged = [p for p in few if rule(p.robot) == Rule.range]
+    if ranged:
+        worst = max(max(p.on_robot.collisions.max(), p.on_grid.collisions.max()) for p in ranged)
+        text += "The range sensor alone stops before every occupied cell ahead: " + (
+            f"none of its {sum(len(p.on_robot.runs) for p in ranged)} robot runs (nor their grid "
+            "twins) collided. "
+            if worst == 0
+            else f"yet a run collided {int(worst)} times (robot or grid): check its cells. "
+        )
+    text += (
+        "The rules that look at the picture stop only where it says so (`paper`: its prediction "
+        "names the true category, so no stop is false; `open_set`: its top score reaches the "
+        "threshold, whatever it names), and each obstacle they let pass is a collision. A false "
+        "stop is a stop whose picture names a wrong category. Per run, on the robot (on the grid "
+        "in brackets):\n\n"
+    )
+    fewest = []
+    for method, maze in dict.fromkeys((p.method, p.robot.maze) for p in few):
+        here = {r: by[method, maze, r] for r in Rule if (method, maze, r) in by}
+        parts = [
+            "collisions "
+            + ", ".join(f"{_means(p, 'collisions')} under `{r.name}`" for r, p in here.items())
         ]
+        false = [
+            f"{_means(p, 'false_stops')} under `{r.name}`"
+            for r, p in here.items()
+            if r != Rule.paper
+        ]
+        parts += ["false stops " + ", ".join(false)] if false else []
+        text += f"- {maze}, {method}: " + "; ".join(parts) + ".\n"
+        if Rule.range in here and len(here) > 1:
+            means = {r: p.on_robot.collisions.mean() for r, p in here.items()}
+            fewest.append(means[Rule.range] <= min(means.values()))
+    if fewest:
+        verdict = ": recognition adds the category of what it stops before, not fewer collisions"
+        text += f"\nOn the robot the range sensor collides least in {sum(fewest)} of {len(fewest)} "
+        text += f"rows{verdict if all(fewest) else ''}.\n"
+    return text
+
+
+#: The columns of the accuracy table of each recogniser: which pictures, from which cell of a pair.
+SIDES = (("grid", "query pictures (grid)"), ("robot", "live pictures (robot)"))
+
+
+def accuracy_table(few: list[Pair]) -> pd.DataFrame:
+    """Per rule and category, the share of pictures whose prediction names the true category
+    (95% Wilson CI): the grid's query pictures beside the robot's live pictures, per recogniser."""
+    seen = pd.concat(
+        getattr(p, side)
+        .recognitions[["true", "predicted"]]
+        .assign(rule=rule(p.robot).value, column=f"{recogniser(p.robot)}: {label}")
+        for p in few
+        for side, label in SIDES
     )
-    rep.table(
-        f"{exp.folder}_recognition",
-        acc,
-        "Recognition accuracy per category and recogniser: every picture the few-shot cells "
-        "classified (the category its scores name against the true one; share [95% Wilson CI], "
-        "n pictures). Grid: the pre-rendered query pictures; robot: the robot's own camera pictures.",
-    )
-    if times:
-        rep.table(
-            f"{exp.folder}_robot_time",
-            pd.DataFrame(times),
-            "Simulated robot time per run (turns, drives at the Burger's 0.22 m/s, recoveries) and "
-            "grid moves per run (mean ± s.d. [95% bootstrap CI]).",
-        )
-    if BENCHMARK.exists():
+    columns = [
+        f"{n}: {label}" for n in sorted({recogniser(p.robot) for p in few}) for _, label in SIDES
+    ]
+    rows = []
+    for r, c in ((r, c) for r in sorted(set(seen["rule"])) for c in range(len(CATEGORIES))):
+        row = {"rule": Rule(r).name, "category": CATEGORIES[c]}
+        for column in columns:
+            sel = seen[(seen["rule"] == r) & (seen["column"] == column) & (seen["true"] == c)]
+            share, n = float((sel["predicted"] == c).mean()) if len(sel) else 0.0, len(sel)
+            lo, hi = wilson_ci(share, n)
+            row[column] = f"{share:.2f} [{lo:.2f}, {hi:.2f}] (n={n})" if n else "-"
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+ACCURACY_CAPTION = (
+    "Recognition accuracy per decision rule and category: every picture the few-shot cells "
+    "classified, whether its prediction names its true category (share [95% Wilson CI], n "
+    "pictures). Grid: the pre-rendered query pictures; robot: the robot's own live pictures. "
+    "Which pictures are met depends on the rule, so robot and grid are set side by side within a "
+    "rule only."
+)
+
+
+def benchmark_line() -> str | None:
+    """The real-time factor and physics rates from the benchmark file, when it holds them."""
+    try:
         bench = json.loads(BENCHMARK.read_text())
-        rtf = bench.get("few_shot_oracle_5x5", {}).get("real_time_factor")
-        phys = bench.get("physics", {})
-        rep.add(
-            f"Real-time factor (benchmark `{BENCHMARK}`): {rtf} simulated seconds per wall-clock "
-            f"second; {phys.get('physics_steps_per_s_controlled')} physics steps/s under the "
-            f"controller, {phys.get('pictures_per_s')} live pictures/s.\n"
+        rtf = bench["few_shot_oracle_5x5"]["real_time_factor"]
+        steps, pictures = (
+            bench["physics"][k] for k in ("physics_steps_per_s_controlled", "pictures_per_s")
         )
+    except (OSError, ValueError, KeyError, TypeError):  # no file, or not the figures read here
+        return None
+    return (
+        f"Real-time factor (benchmark `{BENCHMARK}`): {rtf} simulated seconds per wall-clock "
+        f"second; {steps} physics steps/s under the controller, {pictures} live pictures/s.\n"
+    )
+
+
+def robot_kind(rep, exp, paper) -> None:
+    """The section: the statement on the range sensor, a table per decision rule, the methods
+    that see no pictures, recognition accuracy per category, the real-time factor."""
+    cells = list(exp.cells.values())
+    extras = {cell.name: read_extra(cell) for cell in cells}
+    for cell in cells:
+        check_cell(cell, extras[cell.name])
+    found = pairs(cells, extras)
+    few = [p for p in found if rule(p.robot) is not None]
+    blind = [p for p in found if rule(p.robot) is None]
+    several = len({recogniser(p.robot) for p in few}) > 1
+    if not found:
+        rep.add("No robot cell (world robot3d) has records.\n")
+    if few:
+        rep.add(range_statement(few))
+    for r in Rule:
+        chosen = [p for p in few if rule(p.robot) == r]
+        if chosen:
+            rep.table(
+                f"{exp.folder}_{r.name}", pair_table(chosen, several), rule_caption(r, chosen)
+            )
+    if blind:
+        rep.table(f"{exp.folder}_no_pictures", pair_table(blind, False), BLIND_CAPTION)
+        same = [np.array_equal(p.on_robot.collisions, p.on_grid.collisions) for p in blind]
+        if differ := [p.robot.name for p, equal in zip(blind, same) if not equal]:
+            rep.add(
+                f"**Robot and grid differ** in cells {', '.join(differ)}: their moves should have "
+                "the grid's outcomes; the robot world has a fault.\n"
+            )
+    if few:
+        rep.table(f"{exp.folder}_recognition", accuracy_table(few), ACCURACY_CAPTION)
+    if line := benchmark_line():
+        rep.add(line)

@@ -41,8 +41,9 @@ Truncation
     change both: ``method=get_method("fewshot", max_steps=n)`` and ``max_episode_steps=n``.
 
 Safety guarantee
-    When the chosen action runs into an obstacle and the recogniser names its category, the action
-    is not executed: ``step`` returns the same cell with reward 0, ``info["prevented"] = True`` and
+    When the chosen action runs into an obstacle and the decision rule stops it (``rule``:
+    ``paper``, the recogniser names its category; ``open_set``, its top score reaches ``threshold``;
+    ``range``, always; ``rules.Rule``), the action is not executed: ``step`` returns the same cell with reward 0, ``info["prevented"] = True`` and
     the updated mask; the step counter does not advance, and the agent should choose again
     (Algorithm 1, lines 4-10).
 
@@ -55,7 +56,9 @@ Arguments
     ``maze`` (built-in name or ``Layout``), ``method`` (name in ``pipeline/conf/method/`` or
     ``MethodSpec``), ``recogniser`` (an object of the ``pipeline.rl.recogniser.Recogniser``
     protocol; needed by the methods that reason with pictures, ``fewshot`` and ``fewshot_dss``),
-    ``run``, ``render_mode``, ``tile_size`` (pixels per cell of ``rgb_array``). This class lives in
+    ``run``, ``render_mode``, ``tile_size`` (pixels per cell of ``rgb_array``), ``rule`` and
+    ``threshold`` (the decision rule), ``world`` (``rl.run_world``: the grid, or the camera robot's
+    ``RobotWorld``, which ``SafeNav3D-*`` passes). This class lives in
     ``rl`` and so never imports ``fewshot`` or the configs: recognisers by name (``"relation_net"``,
     ``"oracle"``, ``"fixed_accuracy"``, the files of ``pipeline/conf/recogniser/``) are built by
     ``pipeline.envs.make_env``, the entry point of the registered ids, which then constructs this
@@ -89,12 +92,11 @@ from pipeline.rl.gym_render import ansi_frame, rgb_frame
 from pipeline.rl.methods import MethodSpec, get_method
 from pipeline.rl.recogniser import Recogniser
 from pipeline.rl.rng import run_seeds
-from pipeline.rl.rules import apply_action, empty_added, reasons_with_pictures
-from pipeline.rl.runner import make_run_world
+from pipeline.rl.rules import Rule, apply_action, empty_added, reasons_with_pictures
+from pipeline.rl.run_world import GRID, World
 from pipeline.rl.structs import MethodParams
 from pipeline.world.geometry import build_geometry
 from pipeline.world.maze import Layout, load_layout
-from pipeline.world.pictures import N_PICTURES
 
 #: How to pass a recogniser, for the error messages.
 HOW_TO_PASS = (
@@ -115,10 +117,20 @@ class SafeNavigationEnv(gym.Env):
         run: int = 0,
         render_mode: str | None = None,
         tile_size: int = 32,
+        rule: str | Rule = Rule.paper,
+        threshold: float = 0.5,
+        world: World = GRID,
     ):
         self.layout = maze if isinstance(maze, Layout) else load_layout(maze)
         self.method = method if isinstance(method, MethodSpec) else get_method(method)
-        self._params = MethodParams.of(self.method)
+        self._params = MethodParams.of(self.method, rule)
+        if not 0.0 < float(threshold) <= 1.0:
+            raise ValueError(f"threshold={threshold}: must lie in (0, 1]")
+        self.rule, self.threshold, self.world_model = (
+            Rule(self._params.rule),
+            float(threshold),
+            world,
+        )
         self._sees_pictures = reasons_with_pictures(self._params.safety)
         if isinstance(recogniser, str):
             raise TypeError(
@@ -146,14 +158,24 @@ class SafeNavigationEnv(gym.Env):
 
     def _new_run(self, seed: int) -> None:
         self.run_seed = seed
-        self.world = make_run_world(self.geometry, seed, self.run_id)
+        self.world = self.world_model.run_world(self.geometry, seed, self.run_id)
         self.unsafe = np.zeros((self.layout.n_cells, 4), dtype=np.bool_)
-        self.predicted = np.zeros(N_PICTURES, dtype=np.int8)
+        n_pictures = max(1, len(self.world_model.picture_category))
+        self.predicted = np.zeros(n_pictures, dtype=np.int8)
+        self.confident = np.zeros(n_pictures, dtype=np.bool_)
         if self._sees_pictures:
             self.recogniser.start_run(self.run_id, run_seeds(seed, self.run_id).recogniser)
-            self.predicted[:] = self.recogniser.predictions(self.run_id)
+            self._answer()
         self.state = self.layout.start
         self.t = 0
+
+    def _answer(self) -> None:
+        """The recogniser's answers under the run's current support set (as the runner's)."""
+        self.predicted[:] = self.recogniser.predictions(self.run_id)
+        if self.rule == Rule.open_set:
+            seen = self.world.seen
+            scores = np.asarray(self.recogniser.scores(self.run_id, seen))
+            self.confident[seen] = scores.max(axis=1) >= self.threshold
 
     def action_mask(self, state: int | None = None) -> np.ndarray:
         return (~self.unsafe[self.state if state is None else state]).astype(np.int8)
@@ -181,6 +203,7 @@ class SafeNavigationEnv(gym.Env):
             s,
             a,
             p.safety,
+            p.rule,
             p.recovery,
             p.constrained,
             g.next_cell,
@@ -190,6 +213,7 @@ class SafeNavigationEnv(gym.Env):
             self.world.pictures,
             self.world.true_category,
             self.predicted,
+            self.confident,
             self.unsafe,
             self._added,
         )
@@ -220,7 +244,7 @@ class SafeNavigationEnv(gym.Env):
         collided = out == Outcome.collided
         if collided and self._params.dynamic and picture >= 0:
             self.recogniser.learn_from_collision(self.run_id, int(picture), recognition["true"])
-            self.predicted[:] = self.recogniser.predictions(self.run_id)
+            self._answer()
         self.t += 1
         self.state = int(s2)
         truncated = (not terminated) and self.t >= self.method.max_steps

@@ -143,10 +143,11 @@ def advance_run(
     qr, ur = state.q[r], state.unsafe[r]
     # the tables apply_action needs, unpacked once (it takes plain arrays: see there why)
     next_cell, obstacle, ssrl_pairs = maze.next_cell, maze.obstacle, maze.ssrl_pairs
-    pictures, true_category, predicted = (
+    pictures, true_category, predicted, confident = (
         sights.pictures[r],
         sights.true_category[r],
         sights.predicted[r],
+        sights.confident[r],
     )
     rng, sarsa = state.rng, method.learner == Learner.sarsa
     ep, t, s, pend, pend_resel, col, prev, e, ret = _resume(state, r)
@@ -166,6 +167,7 @@ def advance_run(
                 s,
                 a,
                 method.safety,
+                method.rule,
                 method.recovery,
                 method.constrained,
                 next_cell,
@@ -175,6 +177,7 @@ def advance_run(
                 pictures,
                 true_category,
                 predicted,
+                confident,
                 ur,
                 added,
             )

@@ -12,9 +12,10 @@ in :data:`METHODS`, its yaml and a test (docs/extending.md).
 Given the robot in free cell ``s`` choosing ``a``:
 
 * ``a`` runs into obstacle ``o`` and the method reasons with pictures (few-shot) -> the robot sees
-  the picture of the face of ``o`` toward it. Recognised as its true category: (s, a) joins A_d,
-  the action is not executed (``Outcome.prevented``) and the agent reselects in the same step.
-  Misrecognised: the robot collides.
+  the picture of the face of ``o`` toward it, and the decision rule (:class:`Rule`) says whether it
+  stops: under the paper's rule when the prediction names ``o``'s true category. A stop: (s, a)
+  joins A_d, the action is not executed (``Outcome.prevented``) and the agent reselects in the same
+  step. Otherwise the robot collides.
 * collision: reward -1, and by method: shield and few-shot add (s, a) to A_d; SSRL adds every
   (free neighbour of o, action toward o). With self-recovery the robot reverts to ``s`` and the
   episode goes on; without it (and always for constrained RL) the episode ends.
@@ -44,6 +45,19 @@ class Safety(IntEnum):
     ssrl = 2  #: SSRL: a collision with o adds every (free neighbour of o, action toward o)
     fewshot = (
         3  #: Algorithm 1: a recognised obstacle adds (s, a); a misrecognition collides and adds it
+    )
+
+
+class Rule(IntEnum):
+    """When a method that reasons with pictures stops before an obstacle it sees (section 3.2.2).
+    The same rule in every world: the grid's query pictures and the robot's live pictures meet it
+    through the one kernel; a comparison between worlds or methods holds it fixed.
+    """
+
+    paper = 0  #: the paper's: the prediction names the obstacle's true category (Algorithm 1)
+    open_set = 1  #: the top score of the picture is at least the threshold, whatever it names
+    range = (
+        2  #: the range sensor alone: every occupied cell ahead (the picture is still classified)
     )
 
 
@@ -102,6 +116,16 @@ def _add_unsafe(unsafe, s, a, source, added, n_added):
     return n_added + 1
 
 
+@nb.njit(cache=True, inline="always")
+def stops(rule, names_true_category, confident):
+    """Whether the robot stops before the obstacle it sees, under decision rule ``rule``."""
+    if rule == Rule.paper:
+        return names_true_category
+    if rule == Rule.open_set:
+        return confident
+    return True
+
+
 # Plain arguments, not the ``structs`` records: numba reference-counts every array of a tuple
 # argument on each call (a tenth of the kernel's speed when paid every step), and types a tuple
 # argument from Python more slowly than scalars (the Gymnasium env calls this every step).
@@ -110,6 +134,7 @@ def apply_action(
     s,
     a,
     safety,
+    rule,
     recovery,
     constrained,
     next_cell,
@@ -119,21 +144,24 @@ def apply_action(
     pictures,
     true_category,
     predicted,
+    confident,
     unsafe,
     added,
 ):
     """Apply action ``a`` in cell ``s`` for a method with safety rule ``safety`` (a ``Safety``),
-    ``recovery`` and ``constrained`` (``structs.MethodParams``).
+        decision rule ``rule`` (a :class:`Rule`), ``recovery`` and ``constrained``
+        (``structs.MethodParams``).
 
-    ``next_cell``, ``obstacle``, ``ssrl_pairs`` and ``goal`` are the maze's (``structs.MazeArrays``);
-    ``pictures[s, a]`` is the run's picture id table, ``true_category[o]`` the category of
-    obstacle ``o``, ``predicted[picture]`` the recogniser's current answer. ``unsafe`` (A_d) is
-    updated in place; each addition is written to a row ``(cell, action, source)`` of ``added``
-    (``empty_added``; ``source`` a ``Source``).
+        ``next_cell``, ``obstacle``, ``ssrl_pairs`` and ``goal`` are the maze's (``structs.MazeArrays``);
+        ``pictures[s, a]`` is the run's picture id table, ``true_category[o]`` the category of
+        obstacle ``o``, ``predicted[picture]`` the recogniser's current answer and ``confident[picture]``
+    whether its top score reaches the open-set threshold. ``unsafe`` (A_d) is
+        updated in place; each addition is written to a row ``(cell, action, source)`` of ``added``
+        (``empty_added``; ``source`` a ``Source``).
 
-    Returns ``(outcome, next_state, reward, terminal, flags, picture, n_added)``: an ``Outcome``
-    value (an int: numba hands enum members to Python slowly), ``StepFlag`` bits, the picture seen
-    (or -1) and the number of rows written to ``added``.
+        Returns ``(outcome, next_state, reward, terminal, flags, picture, n_added)``: an ``Outcome``
+        value (an int: numba hands enum members to Python slowly), ``StepFlag`` bits, the picture seen
+        (or -1) and the number of rows written to ``added``.
     """
     n_added = 0
     o = obstacle[s, a]
@@ -145,7 +173,7 @@ def apply_action(
     picture = -1
     if reasons_with_pictures(safety):
         picture = pictures[s, a]
-        if predicted[picture] == true_category[o]:
+        if stops(rule, predicted[picture] == true_category[o], confident[picture]):
             n_added = _add_unsafe(unsafe, s, a, Source.recognition, added, n_added)
             return Outcome.prevented.value, s, 0.0, False, 0, picture, n_added
     if safety != Safety.none:

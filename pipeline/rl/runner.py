@@ -10,7 +10,6 @@ Usage::
 from __future__ import annotations
 
 import contextlib
-from dataclasses import dataclass
 
 import numpy as np
 from tqdm.auto import tqdm
@@ -20,6 +19,8 @@ from pipeline.rl.codes import Status
 from pipeline.rl.methods import MethodSpec
 from pipeline.rl.recogniser import Recogniser
 from pipeline.rl.rng import run_seeds
+from pipeline.rl.rules import Rule
+from pipeline.rl.run_world import GRID, RunWorld, World, make_run_world
 from pipeline.rl.sink import EpisodeSink
 from pipeline.rl.structs import (
     Additions,
@@ -35,11 +36,8 @@ from pipeline.rl.structs import (
 from pipeline.rl.trial_result import TrialResult
 from pipeline.world.geometry import Geometry, build_geometry
 from pipeline.world.maze import Layout
-from pipeline.world.pictures import N_PICTURES, picture_category
-from pipeline.world.placement import Placement, picture_table, random_placement
 
-#: True category of every query picture id.
-PICTURE_CATEGORY = np.array([picture_category(p) for p in range(N_PICTURES)], dtype=np.int8)
+__all__ = ["RunWorld", "Trial", "make_run_world", "run_trials"]
 
 #: Steps a run's trace holds (10 bytes a step): a run's episodes go to the sink when it is full and at the end
 #: of the trial, so a paper-scale 11x11 run (about 23,500 steps) is one batch (the recording costs per batch).
@@ -47,21 +45,6 @@ TRACE_CAPACITY = 32768
 #: A recording sink gets every run's finished episodes at least every this many episodes (and when
 #: a run's step trace is full): with the writer's flush_seconds, what a killed run keeps.
 EMIT_EVERY = 500
-
-
-@dataclass(frozen=True)
-class RunWorld:
-    """One run's obstacles and what the robot sees from each (cell, action)."""
-
-    placement: Placement
-    pictures: np.ndarray  # (n_cells, 4) picture id or -1
-    true_category: np.ndarray  # (n_obstacles,)
-
-
-def make_run_world(geometry: Geometry, seed: int, run: int) -> RunWorld:
-    rng = np.random.default_rng(run_seeds(seed, run).placement)
-    placement = random_placement(len(geometry.layout.obstacles), rng)
-    return RunWorld(placement, picture_table(geometry, placement), placement.category.copy())
 
 
 class Trial:
@@ -82,12 +65,16 @@ class Trial:
         run_offset: int,
         trace_capacity: int,
         shared_support: bool,
+        world: World = GRID,
+        rule: Rule = Rule.paper,
+        threshold: float = 0.5,
     ) -> None:
         if runs < 1:
             raise ValueError(f"runs={runs}: must be >= 1")
         if episodes < 1:
             raise ValueError(f"episodes={episodes}: must be >= 1")
-        self.params = MethodParams.of(method)
+        self.params = MethodParams.of(method, rule)
+        self.rule, self.threshold = Rule(self.params.rule), float(threshold)
         reasons_with_pictures = rules.reasons_with_pictures(self.params.safety)
         if reasons_with_pictures and recogniser is None:
             raise ValueError(f"method {method.name!r} reasons with pictures: pass a recogniser")
@@ -100,7 +87,9 @@ class Trial:
         self.want_scores = self.record and self.asks_recogniser
         geometry = build_geometry(layout)
         self.maze = MazeArrays.of(layout, geometry)
-        self.worlds = [make_run_world(geometry, seed, run_offset + r) for r in range(runs)]
+        self.world = world
+        self.worlds = [world.run_world(geometry, seed, run_offset + r) for r in range(runs)]
+        self.picture_category = np.asarray(world.picture_category)
         self._allocate(geometry, trace_capacity)
 
     def _allocate(self, geometry: Geometry, trace_capacity: int) -> None:
@@ -108,12 +97,14 @@ class Trial:
         runs, layout, method = self.runs, self.layout, self.method
         # each dangerous pair (eq. 4) is seen and joins A_d at most once a run
         self.n_dangerous = max(1, int((geometry.obstacle >= 0).sum()))
+        n_pictures = max(1, len(self.picture_category))
         self.sights = Sights(
             pictures=np.stack([w.pictures for w in self.worlds]).astype(np.int16),
             true_category=np.stack([w.true_category for w in self.worlds]).astype(np.int8)
             if len(layout.obstacles)
             else np.zeros((runs, 1), np.int8),
-            predicted=np.zeros((runs, N_PICTURES), dtype=np.int8),
+            predicted=np.zeros((runs, n_pictures), dtype=np.int8),
+            confident=np.zeros((runs, n_pictures), dtype=np.bool_),
         )
         seeds = [run_seeds(self.seed, self.run_offset + r).agent for r in range(runs)]
         rng = np.array(seeds, dtype=np.uint64)
@@ -136,8 +127,20 @@ class Trial:
         return self.run_offset if self.shared_support else self.run_offset + r
 
     def support_accuracy(self, r: int) -> float:
-        """Accuracy of run ``r``'s current support set on the query pictures."""
-        return np.count_nonzero(self.sights.predicted[r] == PICTURE_CATEGORY) / N_PICTURES
+        """Accuracy of run ``r``'s current support set on the pictures the run can meet (the
+        grid's 40 query pictures; the robot's live pictures of the run)."""
+        seen = self.worlds[r].seen
+        right = self.sights.predicted[r, seen] == self.picture_category[seen]
+        return np.count_nonzero(right) / max(1, len(seen))
+
+    def answer(self, r: int) -> None:
+        """Run ``r``'s recogniser answers under its current support set: the predicted category of
+        every picture and, under the open-set rule, whether its top score reaches the threshold."""
+        self.sights.predicted[r] = self.recogniser.predictions(self.slot(r))
+        if self.rule == Rule.open_set:
+            seen = self.worlds[r].seen
+            scores = np.asarray(self.recogniser.scores(self.slot(r), seen))
+            self.sights.confident[r, seen] = scores.max(axis=1) >= self.threshold
 
     def start(self, r: int) -> None:
         """Give run ``r`` its recogniser (fresh or carried-over support set) and its answers."""
@@ -145,7 +148,7 @@ class Trial:
             return
         seed = run_seeds(self.seed, self.run_offset + r).recogniser
         self.recogniser.start_run(self.slot(r), seed)
-        self.sights.predicted[r] = self.recogniser.predictions(self.slot(r))
+        self.answer(r)
         self._tell_substitution(r, episode=0, step=0, picture=-1, category=-1, position=-1)
 
     def _tell_substitution(self, r: int, **where) -> None:
@@ -160,7 +163,7 @@ class Trial:
         sub = self.substitution
         picture, category = int(sub.picture[r]), int(sub.category[r])
         position = self.recogniser.learn_from_collision(self.slot(r), picture, category)
-        self.sights.predicted[r] = self.recogniser.predictions(self.slot(r))
+        self.answer(r)
         self._tell_substitution(
             r,
             episode=int(sub.episode[r]),
@@ -359,6 +362,9 @@ def run_trials(
     chunk_episodes: int = 100,
     trace_capacity: int = TRACE_CAPACITY,
     shared_support: bool = False,
+    world: World = GRID,
+    rule: Rule = Rule.paper,
+    threshold: float = 0.5,
 ) -> TrialResult:
     """Run ``runs`` independent runs (ids ``run_offset ..``) of ``episodes`` episodes each.
 
@@ -369,6 +375,10 @@ def run_trials(
     of one robot. They execute one after another and all use recogniser slot ``run_offset``, so a
     recogniser built to carry its support set over hands each run the set the previous run left.
     Q, A_d and the obstacle placement are still fresh for every run.
+
+    ``world`` (:mod:`.run_world`): what each run meets, the grid (default) or the camera robot
+    (``pipeline.robot.world.RobotWorld``); ``rule`` (:class:`~pipeline.rl.rules.Rule`) and
+    ``threshold``: when a picture stops the robot (the threshold only under ``Rule.open_set``).
     """
     trial = Trial(
         layout,
@@ -381,5 +391,8 @@ def run_trials(
         run_offset=run_offset,
         trace_capacity=trace_capacity,
         shared_support=shared_support,
+        world=world,
+        rule=rule,
+        threshold=threshold,
     )
     return trial.run(progress=progress, chunk_episodes=chunk_episodes)

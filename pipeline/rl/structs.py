@@ -17,7 +17,7 @@ from typing import NamedTuple
 import numpy as np
 
 from pipeline.rl.codes import Learner, member
-from pipeline.rl.rules import Safety
+from pipeline.rl.rules import Rule, Safety
 from pipeline.world.geometry import Geometry
 from pipeline.world.maze import Layout, shortest_path_length
 
@@ -35,10 +35,12 @@ class MethodParams(NamedTuple):
     constrained: bool  #: constrained RL: every violation ends the episode and decays epsilon
     dynamic: bool  #: misrecognised pictures substitute into the dynamic support set (section 3.3)
     max_steps: int  #: steps per episode before truncation
+    rule: int  #: a ``Rule`` code: when a picture stops the robot (``rules.stops``)
 
     @classmethod
-    def of(cls, method) -> MethodParams:
-        """From a ``MethodSpec``; its learner and safety may be config strings or enum members."""
+    def of(cls, method, rule: int | str = Rule.paper) -> MethodParams:
+        """From a ``MethodSpec`` and the decision rule (a ``Rule``, or its name); the method's
+        learner and safety may be config strings or enum members."""
         return cls(
             float(method.gamma),
             float(method.alpha),
@@ -50,6 +52,7 @@ class MethodParams(NamedTuple):
             bool(method.constrained),
             bool(method.dynamic_support),
             int(method.max_steps),
+            int(rule if isinstance(rule, int) else member(Rule, rule)),
         )
 
 
@@ -84,7 +87,8 @@ class Sights(NamedTuple):
 
     pictures: np.ndarray  #: (runs, n_cells, 4) int16 picture id on the obstacle face ahead, or -1
     true_category: np.ndarray  #: (runs, n_obstacles) int8 category of each obstacle
-    predicted: np.ndarray  #: (runs, N_PICTURES) int8 the recogniser's current answer per picture
+    predicted: np.ndarray  #: (runs, n_pictures) int8 the recogniser's current answer per picture
+    confident: np.ndarray  #: (runs, n_pictures) bool its top score reaches the open-set threshold
 
 
 class RunState(NamedTuple):

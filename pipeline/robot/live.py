@@ -1,60 +1,35 @@
-"""Recognisers of the robot's live camera pictures (issue 30): every recogniser of the grid, by
-name, asked about what the robot's camera sees (:mod:`.env`).
+"""Any recogniser asked about the robot's live pictures (issue 30): the recogniser protocol of
+``pipeline/rl/recogniser.py`` over the picture ids of a :class:`~.live_world.RobotWorld`, so the
+one runner drives recognition, A_d, self-recovery and the dynamic support set as on the grid.
 
-When the robot heads toward an occupied neighbour it takes a picture and asks
-``live_scores(run, view) -> (n_categories,)``; after a collision, dynamic methods call
-``learn_from_live(run, view) -> position`` (the support-set position replaced, or -1). A
-:class:`LiveView` holds what there is to know about that moment. :func:`live` wraps a grid
-recogniser into one of two kinds:
+:func:`live` wraps a grid recogniser in one of two ways:
 
-* :class:`LiveSupportSet` (``relation_net``, ``protonet``): the network scores the live picture
-  itself against the run's current support set, and the dynamic support set (section 3.3)
-  substitutes the live picture. Neither reads ``view.truth`` nor ``view.picture``.
-* :class:`LiveByPicture` (``oracle``, ``fixed_accuracy``, ``paper_tables``, or any recogniser of
-  query-picture ids): these are models of recognition, not recognisers of pixels. The robot's
-  picture is answered as the grid answers the query picture of the same obstacle's side
-  (``view.picture``, eq. 1): recognised when the model names the obstacle's category
-  (``view.truth``), as the grid's rule compares them. A recognised picture scores 1 on its
-  category, another 0 everywhere, so the robot's rule (top score at least ``robot.threshold``)
-  stops exactly where the grid's prevents. Self-recovery's substitution is the model's
-  ``learn_from_collision`` of that query picture. The oracle is thus the upper bound of
-  recognition (section 4, no misrecognition), and ``fixed_accuracy`` with ``p`` recognises a
-  side with probability ``p``, drawn once per run as on the grid.
+* a few-shot network (``relation_net``, ``protonet``: a
+  :class:`~pipeline.fewshot.support_recogniser.SupportSetRecogniser`) scores the live pictures
+  themselves. Each run gets the network over its own live pictures as the query set
+  (``for_pictures``: the same weights, the same original support set), so the dynamic support set
+  substitutes a live picture exactly as the grid substitutes a query picture (section 3.3), and the
+  network never reads the world's categories.
+* a model of recognition (``oracle``, ``fixed_accuracy``, ``paper_tables``, or any recogniser of
+  the query pictures' ids) is not a recogniser of pixels: a live picture is answered as the model
+  answers the query picture of the same side of the same obstacle (eq. 1), and self-recovery's
+  substitution is the model's ``learn_from_collision`` of that query picture. With the paper's rule
+  the robot then stops exactly where the grid does (tested).
 """
 
 from __future__ import annotations
 
-import hashlib
-from dataclasses import dataclass
-
 import numpy as np
-import torch
-from PIL import Image
 
-from pipeline.fewshot.data import to_tensor
 from pipeline.fewshot.support_recogniser import SupportSetRecogniser
-from pipeline.rl.oracle import TRUE_CATEGORY
-from pipeline.world.pictures import N_CATEGORIES
+from pipeline.robot.live_world import RobotWorld
 
 
-@dataclass(frozen=True)
-class LiveView:
-    """The robot at a cell centre, facing an occupied neighbour."""
-
-    image: np.ndarray  # (H, W, 3) uint8: its camera's picture, taken where it stands
-    truth: int  # the world's category on that cell (-1 none): read by models, never by networks
-    picture: int  # the query picture of the side it faces (-1 none): read by models only
-
-
-def live(recogniser) -> LiveSupportSet | LiveByPicture:
-    """The live-picture recogniser around a grid recogniser (one already live is returned)."""
-    if isinstance(recogniser, (LiveSupportSet, LiveByPicture)):
-        return recogniser
-    if isinstance(recogniser, SupportSetRecogniser):
-        return LiveSupportSet(recogniser)
+def live(recogniser, world: RobotWorld) -> LiveRecogniser:
+    """The recogniser of ``world``'s live pictures around a grid recogniser."""
     missing = [
         name
-        for name in ("start_run", "predictions", "learn_from_collision")
+        for name in ("start_run", "predictions", "scores", "learn_from_collision")
         if not callable(getattr(recogniser, name, None))
     ]
     if missing:
@@ -62,91 +37,71 @@ def live(recogniser) -> LiveSupportSet | LiveByPicture:
             f"{type(recogniser).__name__} cannot recognise live pictures: it has no "
             f"{', '.join(missing)} (pipeline/rl/recogniser.py)"
         )
-    return LiveByPicture(recogniser)
+    if isinstance(recogniser, SupportSetRecogniser) and recogniser.checkpoint is None:
+        raise ValueError("live pictures need a recogniser loaded from a checkpoint (from_files)")
+    return LiveRecogniser(recogniser, world)
 
 
-class LiveByPicture:
-    """A model of recognition on the robot: a live picture is answered as its query picture."""
+class LiveRecogniser:
+    """The recogniser protocol over ``world``'s live pictures (module docstring). Run ``run``'s
+    answers cover its own live pictures; every other id is answered -1 (no category)."""
 
-    def __init__(self, recogniser):
-        self.inner = recogniser
-        self.substitution_way = getattr(recogniser, "substitution_way", 0)
-        self.carry_over = getattr(recogniser, "carry_over", False)
-
-    def start_run(self, run: int, seed: int) -> None:
-        self.inner.start_run(run, seed)
+    def __init__(self, inner, world: RobotWorld):
+        self.inner, self.world = inner, world
+        self.substitution_way = getattr(inner, "substitution_way", 0)
+        self.carry_over = getattr(inner, "carry_over", False)
+        self.network = isinstance(inner, SupportSetRecogniser)
+        self._runs: dict[
+            int, tuple[int, object]
+        ] = {}  # run -> (first id, network over its pictures)
 
     def describe(self) -> dict | None:
         describe = getattr(self.inner, "describe", None)
-        return None if describe is None else {**describe(), "live_pictures": "query picture"}
-
-    def live_scores(self, run: int, view: LiveView) -> np.ndarray:
-        """1 on ``view.truth`` when the model names it for ``view.picture``; else all 0."""
-        out = np.zeros(N_CATEGORIES, dtype=np.float32)
-        if view.picture >= 0 and view.truth >= 0:
-            if int(self.inner.predictions(run)[view.picture]) == view.truth:
-                out[view.truth] = 1.0
-        return out
-
-    def learn_from_live(self, run: int, view: LiveView) -> int:
-        """The model's ``learn_from_collision`` of the query picture of the side the robot hit."""
-        if view.picture < 0:
-            return -1
-        return int(self.inner.learn_from_collision(run, view.picture, view.truth))
-
-    def support_accuracy(self, run: int) -> float:
-        """The share of the query pictures the model names right in run ``run``."""
-        return float(np.mean(self.inner.predictions(run) == TRUE_CATEGORY))
-
-
-class LiveSupportSet:
-    """A few-shot network (paper section 3.2.1, eq. 2; or a Prototypical Network) on live
-    pictures, around a loaded :class:`SupportSetRecogniser` (its runs, support sets and table):
-    the picture is resized to the checkpoint's input (bilinear, as ``fewshot.data.load_image``),
-    normalised with its statistics, embedded, and scored against the run's current class states.
-
-    The dynamic support set (section 3.3) substitutes the live picture:
-    :meth:`learn_from_live` gives it a member code ``LIVE_CODE_BASE +`` 48 bits of its bytes'
-    SHA-256 (the same picture is the same member everywhere, so the shared score columns stay
-    right) and puts it at the position the substitution way chooses."""
-
-    LIVE_CODE_BASE = 1 << 20
-
-    def __init__(self, recogniser: SupportSetRecogniser):
-        if recogniser.checkpoint is None:
-            raise ValueError(
-                "live pictures need a recogniser loaded from a checkpoint (from_files)"
-            )
-        self.inner = recogniser
-        self.substitution_way = recogniser.substitution_way
-        self.carry_over = recogniser.carry_over
-        self.size = recogniser.network.config.input_size
-        norm = recogniser.checkpoint["normalisation"]
-        self._mean, self._std = norm["mean"], norm["std"]
+        inner = describe() if describe is not None else None
+        how = "scored" if self.network else "answered as the query picture of the same face"
+        return {**(inner or {}), "live_pictures": how}
 
     def start_run(self, run: int, seed: int) -> None:
-        self.inner.start_run(run, seed)
+        first, got = self.world.run_pictures(run)
+        own = None
+        if self.network and len(got.pairs):
+            own = self.inner.for_pictures(got.images, got.category)
+            own.start_run(0, seed)
+        elif not self.network:
+            self.inner.start_run(run, seed)
+        self._runs[run] = (first, own, got)
 
-    def describe(self) -> dict:
-        return {**self.inner.describe(), "live_pictures": True}
+    def _local(self, run: int, ids) -> tuple[np.ndarray, object, object]:
+        if run not in self._runs:
+            raise KeyError(f"run {run} was not started; call start_run({run}, seed) first")
+        first, own, got = self._runs[run]
+        local = np.asarray(ids, np.int64) - first
+        if local.size and (local.min() < 0 or local.max() >= len(got.pairs)):
+            raise ValueError(f"run {run} sees live pictures {first}..{first + len(got.pairs) - 1}")
+        return local, own, got
 
-    def _parts(self, image: np.ndarray) -> tuple[torch.Tensor, torch.Tensor]:
-        im = Image.fromarray(np.asarray(image, dtype=np.uint8))
-        if im.size != (self.size, self.size):
-            im = im.resize((self.size, self.size), Image.Resampling.BILINEAR)
-        return self.inner.outside_parts(to_tensor(np.array(im)[None], self._mean, self._std))
+    def predictions(self, run: int) -> np.ndarray:
+        self._local(run, [])  # a run that was not started is refused
+        first, own, got = self._runs[run]
+        out = np.full(self.world.n_pictures, -1, np.int8)
+        if own is not None:
+            out[first : first + len(got.pairs)] = own.predictions(0)
+        elif not self.network and len(got.pairs):
+            out[first : first + len(got.pairs)] = self.inner.predictions(run)[got.query]
+        return out
 
-    def live_scores(self, run: int, view: LiveView) -> np.ndarray:
-        """Scores (C,) of the live picture; ``view.truth`` and ``view.picture`` are not read."""
-        return self.inner.score_outside(run, self._parts(view.image)[1])
+    def scores(self, run: int, picture_ids) -> np.ndarray:
+        local, own, got = self._local(run, picture_ids)
+        if own is not None:
+            return own.scores(0, local)
+        if self.network:  # a run without live pictures
+            return np.zeros((0, self.inner.n_way), np.float32)
+        return np.asarray(self.inner.scores(run, got.query[local]))
 
-    def learn_from_live(self, run: int, view: LiveView) -> int:
-        """Substitute the live picture into ``view.truth``'s support members (the world tells the
-        category of what the robot hit, as in the grid world); the position, or -1."""
-        data = np.ascontiguousarray(view.image, dtype=np.uint8).tobytes()
-        code = self.LIVE_CODE_BASE + int.from_bytes(hashlib.sha256(data).digest()[:6], "big")
-        return self.inner.substitute_outside(run, code, self._parts(view.image)[0], view.truth)
-
-    def support_accuracy(self, run: int) -> float:
-        """The share of the query pictures run ``run``'s support set recognises."""
-        return float(np.mean(self.inner.predictions(run) == self.inner.query_categories))
+    def learn_from_collision(self, run: int, picture_id: int, true_category: int) -> int:
+        """Self-recovery's reflection (section 3.3) on the live picture ``picture_id``: into the run's
+        support set (networks), or the model's learning of the same face's query picture."""
+        local, own, got = self._local(run, [picture_id])
+        if own is not None:
+            return own.learn_from_collision(0, int(local[0]), true_category)
+        return int(self.inner.learn_from_collision(run, int(got.query[local[0]]), true_category))

@@ -1,26 +1,25 @@
-"""The robot moving under physics between grid cells (issue 30; the paper's discretisation,
-section 5: decisions stay on the grid).
+"""The robot under physics at one grid cell (issue 30; the paper's discretisation, section 5:
+decisions stay on the grid).
 
-:class:`RobotSim` holds one compiled world (:func:`pipeline.robot.world.build_world`) and
-moves the robot one cell at a time: :meth:`RobotSim.move` turns it in place to the move's heading,
-then drives it to the next cell's centre, with wheel speeds inside the Burger's limits
-(:func:`wheel_limited`). A collision is a MuJoCo contact between the robot's body and an obstacle
-or a wall, detected after every control tick; the robot then stops and self-recovery drives it
-backwards to the previous cell's centre (section 3.3).
+:class:`RobotSim` holds one compiled world (:func:`pipeline.robot.world.build_world`). From a
+settled pose on a cell centre (:meth:`RobotSim.place`) it turns in place to a move's heading
+(:meth:`RobotSim.turn`), drives toward the next centre (:meth:`RobotSim.drive`) with wheel speeds
+inside the Burger's limits (:func:`wheel_limited`), reads its range sensor and takes pictures. A
+collision is a MuJoCo contact between the robot's body and an obstacle or a wall, detected after
+every control tick; the robot then stops and self-recovery drives it backwards to the previous
+cell's centre (section 3.3).
 
-Cost (issue 30, "What it costs"): the control loop runs at :data:`CONTROL_HZ` (10 Hz, also the rate
-at which the pose is recorded) and each tick is one ``mj_step(model, data, nstep=k)`` call of
-``k = 1 / (CONTROL_HZ * timestep)`` physics steps (5 at the default 20 ms step), so Python runs once per
-tick, not once per step. Sensors (36 rangefinders) are disabled while driving and computed only
-when the range sensor is read (:meth:`RobotSim.scan`).
+The control loop runs at :data:`CONTROL_HZ` (10 Hz, the rate of the recorded poses); each tick is
+one ``mj_step(model, data, nstep=k)`` call of ``k = 1 / (CONTROL_HZ * timestep)`` physics steps.
+Sensors (36 rangefinders) are disabled while driving and computed only when the range sensor is
+read (:meth:`RobotSim.scan`).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
 import numpy as np
 
+from pipeline.robot.limits import check_settings
 from pipeline.robot.model import (
     CAMERA,
     GEOM,
@@ -64,18 +63,6 @@ def wheel_limited(v: float, omega: float) -> tuple[float, float]:
     )
 
 
-@dataclass
-class MoveResult:
-    """One grid move under physics."""
-
-    cell: int  # where the robot stands at the end (the target, or the start after recovery)
-    collided: bool
-    contact: tuple[float, float, float] | None  # the first contact's world point
-    contact_geom: str | None  # what the robot touched (an obstacle's box or a wall)
-    sim_time: float  # simulated seconds the move took (turn, drive, recovery)
-    poses: list[tuple[float, float, float, float]] = field(default_factory=list)  # (t, x, y, yaw)
-
-
 class RobotSim:
     """The robot in one run's maze. ``timestep`` is MuJoCo's (s); the controller ticks at
     :data:`CONTROL_HZ`."""
@@ -88,11 +75,8 @@ class RobotSim:
         timestep: float = 0.02,
         render_seed: int = 0,
     ):
+        check_settings(cell, timestep)
         substeps = round(1.0 / (CONTROL_HZ * timestep))
-        if substeps < 1 or abs(substeps * timestep * CONTROL_HZ - 1.0) > 1e-9:
-            raise ValueError(
-                f"timestep={timestep}: must divide the control period 1/{CONTROL_HZ} s evenly"
-            )
         spec, self.map = build_world(layout, placement, cell, render_seed)
         spec.option.timestep = float(timestep)
         self.model = spec.compile()
@@ -104,7 +88,6 @@ class RobotSim:
         self._obstacle_geoms = {m.geom(g).id: g for g in self.map.obstacle_geoms}
         self._wall_geoms = {m.geom(f"wall{k}").id: f"wall{k}" for k in range(4)}
         self._sensors_off()
-        self.time = 0.0  # simulated seconds since reset
         self.physics_steps = 0
         self.camera_id = m.camera(CAMERA).id
         self._renderer = self._overview = None
@@ -120,13 +103,17 @@ class RobotSim:
     def _sensors_off(self) -> None:
         self.model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
 
-    def reset(self, cell: int, heading: int = 0) -> None:
-        """Robot at rest on ``cell``'s centre facing action ``heading``'s direction."""
-        mujoco.mj_resetData(self.model, self.data)
+    def place(self, cell: int, action: int = 0) -> None:
+        """The robot at rest exactly on ``cell``'s centre, facing ``action``'s heading: the settled
+        pose every grid move starts from (the robot re-localises at each centre)."""
         x, y = self.map.centre(cell)
-        self.data.qpos[:] = [x, y, HEADINGS[heading]]
+        self.put(x, y, HEADINGS[action])
+
+    def put(self, x: float, y: float, yaw: float) -> None:
+        """The robot at rest at ``(x, y)`` facing ``yaw`` (radians)."""
+        mujoco.mj_resetData(self.model, self.data)
+        self.data.qpos[:] = [x, y, yaw]
         mujoco.mj_forward(self.model, self.data)
-        self.time = 0.0
 
     def pose(self) -> tuple[float, float, float]:
         x, y, yaw = self.data.qpos[:3]
@@ -181,8 +168,7 @@ class RobotSim:
         self.data.ctrl[:] = [v * np.cos(yaw), v * np.sin(yaw), omega]
         mujoco.mj_step(self.model, self.data, nstep=self.substeps)
         self.physics_steps += self.substeps
-        self.time += self.dt
-        poses.append((round(self.time, 6), *self.pose()))
+        poses.append(self.pose())
 
     def _stop(self, poses: list) -> None:
         self._tick(0.0, 0.0, poses)
@@ -222,12 +208,28 @@ class RobotSim:
                     return hit
         raise RuntimeError(f"robot did not reach {target} in {MAX_TICKS} ticks")
 
-    def face(self, action: int) -> MoveResult:
-        """Turn in place toward ``action``'s heading (before a picture); a move of no cell."""
-        start, poses = self.time, []
+    def turn(self, action: int) -> list:
+        """Turn in place to ``action``'s heading; the poses (x, y, yaw) of its ticks."""
+        poses: list = []
         self._turn(HEADINGS[action], poses)
-        cell = self.map.cell_at(self.pose()[:2])
-        return MoveResult(cell, False, None, None, self.time - start, poses)
+        return poses
+
+    def drive(self, action: int, recover: bool) -> tuple[list, tuple | None, int]:
+        """Drive from the centre the robot stands on toward ``action``'s neighbour (already facing
+        it). On a contact the robot stops and, with ``recover``, drives backwards to the centre it
+        left (self-recovery). Returns the poses of the ticks, the first contact ``(point, what)``
+        or None, and the number of ticks up to and including the stop after the contact."""
+        poses: list = []
+        start = self.map.centre(self.map.cell_at(self.pose()[:2]))
+        dx, dy = np.cos(HEADINGS[action]), np.sin(HEADINGS[action])
+        target = start + self.map.cell * np.array([dx, dy])
+        hit = self._drive(target, poses, backwards=False, watch=True)
+        self._stop(poses)
+        stopped = len(poses)
+        if hit is not None and recover:
+            self._drive(start, poses, backwards=True, watch=False)
+            self._stop(poses)
+        return poses, hit, stopped
 
     def picture(self, size: int) -> np.ndarray:
         """The forward camera's picture (RGB uint8), the centre ``size`` x ``size`` square of its
@@ -261,28 +263,3 @@ class RobotSim:
             if r is not None:
                 r.close()
         self._renderer = self._overview = None
-
-    def move(self, cell: int, action: int, recover: bool = True) -> MoveResult:
-        """Move from ``cell``'s centre toward ``action``'s neighbour. An off-grid move leaves the
-        robot where it is (as in the grid world). On a contact the robot stops and, with
-        ``recover``, drives backwards to ``cell``'s centre (self-recovery)."""
-        start_time = self.time
-        poses: list = []
-        if not self.inside(cell, action):
-            return MoveResult(cell, False, None, None, 0.0, poses)
-        w = self.map.layout.width
-        dr, dc = MOVES[action]
-        target_cell = cell + dr * w + dc
-        self._turn(HEADINGS[action], poses)
-        hit = self._drive(self.map.centre(target_cell), poses, backwards=False, watch=True)
-        if hit is None:
-            self._stop(poses)
-            return MoveResult(target_cell, False, None, None, self.time - start_time, poses)
-        self._stop(poses)
-        if recover:
-            self._drive(self.map.centre(cell), poses, backwards=True, watch=False)
-            self._stop(poses)
-            end = cell
-        else:
-            end = self.map.cell_at(self.pose()[:2])
-        return MoveResult(end, True, hit[0], hit[1], self.time - start_time, poses)

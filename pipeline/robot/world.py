@@ -24,6 +24,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from pipeline.robot.limits import check_settings
 from pipeline.robot.model import add_robot
 from pipeline.world.layout import Layout
 from pipeline.world.obstacle_models import build_obstacle, obstacle_seed
@@ -41,6 +42,11 @@ from pipeline.world.scenes import (
 from pipeline.world.shapes import ObjectModel, yaw_quat
 
 DEFAULT_CELL = 1.0
+ARENA_BYTES, ARENA_BYTES_PER_OBSTACLE = 64 * 2**20, 16 * 2**10
+#: The most geoms MuJoCo's renderer draws (``mujoco.Renderer``'s ``max_geom``); an obstacle is at
+#: most 8 drawn parts, the robot, floor and walls fewer than 100: the live pictures' limit.
+RENDER_GEOMS, GEOMS_PER_OBSTACLE, OTHER_GEOMS = 10_000, 8, 100
+MAX_SEEN_OBSTACLES = (RENDER_GEOMS - OTHER_GEOMS) // GEOMS_PER_OBSTACLE
 WALL_HEIGHT = 0.4
 WALL_HALF_THICKNESS = 0.05
 FOOTPRINT_CAP = 0.45  # of a cell: an obstacle's collision box stays inside its cell
@@ -111,14 +117,15 @@ def build_world(
 ):
     """``(MjSpec, WorldMap)``: floor, walls, the placed obstacles and the robot (at the origin;
     :class:`pipeline.robot.sim.RobotSim` puts it on the start cell)."""
-    if not cell > 0:
-        raise ValueError(f"cell size must be positive, got {cell}")
+    check_settings(cell, 0.02)
     if len(placement.physical) != len(layout.obstacles):
         raise ValueError(
             f"placement has {len(placement.physical)} obstacles, layout {len(layout.obstacles)}"
         )
     spec = mujoco.MjSpec()
     spec.modelname = "robot_maze"
+    # MuJoCo's arena (its stack): the collision pass of a large maze needs about 10 kB an obstacle
+    spec.memory = ARENA_BYTES + ARENA_BYTES_PER_OBSTACLE * len(layout.obstacles)
     spec.option.timestep = 0.02
     spec.option.gravity = [0.0, 0.0, -9.81]
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST

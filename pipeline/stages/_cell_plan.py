@@ -26,7 +26,7 @@ from pipeline.stages._schema import Experiment, TrialsConfig
 
 #: Keys a cell may pin; the top level (experiment globals, command line) gives the others. A cell
 #: also pins method fields (``params``) and recogniser arguments (``recogniser``).
-CELL_KEYS = ("maze", "substitution", "support", "world")
+CELL_KEYS = ("maze", "substitution", "support", "world", "rule")
 
 
 def parse_overrides(overrides: list[str]) -> dict[str, Any]:
@@ -108,6 +108,7 @@ def experiment_cells(cfg: TrialsConfig, overrides: list[str]) -> dict[str, Trial
                 cell.substitution,
                 cell.support,
                 cell.world,
+                cell.rule,
             ],
             default=str,
         )
@@ -170,6 +171,8 @@ ONLY_FOR = {
         lambda m: m.uses_recogniser,
     ),
     "support": ("methods that recognise pictures (safety: fewshot)", lambda m: m.uses_recogniser),
+    "rule": ("methods that recognise pictures (safety: fewshot)", lambda m: m.uses_recogniser),
+    "threshold": ("methods that recognise pictures (safety: fewshot)", lambda m: m.uses_recogniser),
     "substitution": (
         "methods with a dynamic support set (dynamic_support: true)",
         lambda m: m.dynamic_support,
@@ -188,6 +191,11 @@ def refuse_inapplicable(configs: dict[str, TrialsConfig], given: dict[str, Any])
         if head == "robot" and not any(c.world == "robot3d" for c in configs.values()):
             raise ConfigError(
                 f"config key '{key}': read only with world=robot3d; this run has none: "
+                "the override cannot apply"
+            )
+        if head == "threshold" and not any(c.rule == "open_set" for c in configs.values()):
+            raise ConfigError(
+                f"config key '{key}': read only with rule=open_set; this run has none: "
                 "the override cannot apply"
             )
         if head in ONLY_FOR:

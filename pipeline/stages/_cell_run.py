@@ -23,7 +23,9 @@ from pipeline.errors import ConfigError, Interrupted, UserError
 from pipeline.files import disk_problem, size_text, write_json_atomic
 from pipeline.rl.methods import MethodSpec
 from pipeline.rl.rng import run_seeds
-from pipeline.rl.runner import make_run_world, run_trials
+from pipeline.rl.rules import Rule
+from pipeline.rl.run_world import run_placement
+from pipeline.rl.runner import run_trials
 from pipeline.stages._common import one_line
 from pipeline.stages._recognisers import build_recogniser
 from pipeline.stages._schema import TrialsConfig
@@ -87,19 +89,51 @@ def make_recogniser(cfg: TrialsConfig, key: str = "recogniser", built: dict | No
         if share is not None:
             built[share] = recogniser
     # the robot's cells share the grid's recogniser (each run restores its support set) and see
-    # live pictures through a wrapper of their own
-    return live_recogniser(recogniser, key) if cfg.world == "robot3d" else recogniser
+    # their live pictures through a wrapper made with the cell's world (:func:`cell_world`)
+    return recogniser
 
 
-def live_recogniser(recogniser, key: str):
-    """The robot's recogniser of live camera pictures around a built one (``pipeline.robot.live``);
-    one that cannot be asked about them is refused, naming the key."""
+def cell_world(cell: CellRun):
+    """The world the cell runs in (``pipeline.rl.run_world``): the grid, or the camera robot with
+    every run's live pictures rendered (a bar on stderr with ``progress``) and the cell's
+    recogniser wrapped to answer them (``pipeline.robot.live``; one that cannot is refused)."""
+    from pipeline.rl.run_world import GRID
+
+    cfg = cell.config
+    if cfg.world != "robot3d":
+        return GRID, cell.recogniser
+    from tqdm.auto import tqdm
+
     from pipeline.robot.live import live
+    from pipeline.robot.live_world import RobotSettings, RobotWorld
 
+    if cfg.support == "carry":
+        raise ConfigError("config key 'support': world=robot3d runs support=restore only")
     try:
-        return live(recogniser)
+        settings = RobotSettings(cfg.robot.cell, cfg.robot.timestep)
     except ValueError as exc:
-        raise ConfigError(f"config key '{key}': world=robot3d: {exc}") from None
+        raise ConfigError(f"config key 'robot': {exc}") from None
+    try:
+        world = RobotWorld(cell.layout, settings, live_pictures=cell.method.uses_recogniser)
+    except ValueError as exc:
+        raise ConfigError(f"config key 'maze': world=robot3d: {exc}") from None
+    world.describe()  # the motion table: a cell size it cannot run is refused before any run
+    if not world.live_pictures:
+        return world, cell.recogniser
+    geometry = build_geometry(cell.layout)
+    desc = f"{_named(cell)}: live pictures"
+    bar = tqdm(range(cfg.runs), desc=desc, unit="run", disable=not cfg.progress, leave=False)
+    try:
+        for r in bar:
+            world.run_world(geometry, cfg.seed, r)
+    except ValueError as exc:
+        raise ConfigError(f"config key 'runs': world=robot3d: {exc}") from None
+    finally:
+        bar.close()
+    try:
+        return world, live(cell.recogniser, world)
+    except ValueError as exc:
+        raise ConfigError(f"config key '{cell.recogniser_key}': world=robot3d: {exc}") from None
 
 
 def pictures_dir(cfg: TrialsConfig) -> str | None:
@@ -153,14 +187,18 @@ def recorded_config(cell: CellRun) -> dict:
     }
 
 
-def open_records(cell: CellRun, folder: Path):
+def open_records(cell: CellRun, folder: Path, world=None, recogniser=None):
     """The record writer of ``folder / records.mcap`` (docs/records.md): the config, seeds and cell
-    as metadata, the maze, each run's obstacle placement and the pictures the records keep."""
+    as metadata, the maze, each run's obstacle placement and the pictures the records keep (the
+    robot's: its live pictures, and its motion table as ``info.robot``)."""
     from pipeline.records.writer import RecordWriter
 
     cfg, layout, runs, seed = cell.config, cell.layout, cell.config.runs, cell.config.seed
     geometry = build_geometry(layout)
-    describe = getattr(cell.recogniser, "describe", None)
+    recogniser = cell.recogniser if recogniser is None else recogniser
+    describe = getattr(recogniser, "describe", None)
+    robot = world is not None and world.name == "robot3d"
+    pictures = (world.picture_png() if world.live_pictures else {}) if robot else cell.pictures
     return RecordWriter(
         folder / "records.mcap",
         metadata={
@@ -174,6 +212,7 @@ def open_records(cell: CellRun, folder: Path):
                 "support": cfg.support,
                 "recogniser": describe() if describe is not None else None,
             },
+            **({"robot": world.describe()} if robot else {}),
         },
         maze={
             "layout": list(layout.rows),
@@ -182,11 +221,8 @@ def open_records(cell: CellRun, folder: Path):
             "actions": ACTION_NAMES,
             "moves": MOVES,
         },
-        runs=[
-            make_run_world(geometry, seed, r).placement.as_records(layout.obstacles)
-            for r in range(runs)
-        ],
-        pictures=cell.pictures,
+        runs=[run_placement(geometry, seed, r).as_records(layout.obstacles) for r in range(runs)],
+        pictures=pictures,
         support_pictures=cell.support,
         flush_every=cfg.flush_every,
         steps=cfg.record == "steps",
@@ -218,55 +254,36 @@ def _space_needed(cell: CellRun, folder: Path, writer) -> str:
     )
 
 
-def _run_robot(cell: CellRun, folder: Path, writer):
-    """A ``world=robot3d`` cell: :func:`pipeline.robot.trials.run_robot_trials` into the grid's
-    records and ``robot.mcap`` (:mod:`pipeline.robot.records`)."""
-    from pipeline.robot.records import RobotRecordWriter
-    from pipeline.robot.trials import RobotSettings, run_robot_trials
-
-    cfg = cell.config
-    if cfg.support == "carry":
-        raise ConfigError("config key 'support': world=robot3d runs support=restore only")
-    settings = RobotSettings(cfg.robot.cell, cfg.robot.timestep, cfg.robot.threshold)
-    robot_writer = None
-    if cfg.record != "none":
-        robot_writer = RobotRecordWriter(
-            folder / "robot.mcap", {**asdict(settings), "control_hz": 10, "maze": cell.layout.name}
-        )
-    result = run_robot_trials(
-        cell.layout, cell.method, cfg.runs, cfg.episodes, cfg.seed, recogniser=cell.recogniser,
-        sink=writer, robot_sink=robot_writer, settings=settings,
-    )  # fmt: skip
-    return result, robot_writer
-
-
 def run_cell(cell: CellRun, folder: Path, progress: bool | None = None) -> tuple[dict, float]:
     """Run one cell into ``folder`` (records, ``summary.json``); its summary and trial seconds.
     ``progress``: the runner's per-episode bar (default ``cfg.progress``)."""
     cfg, method = cell.config, cell.method
     try:
-        writer = open_records(cell, folder) if cfg.record != "none" else None
+        world, recogniser = cell_world(cell)
+    except KeyboardInterrupt:
+        raise Interrupted(130, f"interrupted before {_named(cell)} ran; nothing recorded") from None
+    try:
+        writer = open_records(cell, folder, world, recogniser) if cfg.record != "none" else None
     except OSError as exc:
         raise (
             disk_problem(exc, folder, f"{_named(cell)} could not start its records") or exc
         ) from None
     t0 = time.perf_counter()
-    robot_writer = None
     try:
-        if cfg.world == "robot3d":
-            result, robot_writer = _run_robot(cell, folder, writer)
-        else:
-            result = run_trials(
-                cell.layout,
-                method,
-                cfg.runs,
-                cfg.episodes,
-                cfg.seed,
-                recogniser=cell.recogniser,
-                sink=writer,
-                progress=cfg.progress if progress is None else progress,
-                shared_support=cfg.support == "carry",
-            )
+        result = run_trials(
+            cell.layout,
+            method,
+            cfg.runs,
+            cfg.episodes,
+            cfg.seed,
+            recogniser=recogniser,
+            sink=writer,
+            progress=cfg.progress if progress is None else progress,
+            shared_support=cfg.support == "carry",
+            world=world,
+            rule=Rule[cfg.rule],
+            threshold=cfg.threshold,
+        )
     except (KeyboardInterrupt, Interrupted) as exc:
         code = exc.code if isinstance(exc, Interrupted) else 130
         if writer is None:
@@ -296,8 +313,6 @@ def run_cell(cell: CellRun, folder: Path, progress: bool | None = None) -> tuple
     try:
         if writer is not None:
             writer.close()
-        if robot_writer is not None:
-            robot_writer.close()
         # no wall-clock figures: same seed, same bytes
         write_json_atomic(folder / "summary.json", summary)
     except OSError as exc:

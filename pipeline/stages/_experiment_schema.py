@@ -13,6 +13,7 @@ from typing import Any
 
 from pipeline.errors import ConfigError
 from pipeline.report.spec import ReportSpec
+from pipeline.robot.limits import CELL_RANGE, TIMESTEP_RANGE
 from pipeline.schema import setting
 
 SUPPORT_MODES = ("restore", "carry")
@@ -20,16 +21,18 @@ SUPPORT_MODES = ("restore", "carry")
 WORLDS = ("grid", "robot3d")
 
 
+#: The decision rules (``pipeline.rl.rules.Rule``): when a picture stops the robot.
+RULES = ("paper", "open_set", "range")
+
+
 @dataclass
 class RobotConfig:
     """The camera robot's world (``world=robot3d``, docs/robot3d.md)."""
 
-    cell: float = setting(1.0, gt=0)
-    """Metres per grid cell: 1.0, the cell the query pictures were rendered for (``render.maze.cell``)."""
-    timestep: float = setting(0.02, gt=0, le=0.1)
-    """MuJoCo's physics step (s); it must divide the controller's 0.1 s tick."""
-    threshold: float = setting(0.5, gt=0, le=1)
-    """A live picture whose top score reaches this is an obstacle the robot does not drive into."""
+    cell: float = setting(1.0, ge=CELL_RANGE[0], le=CELL_RANGE[1])
+    """Metres per grid cell: 1.0, the cell the query pictures were rendered for (``render.maze.cell``); 0.5-2 m (the robot turns clear of a neighbour's obstacle; its range sensor reads the neighbour)."""
+    timestep: float = setting(0.02, ge=TIMESTEP_RANGE[0], le=TIMESTEP_RANGE[1])
+    """MuJoCo's physics step (s), 0.001-0.05, dividing the controller's 0.1 s tick."""
 
 
 SUBSTITUTION_WAYS = (1, 2, 3, 4)
@@ -50,6 +53,8 @@ class Cell:
     """The cell's support-set mode (as the top-level ``support``); none: the top level's."""
     world: str | None = setting(None, choices=WORLDS)
     """The cell's world (as the top-level ``world``); none: the top level's."""
+    rule: str | None = setting(None, choices=RULES)
+    """The cell's decision rule (as the top-level ``rule``); none: the top level's."""
     params: dict[str, Any] = field(default_factory=dict)
     """Method fields this cell pins (``{alpha: 0.05}``); the command line does not change them."""
     recogniser: dict[str, Any] = field(default_factory=dict)

@@ -22,6 +22,7 @@ from pipeline.fewshot.settings import StudyConfig, TrainConfig
 from pipeline.rl.methods import MethodSpec
 from pipeline.schema import setting
 from pipeline.stages._experiment_schema import (  # noqa: F401  (the experiment group's schema)
+    RULES,
     SUBSTITUTION_WAYS,
     SUPPORT_MODES,
     WORLDS,
@@ -31,87 +32,12 @@ from pipeline.stages._experiment_schema import (  # noqa: F401  (the experiment 
     LayoutSet,
     RobotConfig,
 )
+from pipeline.stages._profile_schema import Profile
+from pipeline.stages._render_schema import RenderConfig  # the render stage's schema
 
 VIEWERS = ("none", "web", "native")
 RECORD_LEVELS = ("steps", "episodes", "none")
 DATA_SOURCES = ("rendered", "folder")
-
-
-# ---------------------------------------------------------------- profile (pipeline/conf/profile/*.yaml)
-@dataclass
-class RenderProfile:
-    """The render stage's scale (its keys of the same names read these)."""
-
-    n_train_classes: int = setting(ge=0)
-    """Meta-training classes (the paper: miniImageNet's 64)."""
-    n_val_classes: int = setting(ge=0)
-    """Held-out validation classes that pick the checkpoint."""
-    n_test_classes: int = setting(ge=0)
-    """Held-out test classes that give the quoted accuracy (Ravi and Larochelle: 20)."""
-    per_class: int = setting(ge=1)
-    """Pictures per meta-training class."""
-    views_per_obstacle: int = setting(ge=0)
-    """Pictures per query obstacle in the colour test's larger query-like set (split ``views``)."""
-    workers: int = setting(ge=1)
-    """Render processes."""
-
-
-@dataclass
-class TrialsProfile:
-    """The trials' scale (the keys ``runs`` and ``episodes`` and the generated layouts read these)."""
-
-    runs: int = setting(ge=1)
-    """Independent runs per cell."""
-    episodes: int = setting(ge=1)
-    """Episodes per run."""
-    layouts: int = setting(ge=1)
-    """Generated layouts per size of an experiment's layout sets (``generalisation.yaml`` reads it as each set's ``count``)."""
-    layout_runs: int = setting(ge=1)
-    """Runs per cell of an experiment over generated layouts (``generalisation.yaml``'s ``runs``)."""
-    repetition_layouts: int = setting(ge=1)
-    """Generated layouts per repetition count of ``pipeline/conf/experiment/repetition.yaml``."""
-    repetition_runs: int = setting(ge=1)
-    """Runs per cell of ``repetition.yaml``."""
-
-
-@dataclass
-class MetaTrainProfile:
-    """Meta-training's scale (``train.<key>`` of ``pipeline/conf/meta_train.yaml`` reads these)."""
-
-    episodes: int = setting(ge=1)
-    """Training episodes of the Relation Network."""
-    protonet_episodes: int = setting(ge=1)
-    """Training episodes of the Prototypical Network (``model=protonet``): it levels off sooner."""
-    val_every: int = setting(ge=1)
-    """Training episodes between model-selection evaluations."""
-    val_episodes: int = setting(ge=1)
-    """Model-selection episodes (validation classes only)."""
-    eval_episodes: int = setting(ge=1)
-    """Episodes of the reported accuracy and its 95% interval."""
-    eval_queries: int = setting(ge=1)
-    """Query pictures per class in those episodes."""
-
-
-@dataclass
-class AccuracyProfile:
-    """The accuracy study's scale."""
-
-    repeats: int = setting(ge=1)
-    """Repetitions per substituted category (the paper: 100, giving x/800)."""
-
-
-@dataclass
-class Profile:
-    """The scale of every stage: ``paper`` (the default of ``dvc repro``) or ``smoke``."""
-
-    render: RenderProfile = field(default_factory=RenderProfile)
-    """The render stage's scale."""
-    trials: TrialsProfile = field(default_factory=TrialsProfile)
-    """The trials' scale."""
-    meta_train: MetaTrainProfile = field(default_factory=MetaTrainProfile)
-    """Meta-training's scale."""
-    accuracy: AccuracyProfile = field(default_factory=AccuracyProfile)
-    """The accuracy study's scale."""
 
 
 # ---------------------------------------------------------------- trials
@@ -135,6 +61,10 @@ class TrialsConfig:
     """``grid``: the grid world (the paper's); ``robot3d``: the camera robot in MuJoCo (docs/robot3d.md)."""
     robot: RobotConfig = field(default_factory=RobotConfig)
     """The robot world's settings; read only with ``world=robot3d``."""
+    rule: str = setting("paper", choices=RULES)
+    """When a picture stops the robot (methods that recognise pictures), the same in every world: ``paper`` (the prediction names the obstacle's true category), ``open_set`` (its top score reaches ``threshold``) or ``range`` (the range sensor alone: every occupied cell)."""
+    threshold: float = setting(0.5, gt=0, le=1)
+    """``rule=open_set``: the top score at which a picture stops the robot."""
     support: str = setting(choices=SUPPORT_MODES)
     """``restore`` the support set before each run, or ``carry`` it over (long-term autonomy)."""
     images_dir: str | None = None
@@ -165,106 +95,6 @@ class TrialsConfig:
     """numba threads; 0 = all cores (divided among the ``workers``)."""
     workers: int = setting(1, ge=1)
     """Processes that run an experiment's cells side by side (each builds the recogniser once); the results are the same bytes for any number."""
-
-
-# ---------------------------------------------------------------- render
-@dataclass
-class MazeCameraConfig:
-    """The robot's camera in the maze (the query pictures)."""
-
-    cell: float = setting(gt=0)
-    """Metres per grid cell."""
-    camera_distance: float = setting(gt=0)
-    """Horizontal distance from the camera to the obstacle's centre, metres (one cell)."""
-    camera_height: float = setting(gt=0)
-    """The robot camera's height, metres."""
-    target_height: float = setting(gt=0)
-    """The camera aims at this height above the obstacle's foot, metres."""
-    fovy: float = setting(gt=0, lt=180)
-    """Vertical field of view, degrees."""
-
-
-@dataclass
-class CatalogueCameraConfig:
-    """The product-photo setting of the support pictures."""
-
-    fovy: float = setting(gt=0, lt=180)
-    """Vertical field of view, degrees."""
-    elevation: list[float] = MISSING
-    """The range of camera elevations, degrees (negative: looking down)."""
-    turn: list[float] = MISSING
-    """The range of the object's turn away from a frontal view, degrees."""
-    fill: float = setting(gt=0, le=1)
-    """The fraction of the picture's height the object fills."""
-
-
-@dataclass
-class QualityConfig:
-    """Anti-aliasing and shadows of the renderer."""
-
-    offsamples: int = setting(ge=0)
-    """Multisample anti-aliasing samples (0: none)."""
-    supersample: int = setting(ge=1)
-    """Draw at this multiple of the size and average blocks (anti-aliasing)."""
-    shadow_size: int = setting(ge=1)
-    """Shadow map resolution."""
-    studio_shadows: bool = MISSING
-    """Shadows in meta-training pictures (maze and catalogue pictures always have them)."""
-
-
-@dataclass
-class RenderConfig:
-    """``python -m pipeline render``: the query, support and meta-training pictures and one manifest."""
-
-    profile: Profile = field(default_factory=Profile)
-    """The scale (``pipeline/conf/profile/``): the class and picture counts default to its ``render`` keys."""
-    out_dir: str = setting(nonempty=True)
-    """The pictures and ``manifest.csv``; its parent folder must exist."""
-    index_file: str | None = None
-    """Every file of ``out_dir`` with its SHA-256 (``pipeline.files.write_index``), for dvc.yaml."""
-    figures_dir: str = setting(nonempty=True)
-    """The contact sheets (the report stage copies them)."""
-    size: int = setting(ge=8)
-    """Picture side in pixels (the paper's 84x84)."""
-    seed: int = setting(ge=0)
-    """Seeds every scene (classes, instances, views)."""
-    workers: int = setting(II("profile.render.workers"), ge=1)
-    """Render processes (one renderer each); 1: in this process."""
-    categories: list[str] = MISSING
-    """The query and support categories, in order."""
-    n_train_classes: int = setting(II("profile.render.n_train_classes"), ge=0)
-    """Meta-training classes."""
-    n_val_classes: int = setting(II("profile.render.n_val_classes"), ge=0)
-    """Held-out validation classes that pick the checkpoint."""
-    n_test_classes: int = setting(II("profile.render.n_test_classes"), ge=0)
-    """Held-out test classes that give the quoted accuracy."""
-    min_family_distance: float = setting(ge=0)
-    """Least structural distance of every validation and test family from every training family
-    (``pipeline/world/family_split.py``)."""
-    per_class: int = setting(II("profile.render.per_class"), ge=1)
-    """Pictures per meta-training class."""
-    views_per_obstacle: int = setting(II("profile.render.views_per_obstacle"), ge=0)
-    """Pictures per query obstacle in the colour test's larger set (split ``views``; 0: none)."""
-    views_distance: list[float] = MISSING
-    """The range of camera distances of those pictures, metres [low, high]."""
-    views_per_instance: int = setting(ge=1)
-    """Pictures per jittered instance of a class."""
-    support_per_category: int = setting(ge=1)
-    """Support pictures per category (K of the K-shot support set)."""
-    maze: MazeCameraConfig = field(default_factory=MazeCameraConfig)
-    """The robot's camera in the maze (the query pictures)."""
-    catalogue: CatalogueCameraConfig = field(default_factory=CatalogueCameraConfig)
-    """The product-photo setting (the support pictures)."""
-    quality: QualityConfig = field(default_factory=QualityConfig)
-    """Anti-aliasing and shadows."""
-    contact_sheets: bool = MISSING
-    """Write contact sheets of the pictures to ``figures_dir``."""
-    contact_tile: int = setting(ge=8)
-    """Tile side of the contact sheets, pixels."""
-    contact_train_classes: int = setting(ge=1)
-    """Rows (classes) of the meta-training and validation contact sheets."""
-    contact_per_class: int = setting(ge=1)
-    """Pictures per class in those two sheets."""
 
 
 # ---------------------------------------------------------------- meta_train, accuracy

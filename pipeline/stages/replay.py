@@ -3,7 +3,9 @@
     python -m pipeline replay file=<file.mcap> run=3 episode=120 [whole_run=true] [viewer=web|native]
 
 Without ``episode`` the replay opens the run's first episode with a recognition (and says so).
-A robot cell's records (``robot.mcap`` beside ``records.mcap``, docs/robot3d.md) replay in 3D.
+A robot cell (its recorded config says ``world: robot3d``; docs/robot3d.md) replays in 3D from its
+``records.mcap`` as a grid cell does: this stage hands the robot's reader
+(:func:`pipeline.robot.replay.robot_run`) to the replay (:data:`WORLDS`).
 
 The file may also be given positionally (``python -m pipeline replay <file.mcap> run=3 ...``).
 Logic in :mod:`pipeline.replay`; this is the thin entry point (pipeline/conf/replay.yaml) and
@@ -44,6 +46,19 @@ from pipeline.stages._schema import ReplayConfig
 START_TIMEOUT, STOP_TIMEOUT = 30.0, 5.0
 
 
+def _robot_run(meta, run: int):
+    """A robot cell's run as its replay needs it (:func:`pipeline.robot.replay.robot_run`;
+    imported when a robot cell is replayed: it loads MuJoCo)."""
+    from pipeline.robot.replay import robot_run
+
+    return robot_run(meta, run)
+
+
+#: How the worlds beside the grid read their records for the replay (``pipeline.replay.build``
+#: cannot import ``pipeline.robot``: .importlinter), by the recorded config's ``world``.
+WORLDS = {"robot3d": _robot_run}
+
+
 def run(cfg: ReplayConfig, overrides: list[str] = ()) -> Path:
     path = Path(cfg.file).resolve()
     if not path.is_file():
@@ -63,8 +78,6 @@ def write_replay(path: Path, cfg: ReplayConfig) -> Path:
     from pipeline.records import RecordsWarning
     from pipeline.replay import ReplayError, build_replay, opening_episode, replay_stem
 
-    if path.name == "robot.mcap":  # a robot cell: its records.mcap names the maze and runs
-        path = path.with_name("records.mcap")
     if cfg.whole_run and cfg.episode is not None:
         raise ConfigError("config key 'episode': whole_run=true replays every episode; give one")
     episode = cfg.episode
@@ -80,12 +93,12 @@ def write_replay(path: Path, cfg: ReplayConfig) -> Path:
     out = Path(out).resolve()
     if out.suffix != ".rrd":
         raise ConfigError(f"config key 'out': must end in .rrd, got {out}")
-    if path.with_name("robot.mcap").is_file():
-        return write_robot_replay(path.parent, cfg.run, episode, out)
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", RecordsWarning)
-            rrd = build_replay(path, cfg.run, episode, out=out, whole_run=cfg.whole_run)
+            rrd = build_replay(
+                path, cfg.run, episode, out=out, whole_run=cfg.whole_run, worlds=WORLDS
+            )
     except ReplayError as exc:
         keys = "key 'file'" if exc.key == "file" else "keys 'run'/'episode'"
         raise ConfigError(f"config {keys}: {exc}") from None
@@ -95,28 +108,6 @@ def write_replay(path: Path, cfg: ReplayConfig) -> Path:
         if issubclass(w.category, RecordsWarning):
             print(f"warning: {w.message}", file=sys.stderr, flush=True)
     return Path(rrd)
-
-
-def write_robot_replay(folder: Path, run: int, episode: int | None, out: Path) -> Path:
-    """A robot cell's episode in 3D (:mod:`pipeline.robot.replay`): the scene, the robot's path,
-    its camera pictures with their scores, the collisions."""
-    from pipeline.replay.build import write_rrd
-    from pipeline.robot.records import RobotRecordsError
-    from pipeline.robot.replay import robot_replay
-
-    if episode is None:
-        raise ConfigError(
-            "config key 'whole_run': a robot cell replays one episode in 3D; give episode"
-        )
-    print(f"{folder.name} is a robot cell (robot.mcap beside it): the replay is in 3D", flush=True)
-    try:
-        return write_rrd(out, robot_replay(folder, run, episode))
-    except RobotRecordsError as exc:
-        raise ConfigError(f"config key 'file': {exc}") from None
-    except ValueError as exc:
-        raise ConfigError(f"config keys 'run'/'episode': {exc}") from None
-    except DiskError as exc:
-        raise ConfigError(f"config key 'out': {exc}") from None
 
 
 # ---------------------------------------------------------------- the web viewer
