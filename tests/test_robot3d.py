@@ -422,3 +422,13 @@ def test_a_killed_robot_run_keeps_what_it_handed_over_poses_and_pictures_include
     ]
     path = episode_path(table, layout, records.meta.obstacles[0], steps, looks.to_dict("records"))
     assert len(path["poses"]) > len(steps) and len(path["pictures"]) == len(looks)
+
+
+def test_a_rule_every_reading_cell_pins_is_refused_not_ignored(tmp_path):
+    """robot3d pins the rule of every cell that reads one (the few-shot cells; the shield and SSRL
+    read none): ``rule=`` on the command line would change nothing."""
+    from pipeline.errors import ConfigError
+    from pipeline.stages._common import run_stage
+
+    with pytest.raises(ConfigError, match="config key 'rule': every cell of experiment robot3d"):
+        run_stage("trials", ["+experiment=robot3d", "rule=open_set", f"out={tmp_path}"])

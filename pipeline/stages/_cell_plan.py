@@ -57,21 +57,6 @@ def experiment_cells(cfg: TrialsConfig, overrides: list[str]) -> dict[str, Trial
     method_over = {
         k.removeprefix("method."): v for k, v in given.items() if k.startswith("method.")
     }
-    for key in [*CELL_KEYS, *method_over]:
-        if key not in given and f"method.{key}" not in given:
-            continue
-        pinned = [
-            n
-            for n, c in declared.items()
-            if (getattr(c, key) is not None if key in CELL_KEYS else key in c.params)
-        ]
-        if len(pinned) == len(declared):
-            full = key if key in CELL_KEYS else f"method.{key}"
-            raise ConfigError(
-                f"config key '{full}': every cell of experiment {exp.name} pins it "
-                f"(experiment.cells.*.{key if key in CELL_KEYS else 'params.' + key}); "
-                "the override cannot apply"
-            )
     # one load per (method, fields): 2,100 generated cells share seven
     loaded: dict[str, MethodSpec] = {}
 
@@ -83,6 +68,7 @@ def experiment_cells(cfg: TrialsConfig, overrides: list[str]) -> dict[str, Trial
         return loaded[key]
 
     methods = {name: method_of(name, cell) for name, cell in declared.items()}
+    refuse_pinned_overrides(exp, declared, methods, given, method_over)
     refuse_idle_recogniser_pins(exp, declared, methods, given)
     cells, checked, groups = {}, set(), {}
     for name, cell in declared.items():
@@ -121,6 +107,34 @@ def experiment_cells(cfg: TrialsConfig, overrides: list[str]) -> dict[str, Trial
         key, problem = problems[0]
         raise ConfigError(f"config key 'experiment.report.{key}': {problem}")
     return cells
+
+
+def refuse_pinned_overrides(exp, declared, methods, given, method_over) -> None:
+    """An override of a cell key (``rule=``) or a method field (``method.alpha=``) that every cell
+    reading it pins would change nothing: refuse it, naming the key. A key only some methods read
+    (:data:`ONLY_FOR`) counts the cells whose method reads it."""
+    for key in [*CELL_KEYS, *method_over]:
+        if key not in given and f"method.{key}" not in given:
+            continue
+        reads = ONLY_FOR[key][1] if key in ONLY_FOR else (lambda m: True)
+        readers = [n for n in declared if reads(methods[n])]
+        pinned = [
+            n
+            for n in readers
+            if (
+                getattr(declared[n], key) is not None
+                if key in CELL_KEYS
+                else key in declared[n].params
+            )
+        ]
+        if readers and len(pinned) == len(readers):
+            full = key if key in CELL_KEYS else f"method.{key}"
+            which = "" if len(readers) == len(declared) else " that reads it"
+            raise ConfigError(
+                f"config key '{full}': every cell of experiment {exp.name}{which} pins it "
+                f"(experiment.cells.*.{key if key in CELL_KEYS else 'params.' + key}); "
+                "the override cannot apply"
+            )
 
 
 def recogniser_group(name: str, key: str) -> dict[str, Any]:
