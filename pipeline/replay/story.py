@@ -13,6 +13,8 @@ scene (:meth:`Story.log_unsafe`).
 
 from __future__ import annotations
 
+import abc
+
 import numpy as np
 
 from pipeline import palette
@@ -42,7 +44,7 @@ class ReplayError(UserError):
         self.key = key
 
 
-class Story:
+class Story(abc.ABC):
     """Run ``run`` of the records ``recs``, told into the recording stream ``rec``: what every
     world's replay shows. Subclasses set :meth:`when` / :meth:`at` and :meth:`log_unsafe`."""
 
@@ -113,27 +115,27 @@ class Story:
         self.rec.log(entity, rr.TextLog(what, level=level) if isinstance(what, str) else what, **kw)
 
     # ---------------------------------------------------------------- the world's (a subclass's)
+    @abc.abstractmethod
     def blueprint(self, name: str, empty: EmptyViews):
         """The viewer's layout (:meth:`layout` around the world's views); ``name``: the recording's."""
-        raise NotImplementedError
 
+    @abc.abstractmethod
     def draw(self, episodes: list[int], empty: EmptyViews) -> None:
         """Every step of ``episodes`` (consecutive recorded episodes of the run), after what the run
         held before them (:meth:`begin`); ``empty``: why views stay empty."""
-        raise NotImplementedError
 
+    @abc.abstractmethod
     def when(self, t: int, picture: int | None = None, contact: bool = False) -> float:
         """The moment of step ``t`` of the episode being drawn, on the world's timeline; ``picture``:
         of the episode's recognition number ``picture``; ``contact``: of step ``t``'s collision."""
-        raise NotImplementedError
 
+    @abc.abstractmethod
     def at(self, moment: float) -> None:
         """Set the recording's time to ``moment`` (a value of :meth:`when`)."""
-        raise NotImplementedError
 
+    @abc.abstractmethod
     def log_unsafe(self) -> None:
         """Draw A_d (``self.ad``, pairs (cell, action)) in the world's scene, at the current time."""
-        raise NotImplementedError
 
     # ---------------------------------------------------------------- what does not change
     def layout(self, world, empty: EmptyViews):
