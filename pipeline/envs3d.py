@@ -21,7 +21,7 @@ from typing import Any
 from pipeline.envs import recogniser_for
 from pipeline.rl.methods import MethodSpec, get_method
 from pipeline.robot.env import SafeNavigation3DEnv
-from pipeline.robot.world import DEFAULT_CELL
+from pipeline.robot.limits import DEFAULT_CELL, DEFAULT_TIMESTEP
 
 
 def make_env3d(
@@ -34,7 +34,7 @@ def make_env3d(
     run: int = 0,
     render_mode: str | None = None,
     cell: float = DEFAULT_CELL,
-    timestep: float = 0.02,
+    timestep: float = DEFAULT_TIMESTEP,
     rule: str = "paper",
     threshold: float = 0.5,
     registered_maze: str | None = None,

@@ -33,11 +33,11 @@ import numpy as np
 from pipeline.rl.gym_env import SafeNavigationEnv
 from pipeline.rl.methods import MethodSpec, get_method
 from pipeline.rl.rules import Rule
+from pipeline.robot.limits import DEFAULT_CELL, DEFAULT_TIMESTEP
 from pipeline.robot.live import live
 from pipeline.robot.live_world import RobotSettings, RobotWorld
 from pipeline.robot.motion import PathBuilder
 from pipeline.robot.sim import RobotSim
-from pipeline.robot.world import DEFAULT_CELL
 from pipeline.world.maze import Layout, load_layout
 
 
@@ -52,7 +52,7 @@ class SafeNavigation3DEnv(SafeNavigationEnv):
         run: int = 0,
         render_mode: str | None = None,
         cell: float = DEFAULT_CELL,
-        timestep: float = 0.02,
+        timestep: float = DEFAULT_TIMESTEP,
         rule: str | Rule = Rule.paper,
         threshold: float = 0.5,
     ):

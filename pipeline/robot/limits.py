@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+#: The robot world's defaults: a 1 m cell, the cell the query pictures were rendered for (the
+#: obstacles' display scale fits it), and a 20 ms physics step (the planar base with velocity
+#: actuators is stable there; a smaller step gives the same outcomes at a higher cost).
+DEFAULT_CELL, DEFAULT_TIMESTEP = 1.0, 0.02
 #: Cell sizes (m) the robot world is built for: the robot (0.178 m long, 0.112 m from its centre to a
 #: corner) turns on a centre without touching an obstacle's box (at most 0.45 of a cell from its
 #: centre) from 0.5 m on, and the range sensor (LDS-01, 3.5 m) reads a neighbour up to 2 m.

@@ -29,10 +29,10 @@ import numpy as np
 from PIL import Image
 
 from pipeline.rl.run_world import RunWorld, run_placement
-from pipeline.robot.limits import check_settings
+from pipeline.robot.limits import DEFAULT_CELL, DEFAULT_TIMESTEP, check_settings
 from pipeline.robot.motion import motion_table
 from pipeline.robot.sim import RobotSim
-from pipeline.robot.world import DEFAULT_CELL, MAX_SEEN_OBSTACLES, RENDER_GEOMS
+from pipeline.robot.world import MAX_SEEN_OBSTACLES, RENDER_GEOMS
 from pipeline.world.geometry import Geometry, build_geometry
 from pipeline.world.layout import Layout, parse_layout
 from pipeline.world.placement import picture_table
@@ -47,7 +47,7 @@ class RobotSettings:
     """The robot world's settings (``robot`` in ``conf/trials.yaml``; ranges in :mod:`.world`)."""
 
     cell: float = DEFAULT_CELL
-    timestep: float = 0.02
+    timestep: float = DEFAULT_TIMESTEP
 
     def __post_init__(self):
         check_settings(self.cell, self.timestep)

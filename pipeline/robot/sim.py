@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipeline.robot.limits import check_settings
+from pipeline.robot.limits import DEFAULT_CELL, DEFAULT_TIMESTEP, check_settings
 from pipeline.robot.model import (
     CAMERA,
     GEOM,
@@ -30,7 +30,7 @@ from pipeline.robot.model import (
     WHEEL_SEPARATION,
     ray_angles,
 )
-from pipeline.robot.world import DEFAULT_CELL, WorldMap, build_world
+from pipeline.robot.world import WorldMap, build_world
 from pipeline.world.layout import MOVES, Layout
 from pipeline.world.placement import Placement
 from pipeline.world.renderer_env import make_renderer, mujoco
@@ -72,7 +72,7 @@ class RobotSim:
         layout: Layout,
         placement: Placement,
         cell: float = DEFAULT_CELL,
-        timestep: float = 0.02,
+        timestep: float = DEFAULT_TIMESTEP,
         render_seed: int = 0,
     ):
         check_settings(cell, timestep)

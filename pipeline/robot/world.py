@@ -24,7 +24,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from pipeline.robot.limits import check_settings
+from pipeline.robot.limits import DEFAULT_CELL, DEFAULT_TIMESTEP, check_settings
 from pipeline.robot.model import add_robot
 from pipeline.world.layout import Layout
 from pipeline.world.obstacle_models import build_obstacle, obstacle_seed
@@ -41,7 +41,6 @@ from pipeline.world.scenes import (
 )
 from pipeline.world.shapes import ObjectModel, yaw_quat
 
-DEFAULT_CELL = 1.0
 ARENA_BYTES, ARENA_BYTES_PER_OBSTACLE = 64 * 2**20, 16 * 2**10
 #: The most geoms MuJoCo's renderer draws (``mujoco.Renderer``'s ``max_geom``); an obstacle is at
 #: most 8 drawn parts, the robot, floor and walls fewer than 100: the live pictures' limit.
@@ -117,7 +116,7 @@ def build_world(
 ):
     """``(MjSpec, WorldMap)``: floor, walls, the placed obstacles and the robot (at the origin;
     :class:`pipeline.robot.sim.RobotSim` puts it on the start cell)."""
-    check_settings(cell, 0.02)
+    check_settings(cell, DEFAULT_TIMESTEP)
     if len(placement.physical) != len(layout.obstacles):
         raise ValueError(
             f"placement has {len(placement.physical)} obstacles, layout {len(layout.obstacles)}"
@@ -126,7 +125,7 @@ def build_world(
     spec.modelname = "robot_maze"
     # MuJoCo's arena (its stack): the collision pass of a large maze needs about 10 kB an obstacle
     spec.memory = ARENA_BYTES + ARENA_BYTES_PER_OBSTACLE * len(layout.obstacles)
-    spec.option.timestep = 0.02
+    spec.option.timestep = DEFAULT_TIMESTEP
     spec.option.gravity = [0.0, 0.0, -9.81]
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
     spec.visual.global_.offwidth = 640

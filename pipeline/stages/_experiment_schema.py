@@ -13,7 +13,7 @@ from typing import Any
 
 from pipeline.errors import ConfigError
 from pipeline.report.spec import ReportSpec
-from pipeline.robot.limits import CELL_RANGE, TIMESTEP_RANGE
+from pipeline.robot.limits import CELL_RANGE, DEFAULT_CELL, DEFAULT_TIMESTEP, TIMESTEP_RANGE
 from pipeline.schema import setting
 
 SUPPORT_MODES = ("restore", "carry")
@@ -29,9 +29,9 @@ RULES = ("paper", "open_set", "range")
 class RobotConfig:
     """The camera robot's world (``world=robot3d``, docs/robot3d.md)."""
 
-    cell: float = setting(1.0, ge=CELL_RANGE[0], le=CELL_RANGE[1])
+    cell: float = setting(DEFAULT_CELL, ge=CELL_RANGE[0], le=CELL_RANGE[1])
     """Metres per grid cell: 1.0, the cell the query pictures were rendered for (``render.maze.cell``); 0.5-2 m (the robot turns clear of a neighbour's obstacle; its range sensor reads the neighbour)."""
-    timestep: float = setting(0.02, ge=TIMESTEP_RANGE[0], le=TIMESTEP_RANGE[1])
+    timestep: float = setting(DEFAULT_TIMESTEP, ge=TIMESTEP_RANGE[0], le=TIMESTEP_RANGE[1])
     """MuJoCo's physics step (s), 0.001-0.05, dividing the controller's 0.1 s tick."""
 
 
