@@ -29,6 +29,7 @@ import numpy as np
 
 from pipeline.records.schema import FLAG_COLLIDED, FLAG_RECOVERED
 from pipeline.robot.sim import CONTROL_HZ, HEADINGS, RobotSim, wrap
+from pipeline.robot.world import centre_of
 from pipeline.world.layout import MOVES, parse_layout
 from pipeline.world.pictures import N_PHYSICAL_OBSTACLES
 from pipeline.world.placement import Placement
@@ -118,12 +119,6 @@ def _to_world(rows, centre, heading: float) -> np.ndarray:
     y = centre[1] + s * a[:, 0] + c * a[:, 1]
     yaw = (a[:, 2] + heading + np.pi) % (2 * np.pi) - np.pi
     return np.stack([x, y, yaw], axis=1)
-
-
-def centre_of(cell: int, width: int, height: int, size: float) -> np.ndarray:
-    """World (x, y) of a cell's centre (``pipeline.robot.world.WorldMap.centre``)."""
-    row, col = divmod(int(cell), width)
-    return np.array([(col - (width - 1) / 2) * size, ((height - 1) / 2 - row) * size])
 
 
 class PathBuilder:

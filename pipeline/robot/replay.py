@@ -26,9 +26,9 @@ from pipeline.records import FileMeta
 from pipeline.records import schema as S
 from pipeline.robot.limits import check_settings
 from pipeline.robot.model import HEIGHT, LENGTH, WIDTH
-from pipeline.robot.motion import centre_of, drive_key, episode_path
+from pipeline.robot.motion import drive_key, episode_path
 from pipeline.robot.sim import CONTROL_HZ, HEADINGS
-from pipeline.robot.world import build_world
+from pipeline.robot.world import build_world, centre_of
 from pipeline.world.layout import Layout, MazeError, parse_layout
 from pipeline.world.pictures import INSTANCES_PER_CATEGORY, N_PHYSICAL_OBSTACLES
 from pipeline.world.placement import Placement
@@ -144,7 +144,7 @@ class RobotRun:
         )
 
     def centres(self, cells) -> np.ndarray:
-        """World (x, y) of cell centres (:func:`pipeline.robot.motion.centre_of`)."""
+        """World (x, y) of cell centres (:func:`pipeline.robot.world.centre_of`)."""
         w, h = self.layout.width, self.layout.height
         return np.array([centre_of(c, w, h, self.cell) for c in cells]).reshape(-1, 2)
 

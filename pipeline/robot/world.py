@@ -51,6 +51,13 @@ WALL_HALF_THICKNESS = 0.05
 FOOTPRINT_CAP = 0.45  # of a cell: an obstacle's collision box stays inside its cell
 
 
+def centre_of(cell: int, width: int, height: int, size: float) -> np.ndarray:
+    """World (x, y) of cell ``row * width + col``'s centre in a maze of ``size`` m cells:
+    ``((col - (W-1)/2) size, ((H-1)/2 - row) size)``, north is +y."""
+    row, col = divmod(int(cell), width)
+    return np.array([(col - (width - 1) / 2) * size, ((height - 1) / 2 - row) * size])
+
+
 @dataclass(frozen=True)
 class WorldMap:
     """What the simulator needs to know of a built world besides the model."""
@@ -61,10 +68,8 @@ class WorldMap:
     obstacle_geoms: tuple[str, ...]  # collision box per obstacle (order of layout.obstacles)
 
     def centre(self, cell: int) -> np.ndarray:
-        """World (x, y) of a cell's centre."""
-        row, col = divmod(int(cell), self.layout.width)
-        w, h = self.layout.width, self.layout.height
-        return np.array([(col - (w - 1) / 2) * self.cell, ((h - 1) / 2 - row) * self.cell])
+        """World (x, y) of a cell's centre (:func:`centre_of`)."""
+        return centre_of(cell, self.layout.width, self.layout.height, self.cell)
 
     def cell_at(self, xy) -> int:
         """The cell holding world point ``xy`` (clamped to the grid)."""
