@@ -156,7 +156,7 @@ def test_config_errors_name_the_key(tmp_path):
             "accuracy", ["recogniser=oracle", "study.hue_shifts=[90]", f"out_dir={tmp_path}/o"]
         )
     with pytest.raises(
-        ConfigError, match=r"config key 'study.hue_shifts\[0\]'.*could not be converted to Float"
+        ConfigError, match=r"config key 'study.hue_shifts.0'.*could not be converted to Float"
     ):
         run_stage("accuracy", ["study.hue_shifts=[red]"])
     with pytest.raises(

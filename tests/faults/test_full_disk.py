@@ -12,7 +12,8 @@ from pathlib import Path
 
 import pytest
 from entry import cli
-from test_faults import digest, one_line_error
+
+from faults._checks import digest, one_line_error
 
 #: 1 MB holds a few hundred kB of records, far from a 100-run x 500-episode cell.
 BIG = ["method=ssrl", "maze=11x11", "runs=100", "episodes=500", "progress=false"]

@@ -23,7 +23,7 @@ from synthetic_records import LAYOUT_5X5, MAZE_5X5, batches, obstacle_assignment
 from pipeline.records import RecordsError, RecordsWarning, RecordWriter, read_records
 from pipeline.records import schema as S
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 RUNS, EPISODES = 3, 12
 CHUNK_MSG = r"chunk (\d+) of (\d+) damaged \((CRC mismatch|bad decompression|bad record lengths|bad chunk header)"
 

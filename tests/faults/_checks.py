@@ -1,0 +1,28 @@
+"""What every fault case checks: one line on stderr naming the problem, and nothing lost."""
+
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+
+#: A trial small enough for a fault case.
+FAST = ["runs=2", "episodes=4", "progress=false"]
+
+
+def one_line_error(out, *words, code=2):
+    """``out`` (a finished command) exited ``code`` with one line on stderr holding ``words``."""
+    assert out.returncode == code, (out.returncode, out.stderr[-2000:])
+    lines = out.stderr.strip().splitlines()
+    assert len(lines) == 1, out.stderr
+    for w in words:
+        assert w in lines[0], (w, lines[0])
+    return lines[0]
+
+
+def digest(folder: Path) -> dict:
+    """Every file under ``folder`` with its SHA-256: equal before and after means nothing lost."""
+    return {
+        str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest()
+        for p in sorted(folder.rglob("*"))
+        if p.is_file()
+    }
