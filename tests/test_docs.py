@@ -8,6 +8,7 @@ disagree.
 
 import re
 import subprocess
+from collections import Counter
 from functools import cache
 from pathlib import Path
 
@@ -182,3 +183,27 @@ def test_a_quoted_default_is_the_configs(doc, key, value):
     assert default_of(key) == yaml.safe_load(value), (
         f"{doc}: `{key}={value}` by default, but the config says otherwise"
     )
+
+
+def fault_counts(request) -> Counter:
+    """Cases per family of ``tests/faults``: this session's own items when it collected the whole
+    default suite (``make test``), else ``pytest --collect-only`` in a child process."""
+    from scripts.fault_census import FAULTS, census, family
+
+    config = request.config
+    whole = (
+        not config.args or all(Path(a).resolve() in (ROOT / "tests", ROOT) for a in config.args)
+    ) and (config.getoption("keyword"), config.getoption("markexpr")) == ("", "not slow")
+    if not whole or config.getoption("deselect") or config.getoption("lf"):
+        return census()
+    items = [i for i in request.session.items if Path(i.fspath).is_relative_to(FAULTS)]
+    return Counter(family(i.nodeid) for i in items)
+
+
+def test_reliability_quotes_the_fault_census(request):
+    """docs/reliability.md "The cases" is the table ``python -m scripts.fault_census`` prints."""
+    from scripts.fault_census import table
+
+    doc = (ROOT / "docs" / "reliability.md").read_text()
+    wanted = table(fault_counts(request))
+    assert wanted in doc, f"put this table under 'The cases' in docs/reliability.md:\n{wanted}"

@@ -1,9 +1,9 @@
-"""Hostile checkpoints. Files that are not checkpoints, of the other network or of another shape,
-and checkpoints that load but cannot score (docs/fewshot.md "Checkpoints"): a normalisation that
-is empty, of the wrong shape or not finite, weights that are NaN, infinite, of another type or
-missing, and a network whose scores of the probe episode are not finite. Each is refused on load
-with one line naming the file and the problem (:class:`CheckpointError`), and the file is left as
-it was. Tiny networks (24 px), as in tests/test_fewshot_checkpoint.py."""
+"""Hostile checkpoints. Files that are not checkpoints, of the other network or of another shape, and
+checkpoints that load but cannot score (docs/reliability.md "Checkpoints and image folders"): a
+normalisation that is empty, of the wrong shape or not finite, weights that are NaN, infinite, of
+another type or missing, and a network whose scores of the probe episode are not finite. Each is
+refused on load with one line naming the file and the problem (:class:`CheckpointError`), and the
+file is left as it was. Tiny networks (24 px), as in tests/test_fewshot_checkpoint.py."""
 
 from __future__ import annotations
 

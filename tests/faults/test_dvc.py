@@ -1,5 +1,5 @@
-"""dvc.yaml's code dependencies and config parameters are derived (``scripts/dvc_deps.py``), and
-DVC sees every one of them: editing any module a stage's command imports, any config folder its
+"""Changes DVC must not miss. dvc.yaml's code dependencies and config parameters are derived
+(``scripts/dvc_deps.py``), and DVC sees every one of them: editing any module a stage's command imports, any config folder its
 code reads, or any config key that shapes its outputs makes ``dvc status`` name that stage."""
 
 import os

@@ -1,6 +1,6 @@
-"""A small record file of the trials stage, damaged at derived offsets (docs/reliability.md
-"Record files", docs/records.md "Damaged and truncated files"): cut at N evenly spaced offsets, a
-byte flipped at N offsets, a range zeroed, a range cut out, bytes appended.
+"""Record files damaged at derived offsets. A small record file of the trials stage
+(docs/reliability.md "Record files", docs/records.md "Damaged and truncated files"): cut at N
+evenly spaced offsets, a byte flipped at N offsets, a range zeroed, a range cut out, bytes appended.
 
 The one reader (:func:`pipeline.records.read_records`) gives, for each, exactly one of: one
 :class:`~pipeline.records.RecordsError` line naming the file (only when the file no longer starts
