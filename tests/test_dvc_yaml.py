@@ -1,7 +1,7 @@
 """dvc.yaml against pipeline/conf/: one trials stage per experiment file, params that name keys that
 exist, config as params and never as deps, the paper's scale, and a DVC site cache that does not
 depend on the cwd. The derived parts (code deps, params, the experiments) are checked against
-their derivation in tests/test_dvc_deps.py."""
+their derivation in tests/faults/test_dvc.py."""
 
 import configparser
 import os
