@@ -187,14 +187,20 @@ def test_a_quoted_default_is_the_configs(doc, key, value):
 
 def fault_counts(request) -> Counter:
     """Cases per family of ``tests/faults``: this session's own items when it collected the whole
-    default suite (``make test``), else ``pytest --collect-only`` in a child process."""
+    folder with the default markers (``make test``), else ``pytest --collect-only`` in a child."""
     from scripts.fault_census import FAULTS, census, family
 
     config = request.config
-    whole = (
-        not config.args or all(Path(a).resolve() in (ROOT / "tests", ROOT) for a in config.args)
-    ) and (config.getoption("keyword"), config.getoption("markexpr")) == ("", "not slow")
-    if not whole or config.getoption("deselect") or config.getoption("lf"):
+    paths = [Path(a.split("::")[0]).resolve() for a in config.args] or [ROOT / "tests"]
+    covering = [p for p in paths if p in (ROOT, ROOT / "tests", FAULTS)]
+    inside = [p for p in paths if p.is_relative_to(FAULTS) and p != FAULTS]
+    filtered = (
+        config.getoption("keyword", default=""),
+        config.getoption("markexpr", default=""),
+        config.getoption("deselect", default=None),
+        config.getoption("lf", default=False),
+    ) != ("", "not slow", None, False)
+    if not covering or inside or filtered:
         return census()
     items = [i for i in request.session.items if Path(i.fspath).is_relative_to(FAULTS)]
     return Counter(family(i.nodeid) for i in items)
