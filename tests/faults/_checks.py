@@ -3,7 +3,11 @@
 from __future__ import annotations
 
 import hashlib
+import subprocess
+import sys
 from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
 
 #: A trial small enough for a fault case.
 FAST = ["runs=2", "episodes=4", "progress=false"]
@@ -26,3 +30,19 @@ def digest(folder: Path) -> dict:
         for p in sorted(folder.rglob("*"))
         if p.is_file()
     }
+
+
+def sha(path: Path) -> str:
+    """The SHA-256 of one file."""
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def trials_process(*args: str) -> subprocess.Popen:
+    """``python -m pipeline trials <args>`` started in a child process (stdout, stderr piped)."""
+    return subprocess.Popen(
+        [sys.executable, "-m", "pipeline", "trials", *args],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )

@@ -19,6 +19,7 @@ from pathlib import Path
 import pytest
 from entry import ROOT, cli
 
+from faults._checks import trials_process
 from pipeline.errors import UserError
 from pipeline.files import (
     OWNER_FILE,
@@ -251,16 +252,6 @@ WORLDS = {  # runs, episodes and the rest: each run lasts a few seconds
 }
 
 
-def trials(*args: str) -> subprocess.Popen:
-    return subprocess.Popen(
-        [sys.executable, "-m", "pipeline", "trials", *args],
-        cwd=ROOT,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
-
-
 @pytest.mark.parametrize("world", WORLDS)
 def test_a_run_keeps_its_out_from_a_second_run_and_an_overwrite_run(tmp_path, world):
     """A writes; B (same ``out``) and C (``overwrite=true``) are refused in one line naming A's
@@ -270,7 +261,7 @@ def test_a_run_keeps_its_out_from_a_second_run_and_an_overwrite_run(tmp_path, wo
     from pipeline.records import read_records
 
     args = [*WORLDS[world], "progress=false", f"out={tmp_path}"]
-    a = trials(*args)
+    a = trials_process(*args)
     try:
         t0 = time.time()
         while not list(tmp_path.glob(".staging-*/records.mcap.partial")):
@@ -279,7 +270,7 @@ def test_a_run_keeps_its_out_from_a_second_run_and_an_overwrite_run(tmp_path, wo
         a.send_signal(signal.SIGSTOP)
         held = lock_state(tmp_path)
         assert Owner.parse(held[1].decode()).pid == a.pid
-        b, c = trials(*args, "seed=1"), trials(*args, "seed=2", "overwrite=true")
+        b, c = trials_process(*args, "seed=1"), trials_process(*args, "seed=2", "overwrite=true")
         for proc in (b, c):
             _, err = proc.communicate(timeout=60)
             assert proc.returncode == 2, err

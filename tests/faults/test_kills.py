@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 from entry import cli
 
-from faults._checks import FAST, digest
+from faults._checks import FAST, digest, trials_process
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -29,16 +29,6 @@ LONG = [
     "progress=false",
     "flush_every=1000",
 ]
-
-
-def _start(*args):
-    return subprocess.Popen(
-        [sys.executable, "-m", "pipeline", "trials", *args],
-        cwd=ROOT,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
 
 
 def _wait_for_partial(out: Path, timeout=60.0):
@@ -55,7 +45,7 @@ def _wait_for_partial(out: Path, timeout=60.0):
 def test_a_killed_trial_says_what_it_kept_and_loses_nothing(tmp_path, sig, code):
     assert cli("trials", "method=ssrl", f"out={tmp_path}", *FAST).returncode == 0
     before = digest(tmp_path)
-    proc = _start(*LONG, f"out={tmp_path}", "overwrite=true")
+    proc = trials_process(*LONG, f"out={tmp_path}", "overwrite=true")
     _wait_for_partial(tmp_path)
     proc.send_signal(sig)
     _, err = proc.communicate(timeout=60)
@@ -100,7 +90,7 @@ def _alive(pid: int) -> bool:
 def test_workers_end_when_their_stage_is_killed(tmp_path):
     """``kill -9`` of a ``workers=2`` stage: its worker processes (and the resource tracker they
     kept alive) end within seconds instead of running on as orphans."""
-    stage = _start(
+    stage = trials_process(
         "+experiment=fig9", "recogniser=oracle", "workers=2", "runs=100", "episodes=4000",
         "progress=false", f"out={tmp_path}",
     )  # fmt: skip
@@ -127,7 +117,7 @@ def test_workers_end_when_their_stage_is_killed(tmp_path):
 def test_a_terminated_multi_worker_stage_says_one_line(tmp_path):
     """SIGTERM of a ``workers=2`` stage: the one line saying where the finished cells are, and no
     warning after it (the workers make no semaphore the resource tracker would report)."""
-    stage = _start(
+    stage = trials_process(
         "+experiment=fig9", "recogniser=oracle", "workers=2", "runs=100", "episodes=20000",
         "progress=false", f"out={tmp_path}",
     )  # fmt: skip
@@ -152,7 +142,7 @@ def test_a_killed_experiment_rerun_keeps_the_previous_experiment(tmp_path):
         == 0
     )
     before = digest(tmp_path)
-    proc = _start(
+    proc = trials_process(
         "+experiment=fig9",
         "recogniser=oracle",
         "runs=100",

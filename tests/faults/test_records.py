@@ -15,7 +15,6 @@ line a user sees, with Python's own warning output).
 
 from __future__ import annotations
 
-import hashlib
 import re
 import subprocess
 import sys
@@ -26,6 +25,7 @@ import numpy as np
 import pytest
 from entry import ROOT, cli
 
+from faults._checks import sha
 from faults.test_record_recovery import chunks
 from pipeline.records import RecordsError, RecordsWarning, read_records
 from pipeline.records.scan import MAGIC
@@ -93,10 +93,6 @@ def same_rows(r, full, keep: set[tuple[int, int]]) -> None:
         mask = np.fromiter((k in keep for k in zip(want.run, want.episode)), bool, len(want))
         want = want[mask].drop(columns="file").reset_index(drop=True)
         assert got.drop(columns="file").reset_index(drop=True).equals(want), name
-
-
-def sha(path: Path) -> str:
-    return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
 def read(path: Path):
