@@ -58,7 +58,7 @@ def stage(overrides: list[str]) -> dict:
     from pipeline.stages._schema import register
     from pipeline.stages.render import run
 
-    register()  # pipeline/conf/render.yaml names render_schema
+    register("render")  # pipeline/conf/render.yaml names render_schema
     with (
         tempfile.TemporaryDirectory() as tmp,
         initialize_config_dir(config_dir=CONF, version_base="1.3"),

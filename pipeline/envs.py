@@ -23,6 +23,7 @@ as in the stages: run from the project root or pass absolute paths in ``recognis
 from __future__ import annotations
 
 import importlib.util
+import numbers
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -30,9 +31,11 @@ from typing import Any
 from omegaconf import OmegaConf
 
 from pipeline.conf import conf_dir
+from pipeline.errors import ConfigError
 from pipeline.rl.gym_env import SafeNavigationEnv
 from pipeline.rl.methods import MethodSpec, get_method
 from pipeline.rl.recogniser import Recogniser
+from pipeline.stages._experiment_schema import SUBSTITUTION_WAYS
 from pipeline.threads import TORCH_THREADS_BESIDE_NUMBA, ThreadBudget
 from pipeline.world.maze import Layout
 
@@ -86,7 +89,18 @@ def recogniser_for(
     """The recogniser an environment of method ``spec`` runs with: a name of
     ``pipeline/conf/recogniser/`` is built (with ``options`` over its keys) only for a method that
     reasons with pictures, like the trials stage, with substitution way ``substitution`` for
-    ``fewshot_dss``; an object is used as it is; ``options`` without a name are refused."""
+    ``fewshot_dss``; an object is used as it is; ``options`` without a name are refused. A
+    ``substitution`` other than 1-4 is refused whatever the method and recogniser, as the trials
+    stage's schema refuses it."""
+    if (
+        isinstance(substitution, bool)
+        or not isinstance(substitution, numbers.Integral)
+        or substitution not in SUBSTITUTION_WAYS
+    ):
+        raise ConfigError(
+            f"substitution={substitution!r}: the substitution way of the dynamic support set must "
+            f"be one of {', '.join(map(str, SUBSTITUTION_WAYS))} (paper section 3.3)"
+        )
     if isinstance(recogniser, str):
         _check_name(recogniser)
         if not spec.uses_recogniser:

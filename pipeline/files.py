@@ -3,18 +3,25 @@
 A file is written under a temporary name in its final folder and moved into place with
 ``os.replace`` only when complete, so a reader (or the next stage) never sees half a file, and a
 failed write leaves the previous version untouched.
+
+A folder is written by one process at a time (:func:`exclusive_folder`), and a process builds
+in its own work folder (:func:`work_folder`) that no other process removes while it lives.
 """
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import fcntl
 import json
 import os
 import shutil
+import socket
 import tempfile
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, BinaryIO
 
@@ -112,32 +119,193 @@ def write_json_atomic(path: str | Path, data: Any, *, sort_keys: bool = False) -
     return write_atomic(path, json.dumps(data, indent=2, sort_keys=sort_keys) + "\n")
 
 
+# ------------------------------------------------------------------ owners: locks, work folders
+#: The file of a work folder (:func:`claim_folder`) naming its process; :func:`swap_in` leaves it.
+OWNER_FILE = ".owner"
+
+
+def process_start(pid: int) -> int | None:
+    """When process ``pid`` started (clock ticks after boot: field 22 of ``/proc/<pid>/stat``);
+    ``-1`` where there is no ``/proc`` but the process exists; None when there is no such process
+    (a zombie has ended too)."""
+    if pid <= 0:
+        return None
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except (OSError, IndexError):
+        if Path("/proc/self/stat").exists():
+            return None
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            return None
+        except PermissionError:
+            pass
+        return -1
+    return None if fields[0] in ("Z", "X") else int(fields[19])
+
+
+@dataclass(frozen=True)
+class Owner:
+    """The process a lock or a work folder belongs to: its pid, start time (:func:`process_start`)
+    and host. The pid alone is not enough: the system gives an ended process's pid to a new one."""
+
+    pid: int
+    start: int | None = None
+    host: str = ""
+
+    @classmethod
+    def me(cls) -> Owner:
+        return cls(os.getpid(), process_start(os.getpid()), socket.gethostname())
+
+    @classmethod
+    def parse(cls, text: str) -> Owner | None:
+        """The owner :meth:`text` wrote; None for anything else (an empty or foreign file)."""
+        try:
+            d = json.loads(text)
+            start = d.get("start")
+            return cls(int(d["pid"]), start if isinstance(start, int) else None, str(d["host"]))
+        except (ValueError, TypeError, KeyError, AttributeError):
+            return None
+
+    def text(self) -> str:
+        return json.dumps({"pid": self.pid, "start": self.start, "host": self.host}) + "\n"
+
+    def alive(self) -> bool:
+        """Whether the process runs: its pid exists, with the same start time where both are
+        known. A process of another host is taken to be alive (its pids cannot be seen here)."""
+        if self.host and self.host != socket.gethostname():
+            return True
+        now = process_start(self.pid)
+        return now is not None and (now == -1 or self.start in (None, -1) or now == self.start)
+
+
 @contextmanager
 def exclusive_folder(folder: str | Path, what: str = "out") -> Iterator[Path]:
     """Hold ``folder`` for one writer: create it if needed, refuse at once (``UserError`` naming
-    ``what``) when it is a file, not writable, or held by another process."""
+    ``what``) when it is a file, not writable, or held by another live process.
+
+    The hold is ``<folder>/.lock``: ``flock``-ed by its owner while it lives (the kernel lets go
+    when it dies, however), naming it (:class:`Owner`), and removed only by it. A lock left by a
+    process that has ended is taken over; ``flock`` lets one taker win. A refused process only
+    reads the lock."""
     folder = Path(folder)
     if folder.exists() and not folder.is_dir():
         raise UserError(f"config key '{what}': {folder} is a file, not a folder")
     try:
         folder.mkdir(parents=True, exist_ok=True)
-        handle = open(folder / ".lock", "a+")
+        fd = _take_lock(folder / ".lock", what)
     except OSError as exc:
         raise UserError(
             f"config key '{what}': cannot write into {folder} ({exc.strerror})"
         ) from None
     try:
-        try:
-            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            raise UserError(
-                f"config key '{what}': {folder} is being written by another process; "
-                "wait for it, or choose another folder"
-            ) from None
         yield folder
     finally:
-        (folder / ".lock").unlink(missing_ok=True)
-        handle.close()
+        try:
+            if _same_file(fd, folder / ".lock"):
+                (folder / ".lock").unlink()
+        finally:
+            os.close(fd)
+
+
+def _take_lock(path: Path, what: str) -> int:
+    """``path`` opened, ``flock``-ed and naming this process; ``UserError`` when a live process
+    holds it."""
+    while True:
+        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
+        try:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                raise _held(path.parent, what, _holder(fd)) from None
+            if not _same_file(fd, path):  # its owner removed it as this process opened it
+                os.close(fd)
+                continue
+            holder = Owner.parse(_read(fd))
+            if holder is not None and holder.alive() and holder != Owner.me():
+                raise _held(path.parent, what, holder)  # no flock on this file system
+            os.ftruncate(fd, 0)
+            os.pwrite(fd, Owner.me().text().encode(), 0)
+            return fd
+        except BaseException:
+            os.close(fd)
+            raise
+
+
+def _read(fd: int) -> str:
+    return os.pread(fd, 4096, 0).decode("utf-8", "replace")
+
+
+def _same_file(fd: int, path: Path) -> bool:
+    try:
+        a, b = os.fstat(fd), os.stat(path)
+    except FileNotFoundError:
+        return False
+    return (a.st_dev, a.st_ino) == (b.st_dev, b.st_ino)
+
+
+def _holder(fd: int) -> Owner | None:
+    """The live owner of the lock open as ``fd``, given a moment to write its name when it has
+    just taken the lock over; the name there, alive or not, after that."""
+    for _ in range(25):
+        owner = Owner.parse(_read(fd))
+        if owner is not None and owner.alive():
+            break
+        time.sleep(0.02)
+    return owner
+
+
+def _held(folder: Path, what: str, owner: Owner | None) -> UserError:
+    here = owner is None or owner.host in ("", socket.gethostname())
+    by = "" if owner is None else f" (pid {owner.pid}{'' if here else ' on ' + owner.host})"
+    ended = "" if here else f" (delete {folder / '.lock'} if that process has ended)"
+    return UserError(
+        f"config key '{what}': {folder} is being written by another process{by}; "
+        f"wait for it, or choose another folder{ended}"
+    )
+
+
+def work_folder(parent: str | Path, prefix: str) -> Path:
+    """``<parent>/<prefix>-<pid>``: where this process builds what :func:`swap_in` moves into
+    ``parent`` when complete."""
+    return Path(parent) / f"{prefix}-{os.getpid()}"
+
+
+def claim_folder(folder: Path) -> Path:
+    """Make ``folder`` (a :func:`work_folder`) new and empty, with a file naming this process
+    (:data:`OWNER_FILE`), so that no other process takes it for abandoned while this one lives.
+    What it held was left by an ended process: its pid is this one's."""
+    shutil.rmtree(folder, ignore_errors=True)
+    folder.mkdir(parents=True)
+    (folder / OWNER_FILE).write_text(Owner.me().text())
+    return folder
+
+
+def folder_owner(folder: Path) -> Owner:
+    """Whose work folder ``folder`` is: its owner file, or (written before there was one, or
+    being written) the pid of its name; pid 0, no process, for a name without one."""
+    with contextlib.suppress(OSError):
+        owner = Owner.parse((folder / OWNER_FILE).read_text())
+        if owner is not None:
+            return owner
+    pid = folder.name.rsplit("-", 1)[-1]
+    return Owner(int(pid) if pid.isdigit() else 0)
+
+
+def abandoned(parent: str | Path, prefix: str) -> list[Path]:
+    """The work folders ``<prefix>-*`` of ``parent`` whose process has ended (a killed or
+    interrupted run's); a live process's folder is never among them."""
+    found = sorted(p for p in Path(parent).glob(f"{prefix}-*") if p.is_dir())
+    return [p for p in found if not folder_owner(p).alive()]
+
+
+def remove_abandoned(parent: str | Path, prefix: str) -> list[Path]:
+    """Remove the :func:`abandoned` work folders of ``parent``; the ones removed."""
+    gone = abandoned(parent, prefix)
+    for p in gone:
+        shutil.rmtree(p, ignore_errors=True)
+    return gone
 
 
 def swap_in(staging: Path, target: Path) -> None:
@@ -145,7 +313,7 @@ def swap_in(staging: Path, target: Path) -> None:
     remove ``staging``. A folder being replaced is moved aside first and deleted last."""
     aside = []
     for entry in sorted(staging.iterdir()):
-        if entry.name.startswith(".old-"):
+        if entry.name.startswith(".old-") or entry.name == OWNER_FILE:
             continue
         dest = target / entry.name
         if dest.is_dir() and not dest.is_symlink():

@@ -4,7 +4,7 @@ on its dataclass field.
 Every config is a dataclass: a stage's (``pipeline/stages/_schema.py``) or a config group's, beside
 the science it configures (``MethodSpec``, ``TrainConfig``, ``StudyConfig``, ``ReportSpec``). A field
 declares its key: the annotation is the type, :func:`setting` adds a range (``ge``/``gt``/``le``/``lt``),
-``choices`` or ``nonempty`` as metadata, and the string literal under the field (an attribute
+``choices``, ``nonempty`` or ``path`` (a file or folder: a name the file system can hold) as metadata, and the string literal under the field (an attribute
 docstring, read by :func:`field_docs`) is its description. From these alone, Hydra's structured
 configs refuse wrong types and unknown keys, :func:`check` refuses values out of range and
 :func:`constraint` and :func:`field_docs` give ``python -m pipeline <stage> --help`` its text.
@@ -17,7 +17,11 @@ import ast
 import dataclasses
 import functools
 import inspect
+import math
+import os
 import textwrap
+import types
+import typing
 from collections.abc import Iterable, Mapping
 from typing import Any
 
@@ -35,14 +39,15 @@ def setting(
     lt: float | None = None,
     choices: Iterable[Any] | None = None,
     nonempty: bool = False,
+    path: bool = False,
     default_factory: Any = None,
 ):
-    """A dataclass field with a range (``ge``/``gt``/``le``/``lt``), a set of ``choices`` or
-    ``nonempty`` (strings), checked by :func:`check`."""
+    """A dataclass field with a range (``ge``/``gt``/``le``/``lt``), a set of ``choices``,
+    ``nonempty`` (strings) or ``path`` (a file or folder, :func:`path_problem`), checked by
+    :func:`check`."""
+    flags = {"nonempty": nonempty or None, "path": path or None}
     meta = {
-        k: v
-        for k, v in {"ge": ge, "gt": gt, "le": le, "lt": lt, "nonempty": nonempty or None}.items()
-        if v is not None
+        k: v for k, v in {"ge": ge, "gt": gt, "le": le, "lt": lt, **flags}.items() if v is not None
     }
     if choices is not None:
         meta["choices"] = tuple(choices)
@@ -59,6 +64,8 @@ def problem(value: Any, meta: Mapping[str, Any]) -> str | None:
         return f"must be one of {', '.join(map(str, meta['choices']))}; got {value!r}"
     if meta.get("nonempty") and not str(value).strip():
         return "must not be empty"
+    if meta.get("path") and (wrong := path_problem(str(value))):
+        return wrong
     for key, ok, word in (
         ("ge", lambda v, b: v >= b, ">="),
         ("gt", lambda v, b: v > b, ">"),
@@ -67,6 +74,41 @@ def problem(value: Any, meta: Mapping[str, Any]) -> str | None:
     ):
         if key in meta and not ok(value, meta[key]):
             return f"must be {word} {meta[key]}; got {value!r}"
+    return None
+
+
+def _existing(path: str) -> str:
+    """The nearest folder of ``path`` (itself or a parent) that exists."""
+    folder = os.path.abspath(path)
+    while not os.path.isdir(folder) and os.path.dirname(folder) != folder:
+        folder = os.path.dirname(folder)
+    return folder
+
+
+def _limit(folder: str, name: str, default: int) -> int:
+    try:
+        return os.pathconf(folder, name)
+    except (OSError, ValueError):
+        return default
+
+
+def path_problem(path: str) -> str | None:
+    """What keeps the file system from holding ``path``: a file or folder name longer than its
+    limit (``PC_NAME_MAX`` of the nearest existing folder, 255 bytes on most), or the whole path
+    longer than ``PC_PATH_MAX``; or None."""
+    folder = _existing(path)
+    longest = max(os.fsencode(path).split(b"/"), key=len)
+    name_max = _limit(folder, "PC_NAME_MAX", 255)
+    if len(longest) > name_max:
+        shown = os.fsdecode(longest[:24]) + "..."
+        return (
+            f"the name {shown!r} is {len(longest)} bytes long; the file system of {folder} allows "
+            f"{name_max}: choose a shorter name"
+        )
+    whole = len(os.fsencode(os.path.abspath(path)))
+    path_max = _limit(folder, "PC_PATH_MAX", 4096)
+    if whole >= path_max:
+        return f"the path is {whole} bytes long; the file system allows {path_max - 1}: choose a shorter one"
     return None
 
 
@@ -82,19 +124,45 @@ def check(obj: Any, prefix: str = "") -> None:
             raise ConfigError(
                 f"config key '{prefix}{extra[0]}': unknown key; known: {', '.join(sorted(known))}"
             )
+        hints = _hints(type(obj))
         for f in dataclasses.fields(obj):
             value = getattr(obj, f.name)
             key = f"{prefix}{f.name}"
-            wrong = problem(value, f.metadata)
+            wrong = problem(value, f.metadata) or element_problem(value, hints.get(f.name))
             if wrong:
                 raise ConfigError(f"config key '{key}': {wrong}")
             check(value, key + ".")
+    elif isinstance(obj, float) and not math.isfinite(obj):
+        raise ConfigError(f"config key '{prefix.rstrip('.')}': must be a finite number; got {obj}")
     elif isinstance(obj, dict):
         for k, v in obj.items():
             check(v, f"{prefix}{k}.")
     elif isinstance(obj, (list, tuple)):
         for i, v in enumerate(obj):
             check(v, f"{prefix}{i}.")
+
+
+@functools.cache
+def _hints(cls: type) -> dict[str, Any]:
+    try:
+        return typing.get_type_hints(cls)
+    except (NameError, TypeError):  # a dataclass made at run time with unresolvable hints
+        return {}
+
+
+def element_problem(value: Any, hint: Any) -> str | None:
+    """What is wrong with the elements of a list typed ``list[str]`` (or ``tuple[str, ...]``,
+    optional or not) whose elements are not strings (``categories=[[1]]``), or None."""
+    if not isinstance(value, (list, tuple)):
+        return None
+    optional = typing.get_origin(hint) in (typing.Union, types.UnionType)
+    kinds = [a for a in typing.get_args(hint) if a is not type(None)] if optional else [hint]
+    for kind in kinds:
+        if typing.get_origin(kind) in (list, tuple) and typing.get_args(kind)[:1] == (str,):
+            bad = next((v for v in value if not isinstance(v, str)), None)
+            if bad is not None:
+                return f"must be a list of words; got {bad!r} in {list(value)!r}"
+    return None
 
 
 def constraint(f: dataclasses.Field) -> str:

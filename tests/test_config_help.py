@@ -13,7 +13,9 @@ import pytest
 from pipeline.schema import constraint, field_docs, setting
 from pipeline.stages._common import CONF_DIR
 from pipeline.stages._help import StageHelp, describe, nested, stage_help
-from pipeline.stages._schema import SCHEMAS
+from pipeline.stages._schema import schemas
+
+SCHEMAS = schemas()  # every stage's schema class
 
 
 def schema_classes() -> list[type]:

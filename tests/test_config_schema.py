@@ -24,7 +24,9 @@ from pipeline.rl.oracle import TRUE_CATEGORY
 from pipeline.stages._cell_plan import experiment_cells
 from pipeline.stages._common import load_config, run_stage
 from pipeline.stages._recognisers import recogniser_names
-from pipeline.stages._schema import SCHEMAS
+from pipeline.stages._schema import schemas
+
+SCHEMAS = schemas()  # every stage's schema class
 
 ROOT = Path(__file__).resolve().parents[1]
 SMOKE = ["profile=smoke", "progress=false"]
@@ -358,7 +360,7 @@ def test_a_cell_pins_recogniser_arguments_and_its_records_say_so(tmp_path):
     """``experiment.cells.<name>.recogniser`` ({p: ...}) is applied to that cell only, over the top
     level's recogniser, and the records hold the config that ran."""
     from pipeline.records import read_records
-    from pipeline.stages._schema import Cell
+    from pipeline.stages._experiment_schema import Cell
     from pipeline.stages.trials import run
 
     args = [
@@ -442,7 +444,7 @@ def test_a_cell_pins_recogniser_arguments_and_its_records_say_so(tmp_path):
     ],
 )
 def test_recogniser_pins_that_cannot_apply_are_refused(cells, args, message):
-    from pipeline.stages._schema import Cell
+    from pipeline.stages._experiment_schema import Cell
     from pipeline.stages.trials import resolve_cells
 
     args = ["+experiment=fig8", "recogniser=fixed_accuracy", *args, *SMOKE]

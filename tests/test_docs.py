@@ -8,6 +8,7 @@ disagree.
 
 import re
 import subprocess
+from collections import Counter
 from functools import cache
 from pathlib import Path
 
@@ -182,3 +183,33 @@ def test_a_quoted_default_is_the_configs(doc, key, value):
     assert default_of(key) == yaml.safe_load(value), (
         f"{doc}: `{key}={value}` by default, but the config says otherwise"
     )
+
+
+def fault_counts(request) -> Counter:
+    """Cases per family of ``tests/faults``: this session's own items when it collected the whole
+    folder with the default markers (``make test``), else ``pytest --collect-only`` in a child."""
+    from scripts.fault_census import FAULTS, census, family
+
+    config = request.config
+    paths = [Path(a.split("::")[0]).resolve() for a in config.args] or [ROOT / "tests"]
+    covering = [p for p in paths if p in (ROOT, ROOT / "tests", FAULTS)]
+    inside = [p for p in paths if p.is_relative_to(FAULTS) and p != FAULTS]
+    filtered = (
+        config.getoption("keyword", default=""),
+        config.getoption("markexpr", default=""),
+        config.getoption("deselect", default=None),
+        config.getoption("lf", default=False),
+    ) != ("", "not slow", None, False)
+    if not covering or inside or filtered:
+        return census()
+    items = [i for i in request.session.items if Path(i.fspath).is_relative_to(FAULTS)]
+    return Counter(family(i.nodeid) for i in items)
+
+
+def test_reliability_quotes_the_fault_census(request):
+    """docs/reliability.md "The cases" is the table ``python -m scripts.fault_census`` prints."""
+    from scripts.fault_census import table
+
+    doc = (ROOT / "docs" / "reliability.md").read_text()
+    wanted = table(fault_counts(request))
+    assert wanted in doc, f"put this table under 'The cases' in docs/reliability.md:\n{wanted}"

@@ -1,18 +1,15 @@
-"""dvc.yaml against pipeline/conf/: one trials stage per experiment file, config declared as params (keys
-that exist, and every method and recogniser file an experiment reads), code and data as deps, and a
-DVC site cache that does not depend on the cwd. The lists DVC forces are checked here, each
-failure naming what to add or remove."""
+"""dvc.yaml against pipeline/conf/: one trials stage per experiment file, params that name keys that
+exist, config as params and never as deps, the paper's scale, and a DVC site cache that does not
+depend on the cwd. The derived parts (code deps, params, the experiments) are checked against
+their derivation in tests/faults/test_dvc.py."""
 
 import configparser
 import os
 from pathlib import Path
 
-import pytest
 import yaml
 
-from pipeline.rl.methods import METHOD_DIR
 from pipeline.stages._common import CONF_DIR
-from pipeline.stages._recognisers import RECOGNISER_DIR
 
 ROOT = Path(__file__).resolve().parents[1]
 EXPERIMENT_DIR = Path(CONF_DIR) / "experiment"
@@ -83,65 +80,6 @@ def test_no_stage_depends_on_a_cached_folder():
     for name, s in STAGES.items():
         deps = s.get("do", s).get("deps", [])
         assert not cached & set(deps), f"{name} depends on a cached folder: {cached & set(deps)}"
-
-
-def read_by_experiments() -> list[str]:
-    """The method and recogniser files the experiments of ``pipeline/conf/experiment/`` read, as dvc.yaml
-    names them: the methods of their cells (listed and layout templates), the recognisers their
-    cells choose (``recogniser_group``), their defaults lists choose (``override /recogniser``) and
-    ``pipeline/conf/trials.yaml`` chooses for the rest."""
-    trials = yaml.safe_load((Path(CONF_DIR) / "trials.yaml").read_text())
-    recognisers = {
-        d["recogniser"] for d in trials["defaults"] if isinstance(d, dict) and "recogniser" in d
-    }
-    methods = set()
-    for path in EXPERIMENT_DIR.glob("*.yaml"):
-        data = yaml.safe_load(path.read_text()) or {}
-        exp = data.get("experiment") or {}
-        cells = [
-            *(exp.get("cells") or {}).values(),
-            *((exp.get("layouts") or {}).get("cells") or {}).values(),
-        ]
-        methods |= {c["method"] for c in cells if "method" in c}
-        recognisers |= {c["recogniser_group"] for c in cells if c.get("recogniser_group")}
-        for entry in data.get("defaults") or []:
-            if isinstance(entry, dict):
-                recognisers |= {v for k, v in entry.items() if k.endswith("/recogniser")}
-    return [
-        *(f"{METHOD_DIR.relative_to(ROOT).as_posix()}/{m}.yaml" for m in sorted(methods)),
-        *(f"{RECOGNISER_DIR.relative_to(ROOT).as_posix()}/{r}.yaml" for r in sorted(recognisers)),
-    ]
-
-
-@pytest.mark.parametrize("exp", EXPERIMENTS)
-def test_each_trials_stage_tracks_its_experiment_and_the_methods_and_recognisers_they_read(exp):
-    """DVC cannot list per item the files an item reads: every item tracks every method and
-    recogniser file any experiment reads, whole, so changing one reruns the trials (and a new
-    recogniser or method an experiment uses is named here until dvc.yaml lists it)."""
-    stage = expanded("trials", exp)
-    files = dict(params_entries(stage))
-    assert files[f"{EXPERIMENT_DIR.relative_to(ROOT).as_posix()}/{exp}.yaml"] == []  # whole file
-    whole = {f for f, keys in files.items() if keys == []}
-    missing = [f for f in read_by_experiments() if f not in whole]
-    assert not missing, "; ".join(
-        f"add {f} to dvc.yaml's trials params (whole file)" for f in missing
-    )
-    assert (
-        f"+experiment={exp} " in stage["cmd"]
-        and f"metrics_dir=datasets/metrics/{exp} " in stage["cmd"]
-        and f"index_file=datasets/index/runs/{exp}.json" in stage["cmd"]
-    )
-    assert stage["outs"][0] == {f"datasets/runs/{exp}": {"persist": True}}
-
-
-def test_the_files_experiments_read_include_their_methods_and_recognisers():
-    read = read_by_experiments()
-    method = METHOD_DIR.relative_to(ROOT).as_posix()
-    recogniser = RECOGNISER_DIR.relative_to(ROOT).as_posix()
-    assert f"{method}/fewshot_dss.yaml" in read  # a cell's method
-    assert f"{recogniser}/protonet.yaml" in read  # fig8's recogniser_group
-    assert f"{recogniser}/fixed_accuracy.yaml" in read  # accuracy_curve's override /recogniser
-    assert f"{recogniser}/relation_net.yaml" in read  # pipeline/conf/trials.yaml's default
 
 
 def test_differences_name_what_is_missing_and_what_is_extra():

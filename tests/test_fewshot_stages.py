@@ -156,11 +156,11 @@ def test_config_errors_name_the_key(tmp_path):
             "accuracy", ["recogniser=oracle", "study.hue_shifts=[90]", f"out_dir={tmp_path}/o"]
         )
     with pytest.raises(
-        ConfigError, match=r"config key 'study.hue_shifts\[0\]'.*could not be converted to Float"
+        ConfigError, match=r"config key 'study.hue_shifts.0'.*could not be converted to Float"
     ):
         run_stage("accuracy", ["study.hue_shifts=[red]"])
     with pytest.raises(
-        ConfigError, match=r"config key 'recogniser': query_hue_shift must be a finite number"
+        ConfigError, match=r"config key 'recogniser.query_hue_shift': must be a finite number"
     ):
         run_stage("accuracy", ["recogniser.query_hue_shift=nan", f"out_dir={tmp_path}/o"])
     with pytest.raises(

@@ -11,7 +11,7 @@ from omegaconf.errors import ConfigKeyError
 from pipeline.errors import ConfigError
 from pipeline.stages._cell_plan import experiment_cells
 from pipeline.stages._common import load_config, run_stage
-from pipeline.stages._schema import Cell, Experiment, Layouts, LayoutSet
+from pipeline.stages._experiment_schema import Cell, Experiment, Layouts, LayoutSet
 from pipeline.world.layout_sets import GeneratedCell, LayoutSetError, expand, layout_mazes
 from pipeline.world.maze import load_layout
 

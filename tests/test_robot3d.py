@@ -368,7 +368,7 @@ def test_settings_are_checked_where_the_robot_world_is_built():
 @pytest.mark.filterwarnings("ignore::pipeline.records.RecordsWarning")  # a .partial, as expected
 @pytest.mark.parametrize(
     "sig",
-    [  # about 20 s each; the grid's runs test SIGTERM and SIGINT by default (tests/test_faults.py)
+    [  # about 20 s each; the grid's runs test SIGTERM and SIGINT by default (tests/faults/test_kills.py)
         pytest.param(signal.SIGTERM, marks=pytest.mark.slow),
         pytest.param(signal.SIGINT, marks=pytest.mark.slow),
         signal.SIGKILL,

@@ -1,0 +1,1 @@
+"""Few-shot recognition: the Relation Network, the Prototypical Network, the dynamic support set."""

@@ -3,12 +3,16 @@ config and metrics that produced them and the input normalisation. The ``format`
 network (``relation-network/1``, ``prototypical-network/1``); loading one kind as the other is
 refused. Written atomically (a temporary file in the same folder, then ``os.replace``),
 read with ``torch.load(weights_only=True)``, and checked: a corrupt, foreign or mismatched file
-raises :class:`CheckpointError` naming the file and the problem.
+raises :class:`CheckpointError` naming the file and the problem. So does one that loads but cannot
+score: a normalisation that is not three finite means and three positive standard deviations, a
+weight of another type than the network's or with a NaN or infinite value, or a network whose
+scores of a fixed probe episode (:func:`probe`) are not finite or not of the episode's shape.
 """
 
 from __future__ import annotations
 
 import hashlib
+import math
 from dataclasses import asdict
 from pathlib import Path
 from typing import Any
@@ -30,6 +34,8 @@ NETWORKS = {
 }
 NAMES = {"relation_net": "a Relation Network", "protonet": "a Prototypical Network"}
 REQUIRED = ("format", "model", "state_dict", "normalisation", "config", "metrics")
+#: The colour channels the normalisation has a mean and a standard deviation for.
+CHANNELS = 3
 
 
 class CheckpointError(UserError):
@@ -85,7 +91,13 @@ def load_checkpoint(
     hint = "retrain it with `python -m pipeline meta_train" + (
         "`" if kind == "relation_net" else f" train.model={kind}`"
     )
-    if not path.is_file():
+    try:
+        exists = path.is_file()
+    except OSError as exc:  # a name over the file system's limit, a loop of links
+        raise CheckpointError(
+            f"checkpoint {path} cannot be opened ({exc.strerror or exc})"
+        ) from None
+    if not exists:
         raise CheckpointError(f"checkpoint {path} does not exist; {hint}")
     try:
         payload = torch.load(path, map_location="cpu", weights_only=True)
@@ -100,7 +112,8 @@ def load_checkpoint(
             f"checkpoint {path} lacks required entries {list(REQUIRED)} (has {have}); {hint}"
         )
     if payload["format"] != FORMATS[kind]:
-        other = {v: k for k, v in FORMATS.items()}.get(payload["format"])
+        named = payload["format"] if isinstance(payload["format"], str) else None
+        other = {v: k for k, v in FORMATS.items()}.get(named)
         if other is not None:
             raise CheckpointError(
                 f"checkpoint {path} holds {NAMES[other]} (train.model={other}), not {NAMES[kind]}; "
@@ -121,11 +134,94 @@ def load_checkpoint(
             f"checkpoint {path} was trained for {model}, but {expected_model} was asked for; {hint}"
         )
     network = network_class(model)
-    try:
-        network.load_state_dict(payload["state_dict"], strict=True)
-    except RuntimeError as exc:
-        raise CheckpointError(
-            f"checkpoint {path} does not match {NAMES[kind]}'s weights: {exc}"
-        ) from exc
-    network.eval()
+    problem = normalisation_problem(payload["normalisation"]) or weights_problem(
+        payload["state_dict"], network
+    )
+    if problem is None:
+        try:
+            network.load_state_dict(payload["state_dict"], strict=True)
+        except RuntimeError as exc:
+            problem = f"does not match {NAMES[kind]}'s weights: {_folded(exc)}"
+    if problem is None:
+        network.eval()
+        problem = probe_problem(network)
+    if problem is not None:
+        raise CheckpointError(f"checkpoint {path} {problem}; {hint}")
     return network, payload
+
+
+def _folded(exc: BaseException, limit: int = 300) -> str:
+    """An exception's message on one line, cut at ``limit`` characters."""
+    text = " ".join(str(exc).split())
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def _number(x: Any) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool)
+
+
+def normalisation_problem(norm: Any) -> str | None:
+    """What makes ``norm`` unusable as the input normalisation (three finite means, three finite
+    positive standard deviations), or None."""
+    if not isinstance(norm, dict) or any(k not in norm for k in ("mean", "std")):
+        have = sorted(norm) if isinstance(norm, dict) else type(norm).__name__
+        return f"has a normalisation without 'mean' and 'std' (has {have})"
+    for key in ("mean", "std"):
+        values = norm[key]
+        if not isinstance(values, (list, tuple)):
+            return (
+                f"has a normalisation '{key}' of type {type(values).__name__}, not a list of "
+                f"{CHANNELS} numbers (one per colour channel)"
+            )
+        if len(values) != CHANNELS:
+            return (
+                f"has a normalisation '{key}' of {len(values)} values, expected {CHANNELS} "
+                "(one per colour channel)"
+            )
+        if not all(_number(v) and math.isfinite(v) for v in values):
+            return f"has a normalisation '{key}' that is not {CHANNELS} finite numbers: {values}"
+        if key == "std" and not all(v > 0 for v in values):
+            return f"has a normalisation 'std' that is not positive: {values}"
+    return None
+
+
+def weights_problem(state_dict: Any, network: torch.nn.Module) -> str | None:
+    """A weight of ``state_dict`` that is not a tensor of the network's type for it, or that holds
+    a NaN or an infinite value, or None (missing and extra names are left to ``load_state_dict``)."""
+    if not isinstance(state_dict, dict):
+        return f"has weights of type {type(state_dict).__name__}, not a mapping of names to tensors"
+    expected = network.state_dict()
+    for name, value in state_dict.items():
+        if name not in expected:
+            continue
+        if not isinstance(value, torch.Tensor):
+            return f"has weight {name!r} of type {type(value).__name__}, not a tensor"
+        if value.dtype != expected[name].dtype:
+            return f"has weight {name!r} of type {value.dtype}, expected {expected[name].dtype}"
+        if value.is_floating_point() and not bool(torch.isfinite(value).all()):
+            nan, inf = int(torch.isnan(value).sum()), int(torch.isinf(value).sum())
+            return (
+                f"has weight {name!r} with {nan} NaN and {inf} infinite values of {value.numel()}"
+            )
+    return None
+
+
+def probe(network: RelationNetwork | PrototypicalNetwork) -> torch.Tensor:
+    """The network's scores of a fixed 2-way 1-shot episode of 2 queries (normal noise of a fixed
+    seed at the network's input size): a (2, 2) tensor of finite numbers for a usable network."""
+    size = network.config.input_size
+    noise = torch.randn(4, 3, size, size, generator=torch.Generator().manual_seed(0))
+    with torch.no_grad():
+        return network(noise[:2].unflatten(0, (2, 1)), noise[2:4])
+
+
+def probe_problem(network: RelationNetwork | PrototypicalNetwork) -> str | None:
+    """What is wrong with the network's :func:`probe` scores, or None."""
+    scores = probe(network)
+    if tuple(scores.shape) != (2, 2):
+        return (
+            f"scores a 2-way probe episode of 2 queries as shape {tuple(scores.shape)}, not (2, 2)"
+        )
+    if not bool(torch.isfinite(scores).all()):
+        return f"gives scores that are not finite on a probe episode: {scores.tolist()}"
+    return None

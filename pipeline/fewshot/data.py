@@ -38,6 +38,8 @@ COLUMNS = (
     "file",
 )
 SPLITS = ("query", "support", "train", "val", "test", "views")
+#: Manifest columns that hold whole numbers (a manifest line with another value is refused, naming it).
+WHOLE_NUMBERS = ("category", "instance", "face", "picture_id")
 #: File endings :func:`load_folder` reads as pictures (any case); other files are left alone.
 PICTURE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".webp")
 
@@ -67,20 +69,56 @@ class PictureSet:
 
 
 def read_manifest(images_dir: str | Path) -> pd.DataFrame:
-    """The manifest as a DataFrame, with its columns checked."""
+    """The manifest as a DataFrame, with its columns checked: a file that is not CSV, a missing
+    column, an unknown split, a line whose category, instance, face or picture id is not a whole
+    number, or whose file is empty is refused (:class:`DataError` naming the file and line)."""
     path = Path(images_dir) / MANIFEST
-    if not path.is_file():
+    try:
+        found = path.is_file()
+    except OSError as exc:  # a name over the file system's limit, a loop of links
+        raise DataError(
+            f"cannot open the picture manifest {path} ({exc.strerror or exc}); point images_dir "
+            "at a rendered dataset"
+        ) from None
+    if not found:
         raise DataError(
             f"no picture manifest at {path}; render the pictures first (`python -m pipeline render`) "
             f"or point images_dir at a rendered dataset"
         )
-    frame = pd.read_csv(path)
+    try:
+        frame = pd.read_csv(path)
+    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
+        raise DataError(
+            f"{path}: not a picture manifest (a CSV file with the columns {', '.join(COLUMNS)}): "
+            f"{' '.join(str(exc).split())}"
+        ) from None
+    except OSError as exc:
+        raise DataError(
+            f"cannot read the picture manifest {path} ({exc.strerror or exc})"
+        ) from None
     missing = [c for c in COLUMNS if c not in frame.columns]
     if missing:
         raise DataError(f"{path}: missing column(s) {missing}; expected {list(COLUMNS)}")
-    unknown = sorted(set(frame["split"]) - set(SPLITS))
+    unknown = sorted(set(frame["split"].astype(str)) - set(SPLITS))
     if unknown:
         raise DataError(f"{path}: unknown split(s) {unknown}; expected {list(SPLITS)}")
+    for column in WHOLE_NUMBERS:
+        numbers = pd.to_numeric(frame[column], errors="coerce")
+        bad = numbers.isna() | (numbers != numbers.round())
+        if bad.any():
+            row = int(np.flatnonzero(bad.to_numpy())[0])
+            value = frame[column].iloc[row]
+            shown = "no value" if pd.isna(value) else repr(str(value))
+            raise DataError(
+                f"{path}:{row + 2}: column {column!r} holds {shown}, not a whole number"
+            )
+        frame[column] = numbers.astype(np.int64)
+    names = frame["file"]
+    empty = names.isna() | (names.astype(str).str.strip() == "")
+    if empty.any():
+        row = int(np.flatnonzero(empty.to_numpy())[0])
+        raise DataError(f"{path}:{row + 2}: column 'file' is empty; it names the picture's file")
+    frame["file"] = names.astype(str)
     return frame
 
 
@@ -184,9 +222,11 @@ def load_folder(root: str | Path, size: int, *, progress: bool = False) -> Pictu
     files: list[str] = []
     labels: list[int] = []
     for label, folder in enumerate(classes):
-        pictures = sorted(
-            f.name for f in folder.iterdir() if f.is_file() and f.suffix.lower() in PICTURE_SUFFIXES
-        )
+        named = [f for f in folder.iterdir() if f.suffix.lower() in PICTURE_SUFFIXES]
+        for f in named:
+            if f.is_symlink() and not f.exists():  # not left out without a word
+                raise DataError(f"{f}: a symbolic link that leads nowhere or to itself")
+        pictures = sorted(f.name for f in named if f.is_file())
         if not pictures:
             raise DataError(
                 f"{folder}: class folder without pictures (files ending in {', '.join(PICTURE_SUFFIXES)})"

@@ -6,9 +6,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import pandas as pd
-
-from pipeline.fewshot.data import MANIFEST, load_split
+from pipeline.fewshot.data import MANIFEST, load_split, read_manifest
 
 
 def support_pictures(images_dir: str) -> dict[int, list[bytes]]:
@@ -28,7 +26,7 @@ def query_pictures(images_dir: str) -> dict[int, bytes]:
     manifest = Path(images_dir) / MANIFEST
     if not manifest.exists():
         return {}
-    df = pd.read_csv(manifest)
+    df = read_manifest(images_dir)  # a damaged manifest: DataError naming it
     df = df[df["split"] == "query"]
     return {
         int(p): (Path(images_dir) / f).read_bytes() for p, f in zip(df["picture_id"], df["file"])

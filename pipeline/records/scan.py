@@ -88,12 +88,30 @@ def scan(path: str | Path, *, time_range: tuple[int, int] | None = None) -> Scan
         what = "empty file (0 bytes)" if not data else "not an MCAP file"
         raise RecordsError(f"{path}: {what}: it does not start with the MCAP magic bytes")
     out = Scan(path)
+    data, appended = _closed(data)
     end = _summary(data, out)
     if out.summary is not None:
         _indexed(data, out, end, time_range)
     else:
         _stream(data, out, time_range)
+    if appended:
+        out.add(
+            "data",
+            f"{appended} bytes follow the file's closing magic bytes at byte {len(data) - 8} "
+            "(added after its end): ignored, all recorded data is intact",
+        )
     return out
+
+
+def _closed(data: bytes) -> tuple[bytes, int]:
+    """A whole file with bytes after its closing magic (appended to): the file up to that magic,
+    and how many bytes follow it; else ``data`` and 0."""
+    close = data.rfind(MAGIC) + 8
+    if data[-8:] == MAGIC or close <= 16:
+        return data, 0
+    probe = Scan(Path())
+    _summary(data[:close], probe)
+    return (data[:close], len(data) - close) if probe.summary is not None else (data, 0)
 
 
 def _summary(data: bytes, out: Scan) -> int:

@@ -107,7 +107,8 @@ def read_run(path: Path, run: int, episode: int | None) -> Records:
             "again with record=steps (the default) to replay it",
             key="file",
         )
-    why = f"; the file is damaged or cut: {meta.lost}" if meta.lost else ""
+    lost = meta.lost or "; ".join(meta.problems)  # the problems, where its config is lost too
+    why = f"; the file is damaged or cut: {lost}" if lost and not meta.complete else ""
     have = recs.episodes.episode[recs.episodes.run == run]
     if have.empty:
         raise ReplayError(f"{path}: no recorded episode of run {run}{why}")

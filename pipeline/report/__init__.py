@@ -1,0 +1,1 @@
+"""The report: statistics, tables, figures and claims, built from the recorded data alone."""

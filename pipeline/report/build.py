@@ -15,7 +15,6 @@ built; elsewhere (a pipe, a log) stderr holds only errors, in one line.
 
 from __future__ import annotations
 
-import os
 import shutil
 import threading
 from contextlib import contextmanager
@@ -25,7 +24,7 @@ from pathlib import Path
 import pandas as pd
 from tqdm import tqdm
 
-from pipeline.files import swap_in
+from pipeline.files import claim_folder, remove_abandoned, swap_in, work_folder
 from pipeline.report.claims_section import claims_section
 from pipeline.report.experiments import ReportInputError, load_all
 from pipeline.report.scale import check_scales, scales, title_and_scale
@@ -125,14 +124,15 @@ def build_report(inputs: Inputs) -> Path:
     and ``figures/`` in only when it is complete: a failed build leaves the previous report whole."""
     out = inputs.out
     out.mkdir(parents=True, exist_ok=True)
-    staging = out / f".building-{os.getpid()}"
-    shutil.rmtree(staging, ignore_errors=True)
+    staging = work_folder(out, ".building")
     try:
+        claim_folder(staging)
         _build(replace(inputs, out=staging))
     except BaseException:
         shutil.rmtree(staging, ignore_errors=True)
         raise
     swap_in(staging, out)
+    remove_abandoned(out, ".building")  # left by killed builds (never a live one's)
     return out / "index.md"
 
 

@@ -1,0 +1,1 @@
+"""Safe reinforcement learning: the methods, their rules, the kernel and the runner."""

@@ -28,7 +28,7 @@ from pipeline.rl.run_world import run_placement
 from pipeline.rl.runner import run_trials
 from pipeline.stages._common import one_line
 from pipeline.stages._recognisers import build_recogniser
-from pipeline.stages._schema import TrialsConfig
+from pipeline.stages._trials_schema import TrialsConfig
 from pipeline.world.geometry import build_geometry
 from pipeline.world.maze import ACTION_NAMES, MOVES, Layout
 from pipeline.world.pictures import CATEGORIES

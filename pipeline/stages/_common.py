@@ -18,8 +18,10 @@ line of its module's docstring (``pipeline/stages/_help.py``).
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
 import os
+import re
 import signal
 import sys
 from collections.abc import Callable
@@ -44,6 +46,11 @@ HELP_FLAGS = {"-h", "--help"}
 Runner = Callable[[Any, list[str]], Any]
 
 
+def dotted(key: str) -> str:
+    """OmegaConf's ``sizes[0].count`` as the command line spells it: ``sizes.0.count``."""
+    return re.sub(r"\[(\d+)\]", r".\1", key)
+
+
 def one_line(exc: BaseException) -> str:
     """Hydra's and OmegaConf's multi-line messages folded into one line naming the key."""
     cause = exc
@@ -60,10 +67,10 @@ def one_line(exc: BaseException) -> str:
     )
     key = getattr(cause, "full_key", None)
     if isinstance(cause, OmegaConfBaseException) and key:
-        return f"config key '{key}': {text}"
+        return f"config key '{dotted(key)}': {text}"
     named = [ln.split(":", 1)[1].strip() for ln in message.splitlines() if "full_key:" in ln]
     if named and named[0]:  # hydra's composition error quotes the key of the value it refused
-        return f"config key '{named[0]}': {text}"
+        return f"config key '{dotted(named[0])}': {text}"
     if cause is not exc and str(exc).strip():
         head = str(exc).strip().splitlines()[0]
         if head not in text:
@@ -91,14 +98,91 @@ def compose(config_name: str, overrides: list[str]) -> DictConfig:
 
     from pipeline.stages._schema import register
 
-    register()
+    refuse_deleted(config_name, overrides)
+    register(config_name)
     try:
         with initialize_config_module(config_module=HYDRA_MODULE, version_base="1.3"):
             cfg = hydra_compose(config_name=config_name, overrides=overrides)
     except (HydraException, OmegaConfBaseException, ValueError) as exc:
-        raise ConfigError(one_line(exc)) from None
+        raise ConfigError(null_group(overrides) or one_line(exc)) from None
+    except AssertionError:  # OmegaConf's update below a null key (experiment.name=x alone)
+        raise ConfigError(below_null(config_name, overrides)) from None
     refuse_merged_away(cfg, overrides)
     return cfg
+
+
+def groups() -> list[str]:
+    """The config groups (``method``, ``experiment``...): the folders of ``pipeline/conf``."""
+    return sorted(p.name for p in conf_dir().iterdir() if p.is_dir() and any(p.glob("*.yaml")))
+
+
+def options(group: str) -> str:
+    return ", ".join(sorted(p.stem for p in conf_dir(group).glob("*.yaml")))
+
+
+def override_key(override: str) -> str:
+    return override.lstrip("+~").partition("=")[0].strip()
+
+
+def refuse_deleted(config_name: str, overrides: list[str]) -> None:
+    """``~key`` of a key the stage's schema declares is refused: the key would silently take the
+    dataclass's default, or the placeholder ``???`` (``~out`` wrote to a folder named ``???``)."""
+    from pipeline.stages._schema import schema_of
+
+    declared = {f.name for f in dataclasses.fields(schema_of(config_name))}
+    for override in overrides:
+        key = override_key(override)
+        if override.startswith("~") and key.split(".")[0] in declared:
+            raise ConfigError(
+                f"config key '{key}': cannot be deleted ({override}); every key of the "
+                f"{config_name} config is needed: give it a value instead"
+            )
+
+
+def null_group(overrides: list[str]) -> str | None:
+    """The message for ``<group>=null`` (Hydra's names no group), or None."""
+    for override in overrides:
+        key, _, value = override.lstrip("+").partition("=")
+        if key.strip() in groups() and value.strip().lower() == "null":
+            return (
+                f"config key '{key.strip()}': null chooses no {key.strip()}; name one of "
+                f"{options(key.strip())}"
+            )
+    return None
+
+
+def below_null(config_name: str, overrides: list[str]) -> str:
+    """The message for an override of a key below a null one (``experiment.name=x`` without
+    ``+experiment=<name>``, where OmegaConf fails an assertion): the first such override, found by
+    composing the value overrides one more at a time (only on this error path)."""
+    from hydra import compose as hydra_compose
+    from hydra import initialize_config_module
+
+    chosen = [o for o in overrides if override_key(o) in groups() or o.startswith("hydra")]
+    values = [o for o in overrides if o not in chosen]
+    previous = None
+    for i in range(len(values) + 1):
+        try:
+            with initialize_config_module(config_module=HYDRA_MODULE, version_base="1.3"):
+                cfg = hydra_compose(config_name=config_name, overrides=chosen + values[:i])
+        except AssertionError:
+            key = override_key(values[i - 1])
+            parts = key.split(".")
+            for j in range(1, len(parts)):
+                parent = ".".join(parts[:j])
+                if OmegaConf.select(previous, parent, default=0) is None:
+                    hint = (
+                        f"choose one first: +{parent}=<name> ({options(parent)})"
+                        if parent in groups()
+                        else f"set {parent} itself first, or leave {key} out"
+                    )
+                    rest = ".".join(parts[j:])
+                    return f"config key '{key}': {parent} is null (not set), so it has no {rest}; {hint}"
+            break
+        except Exception:  # another override's error: the full compose would have raised it
+            break
+        previous = cfg
+    return "config: an override sets a key below one that is null (not set): " + " ".join(values)
 
 
 def refuse_merged_away(cfg: DictConfig, overrides: list[str]) -> None:
@@ -259,7 +343,7 @@ def _hydra_main(config_name: str, run: Runner, args: list[str]) -> None:
 
     from pipeline.stages._schema import register
 
-    register()
+    register(config_name)
     if any(a in ("-m", "--multirun") for a in args):  # refuse a bad sweep before launching any job
         with user_facing():
             for point in sweep_points(args):

@@ -1,7 +1,7 @@
 """The typed schema of the ``experiment`` config group (``pipeline/conf/experiment/<name>.yaml``): its cells,
 the cells it generates over sets of layouts, and how the report presents it.
 
-The trials stage's schema (:class:`pipeline.stages._schema.TrialsConfig`) types its ``experiment``
+The trials stage's schema (:class:`pipeline.stages._trials_schema.TrialsConfig`) types its ``experiment``
 key by :class:`Experiment`; ranges, choices and descriptions are declared on the fields as
 everywhere (:mod:`pipeline.schema`).
 """
@@ -45,7 +45,7 @@ class Cell:
 
     method: str = setting(nonempty=True)
     """A method of ``pipeline/conf/method/``."""
-    maze: str | None = None
+    maze: str | None = setting(None, path=True)
     """The cell's maze (as the top-level ``maze``); none: the top level's."""
     substitution: int | None = setting(None, choices=SUBSTITUTION_WAYS)
     """The cell's substitution way (as the top-level ``substitution``); none: the top level's."""

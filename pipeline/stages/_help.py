@@ -292,6 +292,6 @@ class StageHelp:
 
 def stage_help(stage: str, conf: str | Path) -> str:
     """The ``--help`` text of ``stage``, whose configs are in the folder ``conf``."""
-    from pipeline.stages._schema import SCHEMAS
+    from pipeline.stages._schema import schema_of
 
-    return StageHelp(stage, SCHEMAS[stage], Path(conf)).text()
+    return StageHelp(stage, schema_of(stage), Path(conf)).text()

@@ -55,12 +55,28 @@ def _config_type(hint: Any) -> Any:
     return Any
 
 
+def declared_targets() -> dict[str, str]:
+    """The ``_target_`` of every recogniser of ``pipeline/conf/recogniser/``, with its name: the
+    only code a config may name."""
+    out = {}
+    for name in recogniser_names():
+        node = OmegaConf.load(RECOGNISER_DIR / f"{name}.yaml")
+        out[str(node.get("_target_"))] = name
+    return out
+
+
 def _target(node: dict, key: str) -> Callable:
+    """The recogniser ``node`` names. A config (a file, an experiment, an override, a DVC params
+    file) names code only through ``_target_``, and only one a recogniser of
+    ``pipeline/conf/recogniser/`` declares: anything else is refused before it is imported."""
     target = node.get("_target_")
+    choose = f"choose a recogniser: {key}={'|'.join(recogniser_names())}"
     if not target:
+        raise ConfigError(f"config key '{key}._target_': missing; {choose}")
+    if str(target) not in declared_targets():
         raise ConfigError(
-            f"config key '{key}._target_': missing; choose a recogniser: "
-            f"{key}={'|'.join(recogniser_names())}"
+            f"config key '{key}._target_': {str(target)!r} is not a recogniser of "
+            f"pipeline/conf/recogniser/ (a config may name no other code); {choose}"
         )
     try:
         return get_method(str(target))

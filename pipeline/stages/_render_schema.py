@@ -11,6 +11,7 @@ from omegaconf import II, MISSING
 
 from pipeline.schema import setting
 from pipeline.stages._profile_schema import Profile
+from pipeline.world.family_split import MAX_DISTANCE
 
 
 @dataclass
@@ -63,11 +64,11 @@ class RenderConfig:
 
     profile: Profile = field(default_factory=Profile)
     """The scale (``pipeline/conf/profile/``): the class and picture counts default to its ``render`` keys."""
-    out_dir: str = setting(nonempty=True)
+    out_dir: str = setting(nonempty=True, path=True)
     """The pictures and ``manifest.csv``; its parent folder must exist."""
-    index_file: str | None = None
+    index_file: str | None = setting(None, path=True)
     """Every file of ``out_dir`` with its SHA-256 (``pipeline.files.write_index``), for dvc.yaml."""
-    figures_dir: str = setting(nonempty=True)
+    figures_dir: str = setting(nonempty=True, path=True)
     """The contact sheets (the report stage copies them)."""
     size: int = setting(ge=8)
     """Picture side in pixels (the paper's 84x84)."""
@@ -83,9 +84,9 @@ class RenderConfig:
     """Held-out validation classes that pick the checkpoint."""
     n_test_classes: int = setting(II("profile.render.n_test_classes"), ge=0)
     """Held-out test classes that give the quoted accuracy."""
-    min_family_distance: float = setting(ge=0)
+    min_family_distance: float = setting(ge=0, le=MAX_DISTANCE)
     """Least structural distance of every validation and test family from every training family
-    (``pipeline/world/family_split.py``)."""
+    (``pipeline/world/family_split.py``; no two families are further apart than 7)."""
     per_class: int = setting(II("profile.render.per_class"), ge=1)
     """Pictures per meta-training class."""
     views_per_obstacle: int = setting(II("profile.render.views_per_obstacle"), ge=0)

@@ -32,12 +32,12 @@ from pipeline.fewshot.study_tables import (
 from pipeline.fewshot.views import has_views, views_predictions
 from pipeline.files import write_json_atomic
 from pipeline.stages._common import stage_main
+from pipeline.stages._fewshot_schema import AccuracyConfig
 from pipeline.stages._recognisers import (
     build_recogniser,
     recogniser_arguments,
     recognisers_taking,
 )
-from pipeline.stages._schema import AccuracyConfig
 from pipeline.threads import torch_budget
 from pipeline.world.pictures import CATEGORIES, N_PICTURES, picture_category
 

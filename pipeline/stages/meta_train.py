@@ -33,7 +33,7 @@ from pipeline.fewshot.episodes import require_episodes
 from pipeline.fewshot.training import config_dict, meta_train
 from pipeline.files import write_json_atomic
 from pipeline.stages._common import stage_main
-from pipeline.stages._schema import MetaTrainConfig
+from pipeline.stages._fewshot_schema import MetaTrainConfig
 
 #: The keys of the training result that the checkpoint and ``<checkpoint stem>.validation.json``
 #: hold (deterministic for a seed); the others (timings) go to :func:`info_file`.

@@ -74,8 +74,24 @@ def run(cfg: ReplayConfig, overrides: list[str] = ()) -> Path:
 
 
 def write_replay(path: Path, cfg: ReplayConfig) -> Path:
-    """The ``.rrd`` of ``cfg.run``/``cfg.episode``; a damaged record file warns in one line."""
+    """The ``.rrd`` of ``cfg.run``/``cfg.episode``; a damaged record file warns in one line (each
+    warning once, however often the file is read; none when the replay is refused)."""
     from pipeline.records import RecordsWarning
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", RecordsWarning)
+        rrd = _write_replay(path, cfg)
+    said = set()
+    for w in caught:
+        if not issubclass(w.category, RecordsWarning):
+            warnings.showwarning(w.message, w.category, w.filename, w.lineno)
+        elif str(w.message) not in said:
+            said.add(str(w.message))
+            print(f"warning: {w.message}", file=sys.stderr, flush=True)
+    return rrd
+
+
+def _write_replay(path: Path, cfg: ReplayConfig) -> Path:
     from pipeline.replay import ReplayError, build_replay, opening_episode, replay_stem
 
     if cfg.whole_run and cfg.episode is not None:
@@ -94,19 +110,12 @@ def write_replay(path: Path, cfg: ReplayConfig) -> Path:
     if out.suffix != ".rrd":
         raise ConfigError(f"config key 'out': must end in .rrd, got {out}")
     try:
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always", RecordsWarning)
-            rrd = build_replay(
-                path, cfg.run, episode, out=out, whole_run=cfg.whole_run, worlds=WORLDS
-            )
+        rrd = build_replay(path, cfg.run, episode, out=out, whole_run=cfg.whole_run, worlds=WORLDS)
     except ReplayError as exc:
         keys = "key 'file'" if exc.key == "file" else "keys 'run'/'episode'"
         raise ConfigError(f"config {keys}: {exc}") from None
     except DiskError as exc:  # a full or read-only folder: the .rrd is written whole or not at all
         raise ConfigError(f"config key 'out': {exc}") from None
-    for w in caught:
-        if issubclass(w.category, RecordsWarning):
-            print(f"warning: {w.message}", file=sys.stderr, flush=True)
     return Path(rrd)
 
 

@@ -9,7 +9,8 @@ of an experiment, plus ``<out>/summary.json`` listing the cells. An ``out`` that
 results is refused unless ``overwrite=true`` is given (dvc.yaml's stages give it: DVC keeps their
 outs, ``persist``, so a refused config leaves them in place). Everything is built in
 ``<out>/.staging-<pid>/`` and moved in only when complete; with ``overwrite=true`` the cells of
-the previous run that this one does not have are removed then. An experiment run by hand into the
+the previous run that this one does not have are removed then, and the staging folders of ended
+runs (never a live process's: :func:`pipeline.files.abandoned`). An experiment run by hand into the
 ``out`` its file declares (its DVC stage's cached out) ends with a note that DVC owns that folder.
 
 The stage composes and hands over: the cells are planned in :mod:`pipeline.stages._cell_plan`,
@@ -30,12 +31,17 @@ import numba
 
 from pipeline.errors import ConfigError, Interrupted, UserError
 from pipeline.files import (
+    OWNER_FILE,
     DiskError,
+    abandoned,
+    claim_folder,
     disk_error,
     disk_problem,
     exclusive_folder,
+    remove_abandoned,
     size_text,
     swap_in,
+    work_folder,
     write_index,
     write_json_atomic,
 )
@@ -50,7 +56,7 @@ from pipeline.stages._cell_run import CellRun, make_recogniser, pictures_dir, re
 from pipeline.stages._common import stage_main
 from pipeline.stages._metrics import write_metrics
 from pipeline.stages._progress import compact, follow
-from pipeline.stages._schema import TrialsConfig
+from pipeline.stages._trials_schema import TrialsConfig
 from pipeline.stages._workers import cell_results, worker_pool
 from pipeline.threads import trials_budget
 from pipeline.world.maze import load_layout
@@ -140,8 +146,11 @@ def previous_cells(out: Path) -> set[str]:
 def failed_run(exc: BaseException, out: Path, staging: Path, cells: int = 1) -> BaseException:
     """What a failed run raises, after removing its staging folder (an interrupted run keeps it:
     its partial records). A full or read-only disk is one line naming ``out``, the space free
-    once the staging folder is gone and what the run needs, and any stale staging folder."""
+    once the staging folder is gone and what the run needs, and the staging folders of ended
+    runs (never a live process's: :func:`pipeline.files.abandoned`)."""
     if isinstance(exc, (Interrupted, KeyboardInterrupt)):
+        if staging.is_dir() and [p.name for p in staging.iterdir()] == [OWNER_FILE]:
+            shutil.rmtree(staging, ignore_errors=True)  # nothing of the run in it
         return exc
     shutil.rmtree(staging, ignore_errors=True)
     if isinstance(exc, OSError):
@@ -154,7 +163,7 @@ def failed_run(exc: BaseException, out: Path, staging: Path, cells: int = 1) -> 
         exc = disk_error(out, needed, exc.full, "not writable")
     stale = [
         (p, sum(f.stat().st_size for f in p.rglob("*") if f.is_file()))
-        for p in out.glob(".staging-*")
+        for p in abandoned(out, ".staging")
     ]
     held = "".join(
         f"; {p} (an interrupted run's partial records) holds {size_text(n)}" for p, n in stale
@@ -174,10 +183,10 @@ def run(cfg: TrialsConfig, overrides: list[str]) -> dict:
     trials_budget(cfg.threads, workers).apply()
     with worker_pool(cells, workers, cfg.threads) as pool, exclusive_folder(cfg.out) as out:
         refuse_overwrite(cfg, out)
-        staging = out / f".staging-{os.getpid()}"
-        shutil.rmtree(staging, ignore_errors=True)
+        staging = work_folder(out, ".staging")
         previous = previous_cells(out) if cfg.overwrite else set()
         try:
+            claim_folder(staging)
             index = run_cells(cfg, cells, staging, pool)
             swap_in(staging, out)
         except BaseException as exc:
@@ -186,8 +195,7 @@ def run(cfg: TrialsConfig, overrides: list[str]) -> dict:
             shutil.rmtree(out / name, ignore_errors=True)  # a cell the experiment no longer has
         if cfg.index_file:
             write_index(out, cfg.index_file)
-        for stale in out.glob(".staging-*"):  # partial records of interrupted runs, now superseded
-            shutil.rmtree(stale, ignore_errors=True)
+        for stale in remove_abandoned(out, ".staging"):  # ended runs' partial records, superseded
             print(f"removed the partial records of an interrupted run: {stale}")
     note_dvc_out(cfg, overrides)
     return index

@@ -19,7 +19,9 @@ compared by their *structure*, and every validation and test family is kept at l
 Proportions, leg and arm counts and colours are what instances of one family vary in, so they do
 not count. With ``min_distance`` 2 (``render.yaml``'s ``min_family_distance``) a held-out family
 differs from every training family by at least two whole parts: a tier of another kind and the
-legs, say, or an extra tier and a handle.
+legs, say, or an extra tier and a handle. No two families are further apart than
+:data:`MAX_DISTANCE` (4 tiers, legs, arms, handle), so a larger ``min_distance`` is refused at
+once; so is a split for which :data:`MAX_MISSES` draws in a row give no family far enough.
 """
 
 from __future__ import annotations
@@ -27,10 +29,15 @@ from __future__ import annotations
 from collections.abc import Iterator
 from itertools import permutations
 
-from pipeline.world.metaset import Family, family_stream
+from pipeline.errors import ConfigError
+from pipeline.world.metaset import MAX_TIERS, Family, family_stream
 
 #: The default least distance between a held-out (validation or test) family and every training family.
 MIN_DISTANCE = 2.0
+#: The largest distance of two families: every tier unmatched or unlike, legs, arms and handle.
+MAX_DISTANCE = MAX_TIERS + 3.0
+#: Draws in a row without a family far enough from the training families that end the search.
+MAX_MISSES = 2000
 
 
 def tier_distance(a: tuple[str, ...], b: tuple[str, ...]) -> float:
@@ -66,31 +73,49 @@ def nearest_distance(family: Family, others: list[Family]) -> float:
     return min((family_distance(family, o) for o in others), default=float("inf"))
 
 
+def far_from_all(family: Family, others: list[Family], min_distance: float) -> bool:
+    """Whether ``family`` is at least ``min_distance`` from each of ``others`` (stops at the first
+    that is nearer)."""
+    return all(family_distance(family, o) >= min_distance for o in others)
+
+
 def split_families(
     n_train: int, n_val: int, n_test: int, seed: int, min_distance: float = MIN_DISTANCE
 ) -> dict[str, list[Family]]:
     """Training, validation and test families, deterministic in ``seed``: the first ``n_train``
     families of :func:`~pipeline.world.metaset.family_stream`, then the next families that are at
     least ``min_distance`` from every training family, ``n_val`` for validation and ``n_test`` for
-    test, in the order drawn. Refuses (ValueError) when the grammar cannot give that many."""
+    test, in the order drawn. Refuses (:class:`~pipeline.errors.ConfigError`, naming the render
+    stage's key) a ``min_distance`` over :data:`MAX_DISTANCE`, and a split the grammar cannot give:
+    :data:`MAX_MISSES` draws in a row, or 200 per held-out family in all, without one far enough."""
     for name, n in (("train", n_train), ("validation", n_val), ("test", n_test)):
         if n < 0:
             raise ValueError(f"number of {name} classes must be >= 0, got {n}")
     if min_distance < 0:
         raise ValueError(f"min_distance must be >= 0, got {min_distance}")
+    n_held = n_val + n_test
+    if n_held and n_train and not min_distance <= MAX_DISTANCE:
+        raise ConfigError(
+            f"config key 'min_family_distance': no two families are further apart than "
+            f"{MAX_DISTANCE:g} ({MAX_TIERS} tiers, legs, arms, handle); got {min_distance}: "
+            "lower min_family_distance"
+        )
     stream: Iterator[Family] = family_stream(seed)
     train = [next(stream) for _ in range(n_train)]
     held: list[Family] = []
-    tries, limit = 0, 200 * (n_val + n_test + 1)
-    while len(held) < n_val + n_test:
+    tries, misses, limit = 0, 0, 200 * (n_held + 1)
+    while len(held) < n_held:
         tries += 1
-        if tries > limit:
-            raise ValueError(
-                f"only {len(held)} of {n_val + n_test} held-out families are at distance "
-                f">= {min_distance} from the {n_train} training families after {limit} draws; "
-                "lower min_family_distance or the number of classes"
+        misses += 1
+        if tries > limit or misses > MAX_MISSES:
+            raise ConfigError(
+                f"config key 'min_family_distance': only {len(held)} of {n_held} held-out "
+                f"families are at distance >= {min_distance} from the {n_train} training families "
+                f"(none in the last {misses - 1} of {tries - 1} draws); lower "
+                "min_family_distance or the number of classes"
             )
         fam = next(stream)
-        if nearest_distance(fam, train) >= min_distance:
+        if far_from_all(fam, train, min_distance):
             held.append(fam)
+            misses = 0
     return {"train": train, "val": held[:n_val], "test": held[n_val:]}

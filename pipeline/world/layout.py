@@ -2,7 +2,10 @@
 and shortest paths, and the text format's parser.
 
 One row per line: ``S`` start, ``G`` goal, ``X`` obstacle, ``.`` free. Blank lines at the end of
-the text and trailing whitespace are ignored; ``#`` starts a comment line. Cells are numbered
+the text and trailing whitespace are ignored; ``#`` starts a comment line. Lines end in LF, CR LF
+or CR (and a file loaded by :func:`pipeline.world.maze.load_layout` may start with a UTF-8 byte
+order mark, as Windows editors write it); any other character, other line separators such as form
+feed or U+2028 included, is an unknown character of its line. Cells are numbered
 ``row * width + col``; actions are 0 N, 1 E, 2 S, 3 W, one cell a step.
 
 Both ways to get a layout build on this module: :mod:`pipeline.world.maze` loads one by name or
@@ -160,7 +163,8 @@ def parse_layout(text: str, source: str = "<string>") -> Layout:
     """Parse and validate a layout; raise :class:`MazeError` naming ``source``, the line and the problem."""
     rows: list[str] = []
     line_numbers: list[int] = []
-    for number, raw in enumerate(text.splitlines(), start=1):
+    lines = text.replace("\r\n", "\n").replace("\r", "\n").split("\n")
+    for number, raw in enumerate(lines, start=1):
         line = raw.rstrip()
         if line.lstrip().startswith("#"):
             continue

@@ -54,6 +54,15 @@ def load_layout(spec: str | Path) -> Layout:
     ``random:<W>x<H>:<obstacles>:<seed>[:unique]`` name (:mod:`pipeline.world.generate`)."""
     if generate.is_spec(spec):
         return generate.generate_layout(spec)
+    try:
+        return _load_file(spec)
+    except OSError as exc:  # a name over the file system's limit, a path through a file...
+        raise MazeError(
+            f"{spec}: cannot be opened as a layout file ({exc.strerror or exc})"
+        ) from None
+
+
+def _load_file(spec: str | Path) -> Layout:
     path = Path(spec)
     if not path.suffix and not path.exists():
         builtin = BUILTIN_DIR / f"{spec}.txt"
@@ -65,15 +74,17 @@ def load_layout(spec: str | Path) -> Layout:
         path = builtin
     if not path.exists():
         raise MazeError(f"{path}: maze file not found")
-    if not path.is_file():
+    if path.is_dir():
         raise MazeError(f"{path}: a folder, not a layout file")
+    if not path.is_file():  # a pipe or a device: reading it could block or never end
+        raise MazeError(f"{path}: not a regular file (a pipe or a device), not a layout file")
     if path.stat().st_size > MAX_LAYOUT_BYTES:
         raise MazeError(
             f"{path}: {path.stat().st_size:,} bytes; layouts up to {MAX_LAYOUT_BYTES:,} bytes "
             "(about 2000 x 2000 cells) are accepted"
         )
     try:
-        text = path.read_text(encoding="utf-8")
+        text = path.read_text(encoding="utf-8-sig")  # a byte order mark is not a cell
     except UnicodeDecodeError as exc:
         raise MazeError(f"{path}: not a text file ({exc.reason})") from None
     except OSError as exc:

@@ -46,6 +46,8 @@ TIER_KINDS = ("box", "cylinder", "sphere", "ellipsoid", "capsule", "cone", "toru
 FINISH_CHOICES = ("matte", "plastic", "metal", "speckle", "stripes", "weave")
 FINISH_WEIGHTS = (0.3, 0.3, 0.15, 0.1, 0.1, 0.05)
 LEG_STYLES = ("none", "pedestal", "ring")
+TIER_COUNT_P = (0.2, 0.35, 0.3, 0.15)  # the share of families with 1, 2, 3 and 4 tiers
+MAX_TIERS = len(TIER_COUNT_P)
 SCALE = (0.8, 1.25)  # an instance's overall scale
 PROPORTION = (0.65, 1.5)  # an instance's factor on every width and height
 OPTIONAL_TIER_P = 0.4  # an optional tier is left out of this share of instances
@@ -124,7 +126,7 @@ def _tier_spec(rng: np.random.Generator, optional: bool) -> TierSpec:
 
 
 def make_family(rng: np.random.Generator, index: int) -> Family:
-    n_tiers = int(rng.choice([1, 2, 3, 4], p=[0.2, 0.35, 0.3, 0.15]))
+    n_tiers = int(rng.choice(list(range(1, MAX_TIERS + 1)), p=list(TIER_COUNT_P)))
     tiers = tuple(
         _tier_spec(rng, optional=n_tiers > 1 and k > 0 and rng.random() < 0.3)
         for k in range(n_tiers)

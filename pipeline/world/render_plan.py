@@ -239,6 +239,27 @@ def meta_batch(cfg: PlanConfig, split: str, index: int, fam: Family) -> tuple[Ba
     return batch, rows
 
 
+def plan_size(cfg: PlanConfig) -> dict:
+    """What :func:`make_plan` builds, counted without building it: ``pictures`` of each split,
+    ``objects`` (the geometric instances the batches hold) and ``batches`` (one renderer each)."""
+    n_cat = len(cfg.categories)
+    classes = {"train": cfg.n_train_classes, "val": cfg.n_val_classes, "test": cfg.n_test_classes}
+    pictures = {
+        "query": n_cat * INSTANCES_PER_CATEGORY * N_FACES,
+        "support": n_cat * cfg.support_per_category,
+        **{split: n * cfg.per_class for split, n in classes.items()},
+        "views": n_cat * INSTANCES_PER_CATEGORY * cfg.views_per_obstacle,
+    }
+    n_classes = sum(classes.values())
+    per_class = math.ceil(cfg.per_class / cfg.views_per_instance)
+    views = 1 if cfg.views_per_obstacle else 0
+    return {
+        "pictures": pictures,
+        "objects": n_cat * (1 + cfg.support_per_category + views) + n_classes * per_class,
+        "batches": 2 + n_classes + views,
+    }
+
+
 def make_plan(cfg: PlanConfig) -> tuple[list[Batch], list[dict]]:
     """All batches and the manifest rows (in manifest order: query, support, train, val, test,
     views)."""

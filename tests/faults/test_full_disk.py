@@ -12,7 +12,8 @@ from pathlib import Path
 
 import pytest
 from entry import cli
-from test_faults import digest, one_line_error
+
+from faults._checks import digest, one_line_error
 
 #: 1 MB holds a few hundred kB of records, far from a 100-run x 500-episode cell.
 BIG = ["method=ssrl", "maze=11x11", "runs=100", "episodes=500", "progress=false"]
@@ -63,7 +64,9 @@ def test_a_full_disk_keeps_the_previous_results_and_names_a_stale_staging_folder
         == 0
     )
     before = digest(out)
-    stale = out / ".staging-99999"  # the partial records of a killed run
+    ended = subprocess.Popen(["true"])  # a process that has ended: its staging folder is stale
+    ended.wait()
+    stale = out / f".staging-{ended.pid}"  # the partial records of a killed run
     stale.mkdir()
     (stale / "records.mcap.partial").write_bytes(b"\0" * 200_000)
     line = one_line_error(
@@ -71,7 +74,7 @@ def test_a_full_disk_keeps_the_previous_results_and_names_a_stale_staging_folder
     )
     assert f"{stale} (an interrupted run's partial records) holds 200.0 kB" in line
     assert sorted(p.name for p in out.iterdir()) == [
-        ".staging-99999",
+        stale.name,
         "records.mcap",
         "summary.json",
     ]

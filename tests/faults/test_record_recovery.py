@@ -9,7 +9,6 @@ runs and episodes, runs interleaved batch by batch, a chunk every 8 episodes: ma
 
 from __future__ import annotations
 
-import hashlib
 import os
 import subprocess
 import sys
@@ -20,10 +19,11 @@ import numpy as np
 import pytest
 from synthetic_records import LAYOUT_5X5, MAZE_5X5, batches, obstacle_assignment, tiny_png
 
+from faults._checks import sha
 from pipeline.records import RecordsError, RecordsWarning, RecordWriter, read_records
 from pipeline.records import schema as S
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 RUNS, EPISODES = 3, 12
 CHUNK_MSG = r"chunk (\d+) of (\d+) damaged \((CRC mismatch|bad decompression|bad record lengths|bad chunk header)"
 
@@ -97,10 +97,6 @@ def files(tmp_path_factory):
         assert full.meta.complete and len(full.episodes) == RUNS * EPISODES
         out[name] = (path, path.read_bytes(), full, chunks(path))
     return out
-
-
-def sha(path: Path) -> str:
-    return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
 def read_warned(path: Path):

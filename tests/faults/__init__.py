@@ -1,0 +1,1 @@
+"""Fault cases by area (a package so that pytest puts ``tests/`` on the path: ``entry``, ``fakes``)."""

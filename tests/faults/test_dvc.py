@@ -1,0 +1,145 @@
+"""Changes DVC must not miss. dvc.yaml's code dependencies and config parameters are derived
+(``scripts/dvc_deps.py``), and DVC sees every one of them: editing any module a stage's command imports, any config folder its
+code reads, or any config key that shapes its outputs makes ``dvc status`` name that stage."""
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import yaml
+
+from scripts import dvc_deps
+
+ROOT = Path(__file__).resolve().parents[2]
+DVC = Path(sys.executable).parent / "dvc"
+TEXT = dvc_deps.DVC_YAML.read_text()
+STAGES = dvc_deps.stages_of(TEXT)
+
+
+def test_dvc_yaml_lists_the_derived_deps_and_params():
+    wanted = dvc_deps.rewritten(TEXT, STAGES)
+    if wanted != TEXT:
+        import difflib
+
+        diff = "\n".join(difflib.unified_diff(TEXT.splitlines(), wanted.splitlines(), n=0))
+        pytest.fail(f"dvc.yaml is not the derived one: python -m scripts.dvc_deps --write\n{diff}")
+
+
+def test_the_closure_follows_imports_inside_functions_targets_and_parent_packages():
+    trials = STAGES["trials"].code()
+    assert "pipeline/rl/rules.py" in trials  # imported by the kernel
+    assert "pipeline/robot/live_world.py" in trials  # imported inside a function (world=robot3d)
+    assert "pipeline/rl/fixed_accuracy.py" in trials  # accuracy_curve's recogniser's _target_
+    assert "pipeline/robot/__init__.py" in trials  # runs before pipeline.robot.world
+    assert "pipeline/conf/mazes" in trials  # read as data by pipeline/world/maze.py
+    report = STAGES["report"].code()
+    assert "pipeline/report" in report  # every module of the folder: listed as the folder
+    assert "pipeline/rl/rules.py" in report  # the deps the old hand-kept list missed
+    assert {"pipeline/conf/experiment", "pipeline/conf/profile"} <= set(report)
+
+
+def test_a_stage_depends_on_its_own_schema_and_not_on_the_others():
+    """Each stage imports only its own config's schema (``pipeline.stages._schema.SCHEMA_OF``):
+    editing the trials' code does not make meta-training (70 minutes) look stale."""
+    meta_train = STAGES["meta_train"].code()
+    assert "pipeline/stages/_fewshot_schema.py" in meta_train
+    assert not [d for d in meta_train if d.startswith(("pipeline/rl", "pipeline/world"))]
+    assert "pipeline/stages/_trials_schema.py" not in STAGES["render"].code()
+
+
+def test_params_are_the_composed_files_without_the_output_neutral_keys():
+    trials = dict(STAGES["trials"].params())
+    keys = trials["pipeline/conf/trials.yaml"]
+    assert {"seed", "robot", "world", "rule", "threshold", "maze"} <= set(keys)
+    assert not {"out", "progress", "threads", "workers", "overwrite"} & set(keys)
+    assert trials["pipeline/conf/experiment/${item}.yaml"] == []  # whole file
+    assert "trials.layouts" in trials["pipeline/conf/profile/paper.yaml"]  # generalisation's
+    protonet = dict(STAGES["meta_train_protonet"].params())
+    assert protonet["pipeline/conf/model/protonet.yaml"] == []
+    assert "meta_train.protonet_episodes" in protonet["pipeline/conf/profile/paper.yaml"]
+    assert "meta_train.episodes" not in protonet["pipeline/conf/profile/paper.yaml"]
+
+
+def test_a_changed_stage_command_is_read_back():
+    assert dvc_deps.parse_cmd("python -m pipeline trials +experiment=fig8 progress=false") == (
+        "trials",
+        ["+experiment=fig8", "progress=false"],
+    )
+    with pytest.raises(ValueError, match="not a stage command"):
+        dvc_deps.parse_cmd("make repro")
+
+
+# ------------------------------------------------------------------- what DVC itself sees
+def code_and_params_only(text: str) -> str:
+    """dvc.yaml without outs and data deps, each command ``true``: stages DVC can commit in a copy
+    of the package alone."""
+    data = yaml.safe_load(text)
+    for definition in data["stages"].values():
+        body = definition.get("do", definition)
+        body["cmd"] = "true"
+        body["deps"] = [d for d in body["deps"] if d.startswith(f"{dvc_deps.PACKAGE}/")]
+        body.pop("outs", None)
+        body.pop("metrics", None)
+    data.pop("plots", None)
+    return yaml.safe_dump(data, sort_keys=False)
+
+
+def touch_everything(repo: Path) -> None:
+    """Append a line to every file of the package and change every config value."""
+    for path in (repo / dvc_deps.PACKAGE).rglob("*"):
+        if path.is_file() and path.suffix in (".py", ".txt"):
+            path.write_text(path.read_text() + "\n# touched\n")
+        elif path.is_file() and path.suffix == ".yaml":
+            data = yaml.safe_load(path.read_text()) or {}
+            path.write_text(yaml.safe_dump(changed(data)))
+
+
+def changed(value):
+    if isinstance(value, dict):
+        return {k: changed(v) for k, v in value.items()}
+    return ["changed", value]
+
+
+@pytest.mark.skipif(not DVC.exists(), reason="dvc is not installed beside this python")
+def test_dvc_status_names_every_stage_for_every_module_folder_and_key(tmp_path):
+    repo = tmp_path / "repo"
+    shutil.copytree(
+        ROOT / dvc_deps.PACKAGE,
+        repo / dvc_deps.PACKAGE,
+        ignore=shutil.ignore_patterns("__pycache__"),
+    )
+    (repo / ".dvc").mkdir()
+    (repo / ".dvc" / "config").write_text("[core]\n    no_scm = true\n    analytics = false\n")
+    (repo / "dvc.yaml").write_text(code_and_params_only(TEXT))
+    env = {**os.environ, "DVC_NO_ANALYTICS": "1"}
+
+    def dvc(*args: str) -> str:
+        done = subprocess.run(
+            [str(DVC), *args], cwd=repo, env=env, capture_output=True, text=True, timeout=300
+        )
+        assert done.returncode == 0, done.stderr
+        return done.stdout
+
+    dvc("commit", "--force", "--quiet")
+    assert yaml.safe_load(dvc("status", "--json")) == {}
+    touch_everything(repo)
+    status = yaml.safe_load(dvc("status", "--json"))
+    problems = []
+    for name, stage in STAGES.items():
+        for item in stage.items:
+            key = f"{name}@{item}" if item else name
+            seen = {}
+            for entry in status.get(key, []):
+                seen.update(entry.get("changed deps", {}) if isinstance(entry, dict) else {})
+            for dep in stage.code():
+                if seen.get(dep) != "modified":
+                    problems.append(f"{key}: editing {dep} is not seen")
+            for file, keys in stage.params():
+                file = file.replace("${item}", item or "")
+                for k in keys or [None]:
+                    if not seen.get(file) or (k and seen[file].get(k) != "modified"):
+                        problems.append(f"{key}: changing {file}:{k or '(any key)'} is not seen")
+    assert not problems, "\n".join(problems)
