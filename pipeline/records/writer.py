@@ -19,7 +19,6 @@ from typing import Any
 
 import numpy as np
 import yaml
-from mcap._chunk_builder import ChunkBuilder
 from mcap.data_stream import RecordBuilder
 from mcap.records import Chunk, Message
 from mcap.writer import Writer
@@ -329,13 +328,24 @@ class RecordWriter:
 
     def _provisional(self) -> None:
         """The messages since the last closed chunk as an uncompressed chunk at the end of the
-        file, written through to disk; the writer goes on from where that chunk starts."""
-        chunk, out = ChunkBuilder(), RecordBuilder()
+        file, written through to disk; the writer goes on from where that chunk starts. Built from
+        ``mcap.records`` (a chunk's data is its message records, back to back)."""
+        messages = RecordBuilder()
         for t, data in self._pending:
-            chunk.add_message(Message(self._channel, t, data, t, 0))
-        raw, t0, t1 = chunk.end(), chunk.message_start_time, chunk.message_end_time
-        crc, size = zlib.crc32(raw), len(raw)
-        Chunk("", raw, t1, t0, crc, size).write(out)  # its fields in mcap's order
+            Message(self._channel, log_time=t, data=data, publish_time=t, sequence=0).write(
+                messages
+            )
+        raw, times = messages.end(), [t for t, _ in self._pending]
+        chunk = Chunk(
+            compression="",
+            data=raw,
+            message_start_time=min(times),
+            message_end_time=max(times),
+            uncompressed_crc=zlib.crc32(raw),
+            uncompressed_size=len(raw),
+        )
+        out = RecordBuilder()
+        chunk.write(out)
         at = self._file.tell()
         self._file.write(out.end())
         self._file.flush()
