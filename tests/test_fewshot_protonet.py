@@ -17,8 +17,8 @@ from pipeline.fewshot.recogniser import ProtoRecogniser, RelationRecogniser
 from pipeline.fewshot.settings import ProtoConfig
 from pipeline.fewshot.synthetic import write_synthetic_dataset
 from pipeline.fewshot.training import TrainConfig, meta_train
-from pipeline.threads import cores
 from pipeline.rl.recogniser import Recogniser
+from pipeline.threads import cores
 
 NORM = {"mean": [0.4, 0.4, 0.4], "std": [0.25, 0.25, 0.25]}
 
