@@ -162,6 +162,7 @@ class RecordWriter:
         self._pending: list[tuple[int, bytes]] = []  # messages since the last closed chunk
         self._provisioned = 0  # of them, in the provisional chunk on disk
         self._flushed_at, self._error, self._closed = time.monotonic(), None, False
+        self.thread_cpu_seconds = 0.0  # CPU time of the writer's thread, once it has ended
         records = _metadata(dict(metadata or {}), maze, runs, "steps" if steps else "episodes")
         images = [
             (f"{S.TOPIC_PICTURES}/{p}", _image(f"picture_{p}", pictures[p]))
@@ -281,6 +282,13 @@ class RecordWriter:
 
     def _serve(self) -> None:
         """The writer's thread: the batches in the order they came (so the same bytes)."""
+        start = time.thread_time()
+        try:
+            self._serve_queue()
+        finally:
+            self.thread_cpu_seconds = time.thread_time() - start
+
+    def _serve_queue(self) -> None:
         while True:
             new = len(self._pending) > self._provisioned  # messages no chunk on disk holds
             wait = self._flushed_at + self.flush_seconds - time.monotonic() if new else None

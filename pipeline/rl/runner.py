@@ -42,6 +42,11 @@ __all__ = ["RunWorld", "Trial", "make_run_world", "run_trials"]
 #: Steps a run's trace holds (10 bytes a step): a run's episodes go to the sink when it is full and at the end
 #: of the trial, so a paper-scale 11x11 run (about 23,500 steps) is one batch (the recording costs per batch).
 TRACE_CAPACITY = 32768
+#: The step trace of this process's last finished trial of each shape (runs, capacity), lent to the
+#: next trial of that shape: its pages are mapped once a process, not once a trial (a fresh trace's
+#: first-touch page faults cost more CPU than recording its steps: ``benchmarks.records_overhead``).
+_SPARE_TRACES: dict[tuple[int, int], Trace] = {}
+
 #: A recording sink gets every run's finished episodes at least every this many episodes (and when
 #: a run's step trace is full): with the writer's flush_seconds, what a killed run keeps.
 EMIT_EVERY = 500
@@ -111,7 +116,10 @@ class Trial:
         self.state = RunState.fresh(runs, layout.n_cells, layout.start, method.epsilon, rng)
         self.results = Results.zeros(runs, self.episodes)
         capacity = max(trace_capacity, method.max_steps) if self.trace_steps else 1
-        self.trace = Trace.empty(runs, capacity, self.trace_steps)
+        spare = _SPARE_TRACES.pop((runs, capacity), None) if self.trace_steps else None
+        if spare is not None:
+            spare.length[:] = 0  # what it held is never read again: lengths say what is there
+        self.trace = spare or Trace.empty(runs, capacity, self.trace_steps)
         self.recognitions = Recognitions.empty(runs, self.n_dangerous)
         self.additions = Additions.empty(runs, self.n_dangerous)
         self.substitution = Substitution.empty(runs)
@@ -308,6 +316,8 @@ class Trial:
             raise
         finally:
             bar.close()
+            if self.trace_steps:  # lent to this process's next trial of the same shape
+                _SPARE_TRACES[self.trace.states.shape] = self.trace
         return self.result()
 
     def _run_group(self, group: np.ndarray, limits: list[int], bar) -> None:
