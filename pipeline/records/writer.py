@@ -6,7 +6,6 @@ own (docs/records.md "The writer"). Same input, same bytes.
 from __future__ import annotations
 
 import functools
-import json
 import os
 import queue
 import threading
@@ -18,7 +17,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 from mcap.data_stream import RecordBuilder
 from mcap.records import Chunk, Message
 from mcap.writer import Writer
@@ -26,6 +24,7 @@ from mcap.writer import Writer
 from . import schema as S
 from .batch_check import check_batch
 from .codec import encode_batch
+from .config_text import ConfigText, config_text, to_json
 
 OBSTACLE_KEYS = ("cell", "physical", "category", "instance", "orientation")
 VERSION_PACKAGES = (
@@ -54,33 +53,13 @@ def package_versions() -> dict[str, str]:
     return {"python": platform.python_version()} | {n: version(n) for n in VERSION_PACKAGES}
 
 
-def _plain(o: Any) -> Any:
-    if isinstance(o, (np.generic, np.ndarray, set, frozenset, tuple)):
-        return o.tolist() if hasattr(o, "tolist") else list(o)
-    if isinstance(o, Path):
-        return str(o)
-    raise TypeError(f"cannot record a {type(o).__name__} in the metadata (value {o!r})")
-
-
-def to_json(obj: Any) -> str:
-    """Configs (dicts, OmegaConf containers, numpy values) as compact, sorted JSON."""
-    if type(obj).__module__.startswith("omegaconf"):
-        from omegaconf import OmegaConf
-
-        obj = OmegaConf.to_container(obj, resolve=True)
-    return json.dumps(obj, default=_plain, sort_keys=True, separators=(",", ":"))
-
-
 def _metadata(meta: dict, maze, runs, level: str) -> list[tuple[str, dict[str, str]]]:
     """The MCAP metadata records (docs/records.md "The schema")."""
     head = {"format_version": S.FORMAT_VERSION, "library": S.LIBRARY, "record": level, "time": TIME}
     out = [("recording", head | {"episodes_topic": S.TOPIC_EPISODES, "pictures_topic": PICTURES})]
-    if isinstance(config := meta.pop("config", None), str):
-        out.append(("config", {"yaml": config, "json": to_json(yaml.safe_load(config))}))
-    elif config is not None:  # libyaml's emitter: the same text, faster
-        parsed = json.loads(to_json(config))
-        text = yaml.dump(parsed, Dumper=yaml.CSafeDumper, sort_keys=True)
-        out.append(("config", {"yaml": text, "json": to_json(parsed)}))
+    if (config := meta.pop("config", None)) is not None:
+        text = config if isinstance(config, ConfigText) else config_text(config)
+        out.append(("config", text._asdict()))
     if "seeds" in meta:
         out.append(("seeds", {"json": to_json(meta.pop("seeds"))}))
     versions = {str(k): str(v) for k, v in dict(meta.pop("versions", None) or {}).items()}
