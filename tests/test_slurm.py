@@ -29,6 +29,7 @@ def completed_log(path: Path, jobs: int, timeout: float = 60.0) -> str:
     return log
 
 
+@pytest.mark.slow  # a real scheduler's daemons and jobs: end to end
 @pytest.mark.skipif(missing() is not None, reason=str(missing()))
 def test_a_smoke_sweep_runs_as_slurm_jobs(tmp_path):
     out, sweep = tmp_path / "runs", tmp_path / "multirun"
