@@ -25,11 +25,15 @@ lint: $(STAMP)
 	$(BIN)/ruff check $(LINT_PATHS)
 	$(BIN)/lint-imports
 
+# pytest-xdist: one worker a core (tests/conftest.py pins each to its share), a test file's tests on
+# one worker (its module fixtures are built once). `make test-slow`: the end-to-end tests.
+TEST_WORKERS ?= auto
+PYTEST := MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile
 test: $(STAMP)
-	MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/python -m pytest -q
+	$(PYTEST)
 
 test-slow: $(STAMP)
-	MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/python -m pytest -q -m slow
+	$(PYTEST) -m slow
 
 repro: $(STAMP)
 	MUJOCO_GL=$${MUJOCO_GL:-egl} PATH=$(abspath $(BIN)):$$PATH $(BIN)/dvc repro

@@ -65,7 +65,8 @@ def main() -> None:
         if out.returncode != 0:
             sys.exit(f"{exp} failed:\n{out.stderr[-2000:]}")
         total += wall
-        cells = json.loads((Path(args.out) / f"{exp}-timing.json").read_text())
+        timing = json.loads((Path(args.out) / f"{exp}-timing.json").read_text())
+        cells = {name: t["seconds"] for name, t in timing.items()}
         steps = agent_steps(Path(args.out) / exp, cells)
         rows.append(
             {
@@ -74,6 +75,7 @@ def main() -> None:
                 "agent_steps": steps,
                 "steps_per_second": round(steps / wall),
                 "cells": cells,
+                "kernel_seconds": round(sum(t["kernel_seconds"] for t in timing.values()), 2),
             }
         )
         print(

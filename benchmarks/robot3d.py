@@ -41,7 +41,7 @@ def robot_stage(profile: str) -> dict:
         subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
         wall = time.perf_counter() - t0
         after = resource.getrusage(resource.RUSAGE_CHILDREN)
-        cells = json.loads(timing.read_text())
+        cells = {name: t["seconds"] for name, t in json.loads(timing.read_text()).items()}
     by_world = {"robot3d": 0.0, "grid": 0.0}
     for name, seconds in cells.items():
         by_world["robot3d" if "_robot3d" in name else "grid"] += seconds

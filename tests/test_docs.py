@@ -213,3 +213,16 @@ def test_reliability_quotes_the_fault_census(request):
     doc = (ROOT / "docs" / "reliability.md").read_text()
     wanted = table(fault_counts(request))
     assert wanted in doc, f"put this table under 'The cases' in docs/reliability.md:\n{wanted}"
+
+
+def test_what_the_readme_examples_write_is_ignored_by_git():
+    """Issue 44: after the README's examples a user's `git status` stays clean: every `out=` they
+    name, the trials' default `out` and the replays folder are ignored."""
+    default_out = compose("trials", []).out
+    outs = re.findall(r"\bout=([\w/.-]+)", (ROOT / "README.md").read_text())
+    paths = [f"{o}/summary.json" for o in [*outs, default_out]] + ["replays/x.rrd"]
+    assert outs, "the README's examples name no out= any more: update this test"
+    ignored = subprocess.run(
+        ["git", "check-ignore", "--no-index", *paths], cwd=ROOT, capture_output=True, text=True
+    ).stdout.split()
+    assert sorted(ignored) == sorted(paths), set(paths) - set(ignored)

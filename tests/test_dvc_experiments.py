@@ -93,6 +93,7 @@ def experiments(repo: Path) -> dict[str, dict]:
     return out
 
 
+@pytest.mark.slow  # a real `dvc exp run` of a trials stage: about 25 s
 def test_exp_run_set_param_reruns_trials_and_shows_param_and_metrics(tmp_path):
     repo = new_repo(tmp_path / "repo", DVC_YAML)
     shutil.copytree(

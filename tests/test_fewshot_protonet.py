@@ -18,6 +18,7 @@ from pipeline.fewshot.settings import ProtoConfig
 from pipeline.fewshot.synthetic import write_synthetic_dataset
 from pipeline.fewshot.training import TrainConfig, meta_train
 from pipeline.rl.recogniser import Recogniser
+from pipeline.threads import cores
 
 NORM = {"mean": [0.4, 0.4, 0.4], "std": [0.25, 0.25, 0.25]}
 
@@ -76,7 +77,7 @@ def images(tmp_path_factory):
 
 def test_seeded_training_beats_chance(images):
     train, val = load_split(images, "train", 24), load_split(images, "val", 24)
-    torch.set_num_threads(2)
+    torch.set_num_threads(cores())  # its share of the cores under pytest-xdist
     cfg = TrainConfig(
         model="protonet",
         input_size=24,

@@ -9,6 +9,7 @@ from pipeline.fewshot.data import DataError, load_split, read_manifest
 from pipeline.fewshot.episodes import mean_and_ci95, sample_episode
 from pipeline.fewshot.synthetic import write_synthetic_dataset
 from pipeline.fewshot.training import TrainConfig, meta_train
+from pipeline.threads import cores
 
 TINY = dict(
     input_size=24,
@@ -32,7 +33,7 @@ def images(tmp_path_factory):
 
 def test_short_training_beats_chance(images):
     train, val = load_split(images, "train", 24), load_split(images, "val", 24)
-    torch.set_num_threads(2)
+    torch.set_num_threads(cores())  # its share of the cores under pytest-xdist
     result = meta_train(train, val, TrainConfig(**TINY), progress=False)
     m = result.metrics
     assert m["val_accuracy"] - m["val_ci95"] > 0.5  # chance is 0.2

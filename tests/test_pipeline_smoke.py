@@ -14,6 +14,8 @@ import pandas as pd
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
+# end to end, about 3 minutes on 2 cores: `make test-slow` runs it, `make test` does not
+pytestmark = pytest.mark.slow
 
 
 NO_PROFILE = ("report", "replay")

@@ -271,3 +271,21 @@ def test_interrupted_stage_keeps_the_previous_pictures_and_removes_its_staging(
     assert (tmp_path / "images" / "manifest.csv").read_text() == "previous\n"
     assert (tmp_path / "images" / "query" / "p.png").read_bytes() == b"previous"
     assert sorted(p.name for p in (tmp_path / "images").iterdir()) == ["manifest.csv", "query"]
+
+
+def test_a_mujoco_warning_is_a_python_warning_and_leaves_no_log_file(tmp_path, monkeypatch):
+    """Issue 44: MuJoCo writes its warnings to MUJOCO_LOG.TXT in the working folder unless a
+    handler takes them; pipeline.world.renderer_env installs one."""
+    import numpy as np
+
+    from pipeline.world.renderer_env import mujoco
+
+    monkeypatch.chdir(tmp_path)
+    model = mujoco.MjModel.from_xml_string(
+        '<mujoco><worldbody><body><freejoint/><geom size="0.1"/></body></worldbody></mujoco>'
+    )
+    data = mujoco.MjData(model)
+    data.qvel[:] = np.nan
+    with pytest.warns(RuntimeWarning, match="MuJoCo: Nan, Inf or huge value in QVEL"):
+        mujoco.mj_step(model, data)
+    assert list(tmp_path.iterdir()) == []

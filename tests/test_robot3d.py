@@ -368,10 +368,10 @@ def test_settings_are_checked_where_the_robot_world_is_built():
 @pytest.mark.filterwarnings("ignore::pipeline.records.RecordsWarning")  # a .partial, as expected
 @pytest.mark.parametrize(
     "sig",
-    [  # about 20 s each; the grid's runs test SIGTERM and SIGINT by default (tests/faults/test_kills.py)
-        pytest.param(signal.SIGTERM, marks=pytest.mark.slow),
-        pytest.param(signal.SIGINT, marks=pytest.mark.slow),
-        signal.SIGKILL,
+    [  # about 15-20 s each, `make test-slow`; the grid's runs test the signals by default
+        # (tests/faults/test_kills.py) and the robot's records go through the same writer
+        pytest.param(sig, marks=pytest.mark.slow)
+        for sig in (signal.SIGTERM, signal.SIGINT, signal.SIGKILL)
     ],
 )
 def test_a_killed_robot_run_keeps_what_it_handed_over_poses_and_pictures_included(tmp_path, sig):

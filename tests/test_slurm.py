@@ -6,6 +6,7 @@ import os
 import re
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -28,10 +29,16 @@ def completed_log(path: Path, jobs: int, timeout: float = 60.0) -> str:
     return log
 
 
+@pytest.mark.slow  # a real scheduler's daemons and jobs: end to end
 @pytest.mark.skipif(missing() is not None, reason=str(missing()))
 def test_a_smoke_sweep_runs_as_slurm_jobs(tmp_path):
     out, sweep = tmp_path / "runs", tmp_path / "multirun"
-    with one_node_cluster(tmp_path / "cluster") as env:
+    # slurmd's step sockets live in the spool folder and a Unix socket path has at most 108 bytes:
+    # pytest's tmp_path under a test worker's folder is too long for it
+    with (
+        tempfile.TemporaryDirectory(prefix="slurm-") as short,
+        one_node_cluster(cluster := Path(short) / "cluster") as env,
+    ):
         res = subprocess.run(
             [
                 sys.executable,
@@ -60,7 +67,7 @@ def test_a_smoke_sweep_runs_as_slurm_jobs(tmp_path):
             timeout=300,
         )
         assert res.returncode == 0, res.stderr[-3000:]
-        log = completed_log(tmp_path / "cluster" / "slurmctld.log", len(METHODS))
+        log = completed_log(cluster / "slurmctld.log", len(METHODS))
     # every job went through the scheduler: submitit's per-task folders are named by SLURM job id and
     # array index, and slurmctld allocated each of them on the node
     jobs = sorted(

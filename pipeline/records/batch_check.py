@@ -5,6 +5,7 @@ every column 1-D, of its length and in its field's range, cast to the dtype the 
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Mapping
 from typing import Any
 
@@ -12,6 +13,7 @@ import numpy as np
 
 from .codec import COLUMNS, FIXED, REWARDS, SMALL_REWARDS, SUBS
 from .schema import BOOL, CODE, F32, F64, I32, MESSAGES, U32, Field
+from .step_columns import CODE_COLUMNS, scan_steps
 
 _RANGE = {I32: (-(2**31), 2**31), U32: (0, 2**31), CODE: (0, 2**32)}  # of integer fields' values
 OPTIONAL = frozenset({"q_values", "substitutions"})  # sink batch keys that may be left out
@@ -21,8 +23,13 @@ BATCH_KEYS = frozenset(
 )
 
 
-def _column(a: Any, f: Field, n: int | None, where: str) -> np.ndarray:
-    """``a`` checked (1-D, length ``n``, integers in the field's range) as the field's payload."""
+@functools.cache
+def _iinfo(dtype: np.dtype) -> np.iinfo:
+    return np.iinfo(dtype)  # numpy builds it anew on every call
+
+
+def _array(a: Any, f: Field, n: int | None, where: str) -> np.ndarray:
+    """``a`` as a 1-D array of length ``n``, of integers or booleans unless ``f`` is a float."""
     a = np.asarray(a)
     if a.ndim != 1 or (n is not None and len(a) != n):
         got = (
@@ -31,17 +38,41 @@ def _column(a: Any, f: Field, n: int | None, where: str) -> np.ndarray:
             else f"a 1-D array expected, got shape {a.shape}"
         )
         raise ValueError(f"{where}: {got}")
+    if f.type not in (F32, F64) and a.dtype.kind not in "biu":
+        raise ValueError(f"{where}: integer fields must hold integers or booleans, got {a.dtype}")
+    return a
+
+
+def _column(a: Any, f: Field, n: int | None, where: str) -> np.ndarray:
+    """``a`` checked (1-D, length ``n``, integers in the field's range) as the field's payload."""
+    a = _array(a, f, n, where)
     if f.type in (F32, F64):
         return a.astype(FIXED[f.type], copy=False)
-    if a.dtype.kind not in "biu":
-        raise ValueError(f"{where}: integer fields must hold integers or booleans, got {a.dtype}")
     if f.type == BOOL:
         return (a != 0).view(np.uint8)
     a = a.view(np.uint8) if a.dtype.kind == "b" else a
-    (lo, hi), info = _RANGE[f.type], np.iinfo(a.dtype)  # checked only where the dtype reaches out
+    (lo, hi), info = _RANGE[f.type], _iinfo(a.dtype)  # checked only where the dtype reaches out
     if len(a) and (info.min < lo and int(a.min()) < lo or info.max >= hi and int(a.max()) >= hi):
         raise ValueError(f"{where}: values {int(a.min())}..{int(a.max())} outside {lo}..{hi - 1}")
     return a if f.type == CODE else a.astype(FIXED[f.type], copy=False)
+
+
+def _steps(batch: Mapping[str, Any], n: int, where: str) -> dict[str, np.ndarray]:
+    """The step columns of a batch of ``n`` steps checked, as payload arrays, in one pass
+    (:mod:`.step_columns`): one byte a value where every value fits in one."""
+    fields = {f.key or f.name: f for f in COLUMNS["Steps"] if f.name != SMALL_REWARDS.name}
+    arrays = {k: _array(batch[k], f, n, f"{where}.{k}") for k, f in fields.items()}
+    found = scan_steps(*(arrays[k] for k in CODE_COLUMNS), arrays["rewards"])
+    lo, hi = _RANGE[CODE]
+    out = {}
+    for j, name in enumerate(CODE_COLUMNS):
+        low, high = found.low[j], found.high[j]
+        if low < lo or high >= hi:
+            raise ValueError(f"{where}.{name}: values {low}..{high} outside {lo}..{hi - 1}")
+        out[name] = arrays[name] if found.one_byte[j] is None else found.one_byte[j]
+    if found.small_rewards is None:
+        return out | {REWARDS.name: arrays["rewards"].astype(FIXED[REWARDS.type], copy=False)}
+    return out | {SMALL_REWARDS.name: found.small_rewards}
 
 
 def check_batch(batch: Mapping[str, Any], *, with_steps: bool = True) -> dict[str, Any]:
@@ -68,15 +99,8 @@ def check_batch(batch: Mapping[str, Any], *, with_steps: bool = True) -> dict[st
         value = batch["steps"] if f.name == "steps" else summary[f.name]
         cols["EpisodeSummaries"][f.name] = _column(value, f, e, f"{where}.summary.{f.name}")
     t = int(cols["EpisodeSummaries"]["steps"].sum())
-    for f in COLUMNS["Steps"] if with_steps else ():
-        if f.column != "reward":
-            cols["Steps"][f.name] = _column(batch[f.name], f, t, f"{where}.{f.name}")
     if with_steps:
-        r = _column(batch["rewards"], REWARDS, t, f"{where}.rewards")
-        with np.errstate(invalid="ignore"):  # NaN, inf, huge: not whole and small, floats keep them
-            small = r.astype(np.int8)
-        whole = not len(r) or (small == r).all() and -64 <= small.min() and small.max() <= 63
-        cols["Steps"] |= {SMALL_REWARDS.name: small} if whole else {REWARDS.name: r}
+        cols["Steps"] = _steps(batch, t, where)
     scalars = {"EpisodeBatch": {"run": run, "n_actions": 0}, "Recognitions": {"n_categories": 0}}
     for sub in ("recognitions", "unsafe_added", "substitutions"):
         d, msg = batch.get(sub) or {}, SUBS[sub]

@@ -36,9 +36,10 @@ def _payload(msg: str, f: Field, a: np.ndarray) -> bytes:
         whole = S.CLASSES[msg](**{f.name: a.tolist()}).SerializeToString()
         return getattr(VIEWS[msg].FromString(whole), f.name)
     if f.type == CODE:  # values below 128 are their own varint byte
-        return a.astype(np.uint8).tobytes()
+        return a.astype(np.uint8, copy=False).tobytes()
     if f.type == SMALL:  # sint32 zigzag of values in -64..63, one byte each: 0,-1,1 -> 0,1,2
-        return ((a.astype(np.int16) << 1) ^ (a.astype(np.int16) >> 15)).astype(np.uint8).tobytes()
+        small = a.astype(np.int8, copy=False)
+        return ((small << 1) ^ (small >> 7)).view(np.uint8).tobytes()
     return a.tobytes()
 
 

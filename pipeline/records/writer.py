@@ -6,7 +6,6 @@ own (docs/records.md "The writer"). Same input, same bytes.
 from __future__ import annotations
 
 import functools
-import json
 import os
 import queue
 import threading
@@ -18,8 +17,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
-from mcap._chunk_builder import ChunkBuilder
 from mcap.data_stream import RecordBuilder
 from mcap.records import Chunk, Message
 from mcap.writer import Writer
@@ -27,6 +24,7 @@ from mcap.writer import Writer
 from . import schema as S
 from .batch_check import check_batch
 from .codec import encode_batch
+from .config_text import ConfigText, config_text, to_json
 
 OBSTACLE_KEYS = ("cell", "physical", "category", "instance", "orientation")
 VERSION_PACKAGES = (
@@ -55,33 +53,13 @@ def package_versions() -> dict[str, str]:
     return {"python": platform.python_version()} | {n: version(n) for n in VERSION_PACKAGES}
 
 
-def _plain(o: Any) -> Any:
-    if isinstance(o, (np.generic, np.ndarray, set, frozenset, tuple)):
-        return o.tolist() if hasattr(o, "tolist") else list(o)
-    if isinstance(o, Path):
-        return str(o)
-    raise TypeError(f"cannot record a {type(o).__name__} in the metadata (value {o!r})")
-
-
-def to_json(obj: Any) -> str:
-    """Configs (dicts, OmegaConf containers, numpy values) as compact, sorted JSON."""
-    if type(obj).__module__.startswith("omegaconf"):
-        from omegaconf import OmegaConf
-
-        obj = OmegaConf.to_container(obj, resolve=True)
-    return json.dumps(obj, default=_plain, sort_keys=True, separators=(",", ":"))
-
-
 def _metadata(meta: dict, maze, runs, level: str) -> list[tuple[str, dict[str, str]]]:
     """The MCAP metadata records (docs/records.md "The schema")."""
     head = {"format_version": S.FORMAT_VERSION, "library": S.LIBRARY, "record": level, "time": TIME}
     out = [("recording", head | {"episodes_topic": S.TOPIC_EPISODES, "pictures_topic": PICTURES})]
-    if isinstance(config := meta.pop("config", None), str):
-        out.append(("config", {"yaml": config, "json": to_json(yaml.safe_load(config))}))
-    elif config is not None:  # libyaml's emitter: the same text, faster
-        parsed = json.loads(to_json(config))
-        text = yaml.dump(parsed, Dumper=yaml.CSafeDumper, sort_keys=True)
-        out.append(("config", {"yaml": text, "json": to_json(parsed)}))
+    if (config := meta.pop("config", None)) is not None:
+        text = config if isinstance(config, ConfigText) else config_text(config)
+        out.append(("config", text._asdict()))
     if "seeds" in meta:
         out.append(("seeds", {"json": to_json(meta.pop("seeds"))}))
     versions = {str(k): str(v) for k, v in dict(meta.pop("versions", None) or {}).items()}
@@ -163,6 +141,7 @@ class RecordWriter:
         self._pending: list[tuple[int, bytes]] = []  # messages since the last closed chunk
         self._provisioned = 0  # of them, in the provisional chunk on disk
         self._flushed_at, self._error, self._closed = time.monotonic(), None, False
+        self.thread_cpu_seconds = 0.0  # CPU time of the writer's thread, once it has ended
         records = _metadata(dict(metadata or {}), maze, runs, "steps" if steps else "episodes")
         images = [
             (f"{S.TOPIC_PICTURES}/{p}", _image(f"picture_{p}", pictures[p]))
@@ -282,6 +261,13 @@ class RecordWriter:
 
     def _serve(self) -> None:
         """The writer's thread: the batches in the order they came (so the same bytes)."""
+        start = time.thread_time()
+        try:
+            self._serve_queue()
+        finally:
+            self.thread_cpu_seconds = time.thread_time() - start
+
+    def _serve_queue(self) -> None:
         while True:
             new = len(self._pending) > self._provisioned  # messages no chunk on disk holds
             wait = self._flushed_at + self.flush_seconds - time.monotonic() if new else None
@@ -329,13 +315,24 @@ class RecordWriter:
 
     def _provisional(self) -> None:
         """The messages since the last closed chunk as an uncompressed chunk at the end of the
-        file, written through to disk; the writer goes on from where that chunk starts."""
-        chunk, out = ChunkBuilder(), RecordBuilder()
+        file, written through to disk; the writer goes on from where that chunk starts. Built from
+        ``mcap.records`` (a chunk's data is its message records, back to back)."""
+        messages = RecordBuilder()
         for t, data in self._pending:
-            chunk.add_message(Message(self._channel, t, data, t, 0))
-        raw, t0, t1 = chunk.end(), chunk.message_start_time, chunk.message_end_time
-        crc, size = zlib.crc32(raw), len(raw)
-        Chunk("", raw, t1, t0, crc, size).write(out)  # its fields in mcap's order
+            Message(self._channel, log_time=t, data=data, publish_time=t, sequence=0).write(
+                messages
+            )
+        raw, times = messages.end(), [t for t, _ in self._pending]
+        chunk = Chunk(
+            compression="",
+            data=raw,
+            message_start_time=min(times),
+            message_end_time=max(times),
+            uncompressed_crc=zlib.crc32(raw),
+            uncompressed_size=len(raw),
+        )
+        out = RecordBuilder()
+        chunk.write(out)
         at = self._file.tell()
         self._file.write(out.end())
         self._file.flush()

@@ -6,7 +6,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from pipeline.rl.runner import TRACE_CAPACITY
+from pipeline.rl.trace_pool import TRACE_CAPACITY
 
 
 def memory_estimate(runs: int, episodes: int, n_cells: int, record_steps: bool) -> int:

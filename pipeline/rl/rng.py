@@ -8,6 +8,7 @@ Gymnasium agent draw the very same numbers and a paused run resumes exactly wher
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numba as nb
@@ -30,6 +31,7 @@ class RunSeeds:
     recogniser: int  # seed handed to Recogniser.start_run (support-set substitutions)
 
 
+@functools.lru_cache(maxsize=1 << 16)  # asked for by every cell of a study, run by run
 def run_seeds(seed: int, run: int) -> RunSeeds:
     if seed < 0 or run < 0:
         raise ValueError(f"seed and run must be non-negative (seed={seed}, run={run})")

@@ -12,6 +12,7 @@ The runner (:mod:`.runner`) and the Gymnasium environment ask a :class:`World` f
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -39,8 +40,15 @@ class RunWorld:
 def run_placement(geometry: Geometry, seed: int, run: int) -> Placement:
     """Run ``run``'s obstacle placement, from ``run_seeds(seed, run).placement``: the same in
     every world, so a robot run and a grid run with the same seed meet the same obstacles."""
-    rng = np.random.default_rng(run_seeds(seed, run).placement)
-    return random_placement(len(geometry.layout.obstacles), rng)
+    return _placement(len(geometry.layout.obstacles), seed, run)
+
+
+@functools.lru_cache(maxsize=1 << 14)  # the cells of a study on mazes of as many obstacles share it
+def _placement(n_obstacles: int, seed: int, run: int) -> Placement:
+    placement = random_placement(n_obstacles, np.random.default_rng(run_seeds(seed, run).placement))
+    for array in (placement.physical, placement.orientation):
+        array.flags.writeable = False  # shared: no caller may change it
+    return placement
 
 
 def make_run_world(geometry: Geometry, seed: int, run: int) -> RunWorld:

@@ -10,11 +10,12 @@ Usage::
 from __future__ import annotations
 
 import contextlib
+import time
 
 import numpy as np
 from tqdm.auto import tqdm
 
-from pipeline.rl import kernel, rules
+from pipeline.rl import kernel, rules, trace_pool
 from pipeline.rl.codes import Status
 from pipeline.rl.methods import MethodSpec
 from pipeline.rl.recogniser import Recogniser
@@ -33,15 +34,13 @@ from pipeline.rl.structs import (
     Substitution,
     Trace,
 )
+from pipeline.rl.trace_pool import TRACE_CAPACITY
 from pipeline.rl.trial_result import TrialResult
 from pipeline.world.geometry import Geometry, build_geometry
 from pipeline.world.maze import Layout
 
 __all__ = ["RunWorld", "Trial", "make_run_world", "run_trials"]
 
-#: Steps a run's trace holds (10 bytes a step): a run's episodes go to the sink when it is full and at the end
-#: of the trial, so a paper-scale 11x11 run (about 23,500 steps) is one batch (the recording costs per batch).
-TRACE_CAPACITY = 32768
 #: A recording sink gets every run's finished episodes at least every this many episodes (and when
 #: a run's step trace is full): with the writer's flush_seconds, what a killed run keeps.
 EMIT_EVERY = 500
@@ -110,8 +109,9 @@ class Trial:
         rng = np.array(seeds, dtype=np.uint64)
         self.state = RunState.fresh(runs, layout.n_cells, layout.start, method.epsilon, rng)
         self.results = Results.zeros(runs, self.episodes)
-        capacity = max(trace_capacity, method.max_steps) if self.trace_steps else 1
-        self.trace = Trace.empty(runs, capacity, self.trace_steps)
+        capacity = max(trace_capacity, method.max_steps)
+        recording = self.trace_steps  # else a trace of one step that the kernel never writes
+        self.trace = trace_pool.borrow(runs, capacity) if recording else Trace.empty(runs, 1, False)
         self.recognitions = Recognitions.empty(runs, self.n_dangerous)
         self.additions = Additions.empty(runs, self.n_dangerous)
         self.substitution = Substitution.empty(runs)
@@ -121,6 +121,7 @@ class Trial:
         self.handed_recognitions = [0] * runs  # rows already in a batch, per run
         self.handed_additions = [0] * runs
         self.emitted = [0] * runs  # episodes already in a batch, per run
+        self.kernel_seconds = 0.0  # wall seconds inside kernel.advance_batch
 
     def slot(self, r: int) -> int:
         """The recogniser slot of run ``r`` (one slot for all runs with a shared support set)."""
@@ -256,9 +257,12 @@ class Trial:
             },
         )
 
-    def advance(self, pending: np.ndarray, limit: int) -> None:
-        """Advance the runs ``pending`` to episode ``limit``, serving their pauses on the way."""
+    def advance(self, pending: np.ndarray, limit: int, bar) -> None:
+        """Advance the runs ``pending`` to episode ``limit``, serving their pauses on the way; the
+        progress ``bar`` moves whenever the kernel returns (a pause too: from the first second)."""
         while pending.size:
+            before = int(self.state.episode[pending].sum())
+            started = time.perf_counter()
             kernel.advance_batch(
                 pending,
                 limit,
@@ -273,6 +277,8 @@ class Trial:
                 self.additions,
                 self.substitution,
             )
+            self.kernel_seconds += time.perf_counter() - started
+            bar.update(int(self.state.episode[pending].sum()) - before)
             again = []
             for r in pending:
                 r = int(r)
@@ -308,19 +314,16 @@ class Trial:
             raise
         finally:
             bar.close()
+            trace_pool.give_back(self.trace)  # to this process's next trial of its shape
         return self.result()
 
     def _run_group(self, group: np.ndarray, limits: list[int], bar) -> None:
         for r in group:
             self.start(int(r))
         for limit in limits:
-            before = int(self.state.episode[group].sum())
-            self.advance(group, limit)
-            bar.update(int(self.state.episode[group].sum()) - before)
+            self.advance(group, limit, bar)
             # finished episodes are handed over every EMIT_EVERY episodes (a trace also when full)
-            if self.record and (
-                limit % EMIT_EVERY == 0 or limit == self.episodes or not self.trace_steps
-            ):
+            if self.record and (limit % EMIT_EVERY == 0 or limit == self.episodes):
                 for r in group:
                     self.emit(int(r))
 
@@ -332,20 +335,9 @@ class Trial:
                     self.emit(r)
 
     def result(self) -> TrialResult:
-        results = self.results
-        return TrialResult(
-            self.layout,
-            self.method,
-            self.seed,
-            results.steps,
-            results.collisions,
-            results.returns,
-            results.reached_goal,
-            results.prevented,
-            results.greedy_optimal,
-            results.epsilon,
-            [w.placement for w in self.worlds],
-        )
+        placements = [w.placement for w in self.worlds]
+        args = (self.layout, self.method, self.seed, self.results, placements, self.kernel_seconds)
+        return TrialResult.of(*args)
 
 
 def run_trials(

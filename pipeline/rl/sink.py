@@ -8,7 +8,8 @@ does not import ``records``: the MCAP writer implements this protocol, and so ca
 (a list in a test; :func:`split_batch` gives one dict per episode). A sink whose attribute
 ``records_steps`` is False (the MCAP writer at ``record=episodes``) gets every field but the step rows
 (``states``, ``actions``, ``rewards``, ``flags`` empty; ``steps`` still counts them): the runner then
-keeps no step trace and hands a run's episodes over every ``chunk_episodes``.
+keeps no step trace. Either way a run's episodes are handed over every ``EMIT_EVERY`` (500)
+episodes, at the end, and, with steps, when the run's trace is full.
 
 Batch fields (numpy arrays):
     run                          int

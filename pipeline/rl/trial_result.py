@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pipeline.rl.methods import MethodSpec
+from pipeline.rl.structs import Results
 from pipeline.world.maze import Layout
 from pipeline.world.placement import Placement
 
@@ -27,6 +28,16 @@ class TrialResult:
     greedy_optimal: np.ndarray
     epsilon: np.ndarray
     placements: list[Placement] = field(default_factory=list)
+    kernel_seconds: float = 0.0
+    """Wall seconds inside the compiled kernel (``kernel.advance_batch``): the trial's own work,
+    beside which set-up and recording are measured (``benchmarks.generalisation``). Never recorded."""
+
+    @classmethod
+    def of(cls, layout, method, seed, results: Results, placements, kernel_seconds) -> TrialResult:
+        """The result of a trial whose kernel filled ``results`` (``structs.Results``)."""
+        outcomes = (results.steps, results.collisions, results.returns, results.reached_goal)
+        more = (results.prevented, results.greedy_optimal, results.epsilon)
+        return cls(layout, method, seed, *outcomes, *more, list(placements), kernel_seconds)
 
     @property
     def runs(self) -> int:

@@ -10,12 +10,12 @@ format, the writer knows no runner, so the stage joins them.
 from __future__ import annotations
 
 import contextlib
-import copy
 import json
+import sys
 import time
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 from omegaconf import OmegaConf
 
@@ -32,6 +32,9 @@ from pipeline.stages._trials_schema import TrialsConfig
 from pipeline.world.geometry import build_geometry
 from pipeline.world.maze import ACTION_NAMES, MOVES, Layout
 from pipeline.world.pictures import CATEGORIES
+
+if TYPE_CHECKING:  # the records package is imported where a cell records
+    from pipeline.records.config_text import ConfigText, Pieces
 
 
 @dataclass
@@ -54,6 +57,14 @@ class CellRun:
     @property
     def method(self) -> MethodSpec:
         return self.config.method
+
+
+class CellTime(NamedTuple):
+    """Wall seconds of a cell's trial (its records written meanwhile) and, of them, inside the
+    compiled kernel: what the stage's timing file holds (``timing_file``)."""
+
+    seconds: float
+    kernel_seconds: float
 
 
 def recogniser_key(cfg: TrialsConfig) -> str | None:
@@ -83,6 +94,12 @@ def make_recogniser(cfg: TrialsConfig, key: str = "recogniser", built: dict | No
         recogniser = built[share]
     else:
         way = cfg.substitution if method.dynamic_support else 0
+        if cfg.progress:  # loading torch and a checkpoint takes seconds: say so first
+            way_text = f", substitution way {way}" if way else ""
+            print(
+                f"loading the recogniser {_described(cfg.recogniser)}{way_text} ...",
+                file=sys.stderr,
+            )
         recogniser = build_recogniser(
             cfg.recogniser, substitution_way=way, carry_over=cfg.support == "carry", key=key
         )
@@ -91,6 +108,13 @@ def make_recogniser(cfg: TrialsConfig, key: str = "recogniser", built: dict | No
     # the robot's cells share the grid's recogniser (each run restores its support set) and see
     # their live pictures through a wrapper made with the cell's world (:func:`cell_world`)
     return recogniser
+
+
+def _described(recogniser: dict) -> str:
+    """``RelationRecogniser (datasets/models/relation_net.pt)``: its class and checkpoint."""
+    parts = str(recogniser.get("_target_", "?")).split(".")
+    name = next((p for p in reversed(parts) if p[:1].isupper()), parts[-1])
+    return name + (f" ({recogniser['checkpoint']})" if recogniser.get("checkpoint") else "")
 
 
 def cell_world(cell: CellRun):
@@ -165,26 +189,28 @@ def recorded_pictures(cfg: TrialsConfig) -> tuple[dict[int, bytes], dict[int, li
         raise ConfigError(f"config key '{key}': {one_line(exc)}") from None
 
 
-#: Recorded configs by everything but the maze (cells over generated layouts differ only there;
-#: building a structured config takes about 0.1 s, 2,100 times would take minutes).
-_RECORDED: dict[str, dict] = {}
+#: The pieces of the recorded config (:mod:`pipeline.records.config_text`) of every key but the
+#: maze, by everything but the maze: the cells of a study over generated layouts differ only there,
+#: and building a structured config (about 0.1 s) and rendering its text (about 4 ms) 2,100 times
+#: would cost more than their trials.
+_RECORDED: dict[str, Pieces] = {}
 
 #: Keys that say how cells were run, not what: left out of the records, so the records of a cell
 #: are the same bytes whether it ran alone or beside others.
 NOT_RECORDED = ("workers",)
 
 
-def recorded_config(cell: CellRun) -> dict:
+def recorded_config(cell: CellRun) -> ConfigText:
     """The config embedded in the records: the cell's own, as it ran (without :data:`NOT_RECORDED`)."""
+    from pipeline.records.config_text import joined, pieces
+
     rest = replace(cell.config, maze="")
     key = repr(rest)
     if key not in _RECORDED:
         whole = OmegaConf.to_container(OmegaConf.structured(rest), resolve=True)
-        _RECORDED[key] = {k: v for k, v in whole.items() if k not in NOT_RECORDED}
-    return {
-        k: (cell.config.maze if k == "maze" else copy.deepcopy(v))
-        for k, v in _RECORDED[key].items()
-    }
+        shared = {k: v for k, v in whole.items() if k not in NOT_RECORDED and k != "maze"}
+        _RECORDED[key] = pieces(shared)
+    return joined(_RECORDED[key] | pieces({"maze": cell.config.maze}))
 
 
 def open_records(cell: CellRun, folder: Path, world=None, recogniser=None):
@@ -254,8 +280,8 @@ def _space_needed(cell: CellRun, folder: Path, writer) -> str:
     )
 
 
-def run_cell(cell: CellRun, folder: Path, progress: bool | None = None) -> tuple[dict, float]:
-    """Run one cell into ``folder`` (records, ``summary.json``); its summary and trial seconds.
+def run_cell(cell: CellRun, folder: Path, progress: bool | None = None) -> tuple[dict, CellTime]:
+    """Run one cell into ``folder`` (records, ``summary.json``); its summary and its time.
     ``progress``: the runner's per-episode bar (default ``cfg.progress``)."""
     cfg, method = cell.config, cell.method
     try:
@@ -317,4 +343,4 @@ def run_cell(cell: CellRun, folder: Path, progress: bool | None = None) -> tuple
         write_json_atomic(folder / "summary.json", summary)
     except OSError as exc:
         raise disk_problem(exc, folder, _space_needed(cell, folder, writer)) or exc from None
-    return summary, seconds
+    return summary, CellTime(seconds, result.kernel_seconds)

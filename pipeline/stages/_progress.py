@@ -1,19 +1,50 @@
-"""What a trials run prints as its cells complete: up to :data:`COMPACT_AT` cells, one line each;
-more, a progress bar on a terminal (a line per tenth of the cells elsewhere) and a closing line
-with the totals. Nothing printed here goes into the records or the summaries."""
+"""What a trials run prints: first, the trial kernel being made ready (compiled on a machine's first
+run, then loaded from numba's cache); as its cells complete, up to :data:`COMPACT_AT` cells, one
+line each; more, a progress bar on a terminal (a line per tenth of the cells elsewhere) and a
+closing line with the totals. Nothing printed here goes into the records or the summaries."""
 
 from __future__ import annotations
 
+import sys
 import time
 from collections.abc import Iterable
 
 from tqdm import tqdm
 
-from pipeline.stages._cell_run import CellRun
+from pipeline.stages._cell_run import CellRun, CellTime
 from pipeline.stages._trials_schema import TrialsConfig
 
 #: Above this many cells an experiment's progress is a bar (or a line per tenth), not a line per cell.
 COMPACT_AT = 30
+
+
+def prepare_kernel(progress: bool) -> None:
+    """Compile the trial kernel, or load it from numba's cache, with a trial of one episode before
+    the first cell, saying which on stderr (with ``progress``): otherwise a machine's first trial
+    sits at 0% for the compilation (about 10 s on 2 cores), and worker processes would each
+    compile it at once instead of loading what this process cached."""
+    from pipeline.rl import kernel
+    from pipeline.rl.methods import get_method
+    from pipeline.rl.runner import run_trials
+    from pipeline.world.maze import load_layout
+
+    say = print if progress else lambda *args, **kwargs: None
+    say(
+        "preparing the trial kernel (compiled on a machine's first run, about 10 s on 2 cores; "
+        "cached after) ...",
+        end="",
+        file=sys.stderr,
+        flush=True,
+    )
+
+    def compilations() -> int:  # none where numba is off (NUMBA_DISABLE_JIT=1)
+        stats = getattr(kernel.advance_batch, "stats", None)
+        return sum(stats.cache_misses.values()) if stats is not None else 0
+
+    started, before = time.perf_counter(), compilations()
+    run_trials(load_layout("5x5"), get_method("qlearning"), 1, 1, progress=False)
+    how = "compiled" if compilations() > before else "loaded from the cache"
+    say(f" {how} in {time.perf_counter() - started:.1f} s", file=sys.stderr, flush=True)
 
 
 def compact(cells: list[CellRun]) -> bool:
@@ -32,11 +63,11 @@ def cell_line(cfg: TrialsConfig, cell: CellRun, summary: dict, seconds: float) -
 
 
 def follow(
-    cfg: TrialsConfig, cells: list[CellRun], results: Iterable[tuple[int, dict, float]]
-) -> dict[int, tuple[dict, float]]:
-    """``index -> (summary, seconds)`` of every cell, taken from ``results`` as the cells complete
+    cfg: TrialsConfig, cells: list[CellRun], results: Iterable[tuple[int, dict, CellTime]]
+) -> dict[int, tuple[dict, CellTime]]:
+    """``index -> (summary, spent)`` (:class:`CellTime`) of every cell, taken from ``results`` as the cells complete
     (in any order), printing the progress as it goes."""
-    by_index: dict[int, tuple[dict, float]] = {}
+    by_index: dict[int, tuple[dict, CellTime]] = {}
     many = compact(cells)
     t0 = time.perf_counter()
     bar = tqdm(
@@ -47,10 +78,10 @@ def follow(
     )
     tenth = max(1, len(cells) // 10)
     with bar:
-        for i, summary, seconds in results:
-            by_index[i] = (summary, seconds)
+        for i, summary, spent in results:
+            by_index[i] = (summary, spent)
             if not many:
-                print(cell_line(cfg, cells[i], summary, seconds))
+                print(cell_line(cfg, cells[i], summary, spent.seconds))
             elif bar.disable and (len(by_index) % tenth == 0 or len(by_index) == len(cells)):
                 print(
                     f"{len(by_index)}/{len(cells)} cells ({time.perf_counter() - t0:.0f} s)",
@@ -60,9 +91,11 @@ def follow(
     if many:
         steps = sum(r["steps"] for s, _ in by_index.values() for r in s["runs"])
         wall = time.perf_counter() - t0
+        workers = min(cfg.workers, len(cells))
+        kernel = sum(spent.kernel_seconds for _, spent in by_index.values()) / workers
         print(
             f"{len(cells)} cells x {cfg.runs} runs x {cfg.episodes} episodes: {steps:,} agent "
-            f"steps in {wall:.1f} s ({steps / max(wall, 1e-9):,.0f} steps/s, {cfg.workers} "
-            f"worker{'s' if cfg.workers > 1 else ''})"
+            f"steps in {wall:.1f} s ({steps / max(wall, 1e-9):,.0f} steps/s, {workers} "
+            f"worker{'s' if workers > 1 else ''}; {kernel:.1f} s of it in the kernel a worker)"
         )
     return by_index

@@ -30,6 +30,7 @@ from pathlib import Path
 from pipeline.errors import Interrupted
 from pipeline.stages._cell_run import (
     CellRun,
+    CellTime,
     make_recogniser,
     pictures_dir,
     recorded_pictures,
@@ -95,8 +96,8 @@ def _run_one(cell, folder: str) -> tuple[dict, float]:
 
 def cell_results(
     cells: list[CellRun], out: Path, pool: ProcessPoolExecutor | None, progress: bool
-) -> Iterator[tuple[int, dict, float]]:
-    """``(index, summary, seconds)`` of every cell into ``out`` (``<out>/<cell>/``, or ``out``
+) -> Iterator[tuple[int, dict, CellTime]]:
+    """``(index, summary, spent)`` of every cell into ``out`` (``<out>/<cell>/``, or ``out``
     itself for the one unnamed cell) as it completes: one after another, or in the ``pool``'s
     processes (:func:`worker_pool`, without per-episode bars); ``progress``: each cell's bar."""
     folders = [out / c.name if c.name else out for c in cells]
@@ -144,8 +145,8 @@ def worker_pool(
 
 def run_parallel(
     pool: ProcessPoolExecutor, cells: list[CellRun], folders: list[Path]
-) -> Iterator[tuple[int, dict, float]]:
-    """``(index, summary, seconds)`` of every cell as it completes, run in the ``pool``. An error
+) -> Iterator[tuple[int, dict, CellTime]]:
+    """``(index, summary, spent)`` of every cell as it completes, run in the ``pool``. An error
     in a cell stops the others and is raised here; so is an interrupt."""
     light = [replace(c, recogniser=None, pictures={}, support={}) for c in cells]
     try:
@@ -157,8 +158,8 @@ def run_parallel(
             done, _ = wait(pending, return_when=FIRST_COMPLETED)
             for future in done:
                 i = pending.pop(future)
-                summary, seconds = future.result()
-                yield i, summary, seconds
+                summary, spent = future.result()
+                yield i, summary, spent
     except BaseException:
         stop(pool)
         raise

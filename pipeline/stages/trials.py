@@ -55,7 +55,7 @@ from pipeline.stages._cell_plan import (
 from pipeline.stages._cell_run import CellRun, make_recogniser, pictures_dir, recorded_pictures
 from pipeline.stages._common import stage_main
 from pipeline.stages._metrics import write_metrics
-from pipeline.stages._progress import compact, follow
+from pipeline.stages._progress import compact, follow, prepare_kernel
 from pipeline.stages._trials_schema import TrialsConfig
 from pipeline.stages._workers import cell_results, worker_pool
 from pipeline.threads import trials_budget
@@ -181,6 +181,7 @@ def run(cfg: TrialsConfig, overrides: list[str]) -> dict:
     refuse_what_does_not_fit(cfg, cells)
     workers = min(cfg.workers, len(cells))
     trials_budget(cfg.threads, workers).apply()
+    prepare_kernel(cfg.progress)
     with worker_pool(cells, workers, cfg.threads) as pool, exclusive_folder(cfg.out) as out:
         refuse_overwrite(cfg, out)
         staging = work_folder(out, ".staging")
@@ -235,7 +236,7 @@ def run_cells(cfg: TrialsConfig, cells: list[CellRun], out: Path, pool=None) -> 
     by_index = follow(cfg, cells, cell_results(cells, out, pool, progress))
     summaries = {c.name: by_index[i][0] for i, c in enumerate(cells)}
     if cfg.timing_file:
-        timing = {c.name: round(by_index[i][1], 3) for i, c in enumerate(cells)}
+        timing = {c.name: _rounded(by_index[i][1]._asdict()) for i, c in enumerate(cells)}
         write_json_atomic(cfg.timing_file, timing)
     if "" in summaries:
         return summaries[""]
@@ -245,6 +246,10 @@ def run_cells(cfg: TrialsConfig, cells: list[CellRun], out: Path, pool=None) -> 
     if cfg.metrics_dir:
         write_metrics(cfg.metrics_dir, cfg.experiment, summaries)
     return index
+
+
+def _rounded(seconds: dict[str, float]) -> dict[str, float]:
+    return {k: round(v, 3) for k, v in seconds.items()}
 
 
 def main() -> None:

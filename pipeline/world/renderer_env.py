@@ -9,6 +9,7 @@ from __future__ import annotations
 import ctypes.util
 import os
 import sys
+import warnings
 
 from pipeline.errors import UserError
 
@@ -24,6 +25,16 @@ except ImportError as exc:  # pragma: no cover - the venv always has it
     raise ImportError(
         "the renderer needs the Python package 'mujoco' (pip install mujoco)"
     ) from exc
+
+
+def _mujoco_warning(message: str) -> None:
+    """MuJoCo's warnings (an unstable simulation, a full buffer) as Python runtime warnings.
+    Without a handler MuJoCo prints them and appends them to ``MUJOCO_LOG.TXT`` in the working
+    folder: a stray file in the user's checkout."""
+    warnings.warn(f"MuJoCo: {message.strip()}", RuntimeWarning, stacklevel=2)
+
+
+mujoco.set_mju_user_warning(_mujoco_warning)
 
 _HINTS = {
     "egl": ("EGL", "apt-get install -y libegl1 libegl-mesa0 libgl1-mesa-dri"),
