@@ -1,7 +1,7 @@
 """``python -m pipeline <stage> [hydra overrides...]``: one thin Hydra entry point per stage.
 
 Each stage lives in ``pipeline/stages/<stage>.py`` with a ``main()`` that composes
-``pipeline/conf/<stage>.yaml`` (``pipeline/stages/_common.py``); the first line of its docstring is the
+``conf/<stage>.yaml`` (``pipeline/stages/_common.py``); the first line of its docstring is the
 description ``--help`` lists. ``<stage> --help`` prints the stage's groups and keys from the schema
 (``pipeline/stages/_help.py``) without importing the stage's module.
 """

@@ -4,7 +4,7 @@
     gymnasium.make("SafeNav3D-5x5-v0", method="fewshot_dss", recogniser="relation_net",
                    render_mode="rgb_array")
 
-``recogniser`` by name (any of ``pipeline/conf/recogniser/``, built as for ``SafeNav-*``:
+``recogniser`` by name (any of ``conf/recogniser/``, built as for ``SafeNav-*``:
 :func:`pipeline.envs.recogniser_for`) or a recogniser object; the environment asks it about live
 pictures (:func:`pipeline.robot.live.live`: the few-shot networks score the live picture, the
 models of recognition answer as for the grid's query picture).

@@ -1,5 +1,5 @@
 """One declaration per thing: the methods' declarations (``METHODS`` in ``pipeline/rl/rules.py``)
-match ``pipeline/conf/method/``, the report's names, colours and orders come from them, a method nothing
+match ``conf/method/``, the report's names, colours and orders come from them, a method nothing
 declares keeps its recorded name, and every recogniser that records a kind declares its display
 name. Each failure names what to add."""
 
@@ -35,9 +35,7 @@ def test_every_method_file_has_one_declaration_and_every_declaration_a_file():
     missing = sorted(set(method_names()) - set(declared))
     assert not missing, f"declare {missing} in pipeline/rl/rules.py METHODS (display, colour)"
     orphans = sorted(set(declared) - set(method_names()))
-    assert not orphans, (
-        f"rules.METHODS declares {orphans}, which have no pipeline/conf/method/<name>.yaml"
-    )
+    assert not orphans, f"rules.METHODS declares {orphans}, which have no conf/method/<name>.yaml"
 
 
 def test_display_names_and_colours_tell_methods_apart():

@@ -70,7 +70,7 @@ IN_SUPPORT = (WITH_SAME - NO_SAME) / 100
 
 
 class PaperTablesRecogniser:
-    """``pipeline/conf/recogniser/paper_tables.yaml``: the paper's recognition accuracy (module
+    """``conf/recogniser/paper_tables.yaml``: the paper's recognition accuracy (module
     docstring); ``substitution_way`` 0 is the static support set, 1-4 section 3.3's ways."""
 
     kind = "paper_tables"

@@ -1,5 +1,5 @@
 """The ``accuracy_curve`` section kind: collisions against the recognition accuracy of a controlled
-recogniser (``pipeline/conf/experiment/accuracy_curve.yaml``: how accurate must recognition be for
+recogniser (``conf/experiment/accuracy_curve.yaml``: how accurate must recognition be for
 few-shot reasoning to pay off?).
 
 What each cell is comes from its records: a cell with a recogniser (its records hold the support

@@ -4,7 +4,7 @@ Inputs: the MCAP records of the experiments (``<runs_dir>/<experiment>/<cell>/re
 embedding its experiment's ``report:`` block: :mod:`pipeline.report.sections`), the accuracy
 study's data files and the validation metrics of the model, the render stage's contact sheets.
 Every folder of ``runs_dir`` with records is a section, ordered by its block's ``order``;
-experiment files (``pipeline/conf/experiment/*.yaml``) without records are listed as not in the report.
+experiment files (``conf/experiment/*.yaml``) without records are listed as not in the report.
 
 Outputs: ``index.md``, ``tables/*.md|csv``, ``figures/*.png`` (these three are replaced on every
 build; the rest of the folder, e.g. ``benchmarks/``, is left alone). Deleting them and building
@@ -39,12 +39,12 @@ class Inputs:
     contact_dir: Path
     out: Path
     experiments_dir: Path | None = (
-        None  # the experiment files (pipeline/conf/experiment/): which are missing
+        None  # the experiment files (conf/experiment/): which are missing
     )
     allow_missing: bool = False  # build without missing experiments/cells, saying so at the top
     allow_mixed_scales: bool = False  # build from records of different profiles, named at the top
     profiles: dict[str, dict] = field(default_factory=dict)
-    """The profiles' ``trials`` blocks by name (``pipeline/conf/profile/``): a record's scale."""
+    """The profiles' ``trials`` blocks by name (``conf/profile/``): a record's scale."""
     beside: dict[str, tuple[Path, Path]] = field(default_factory=dict)
     """Other few-shot methods for Tables 1-2: name -> (accuracy study folder, metrics file)."""
 

@@ -117,11 +117,11 @@ def recogniser_name(kind: str) -> str:
 
 @cache
 def recogniser_groups() -> dict[str, str]:
-    """The recognisers' config groups (``pipeline/conf/recogniser/<name>.yaml``) by the ``_target_``
+    """The recognisers' config groups (``conf/recogniser/<name>.yaml``) by the ``_target_``
     each builds (the first name, sorted, where two share one)."""
     import yaml
 
-    from pipeline.conf import conf_dir
+    from pipeline.configs import conf_dir
 
     found: dict[str, str] = {}
     for path in sorted(conf_dir("recogniser").glob("*.yaml")):

@@ -2,7 +2,7 @@
 
 Every line comes from a declaration, none is kept by hand: the stage's description from its
 module's docstring (:func:`describe`), its groups and their default options from
-``pipeline/conf/<stage>.yaml``'s defaults list (and the schema's fields named like a folder of ``pipeline/conf/``,
+``conf/<stage>.yaml``'s defaults list (and the schema's fields named like a folder of ``conf/``,
 such as ``experiment``), each option's summary from its file's leading comment (or, where every
 option shares that comment, from the keys it sets), and each key's type, range or choices and
 description from its dataclass field (:mod:`pipeline.schema`). A key's default is read from the
@@ -47,7 +47,7 @@ def describe(stage: str) -> str:
 
 @dataclass
 class Group:
-    """A config group a stage reads: ``<name>=<option>`` picks ``pipeline/conf/<name>/<option>.yaml``."""
+    """A config group a stage reads: ``<name>=<option>`` picks ``conf/<name>/<option>.yaml``."""
 
     name: str
     default: str | None
@@ -158,8 +158,8 @@ class StageHelp:
         return Group(name, default, options, package_global)
 
     def _groups(self) -> list[Group]:
-        """The groups of ``pipeline/conf/<stage>.yaml``'s defaults list, then the schema's fields that
-        name a folder of ``pipeline/conf/`` without a default (``experiment``: ``+experiment=<name>``)."""
+        """The groups of ``conf/<stage>.yaml``'s defaults list, then the schema's fields that
+        name a folder of ``conf/`` without a default (``experiment``: ``+experiment=<name>``)."""
         hints = typing.get_type_hints(self.schema)
         chosen: dict[str, str | None] = {}
         for entry in self._defaults_list():
@@ -257,10 +257,7 @@ class StageHelp:
         docs = field_docs(self.schema)
         for group in self.groups:
             how = f"{group.name}=<option>" if group.default else f"+{group.name}=<option>"
-            doc = (
-                docs.get(group.name)
-                or f"pipeline/conf/{group.name}/, each option sets the keys it names."
-            )
+            doc = docs.get(group.name) or f"conf/{group.name}/, each option sets the keys it names."
             yield from _wrap(f"{group.name} ({how}): {doc}", 2, 4)
             width = max(len(o) for o in group.options) + 3
             for option, summary in group.options.items():

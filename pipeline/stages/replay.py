@@ -8,7 +8,7 @@ A robot cell (its recorded config says ``world: robot3d``; docs/robot3d.md) repl
 (:func:`pipeline.robot.replay.robot_run`) to the replay (:data:`WORLDS`).
 
 The file may also be given positionally (``python -m pipeline replay <file.mcap> run=3 ...``).
-Logic in :mod:`pipeline.replay`; this is the thin entry point (pipeline/conf/replay.yaml) and
+Logic in :mod:`pipeline.replay`; this is the thin entry point (conf/replay.yaml) and
 starts the viewer.
 
 ``viewer=web`` serves the recording with the Rerun CLI of the rerun-sdk wheel and prints the one
