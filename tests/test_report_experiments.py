@@ -301,7 +301,10 @@ def test_the_report_says_each_part_without_a_terminal(capsys):
 
     with tqdm(total=4, disable=True) as bar:
         parts = Parts(bar, 3)
-        parts.building("reading the records under datasets/runs")
+        parts.reading("fig8", 0, 300_000_000)
+        parts.started -= 5  # five seconds in
+        parts.reading("fig9", 100_000_000, 300_000_000)
+        parts.started += 5
         parts.more(1)
         parts.finished()
         parts.finished()
@@ -309,6 +312,7 @@ def test_the_report_says_each_part_without_a_terminal(capsys):
         parts.building("fig8")
     lines = capsys.readouterr().out.splitlines()
     assert lines == [
-        "[report] reading the records under datasets/runs: 0/3 parts done (0 s)",
+        "[report] reading the records of fig8: 0 of 300 MB read (0 s)",
+        "[report] reading the records of fig9: 100 of 300 MB read (5 s, about 10 s left)",
         "[report] fig8: 2/4 parts done (10 s, about 10 s left)",
     ]

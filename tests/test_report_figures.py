@@ -132,8 +132,14 @@ def test_learning_curves_show_the_later_episodes_at_their_own_scale(monkeypatch)
     assert right.get_ylim()[1] == pytest.approx(LC.HEADROOM * (early[10] + 0.02))
     assert note == (
         "left: episodes 0-10 at full scale; right: episodes 10-499 (episode logarithmic) at the "
-        "scale of the later episodes, where Q-learning (up to 1.00) runs above the top"
+        "scale of the later episodes, each point a run's mean over its last 20 episodes, where "
+        "Q-learning (up to 1.00) runs above the top"
     )
+    rare = np.zeros((1, 60))
+    rare[0, [5, 30]] = 1  # a collision in episodes 5 and 30
+    means = LC.window_means(rare)[0]
+    assert means[4] == 0 and means[5] == pytest.approx(1 / 6) and means[24] == pytest.approx(1 / 20)
+    assert means[25] == 0 and means[30] == pytest.approx(1 / 20)
     flat = LC.curves({"accuracy": np.full((4, 500), 0.6)}, "t", "a.png", ylabel="accuracy")
     assert flat == "episode linear up to 10, logarithmic above" and len(kept[1].axes) == 1
     plt.close("all")

@@ -183,6 +183,19 @@ class Parts:
                 flush=True,
             )
 
+    def reading(self, folder: str, read: int, total: int) -> None:
+        """The records of ``folder`` are next: ``read`` of ``total`` bytes so far (the first part,
+        most of the time), the time left at the pace so far."""
+        self.bar.set_postfix_str(f"reading the records of {folder}")
+        if self.bar.disable:
+            elapsed = time.perf_counter() - self.started
+            left = f", about {elapsed / read * (total - read):.0f} s left" if read else ""
+            print(
+                f"[report] reading the records of {folder}: {read / 1e6:,.0f} of "
+                f"{total / 1e6:,.0f} MB read ({elapsed:.0f} s{left})",
+                flush=True,
+            )
+
     def more(self, parts: int) -> None:
         self.total += parts
         self.bar.total = self.total
@@ -195,8 +208,7 @@ class Parts:
 def _build_parts(inputs: Inputs, parts: Parts) -> Path:
     """The report, part by part (``parts`` names the one being built and counts those done)."""
     rep = Report(inputs.out, inputs.accuracy_dir)
-    parts.building(f"reading the records under {inputs.runs_dir}")
-    experiments = load_all(inputs.runs_dir)
+    experiments = load_all(inputs.runs_dir, parts.reading)
     found = scales(experiments, inputs.profiles)
     check_scales(found, inputs.runs_dir, inputs.allow_mixed_scales)
     title, scale = title_and_scale(

@@ -7,7 +7,9 @@ cannot show both, and a symmetric-log axis squashes everything below 1 into a sl
 learning curve whose early values dwarf its later ones gets two panels side by side: the first
 :data:`EARLY` episodes at their full scale, and the rest at the scale of the later episodes. A
 row that stays far above the others there (Q-learning, which keeps colliding) leaves the right
-panel's top and the caption says up to what value.
+panel's top and the caption says up to what value. On the right each point is a run's mean over
+its last :data:`WINDOW` episodes: a collision every few hundred episodes reads as a rate there, not
+as spikes.
 """
 
 from __future__ import annotations
@@ -27,6 +29,8 @@ from pipeline.report.stats import mean_band  # noqa: E402
 EARLY = 10
 #: A row leaves the right panel when its later mean exceeds this multiple of the next row's.
 DWARFS = 3.0
+#: The right panel's window: each point is a run's mean over its last WINDOW episodes.
+WINDOW = 20
 #: Headroom above the highest band drawn in full on the right panel.
 HEADROOM = 1.15
 
@@ -57,11 +61,26 @@ def curves(
         layout="constrained",
     )
     for i, (label, (mean, lo, hi)) in enumerate(bands.items()):
-        for ax in axes[0]:
-            draw(ax, np.arange(mean.size) + first, mean, lo, hi, label, style(styles, label, i), i)
+        draw(
+            axes[0][0],
+            np.arange(mean.size) + first,
+            mean,
+            lo,
+            hi,
+            label,
+            style(styles, label, i),
+            i,
+        )
     notes = []
     if two_scales:
-        notes.append(split_scales(axes[0][0], axes[0][1], bands, first, length, xlabel, ylabel))
+        later = {
+            label: band(window_means(np.atleast_2d(values)[:, EARLY:]))
+            for label, values in series.items()
+        }
+        for i, (label, (mean, lo, hi)) in enumerate(later.items()):
+            x = np.arange(mean.size) + first + EARLY
+            draw(axes[0][1], x, mean, lo, hi, label, style(styles, label, i), i)
+        notes.append(split_scales(axes[0][0], axes[0][1], later, first, length, xlabel, ylabel))
     else:
         ax = axes[0][0]
         ax.set_xlim(left=first)
@@ -89,6 +108,18 @@ def band(values) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     if v.shape[0] > 1 and np.isfinite(v).any():
         lo, hi = np.clip(lo, np.nanmin(v), None), np.clip(hi, None, np.nanmax(v))
     return mean, lo, hi
+
+
+def window_means(values) -> np.ndarray:
+    """Each run's mean over the last :data:`WINDOW` episodes up to each episode (fewer at the
+    start): a rare event (a few hundredths a run) reads as a rate, not as spikes."""
+    v = np.atleast_2d(np.asarray(values, dtype=float))
+    sums = np.cumsum(np.nan_to_num(v), axis=1)
+    counts = np.cumsum(~np.isnan(v), axis=1)
+    back = np.pad(sums, ((0, 0), (WINDOW, 0)))[:, : v.shape[1]]
+    back_counts = np.pad(counts, ((0, 0), (WINDOW, 0)))[:, : v.shape[1]]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return (sums - back) / (counts - back_counts)
 
 
 def early_dwarfs_late(bands: dict) -> bool:
@@ -119,36 +150,39 @@ def draw(ax, x, mean, lo, hi, label: str, s: dict, i: int) -> None:
         ax.fill_between(x, lo, hi, color=s["color"], alpha=0.15, lw=0)
 
 
-def split_scales(early, late, bands: dict, first: int, length: int, xlabel, ylabel) -> str:
-    """The left panel: episodes ``first`` to ``first + EARLY``, full scale; the right one: the rest,
-    logarithmic in x, its y top at the highest later band of the rows that do not dwarf the others.
-    Returns the caption's words for the two panels and for a row above the right panel's top."""
+def split_scales(early, late, later: dict, first: int, length: int, xlabel, ylabel) -> str:
+    """The left panel: episodes ``first`` to ``first + EARLY``, full scale; the right one: the rest
+    (``later``: label -> its band from there on), logarithmic in x, its y top at the highest band of
+    the rows that do not dwarf the others. Returns the caption's words for the two panels and for a
+    row above the right panel's top."""
     end = first + length - 1
     early.set_xlim(first, first + EARLY)
     early.set_ylim(bottom=0)
     early.set_title(f"{xlabel}s {first}-{first + EARLY}", fontsize=9)
     early.set_xlabel(xlabel)
     early.set_ylabel(ylabel)
-    later = {label: (m[EARLY:], hi[EARLY:]) for label, (m, _, hi) in bands.items()}
     peaks = sorted(
-        ((np.nanmax(m, initial=0), label) for label, (m, _) in later.items()), reverse=True
+        ((np.nanmax(m, initial=0), label) for label, (m, _, _) in later.items()), reverse=True
     )
     above = []
     for k, (peak, _) in enumerate(peaks[:-1]):  # the first gap from the top
         if peak > DWARFS * max(peaks[k + 1][0], 1e-9):
             above = peaks[: k + 1]
             break
-    kept = [later[label][1] for label in later if label not in {name for _, name in above}]
+    kept = [later[label][2] for label in later if label not in {name for _, name in above}]
     top = HEADROOM * max((np.nanmax(h, initial=0) for h in kept), default=1.0) or 1.0
     late.set_xscale("log")
     late.set_xlim(first + EARLY, end)
     late.set_ylim(0, top)
     late.xaxis.set_major_formatter(PLAIN)
-    late.set_title(f"{xlabel}s {first + EARLY}-{end} (logarithmic), at their scale", fontsize=9)
+    late.set_title(
+        f"{xlabel}s {first + EARLY}-{end} (logarithmic), mean of the last {WINDOW}", fontsize=9
+    )
     late.set_xlabel(xlabel)
     words = (
         f"left: {xlabel}s {first}-{first + EARLY} at full scale; right: {xlabel}s "
-        f"{first + EARLY}-{end} ({xlabel} logarithmic) at the scale of the later {xlabel}s"
+        f"{first + EARLY}-{end} ({xlabel} logarithmic) at the scale of the later {xlabel}s, each "
+        f"point a run's mean over its last {WINDOW} {xlabel}s"
     )
     if above:
         rows = ", ".join(f"{name} (up to {peak:.2f})" for peak, name in sorted(above))
