@@ -14,7 +14,7 @@ import sys
 
 import pipeline.stages as _stages
 from pipeline.errors import quiet_broken_pipe
-from pipeline.stages._common import print_help, wants_help
+from pipeline.stages._common import FULL_HELP_FLAG, print_help, wants_help
 from pipeline.stages._help import describe
 
 
@@ -54,7 +54,7 @@ def main(argv: list[str] | None = None) -> None:
         )
         raise SystemExit(2)
     if wants_help(argv):
-        print_help(stage)
+        print_help(stage, full=FULL_HELP_FLAG in argv)
         raise SystemExit(0)
     module = importlib.import_module(f"pipeline.stages.{stage}")
     sys.argv = [f"pipeline {stage}", *argv]

@@ -289,3 +289,30 @@ def test_start_accuracy_note_names_each_recogniser_when_they_differ():
         "Relation Network), 37.5% (Few-shot, Prototypical Network) of the query pictures"
     )
     assert start_accuracy_note({"Shield": []}) == ""
+
+
+def test_the_report_says_each_part_without_a_terminal(capsys):
+    """Under ``dvc repro`` (no terminal, no bar) the report prints the part it builds, the parts
+    done, the time so far and the time left at the pace so far."""
+
+    from tqdm import tqdm
+
+    from pipeline.report.build import Parts
+
+    with tqdm(total=4, disable=True) as bar:
+        parts = Parts(bar, 3)
+        parts.reading("fig8", 0, 300_000_000)
+        parts.started -= 5  # five seconds in
+        parts.reading("fig9", 100_000_000, 300_000_000)
+        parts.started += 5
+        parts.more(1)
+        parts.finished()
+        parts.finished()
+        parts.started -= 10  # ten seconds in
+        parts.building("fig8")
+    lines = capsys.readouterr().out.splitlines()
+    assert lines == [
+        "[report] reading the records of fig8: 0 of 300 MB read (0 s)",
+        "[report] reading the records of fig9: 100 of 300 MB read (5 s, about 10 s left)",
+        "[report] fig8: 2/4 parts done (10 s, about 10 s left)",
+    ]

@@ -77,6 +77,8 @@ class PaperTablesRecogniser:
     """Its name in the records (``describe()``)."""
     display_name = "paper's Tables 1-2"
     """The report's name for it (``pipeline.report.names``); never recorded."""
+    colour = "#8c564b"
+    """Its colour in the report's figures; never recorded."""
 
     def __init__(self, substitution_way: int = 0, carry_over: bool = False):
         SupportSet(N_WAY, K_SHOT, substitution_way, 0)  # validates the way

@@ -41,6 +41,8 @@ CONF_DIR = str(conf_dir())
 
 #: The flags that print a stage's help (``pipeline/stages/_help.py``) instead of running it.
 HELP_FLAGS = {"-h", "--help"}
+#: Every key of the schema, where ``--help`` shows the common ones (``COMMON_KEYS``).
+FULL_HELP_FLAG = "--help-all"
 
 #: ``run(typed_config, overrides)``: the stage's work; ``overrides`` are the command line's.
 Runner = Callable[[Any, list[str]], Any]
@@ -287,18 +289,18 @@ def run_stage(stage: str, overrides: list[str] = ()) -> Any:
 
 
 def wants_help(args: list[str]) -> bool:
-    return bool(HELP_FLAGS & set(args))
+    return bool((HELP_FLAGS | {FULL_HELP_FLAG}) & set(args))
 
 
-def print_help(stage: str) -> None:
-    print(stage_help(stage, CONF_DIR), end="", flush=True)
+def print_help(stage: str, full: bool = False) -> None:
+    print(stage_help(stage, CONF_DIR, full), end="", flush=True)
 
 
 def stage_main(config_name: str, run: Runner, args: list[str] | None = None) -> Any:
     """Run a stage from the command line (``args``, default ``sys.argv[1:]``)."""
     args = list(sys.argv[1:] if args is None else args)
     if wants_help(args):
-        return print_help(config_name)
+        return print_help(config_name, full=FULL_HELP_FLAG in args)
     if _hydra_mode(args):
         return _hydra_main(config_name, run, args)
     with user_facing():

@@ -1,4 +1,5 @@
-"""``python -m pipeline <stage> --help``: the stage's config groups and keys, from the schema.
+"""``python -m pipeline <stage> --help``: the stage's config groups and keys, from the schema
+(``--help-all``: every key, where ``--help`` shows the common ones).
 
 Every line comes from a declaration, none is kept by hand: the stage's description from its
 module's docstring (:func:`describe`), its groups and their default options from
@@ -267,8 +268,36 @@ class StageHelp:
                     line, WIDTH, initial_indent=" " * 6, subsequent_indent=" " * (6 + width)
                 )
 
+    def short_text(self) -> str:
+        """``--help`` of a stage whose schema declares ``COMMON_KEYS``: each group's options on
+        a line, then those keys with the first sentence of their words; ``--help-all`` for the
+        rest. One screen where the whole schema is several."""
+        lines = [f"python -m pipeline {self.stage} [key=value ...]: {describe(self.stage)}", ""]
+        lines.append("Config groups (group=option; * the default):")
+        hows = [f"{g.name}=" if g.default else f"+{g.name}=" for g in self.groups]
+        width = max(map(len, hows), default=0) + 2
+        for how, group in zip(hows, self.groups):
+            names = " ".join(o + ("*" if o == group.default else "") for o in group.options)
+            lines += textwrap.wrap(
+                how.ljust(width) + names,
+                WIDTH,
+                initial_indent="  ",
+                subsequent_indent=" " * (width + 2),
+            )
+        lines += ["", "Common keys (key: type, allowed values = default):"]
+        for name in self.schema.COMMON_KEYS:
+            key_lines = self.key_lines(self.schema, self.values, only={name})
+            head, *words = list(key_lines)
+            first = SENTENCE_END.split(" ".join(w.strip() for w in words), maxsplit=1)[0]
+            lines += [head, *_wrap(first, 6)]
+        lines += [
+            "",
+            f"Every key and what each option does: python -m pipeline {self.stage} --help-all",
+        ]
+        return "\n".join(lines) + "\n"
+
     def text(self) -> str:
-        """The whole ``--help`` text."""
+        """The whole ``--help`` text (``--help-all`` where the schema declares ``COMMON_KEYS``)."""
         lines = [f"python -m pipeline {self.stage} [key=value ...]: {describe(self.stage)}", ""]
         if self.groups:
             head = "Config groups (group=option; * the default):"
@@ -287,8 +316,10 @@ class StageHelp:
         return "\n".join(lines).replace("\n\n\n", "\n\n") + "\n"
 
 
-def stage_help(stage: str, conf: str | Path) -> str:
-    """The ``--help`` text of ``stage``, whose configs are in the folder ``conf``."""
+def stage_help(stage: str, conf: str | Path, full: bool = False) -> str:
+    """The ``--help`` text of ``stage``, whose configs are in the folder ``conf``: its common keys
+    where its schema declares them (``COMMON_KEYS``), else (or ``full``) every key."""
     from pipeline.stages._schema import schema_of
 
-    return StageHelp(stage, schema_of(stage), Path(conf)).text()
+    found = StageHelp(stage, schema_of(stage), Path(conf))
+    return found.text() if full or not hasattr(found.schema, "COMMON_KEYS") else found.short_text()

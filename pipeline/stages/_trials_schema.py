@@ -44,6 +44,21 @@ class TrialsConfig:
         "hydra",
     )
 
+    #: The keys ``--help`` shows first, in one screen (``--help-all``: every key of the schema).
+    COMMON_KEYS: ClassVar[tuple[str, ...]] = (
+        "maze",
+        "world",
+        "runs",
+        "episodes",
+        "seed",
+        "substitution",
+        "rule",
+        "record",
+        "out",
+        "overwrite",
+        "workers",
+    )
+
     profile: Profile = field(default_factory=Profile)
     """The scale (``conf/profile/``): ``runs`` and ``episodes`` default to its ``trials`` keys."""
     method: MethodSpec = field(default_factory=MethodSpec)
