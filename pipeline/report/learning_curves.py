@@ -28,7 +28,7 @@ from pipeline.report.stats import mean_band  # noqa: E402
 #: The episodes the left panel shows at the full scale (from the first one drawn).
 EARLY = 10
 #: A row leaves the right panel when its later mean exceeds this multiple of the next row's.
-DWARFS = 3.0
+DWARFS = 10.0
 #: The right panel's window: each point is a run's mean over its last WINDOW episodes.
 WINDOW = 20
 #: Headroom above the highest band drawn in full on the right panel.
