@@ -171,13 +171,19 @@ class Parts:
     def __init__(self, bar: tqdm, total: int):
         self.bar, self.total, self.done = bar, total, 0
         self.started = time.perf_counter()
+        self.paced_from = (self.started, 0)  # the parts after the records: the pace of the rest
 
     def building(self, part: str) -> None:
         self.bar.set_postfix_str(part)
         if self.bar.disable:
-            elapsed = time.perf_counter() - self.started
-            pace = elapsed / self.done * (self.total - self.done) if self.done else None
-            left = f", about {pace:.0f} s left" if pace is not None else ""
+            now, (since, done_then) = time.perf_counter(), self.paced_from
+            paced = self.done - done_then
+            left = (
+                f", about {(now - since) / paced * (self.total - self.done):.0f} s left"
+                if paced
+                else ""
+            )
+            elapsed = now - self.started
             print(
                 f"[report] {part}: {self.done}/{self.total} parts done ({elapsed:.0f} s{left})",
                 flush=True,
@@ -197,8 +203,11 @@ class Parts:
             )
 
     def more(self, parts: int) -> None:
+        """``parts`` more to build, known once the records are read: the pace starts again (reading
+        the records is the long first part, and no guide to the rest)."""
         self.total += parts
         self.bar.total = self.total
+        self.paced_from = (time.perf_counter(), self.done + 1)
 
     def finished(self) -> None:
         self.done += 1
