@@ -19,6 +19,13 @@ pytestmark = pytest.mark.skipif(
     not (BIN / "dvc").exists(), reason="dvc is not installed beside this python"
 )
 
+
+def copy_package_and_configs(repo: Path) -> None:
+    """pipeline/ and conf/ into ``repo``: the copy reads its own configs (pipeline/configs.py)."""
+    for folder in ("pipeline", "conf"):
+        shutil.copytree(ROOT / folder, repo / folder, ignore=shutil.ignore_patterns("__pycache__"))
+
+
 DVC_YAML = """\
 stages:
   trials:
@@ -96,9 +103,7 @@ def experiments(repo: Path) -> dict[str, dict]:
 @pytest.mark.slow  # a real `dvc exp run` of a trials stage: about 25 s
 def test_exp_run_set_param_reruns_trials_and_shows_param_and_metrics(tmp_path):
     repo = new_repo(tmp_path / "repo", DVC_YAML)
-    shutil.copytree(
-        ROOT / "pipeline", repo / "pipeline", ignore=shutil.ignore_patterns("__pycache__")
-    )
+    copy_package_and_configs(repo)
     run(repo, "dvc", "repro")
     commit(repo)
     assert run(repo, "dvc", "status").stdout.strip() == "Data and pipelines are up to date."
@@ -244,9 +249,7 @@ def test_exp_run_keeps_pictures_made_outside_dvc_and_refuses_a_bad_value(tmp_pat
     }
     repo = new_repo(tmp_path / "repo", yaml.safe_dump(dvc_yaml, sort_keys=False))
     (repo / ".gitignore").write_text((repo / ".gitignore").read_text() + "/images\n")
-    shutil.copytree(
-        ROOT / "pipeline", repo / "pipeline", ignore=shutil.ignore_patterns("__pycache__")
-    )
+    copy_package_and_configs(repo)
     run(repo, "dvc", "repro")
     commit(repo)
     # a fresh clone's cache is empty; the user renders by hand, here other pictures (seed=1)
