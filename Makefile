@@ -12,14 +12,14 @@ PIP_TOOLS_VERSION := 7.6.2
 
 .PHONY: setup lint test test-slow repro bench clean-venv lock
 
-$(STAMP): $(LOCK) pyproject.toml scripts/setup.sh
+$(STAMP): $(LOCK) pyproject.toml setup.py scripts/setup.sh
 	PIP_VERSION=$(PIP_VERSION) PY=$(PY) bash scripts/setup.sh
 	touch $(STAMP)
 
 setup: $(STAMP)
 
 # The formatter and the linter (rules in pyproject.toml), then the layers contract (.importlinter).
-LINT_PATHS := pipeline tests benchmarks scripts
+LINT_PATHS := pipeline conf tests benchmarks scripts setup.py
 lint: $(STAMP)
 	$(BIN)/ruff format --check $(LINT_PATHS)
 	$(BIN)/ruff check $(LINT_PATHS)

@@ -1,12 +1,12 @@
 """Speed of the few-shot module (docs/fewshot.md; goals in README "Measured"), on this machine:
 
-1. meta-training with the default ``pipeline/conf/meta_train.yaml``: time until a model-selection
+1. meta-training with the default ``conf/meta_train.yaml``: time until a model-selection
    evaluation first reaches the validation goal (75%), total wall time, and the 600-episode
    accuracy;
 2. classifying one picture against a support set right after a substitution (goal < 5 ms);
-3. the whole accuracy study of ``pipeline/conf/accuracy.yaml`` (goal < 3 minutes);
+3. the whole accuracy study of ``conf/accuracy.yaml`` (goal < 3 minutes);
 4. what one training episode (5-way 5-shot, 5 queries per class, the default
-   ``pipeline/conf/meta_train.yaml`` otherwise) costs at each ``--input-sizes`` (48, the default,
+   ``conf/meta_train.yaml`` otherwise) costs at each ``--input-sizes`` (48, the default,
    and 84, the paper's): the training loop of :func:`pipeline.fewshot.training.meta_train` over
    ``--cost-episodes`` episodes of the rendered training classes, divided by their number (one tiny
    evaluation at the end included), after a three-episode warm-up run.

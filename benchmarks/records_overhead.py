@@ -6,7 +6,7 @@
 One run measures, side by side, on the 11x11 maze with ``fewshot_dss`` (substitution way 1),
 100 runs x 500 episodes (the paper's scale):
 
-1. the trial with a table-lookup recogniser (``pipeline/conf/recogniser/fixed_accuracy.yaml`` at
+1. the trial with a table-lookup recogniser (``conf/recogniser/fixed_accuracy.yaml`` at
    ``--p``, default 0.55, the Relation Network's measured query accuracy, reports/tables/table1_*)
    and
 2. the same trial with the trained Relation Network in the loop (``--checkpoint``, ``--images-dir``),
@@ -14,7 +14,7 @@ One run measures, side by side, on the 11x11 maze with ``fewshot_dss`` (substitu
 each timed three ways: without a sink, with a sink that drops everything (the runner's own cost of
 emitting batches and asking for scores), and with the MCAP ``RecordWriter`` as the trials stage
 builds it (metadata, maze, obstacle assignments, the query pictures when the recogniser has an
-images dir, ``flush_every`` 500 as in pipeline/conf/trials.yaml; construction and ``close`` are
+images dir, ``flush_every`` 500 as in conf/trials.yaml; construction and ``close`` are
 timed).
 The three are alternated within every repeat (the order rotates from repeat to repeat). Overhead =
 recorded / unrecorded - 1, fastest vs fastest and median vs median (and "paired": the median of the

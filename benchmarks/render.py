@@ -21,7 +21,7 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 from hydra import compose, initialize_config_dir  # noqa: E402
 
 from benchmarks._output import write_figures
-from pipeline.conf import conf_dir  # noqa: E402
+from pipeline.configs import conf_dir  # noqa: E402
 from pipeline.world.render_plan import PlanConfig, make_plan  # noqa: E402
 from pipeline.world.renderer import SceneRenderer  # noqa: E402
 from pipeline.world.scenes import build_scene  # noqa: E402
@@ -58,7 +58,7 @@ def stage(overrides: list[str]) -> dict:
     from pipeline.stages._schema import register
     from pipeline.stages.render import run
 
-    register("render")  # pipeline/conf/render.yaml names render_schema
+    register("render")  # conf/render.yaml names render_schema
     with (
         tempfile.TemporaryDirectory() as tmp,
         initialize_config_dir(config_dir=CONF, version_base="1.3"),

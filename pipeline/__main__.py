@@ -1,7 +1,7 @@
 """``python -m pipeline <stage> [hydra overrides...]``: one thin Hydra entry point per stage.
 
 Each stage lives in ``pipeline/stages/<stage>.py`` with a ``main()`` that composes
-``pipeline/conf/<stage>.yaml`` (``pipeline/stages/_common.py``); the first line of its docstring is the
+``conf/<stage>.yaml`` (``pipeline/stages/_common.py``); the first line of its docstring is the
 description ``--help`` lists. ``<stage> --help`` prints the stage's groups and keys from the schema
 (``pipeline/stages/_help.py``) without importing the stage's module.
 """
@@ -14,7 +14,7 @@ import sys
 
 import pipeline.stages as _stages
 from pipeline.errors import quiet_broken_pipe
-from pipeline.stages._common import print_help, wants_help
+from pipeline.stages._common import FULL_HELP_FLAG, print_help, wants_help
 from pipeline.stages._help import describe
 
 
@@ -54,7 +54,7 @@ def main(argv: list[str] | None = None) -> None:
         )
         raise SystemExit(2)
     if wants_help(argv):
-        print_help(stage)
+        print_help(stage, full=FULL_HELP_FLAG in argv)
         raise SystemExit(0)
     module = importlib.import_module(f"pipeline.stages.{stage}")
     sys.argv = [f"pipeline {stage}", *argv]

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import sys
 
-#: ``SafeNav-<maze>-v0`` for the built-in mazes (``pipeline/conf/mazes/``), whose maze is fixed;
+#: ``SafeNav-<maze>-v0`` for the built-in mazes (``conf/mazes/``), whose maze is fixed;
 #: ``SafeNav-v0`` takes any maze by keyword (``gymnasium.make("SafeNav-v0", maze="random:7x7:16:3")``).
 MAZES = ("5x5", "7x7", "11x11")
 ENV_IDS = ("SafeNav-v0", *(f"SafeNav-{maze}-v0" for maze in MAZES))

@@ -9,7 +9,7 @@ keywords of :class:`pipeline.rl.gym_env.SafeNavigationEnv`, and the recogniser a
 
 Why here: the environment lives in ``rl``, which never imports ``fewshot`` (the science
 packages stay independent; README "Layout"), and a recogniser by name may be the Relation Network of ``fewshot``. Building
-recognisers from ``pipeline/conf/recogniser/<name>.yaml`` is the stages' job, done by
+recognisers from ``conf/recogniser/<name>.yaml`` is the stages' job, done by
 ``pipeline.stages._recognisers.build_recogniser`` (its ``_target_`` and the argument check against
 the target's signature). This module is wiring like the stages: it loads the yaml and hands it to
 that same function, so the trials stage and ``gymnasium.make`` build a recogniser through one path,
@@ -30,7 +30,7 @@ from typing import Any
 
 from omegaconf import OmegaConf
 
-from pipeline.conf import conf_dir
+from pipeline.configs import conf_dir
 from pipeline.errors import ConfigError
 from pipeline.rl.gym_env import SafeNavigationEnv
 from pipeline.rl.methods import MethodSpec, get_method
@@ -39,13 +39,13 @@ from pipeline.stages._experiment_schema import SUBSTITUTION_WAYS
 from pipeline.threads import TORCH_THREADS_BESIDE_NUMBA, ThreadBudget
 from pipeline.world.maze import Layout
 
-#: ``pipeline/conf/recogniser/<name>.yaml``: the recognisers by name (the trials stage's config
+#: ``conf/recogniser/<name>.yaml``: the recognisers by name (the trials stage's config
 #: group).
 RECOGNISER_DIR = conf_dir("recogniser")
 
 
 def recogniser_names() -> list[str]:
-    """The recognisers of ``pipeline/conf/recogniser/``, sorted."""
+    """The recognisers of ``conf/recogniser/``, sorted."""
     return sorted(p.stem for p in RECOGNISER_DIR.glob("*.yaml"))
 
 
@@ -54,7 +54,7 @@ def _check_name(name: str) -> Path:
     if not path.is_file():
         raise ValueError(
             f"unknown recogniser {name!r}; expected one of {', '.join(recogniser_names())} "
-            f"(pipeline/conf/recogniser/<name>.yaml), or a Recogniser object"
+            f"(conf/recogniser/<name>.yaml), or a Recogniser object"
         )
     return path
 
@@ -66,7 +66,7 @@ def make_recogniser(
     substitution_way: int = 0,
     carry_over: bool = False,
 ) -> Recogniser:
-    """The recogniser ``pipeline/conf/recogniser/<name>.yaml``, with ``options`` overriding its keys, built
+    """The recogniser ``conf/recogniser/<name>.yaml``, with ``options`` overriding its keys, built
     as the trials stage builds it. Bad names and values raise ``ValueError`` (``ConfigError``).
     A recogniser that scores with torch leaves torch on one thread (:mod:`pipeline.threads`)."""
     # Hydra (slow to import) only when a recogniser is built, not for every environment
@@ -87,7 +87,7 @@ def recogniser_for(
     substitution: int,
 ) -> Recogniser | None:
     """The recogniser an environment of method ``spec`` runs with: a name of
-    ``pipeline/conf/recogniser/`` is built (with ``options`` over its keys) only for a method that
+    ``conf/recogniser/`` is built (with ``options`` over its keys) only for a method that
     reasons with pictures, like the trials stage, with substitution way ``substitution`` for
     ``fewshot_dss``; an object is used as it is; ``options`` without a name are refused. A
     ``substitution`` other than 1-4 is refused whatever the method and recogniser, as the trials
@@ -127,7 +127,7 @@ def make_env(
     registered_maze: str | None = None,
 ) -> SafeNavigationEnv:
     """A :class:`SafeNavigationEnv`; ``recogniser`` an object or a name of
-    ``pipeline/conf/recogniser/``.
+    ``conf/recogniser/``.
 
     A name is built only for the methods that reason with pictures (like the trials stage); with
     ``fewshot_dss`` the recogniser gets substitution way ``substitution`` (1-4, section 3.3), as
@@ -169,7 +169,7 @@ def make_env(
     if recogniser is None and spec.uses_recogniser:
         raise ValueError(
             f"method {spec.name!r} reasons with pictures and needs a recogniser: pass "
-            "recogniser=<name> with a name of pipeline/conf/recogniser/ "
+            "recogniser=<name> with a name of conf/recogniser/ "
             f"({', '.join(recogniser_names())}), "
             f"e.g. gymnasium.make('SafeNav-5x5-v0', method={spec.name!r}, recogniser='oracle'), "
             f"or a Recogniser object (pipeline.rl.recogniser)"

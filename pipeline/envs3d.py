@@ -3,13 +3,16 @@
 
     gymnasium.make("SafeNav3D-5x5-v0", method="fewshot_dss", recogniser="relation_net",
                    render_mode="rgb_array")
+    gymnasium.make("SafeNav3D-5x5-v0", obs_type="pixels")   # the camera's picture, every step
 
-``recogniser`` by name (any of ``pipeline/conf/recogniser/``, built as for ``SafeNav-*``:
+``recogniser`` by name (any of ``conf/recogniser/``, built as for ``SafeNav-*``:
 :func:`pipeline.envs.recogniser_for`) or a recogniser object; the environment asks it about live
 pictures (:func:`pipeline.robot.live.live`: the few-shot networks score the live picture, the
 models of recognition answer as for the grid's query picture).
-``render()`` is the maze from above and behind the robot; the camera's picture of a step is
-``info["camera"]`` (None when the robot took none). ``info["cost"]`` is 1.0 on a collision;
+``render()`` is the maze from above and behind the robot; the live picture of a step is
+``info["camera"]`` (None when the robot took none). ``obs_type`` (``"state"``, ``"pixels"``,
+``"state+pixels"``: :data:`pipeline.robot.env.OBS_TYPES`) makes the camera's picture of every step
+(part of) the observation. ``info["cost"]`` is 1.0 on a collision;
 :class:`pipeline.envs.SixValueStep` gives Safety-Gymnasium's six-value ``step``.
 """
 
@@ -37,6 +40,7 @@ def make_env3d(
     timestep: float = DEFAULT_TIMESTEP,
     rule: str = "paper",
     threshold: float = 0.5,
+    obs_type: str = "state",
     registered_maze: str | None = None,
 ) -> SafeNavigation3DEnv:
     """The robot environment; ``registered_maze`` (the id's) refuses another ``maze``.
@@ -49,17 +53,24 @@ def make_env3d(
             )
         maze = registered_maze
     if render_mode == "human":
-        return _human(
-            maze,
-            method,
-            recogniser,
-            recogniser_options,
-            substitution,
-            run,
-            cell,
-            timestep,
-            rule,
-            threshold,
+        _refuse_human_without_a_window()
+        from gymnasium.wrappers import HumanRendering
+
+        return HumanRendering(
+            make_env3d(
+                maze,
+                method,
+                recogniser,
+                recogniser_options=recogniser_options,
+                substitution=substitution,
+                run=run,
+                render_mode="rgb_array",
+                cell=cell,
+                timestep=timestep,
+                rule=rule,
+                threshold=threshold,
+                obs_type=obs_type,
+            )
         )
     spec = method if isinstance(method, MethodSpec) else get_method(method)
     return SafeNavigation3DEnv(  # it asks any recogniser about live pictures (robot.live.live)
@@ -72,11 +83,12 @@ def make_env3d(
         timestep=timestep,
         rule=rule,
         threshold=threshold,
+        obs_type=obs_type,
     )
 
 
-def _human(maze, method, recogniser, options, substitution, run, cell, timestep, rule, threshold):
-    """``render_mode="human"``: the ``rgb_array`` environment in a window, or a clear refusal."""
+def _refuse_human_without_a_window() -> None:
+    """``render_mode="human"`` needs pygame and a display: a clear refusal without them."""
     import importlib.util
     import os
 
@@ -89,22 +101,6 @@ def _human(maze, method, recogniser, options, substitution, run, cell, timestep,
         raise ValueError(
             "render_mode='human' needs a display (DISPLAY is not set); use render_mode='rgb_array'"
         )
-    from gymnasium.wrappers import HumanRendering
-
-    env = make_env3d(
-        maze,
-        method,
-        recogniser,
-        recogniser_options=options,
-        substitution=substitution,
-        run=run,
-        render_mode="rgb_array",
-        cell=cell,
-        timestep=timestep,
-        rule=rule,
-        threshold=threshold,
-    )
-    return HumanRendering(env)
 
 
 #: ``human`` is listed so that ``gymnasium.make`` hands it to :func:`make_env3d`, which checks it.

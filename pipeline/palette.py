@@ -22,9 +22,10 @@ ROBOT = "#1A1A1A"  # the robot and its path
 FREE = "#FFFFFF"  # a free cell
 GRID = "#BEBEBE"  # grid lines
 PAPER = "#000000"  # the paper's numbers beside ours
-#: Series that nothing above declares (recognisers side by side, support set restored / carried
-#: over), by position; none of them a method's colour.
-SERIES = ("#4D4D4D", "#B8860B", "#6B6ECF", "#3CB371", "#CD5C5C", "#20B2AA")
+#: Series that nothing above declares (support set restored / carried over, the ways of Figure 9),
+#: by position, as many as Figure 9's rows (a DVC plot needs a colour a series); none of them a
+#: method's or a recogniser's colour.
+SERIES = ("#4D4D4D", "#B8860B", "#6B6ECF", "#3CB371", "#CD5C5C", "#20B2AA", "#000080", "#FF1493")
 
 
 def category(c: int) -> str:

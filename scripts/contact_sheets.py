@@ -1,5 +1,5 @@
 """Redraw the contact sheets from pictures already rendered (no rendering): the render stage's
-contact-sheet step on ``<out_dir>/manifest.csv``, with pipeline/conf/render.yaml's settings and
+contact-sheet step on ``<out_dir>/manifest.csv``, with conf/render.yaml's settings and
 overrides.
 
     python scripts/contact_sheets.py                                  # datasets/images -> its contact_sheets/

@@ -50,9 +50,14 @@ def relative(path: Path) -> str:
 
 @cache
 def conf_root() -> Path:
-    from pipeline.conf import conf_dir
+    from pipeline.configs import conf_dir
 
     return conf_dir()
+
+
+def derived_roots() -> tuple[str, str]:
+    """The folders whose files this script derives deps on: the package and its configs."""
+    return PACKAGE, relative(conf_root())
 
 
 @cache
@@ -149,14 +154,13 @@ def parse_cmd(cmd: str) -> tuple[str, list[str]]:
 def compose(stage: str, overrides: list[str]):
     """The composed config (interpolations unresolved) and Hydra's group choices."""
     from hydra import compose as hydra_compose
-    from hydra import initialize_config_module
     from omegaconf import OmegaConf
 
-    from pipeline.conf import HYDRA_MODULE
+    from pipeline.configs import hydra_configs
     from pipeline.stages._schema import register
 
     register(stage)
-    with initialize_config_module(config_module=HYDRA_MODULE, version_base="1.3"):
+    with hydra_configs():
         cfg = hydra_compose(config_name=stage, overrides=overrides, return_hydra_config=True)
     choices = {
         group: choice
@@ -169,7 +173,7 @@ def compose(stage: str, overrides: list[str]):
 
 
 def experiments() -> list[str]:
-    """The experiments of ``pipeline/conf/experiment/``, in the report's order."""
+    """The experiments of ``conf/experiment/``, in the report's order."""
 
     def order(path: Path) -> tuple:
         experiment = (yaml.safe_load(path.read_text()) or {}).get("experiment") or {}
@@ -348,9 +352,11 @@ def indent_of(line: str) -> int:
 
 
 def is_data_dep(line: str) -> bool:
-    """A hand-written dependency (data, not code): a list item outside the package."""
+    """A hand-written dependency (data, not code): a list item outside the package and its configs."""
     item = line.strip()
-    return item.startswith("- ") and not item[2:].startswith(f"{PACKAGE}/")
+    return item.startswith("- ") and not item[2:].startswith(
+        tuple(f"{r}/" for r in derived_roots())
+    )
 
 
 def stages_of(text: str) -> dict[str, Stage]:

@@ -53,6 +53,7 @@ if [ "$want" != "$have" ]; then
   exit 1
 fi
 .venv/bin/python -m pip install -q "pip==$PIP_VERSION"
+echo "[setup] installing $(grep -c '^[a-z0-9]' "$LOCK") packages from $LOCK (about 1-2 minutes from a local wheel cache, longer from the network)"
 .venv/bin/python -m pip install -q --require-hashes -r "$LOCK"
 # The project's build backend (setuptools) is pinned in the lock: build with it, not a fresh download.
 .venv/bin/python -m pip install -q --no-deps --no-build-isolation -e .

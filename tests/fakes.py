@@ -70,7 +70,7 @@ class ListSink:
 
 
 #: fig8's Prototypical Network cells run their own recogniser group
-#: (pipeline/conf/recogniser/protonet.yaml), which needs the rendered pictures and the trained
+#: (conf/recogniser/protonet.yaml), which needs the rendered pictures and the trained
 #: model; these overrides give them the oracle, for the tests that run fig8 where neither exists
 #: (CI's clean checkout).
 FIG8_WITHOUT_MODELS = [

@@ -1,5 +1,6 @@
 """The command line: one line per stage in ``--help``, the schema's help per stage, the line naming what a
-stage wrote, and an ``out`` with results refused unless ``overwrite=true``."""
+stage wrote, and an ``out`` with results refused unless ``overwrite=true``; the installed ``safenav``
+command, which runs the stages and the records tool through their own entry points."""
 
 import hashlib
 import subprocess
@@ -180,3 +181,92 @@ def test_an_experiment_run_by_hand_into_its_dvc_out_says_whose_folder_it_is(tmp_
     monkeypatch.setenv("DVC_STAGE", "trials@fig10")
     again = cli("trials", *small, "progress=false", "overwrite=true", cwd=tmp_path)
     assert again.returncode == 0 and again.stderr == ""
+
+
+#: The installed command of pyproject.toml's ``[project.scripts]``, beside this interpreter.
+SAFENAV = Path(sys.executable).with_name("safenav")
+
+
+def safenav(*args: str, cwd: Path = ROOT) -> subprocess.CompletedProcess:
+    """The installed ``safenav`` script run as a user runs it (the script is what is tested)."""
+    assert SAFENAV.is_file(), (
+        f"no {SAFENAV}: reinstall the package (make setup, pip install -e .) to create the "
+        "command pyproject.toml declares"
+    )
+    return subprocess.run(
+        [str(SAFENAV), *args], check=False, capture_output=True, text=True, cwd=cwd, timeout=300
+    )
+
+
+def test_pyproject_declares_safenav_as_the_cli_entry_point():
+    import tomllib
+
+    from pipeline import cli
+
+    scripts = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["scripts"]
+    assert scripts == {"safenav": "pipeline.cli:console_script"}
+    assert callable(cli.console_script)
+
+
+def test_safenav_help_lists_every_stage_and_every_tool():
+    from pipeline.cli import available_tools, summary
+
+    out = safenav("--help")
+    assert out.returncode == 0 and out.stderr == "", out.stderr
+    lines = out.stdout.splitlines()
+    assert lines[0] == "usage: safenav <stage> [key=value ...]"
+    for stage in available_stages():
+        assert any(line.split() == [stage, *describe(stage).split()] for line in lines), stage
+    assert available_tools() == ["records"]
+    assert summary("records") == "what record files hold, one line a file or a table of its runs."
+    assert any(line.split() == ["records", *summary("records").split()] for line in lines)
+    assert not set(available_stages()) & set(available_tools())  # one meaning per command
+    bare = safenav()
+    assert bare.returncode == 2 and bare.stdout == out.stdout
+
+
+def test_safenav_runs_a_stage_and_the_records_tool_as_python_m_does(tmp_path):
+    ran = safenav("trials", *TINY, f"out={tmp_path}/a", cwd=tmp_path)
+    assert ran.returncode == 0, ran.stderr
+    assert (
+        ran.stdout.splitlines()[-1] == f"wrote {tmp_path}/a/summary.json, {tmp_path}/a/records.mcap"
+    )
+    listed = safenav("records", f"{tmp_path}/a", "--runs")
+    assert listed.returncode == 0, listed.stderr
+    by_module = subprocess.run(
+        [sys.executable, "-m", "pipeline.records", f"{tmp_path}/a", "--runs"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert listed.stdout == by_module.stdout and "2 runs, 6 episodes" in listed.stdout
+    stage_help = safenav("trials", "--help")
+    assert stage_help.returncode == 0 and stage_help.stdout == pipeline("trials", "--help").stdout
+
+
+def test_safenav_records_help_names_the_command():
+    out = safenav("records", "--help")
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.startswith("usage: safenav records [-h] [--runs] path\n")
+    missing = safenav("records", "no/such/folder")
+    assert missing.returncode == 2
+    assert missing.stderr == "error: no/such/folder: no such record file or folder\n"
+
+
+@pytest.mark.parametrize("command", ["nosuch", "record", "--runs"])
+def test_safenav_refuses_an_unknown_command_in_one_line(command):
+    out = safenav(command, "method=ssrl")
+    assert out.returncode == 2 and out.stdout == ""
+    assert out.stderr == (
+        f"error: unknown command {command!r}; stages: {', '.join(available_stages())}; "
+        "tools: records (safenav --help)\n"
+    )
+
+
+def test_safenav_help_into_a_reader_that_is_gone_ends_quietly():
+    proc = subprocess.Popen(
+        [str(SAFENAV), "--help"], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE
+    )
+    proc.stdout.close()
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=120) == 141 and "Traceback" not in err, err

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import dataclasses
+import re
 import subprocess
 import sys
 import typing
@@ -109,7 +110,7 @@ READS = {  # stage -> (its groups, the profile sections it reads)
 
 @pytest.mark.parametrize("stage", sorted(SCHEMAS))
 def test_a_stage_help_lists_its_own_groups_and_every_key_with_its_description(stage):
-    lines = stage_help(stage, CONF_DIR).splitlines()
+    lines = stage_help(stage, CONF_DIR, full=True).splitlines()
     assert lines[0] == f"python -m pipeline {stage} [key=value ...]: {describe(stage)}"
     groups, sections = READS[stage]
     reads = StageHelp(stage, SCHEMAS[stage], CONF_DIR)
@@ -138,7 +139,7 @@ def test_a_stage_help_lists_its_own_groups_and_every_key_with_its_description(st
 
 
 def test_the_trials_help_gives_types_ranges_defaults_and_options():
-    lines = stage_help("trials", CONF_DIR).splitlines()
+    lines = stage_help("trials", CONF_DIR, full=True).splitlines()
     for line in (
         "  runs: int, >= 1 = ${profile.trials.runs} (paper: 100, smoke: 3)",
         "  method.alpha: float, >= 0.0, <= 1.0 = 0.01",
@@ -156,10 +157,42 @@ def test_the_trials_help_gives_types_ranges_defaults_and_options():
 
 
 def test_the_meta_train_help_takes_defaults_from_the_groups_it_composes():
-    lines = stage_help("meta_train", CONF_DIR).splitlines()
+    lines = stage_help("meta_train", CONF_DIR, full=True).splitlines()
     assert "  checkpoint: str, not empty = datasets/models/relation_net.pt" in lines  # model group
     assert "  data.source: str, one of rendered, folder = rendered" in lines  # data group
     assert "  train.model: str, one of relation_net, protonet = relation_net" in lines
+
+
+def test_the_trials_help_shows_the_common_keys_in_one_screen():
+    """``trials --help``: every group's options on one line each, the keys ``COMMON_KEYS`` declares
+    with the first sentence of their words, and the way to the rest; ``--help-all`` is the whole
+    schema."""
+    from pipeline.stages._trials_schema import TrialsConfig
+
+    lines = stage_help("trials", CONF_DIR).splitlines()
+    assert len(lines) <= 50
+    assert "  method=       constrained fewshot fewshot_dss qlearning* sarsa shield ssrl" in lines
+    assert any(line.startswith("  +experiment=  accuracy_curve fig10 fig8") for line in lines)
+    keys = [line.split(":")[0].strip() for line in lines if re.match(r"^  [a-z_.]+: ", line)]
+    assert keys == list(TrialsConfig.COMMON_KEYS)
+    assert "  runs: int, >= 1 = ${profile.trials.runs} (paper: 100, smoke: 3)" in lines
+    assert lines[-1] == "Every key and what each option does: python -m pipeline trials --help-all"
+    assert "  method.alpha: float, >= 0.0, <= 1.0 = 0.01" not in lines
+    full = stage_help("trials", CONF_DIR, full=True)
+    assert "  method.alpha: float, >= 0.0, <= 1.0 = 0.01" in full.splitlines()
+    assert stage_help("render", CONF_DIR) == stage_help(
+        "render", CONF_DIR, full=True
+    )  # no COMMON_KEYS
+
+
+@pytest.mark.parametrize("flag", ["--help", "--help-all"])
+def test_the_command_line_gives_each_help(flag, capsys):
+    from pipeline.__main__ import main
+
+    with pytest.raises(SystemExit) as done:
+        main(["trials", flag])
+    assert done.value.code == 0
+    assert capsys.readouterr().out == stage_help("trials", CONF_DIR, full=flag == "--help-all")
 
 
 def test_help_on_the_command_line_imports_no_heavy_library():

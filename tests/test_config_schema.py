@@ -385,7 +385,7 @@ def test_a_cell_pins_recogniser_arguments_and_its_records_say_so(tmp_path):
         ("blind", 0.0),
         ("perfect", 1.0),
         ("top", 0.5),
-    ):  # top: pipeline/conf/recogniser/fixed_accuracy.yaml's
+    ):  # top: conf/recogniser/fixed_accuracy.yaml's
         config = read_records(tmp_path / name / "records.mcap", pictures=False).meta.config
         assert config["recogniser"]["p"] == p and config["recogniser"]["learn"] is False
 
@@ -422,7 +422,7 @@ def test_a_cell_pins_recogniser_arguments_and_its_records_say_so(tmp_path):
             {"a": {"method": "fewshot", "recogniser_group": "nope"}, "b": {"method": "fewshot"}},
             [],
             r"config key 'experiment.cells.a.recogniser_group': no recogniser 'nope' "
-            + re.escape(f"(pipeline/conf/recogniser/: {', '.join(recogniser_names())})"),
+            + re.escape(f"(conf/recogniser/: {', '.join(recogniser_names())})"),
         ),
         (
             {"a": {"method": "fewshot", "recogniser_group": "oracle"}, "s": {"method": "ssrl"}},
@@ -456,7 +456,7 @@ def test_recogniser_pins_that_cannot_apply_are_refused(cells, args, message):
 
 
 def test_a_cell_can_run_its_own_recogniser_group():
-    """fig8's protonet cells run pipeline/conf/recogniser/protonet.yaml whatever the top level
+    """fig8's protonet cells run conf/recogniser/protonet.yaml whatever the top level
     chooses; their own pins (from the experiment file or the command line) apply over it."""
     args = [
         "+experiment=fig8",

@@ -1,5 +1,5 @@
 """One declaration per thing: the methods' declarations (``METHODS`` in ``pipeline/rl/rules.py``)
-match ``pipeline/conf/method/``, the report's names, colours and orders come from them, a method nothing
+match ``conf/method/``, the report's names, colours and orders come from them, a method nothing
 declares keeps its recorded name, and every recogniser that records a kind declares its display
 name. Each failure names what to add."""
 
@@ -10,14 +10,18 @@ import inspect
 import pytest
 from omegaconf import OmegaConf
 
+from pipeline import palette
 from pipeline.report.layout_cells import LayoutCells, methods_of
 from pipeline.report.names import (
     method_colour,
     method_name,
+    recogniser_colour,
+    recogniser_declarations,
     recogniser_name,
     row_names,
     row_styles,
     settings,
+    shade,
 )
 from pipeline.rl.methods import declaration, get_method, method_names
 from pipeline.rl.rules import METHODS
@@ -35,9 +39,7 @@ def test_every_method_file_has_one_declaration_and_every_declaration_a_file():
     missing = sorted(set(method_names()) - set(declared))
     assert not missing, f"declare {missing} in pipeline/rl/rules.py METHODS (display, colour)"
     orphans = sorted(set(declared) - set(method_names()))
-    assert not orphans, (
-        f"rules.METHODS declares {orphans}, which have no pipeline/conf/method/<name>.yaml"
-    )
+    assert not orphans, f"rules.METHODS declares {orphans}, which have no conf/method/<name>.yaml"
 
 
 def test_display_names_and_colours_tell_methods_apart():
@@ -84,9 +86,14 @@ def test_rows_of_distinct_methods_take_their_declared_colours():
         [{"method": recorded("fewshot_dss"), "maze": "5x5", "substitution": w}]
         for w in (1, 2, 3, 4)
     ]
-    styles = row_styles(ways)  # ways of one method: shades of its colour, a dash each
-    assert len({s["color"] for s in styles}) == 4 and len({s["ls"] for s in styles}) == 4
+    styles = row_styles(ways)  # ways of one method alone: distinct series colours, a dash each
+    assert [s["color"] for s in styles] == list(palette.SERIES[:4])
+    assert len({s["ls"] for s in styles}) == 4 and len({s["marker"] for s in styles}) == 4
     assert styles == row_styles(ways)  # the same in every figure
+    beside = row_styles([[{"method": recorded("shield"), "maze": "5x5"}], *ways])
+    assert beside[0]["color"] == declaration(recorded("shield")).colour
+    dss = declaration(recorded("fewshot_dss")).colour  # beside another method: shades of its colour
+    assert beside[1]["color"] == shade(dss, 0, 4) and len({s["color"] for s in beside}) == 5
 
 
 def test_generalisation_orders_methods_as_declared():
@@ -104,4 +111,16 @@ def test_every_recogniser_that_records_a_kind_declares_its_display_name(name):
     if getattr(cls, "kind", ""):
         assert cls.display_name, f"{cls.__name__} records kind {cls.kind!r}: give it a display_name"
         assert recogniser_name(cls.kind) == cls.display_name
+        assert cls.colour, f"{cls.__name__} records kind {cls.kind!r}: give it a colour"
+        assert recogniser_colour(cls.kind) == recogniser_colour(cls.display_name) == cls.colour
     assert recogniser_name("unheard_of") == "unheard_of"
+    assert recogniser_colour("unheard_of") is None
+
+
+def test_recognisers_have_distinct_colours_of_their_own():
+    """A recogniser is drawn in its declared colour in every figure (Table 2's plot, the accuracy
+    curve's mark, the repetition study): no two alike, none a method's, the paper's or a series'."""
+    colours = [colour for _, colour in recogniser_declarations().values()]
+    assert len(colours) >= 3 and len(set(colours)) == len(colours)
+    others = {m.colour for m in METHODS} | {palette.PAPER, *palette.SERIES}
+    assert not set(colours) & others

@@ -2,7 +2,7 @@
 
 A default is quoted as ``key=value`` in backticks followed by "by default" (several may share it:
 "`a=1`, `b=2` and `c=3` by default"); the key is one of a stage's config
-(``pipeline/conf/<stage>.yaml`` composed, profile ``paper``), written ``<stage>.<key>`` where stages
+(``conf/<stage>.yaml`` composed, profile ``paper``), written ``<stage>.<key>`` where stages
 disagree.
 """
 

@@ -1,5 +1,5 @@
 """`dvc exp run -S <file>:<key>=<value>` on the real configs, at smoke scale, in a temporary git repo
-holding a copy of pipeline/ (its configs in pipeline/conf/) and a small dvc.yaml shaped like ours (a
+holding a copy of pipeline/ (its configs in conf/) and a small dvc.yaml shaped like ours (a
 trials foreach with the same kind of params, the oracle recogniser: no pictures or model needed)."""
 
 import hashlib
@@ -19,6 +19,13 @@ pytestmark = pytest.mark.skipif(
     not (BIN / "dvc").exists(), reason="dvc is not installed beside this python"
 )
 
+
+def copy_package_and_configs(repo: Path) -> None:
+    """pipeline/ and conf/ into ``repo``: the copy reads its own configs (pipeline/configs.py)."""
+    for folder in ("pipeline", "conf"):
+        shutil.copytree(ROOT / folder, repo / folder, ignore=shutil.ignore_patterns("__pycache__"))
+
+
 DVC_YAML = """\
 stages:
   trials:
@@ -30,10 +37,10 @@ stages:
         - pipeline/rl
         - pipeline/stages/trials.py
       params:
-        - pipeline/conf/trials.yaml: [seed]
-        - pipeline/conf/profile/smoke.yaml: [trials.runs, trials.episodes]
-        - pipeline/conf/experiment/${item}.yaml:
-        - pipeline/conf/method/fewshot_dss.yaml:
+        - conf/trials.yaml: [seed]
+        - conf/profile/smoke.yaml: [trials.runs, trials.episodes]
+        - conf/experiment/${item}.yaml:
+        - conf/method/fewshot_dss.yaml:
       outs:
         - runs/${item}
       metrics:
@@ -96,9 +103,7 @@ def experiments(repo: Path) -> dict[str, dict]:
 @pytest.mark.slow  # a real `dvc exp run` of a trials stage: about 25 s
 def test_exp_run_set_param_reruns_trials_and_shows_param_and_metrics(tmp_path):
     repo = new_repo(tmp_path / "repo", DVC_YAML)
-    shutil.copytree(
-        ROOT / "pipeline", repo / "pipeline", ignore=shutil.ignore_patterns("__pycache__")
-    )
+    copy_package_and_configs(repo)
     run(repo, "dvc", "repro")
     commit(repo)
     assert run(repo, "dvc", "status").stdout.strip() == "Data and pipelines are up to date."
@@ -111,12 +116,12 @@ def test_exp_run_set_param_reruns_trials_and_shows_param_and_metrics(tmp_path):
         "-n",
         "two-runs",
         "-S",
-        "pipeline/conf/profile/smoke.yaml:trials.runs=2",
+        "conf/profile/smoke.yaml:trials.runs=2",
     )
     assert "Running stage 'trials@fig10'" in out.stdout
     exps = experiments(repo)
     base, two = exps["workspace"], exps["two-runs"]
-    assert two["params"]["pipeline/conf/profile/smoke.yaml"]["data"]["trials"] == {
+    assert two["params"]["conf/profile/smoke.yaml"]["data"]["trials"] == {
         "runs": 2,
         "episodes": 20,
     }
@@ -124,14 +129,14 @@ def test_exp_run_set_param_reruns_trials_and_shows_param_and_metrics(tmp_path):
     assert set(metrics) == {"restore", "carry", "restore_paper", "carry_paper"}
     assert set(metrics["restore"]) == {"collisions", "ci_low", "ci_high", "converged"}
     assert (
-        base["params"]["pipeline/conf/profile/smoke.yaml"]["data"]["trials"]["runs"] == 2
+        base["params"]["conf/profile/smoke.yaml"]["data"]["trials"]["runs"] == 2
     )  # applied to the workspace
     assert (
         json.loads((repo / "runs" / "fig10" / "restore" / "summary.json").read_text())["n_runs"]
         == 2
     )
     diff = run(repo, "dvc", "params", "diff", "--json").stdout
-    assert json.loads(diff)["pipeline/conf/profile/smoke.yaml"]["trials.runs"] == {
+    assert json.loads(diff)["conf/profile/smoke.yaml"]["trials.runs"] == {
         "old": 3,
         "new": 2,
         "diff": -1,
@@ -139,7 +144,7 @@ def test_exp_run_set_param_reruns_trials_and_shows_param_and_metrics(tmp_path):
 
     # A key the file does not have (method files omit what they inherit): Hydra's struct mode
     # refuses `alpha=`; `++alpha=` adds it (or overrides it if present).
-    method = "pipeline/conf/method/fewshot_dss.yaml"
+    method = "conf/method/fewshot_dss.yaml"
     refused = run(repo, "dvc", "exp", "run", "-S", f"{method}:alpha=0.05", ok=False)
     assert (
         refused.returncode != 0
@@ -153,9 +158,9 @@ def test_exp_run_set_param_reruns_trials_and_shows_param_and_metrics(tmp_path):
     assert text.startswith("# Only what differs") and "alpha: 0.05" in text  # comments kept
 
     # DVC resolves the file's interpolations to apply -S: the stage files
-    # (pipeline/conf/<stage>.yaml, with ${profile...}) cannot take -S; edit them and `dvc exp run`
+    # (conf/<stage>.yaml, with ${profile...}) cannot take -S; edit them and `dvc exp run`
     # (README "DVC experiments").
-    refused = run(repo, "dvc", "exp", "run", "-S", "pipeline/conf/trials.yaml:seed=1", ok=False)
+    refused = run(repo, "dvc", "exp", "run", "-S", "conf/trials.yaml:seed=1", ok=False)
     assert (
         refused.returncode != 0
         and "Interpolation key 'profile.trials.runs' not found" in refused.stderr
@@ -225,7 +230,7 @@ def test_exp_run_keeps_pictures_made_outside_dvc_and_refuses_a_bad_value(tmp_pat
             "render": {
                 "cmd": render,
                 "deps": ["pipeline/stages/render.py"],
-                "params": [{"pipeline/conf/profile/smoke.yaml": ["render.per_class"]}],
+                "params": [{"conf/profile/smoke.yaml": ["render.per_class"]}],
                 "outs": [{"images": flags["images"]}],
             },
             "trials": {
@@ -235,7 +240,7 @@ def test_exp_run_keeps_pictures_made_outside_dvc_and_refuses_a_bad_value(tmp_pat
                     "recogniser=oracle record=episodes images_dir=images progress=false "
                     f"out=runs/${{item}} metrics_dir=metrics/${{item}} {flags['overwrite']}",
                     "deps": ["images", "pipeline/rl"],
-                    "params": [{"pipeline/conf/profile/smoke.yaml": ["trials.episodes"]}],
+                    "params": [{"conf/profile/smoke.yaml": ["trials.episodes"]}],
                     "outs": [{"runs/${item}": flags["records"]}],
                     "metrics": [{"metrics/${item}": flags["metrics"]}],
                 },
@@ -244,9 +249,7 @@ def test_exp_run_keeps_pictures_made_outside_dvc_and_refuses_a_bad_value(tmp_pat
     }
     repo = new_repo(tmp_path / "repo", yaml.safe_dump(dvc_yaml, sort_keys=False))
     (repo / ".gitignore").write_text((repo / ".gitignore").read_text() + "/images\n")
-    shutil.copytree(
-        ROOT / "pipeline", repo / "pipeline", ignore=shutil.ignore_patterns("__pycache__")
-    )
+    copy_package_and_configs(repo)
     run(repo, "dvc", "repro")
     commit(repo)
     # a fresh clone's cache is empty; the user renders by hand, here other pictures (seed=1)
@@ -256,7 +259,7 @@ def test_exp_run_keeps_pictures_made_outside_dvc_and_refuses_a_bad_value(tmp_pat
     commit(repo)
     pictures, metrics = _snapshot(repo / "images"), _snapshot(repo / "metrics" / "fig10")
     records = _snapshot(repo / "runs" / "fig10")
-    smoke = "pipeline/conf/profile/smoke.yaml"
+    smoke = "conf/profile/smoke.yaml"
     for value, key in [("abc", "profile.trials.episodes"), ("-1", "profile.trials.episodes")]:
         bad = run(
             repo,

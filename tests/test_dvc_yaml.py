@@ -1,4 +1,4 @@
-"""dvc.yaml against pipeline/conf/: one trials stage per experiment file, params that name keys that
+"""dvc.yaml against conf/: one trials stage per experiment file, params that name keys that
 exist, config as params and never as deps, the paper's scale, and a DVC site cache that does not
 depend on the cwd. The derived parts (code deps, params, the experiments) are checked against
 their derivation in tests/faults/test_dvc.py."""
@@ -106,7 +106,7 @@ def test_params_name_existing_files_and_keys_and_deps_hold_no_config():
             for key in keys:  # `dvc exp run -S file:key=...` needs the key in the file
                 _get(data, key)
         for dep in stage.get("deps", []):
-            assert not (dep.startswith("pipeline/conf/") and dep.endswith(".yaml")), (
+            assert not (dep.startswith("conf/") and dep.endswith(".yaml")), (
                 f"{name}: {dep} belongs in params"
             )
 
@@ -117,12 +117,12 @@ def test_default_scale_is_the_paper_profile():
         if name == "sample":
             assert "profile=smoke" in stage["cmd"]
             assert {f for f, _ in params_entries(stage) if "/profile/" in f} == {
-                "pipeline/conf/profile/smoke.yaml"
+                "conf/profile/smoke.yaml"
             }
             continue
         assert "profile=" not in stage["cmd"], name
-        profiles = {f for f, _ in params_entries(stage) if f.startswith("pipeline/conf/profile/")}
-        assert profiles <= {"pipeline/conf/profile/paper.yaml"}, name
+        profiles = {f for f, _ in params_entries(stage) if f.startswith("conf/profile/")}
+        assert profiles <= {"conf/profile/paper.yaml"}, name
 
 
 def test_the_records_sample_is_committed_and_small():

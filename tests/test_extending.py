@@ -1,5 +1,5 @@
 """docs/extending.md "Adding a safety method", walked in a copy of the package: a rule member and
-its declaration in ``pipeline/rl/rules.py`` and its yaml in ``pipeline/conf/method/`` are all it takes for
+its declaration in ``pipeline/rl/rules.py`` and its yaml in ``conf/method/`` are all it takes for
 the trials to run it and for the report, the generalisation section included, to show its display
 name (never another method's)."""
 

@@ -1,7 +1,8 @@
-"""The package carries its configs: the wheel built from this checkout holds every file of
-``pipeline/conf`` (each stage's yaml, the methods, recognisers, experiments, profiles, models, data
+"""The package carries its configs: the wheel built from this checkout holds every file of the
+top-level ``conf/`` as the package ``pipeline.conf`` (each stage's yaml, the methods, recognisers, experiments, profiles, models, data
 sources and the built-in mazes), and the pipeline installed from it, away from the checkout, finds
-them (Hydra through ``pkg://pipeline.conf``, the code through :func:`pipeline.conf.conf_dir`)."""
+them (Hydra and the code through :func:`pipeline.configs.conf_dir`); a copy of a checkout reads its
+own ``conf/``."""
 
 import json
 import shutil
@@ -13,16 +14,16 @@ from pathlib import Path
 import pytest
 
 from pipeline.__main__ import available_stages
-from pipeline.conf import conf_dir
+from pipeline.configs import conf_dir
 
 ROOT = Path(__file__).resolve().parents[1]
-CONF = ROOT / "pipeline" / "conf"
+CONF = ROOT / "conf"
 
 #: Run by the installed pipeline, from a folder outside the checkout: where it was imported from,
 #: and what it finds in its configs.
 INSTALLED_PROBE = """
 import json, pipeline
-from pipeline.conf import conf_dir
+from pipeline.configs import conf_dir
 from pipeline.envs import recogniser_names
 from pipeline.rl.methods import method_names
 from pipeline.stages._common import load_config
@@ -50,18 +51,20 @@ def conf_files(folder: Path) -> set[str]:
     }
 
 
+#: What a copy of the sources leaves out: byte code and numba's caches.
+BUILD_LEFTOVERS = shutil.ignore_patterns("__pycache__", "*.pyc", "*.nbi", "*.nbc")
+
+
 @pytest.fixture(scope="module")
 def wheel(tmp_path_factory) -> Path:
     """The wheel of a copy of this checkout's package (the build writes beside its sources)."""
     tmp = tmp_path_factory.mktemp("package")
     src = tmp / "src"
     src.mkdir()
-    shutil.copy(ROOT / "pyproject.toml", src)
-    shutil.copytree(
-        ROOT / "pipeline",
-        src / "pipeline",
-        ignore=shutil.ignore_patterns("__pycache__", "*.pyc", "*.nbi", "*.nbc"),
-    )
+    for build_file in ("pyproject.toml", "setup.py"):
+        shutil.copy(ROOT / build_file, src)
+    for folder in ("pipeline", "conf"):
+        shutil.copytree(ROOT / folder, src / folder, ignore=BUILD_LEFTOVERS)
     out = subprocess.run(
         [sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "--no-index"]
         + ["-q", "-w", str(tmp / "dist"), str(src)],
@@ -82,7 +85,7 @@ def test_the_wheel_holds_every_config_file(wheel):
     names = set(zipfile.ZipFile(wheel).namelist())
     packed = {n.removeprefix("pipeline/conf/") for n in names if n.startswith("pipeline/conf/")}
     assert conf_files(CONF) <= packed, sorted(conf_files(CONF) - packed)
-    assert "__init__.py" in packed  # Hydra's pkg:// source needs the folder to be a package
+    assert "__init__.py" in packed  # the marker pipeline.configs looks for
     for stage in available_stages():
         assert f"{stage}.yaml" in packed, stage
     for group, suffix in (
@@ -133,3 +136,34 @@ def test_the_installed_package_finds_its_configs(wheel, tmp_path):
         "restore",
         "restore_paper",
     ]  # profile smoke, fig10
+
+
+def probe_conf_dir(checkout: Path) -> subprocess.CompletedProcess:
+    """``conf_dir()`` as the pipeline imported from ``checkout`` (the current folder) finds it."""
+    return subprocess.run(
+        [sys.executable, "-c", "from pipeline.configs import conf_dir; print(conf_dir())"],
+        capture_output=True,
+        text=True,
+        cwd=checkout,
+        timeout=120,
+    )
+
+
+def test_a_copy_of_the_checkout_reads_its_own_configs_past_a_leftover_folder(tmp_path):
+    """A copy of the checkout reads the ``conf/`` beside its package, not this checkout's. An
+    untracked ``pipeline/conf/`` of byte code (left by git in a checkout from before the move to
+    ``conf/``) is not taken for the configs."""
+    for folder in ("pipeline", "conf"):
+        shutil.copytree(ROOT / folder, tmp_path / folder, ignore=BUILD_LEFTOVERS)
+    (tmp_path / "pipeline" / "conf" / "__pycache__").mkdir(parents=True)
+    probe = probe_conf_dir(tmp_path)
+    assert probe.returncode == 0, probe.stderr[-3000:]
+    assert probe.stdout.strip() == str(tmp_path / "conf")
+
+
+def test_a_package_without_configs_is_refused_by_name(tmp_path):
+    shutil.copytree(ROOT / "pipeline", tmp_path / "pipeline", ignore=BUILD_LEFTOVERS)
+    probe = probe_conf_dir(tmp_path)
+    assert probe.returncode != 0
+    assert f"neither {tmp_path / 'pipeline' / 'conf'} (an installed pipeline) nor" in probe.stderr
+    assert "restore conf/ with `git checkout -- conf`" in probe.stderr

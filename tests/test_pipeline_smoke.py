@@ -146,12 +146,12 @@ def smoke(tmp_path_factory):
 
 
 def protonet_pins(experiment: str, checkpoint, images) -> list[str]:
-    """Overrides that point every cell of ``pipeline/conf/experiment/<experiment>.yaml`` that runs
+    """Overrides that point every cell of ``conf/experiment/<experiment>.yaml`` that runs
     the Prototypical Network (``recogniser_group: protonet``, listed or a layout template) at the
     smoke checkpoint and pictures."""
     import yaml
 
-    from pipeline.conf import conf_dir
+    from pipeline.configs import conf_dir
 
     spec = yaml.safe_load((conf_dir("experiment") / f"{experiment}.yaml").read_text())["experiment"]
     groups = {"experiment.cells": spec.get("cells") or {}}

@@ -447,9 +447,10 @@ def test_the_trials_stage_records_the_initial_support_set(tmp_path):
 
 # ---------------------------------------------------------------- viewer=web (serving, lifetime, ports, bind)
 @contextmanager
-def web_replay(path: Path, out: Path, *overrides: str, timeout: float = 120):
-    """``python -m pipeline replay ... viewer=web`` on free ports, as a subprocess: yields it, the
-    address it printed and its children, once it says "serving"; ends whatever is left afterwards."""
+def web_replay(path: Path, out: Path, *overrides: str, timeout: float = 120, episode: int = 1):
+    """``python -m pipeline replay ... viewer=web`` of ``episode`` of run 0 on free ports, as a
+    subprocess: yields it, the address it printed and its children, once it says "serving"; ends
+    whatever is left afterwards."""
     import psutil
 
     proc = subprocess.Popen(
@@ -460,7 +461,7 @@ def web_replay(path: Path, out: Path, *overrides: str, timeout: float = 120):
             "replay",
             f"file={path}",
             "run=0",
-            "episode=1",
+            f"episode={episode}",
             f"out={out}",
             "viewer=web",
             "web_port=0",
@@ -543,6 +544,7 @@ def test_web_viewer_lives_and_dies_with_the_command(recorded, tmp_path, sig, cod
         assert [c.name() for c in children] == [
             "rerun"
         ]  # the binary itself, not its Python wrapper
+        assert str(tmp_path / "w.rrd") not in children[0].cmdline()  # it got the recording by gRPC
         assert not _free(web_port) and not _free(grpc_port)
         with urllib.request.urlopen(f"http://127.0.0.1:{web_port}/", timeout=10) as page:
             assert page.status == 200

@@ -1,7 +1,10 @@
 """The web replay in a real browser: ``python -m pipeline replay ... viewer=web`` serves a recording,
 Debian's chromium (driven by Playwright for Python, with the system browser: Playwright's own
 browser download is not reachable) opens the address the command printed, and the viewer's active
-recording, saved from the page, holds every row of the recording served.
+recording, saved from the page, holds every row of the recording served. A robot cell's replay
+opens without a view's error badge (Rerun's red "!" in a view's title, e.g. "2D visualizers require
+a pinhole ancestor"), looked for in a screenshot: the same check finds the badge on a recording
+made to have one.
 
 The Rerun web viewer draws everything on a canvas (no DOM text), so the page is asked through the
 handle its ``index.html`` publishes (``window._handle.save_recording()``: the active recording as
@@ -15,12 +18,15 @@ from __future__ import annotations
 import base64
 import os
 import shutil
+import subprocess
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 from synthetic_records import write_synthetic
 from test_replay import _rows, web_replay
+from test_replay_robot import cell  # noqa: F401 (a fixture)
 
 pytestmark = (
     pytest.mark.slow
@@ -37,6 +43,9 @@ CHROMIUM_ARGS = [
     "--disable-sync",
 ]
 LOAD_TIMEOUT = 150.0  # seconds for the viewer to show the whole recording
+#: The colour of Rerun 0.41's error badge on a view's title bar (a disc with "!", about 130 pixels
+#: at 1600 x 1000), and how near a pixel must be to count; nothing the replays draw comes this near.
+BADGE, BADGE_TOLERANCE, BADGE_PIXELS = (236, 0, 79), 24, 50
 
 #: The page's active recording as base64 RRD; null before the viewer has started, "ERR ..." without one.
 SAVE_RECORDING = """() => {
@@ -129,3 +138,93 @@ def test_the_printed_address_opens_the_recording_in_chromium(chromium, tmp_path)
         welcome.goto(url.split("?")[0], wait_until="commit")
         assert _started(welcome, settle=3) == "ERR No active recording to save"
         print(f"the welcome page started after {time.monotonic() - start:.0f} s")
+
+
+def badge_pixels(png: Path) -> int:
+    """How many pixels of the screenshot ``png`` have the error badge's colour."""
+    from PIL import Image
+
+    with Image.open(png) as im:
+        rgb = np.asarray(im.convert("RGB"), np.int16)
+    return int((np.abs(rgb - np.array(BADGE)).max(axis=-1) <= BADGE_TOLERANCE).sum())
+
+
+def _screenshot_when_shown(chromium, url: str, expected: dict[str, int], tmp_path: Path, name: str):
+    """Open ``url``, wait until the viewer holds the ``expected`` rows, let it draw, screenshot."""
+    page = chromium.new_page(viewport={"width": 1600, "height": 1000})
+    page.goto(url, wait_until="commit")
+    seen = _viewer_recording(page, expected, tmp_path / f"{name}.rrd")
+    assert seen == expected, f"the viewer's active recording: {seen!r}"
+    time.sleep(5)  # a few frames: the views and their badges are drawn
+    png = tmp_path / f"{name}.png"
+    page.screenshot(path=png)
+    page.close()
+    return png
+
+
+def test_a_robot_replay_opens_without_an_error_badge(chromium, cell, tmp_path):  # noqa: F811
+    served = tmp_path / "robot.rrd"
+    with web_replay(cell, served, episode=0) as (_, url, _children):
+        png = _screenshot_when_shown(chromium, url, _rows(served), tmp_path, "robot")
+    print(f"the robot's replay in chromium: {png}")
+    assert badge_pixels(png) == 0
+
+
+def test_the_badge_check_finds_the_badge_of_2d_content_in_a_3d_view(chromium, tmp_path):
+    """The check above can fail: points in 2D inside the 3D space, without a pinhole, shown in a
+    3D view, give the badge (served as the replay serves: an empty server sent the recording)."""
+    import rerun as rr
+    import rerun.blueprint as rrb
+
+    from pipeline.stages.replay import (
+        WebAddress,
+        _stop,
+        _wait_listening,
+        rerun_command,
+        send_recording,
+    )
+
+    rrd = tmp_path / "badge.rrd"
+    rec = rr.RecordingStream("badge_check", recording_id="badge")
+    stream = rec.binary_stream()
+    rec.send_blueprint(rrb.Blueprint(rrb.Spatial3DView(origin="/", name="3D")))
+    rec.log("/", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+    rec.log("box", rr.Boxes3D(centers=[[0, 0, 0]], half_sizes=[[1, 1, 1]]), static=True)
+    rec.log("flat", rr.Points2D([[0, 0], [1, 1]], radii=0.2), static=True)  # no pinhole above it
+    rrd.write_bytes(stream.read(flush=True) or b"")
+    rec.disconnect()
+    web = WebAddress("127.0.0.1", "127.0.0.1", *_free_ports(2))
+    server = subprocess.Popen(
+        [
+            *rerun_command(),
+            "--serve-web",
+            "--bind",
+            web.bind,
+            "--web-viewer-port",
+            str(web.web_port),
+            "--port",
+            str(web.grpc_port),
+        ],
+        env={**os.environ, "RUST_LOG": "warn"},
+    )
+    try:
+        _wait_listening(server, web)
+        send_recording(rrd, web.grpc)
+        png = _screenshot_when_shown(chromium, web.url, _rows(rrd), tmp_path, "badge")
+    finally:
+        _stop(server)
+    print(f"a recording with the badge in chromium: {png}")
+    assert badge_pixels(png) >= BADGE_PIXELS
+
+
+def _free_ports(n: int) -> list[int]:
+    import socket
+
+    socks = [socket.socket() for _ in range(n)]
+    try:
+        for s in socks:
+            s.bind(("127.0.0.1", 0))
+        return [s.getsockname()[1] for s in socks]
+    finally:
+        for s in socks:
+            s.close()

@@ -16,6 +16,7 @@ from synthetic_records import make_batch
 from pipeline.records import RecordWriter, read_records
 from pipeline.records import schema as S
 from pipeline.replay import ReplayError, build_replay
+from pipeline.replay.robot3d import HIT_RADIUS, MARK_HEIGHT
 from pipeline.stages.replay import WORLDS
 
 TRIALS = [
@@ -29,9 +30,10 @@ TRIALS = [
 ]
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def cell(tmp_path_factory) -> Path:
-    """A tiny robot cell's records (the trials stage, in this process): 1 run of 3 episodes."""
+    """A tiny robot cell's records (the trials stage, in this process): 1 run of 3 episodes (also
+    for tests/test_replay_robot_scene.py)."""
     from pipeline.stages._common import run_stage
 
     folder = tmp_path_factory.mktemp("robot") / "tiny" / "fewshot_dss_robot3d"
@@ -95,16 +97,22 @@ def test_the_stage_replays_a_robot_cell_in_3d_from_its_records(cell, tmp_path, c
     assert f"episode={first}: the first of run 0 with a recognition" in capsys.readouterr().out
     assert rrd == tmp_path / "r.rrd" and rrd.stat().st_size > 0
     entities = _entities(rrd)
-    assert {"/robot/path", "/robot/body", "/obstacles", "/unsafe", "/events"} <= entities
-    assert any(e.startswith("/scene/obstacle") for e in entities)
-    assert any(e.startswith("/scene/wall") for e in entities)
+    assert {
+        "/world/path",
+        "/world/robot",
+        "/world/obstacles",
+        "/world/unsafe",
+        "/events",
+    } <= entities
+    assert any(e.startswith("/world/scene/obstacle") for e in entities)
+    assert any(e.startswith("/world/scene/wall") for e in entities)
     assert {"/recognition/result", "/support/categories", "/support/substituted"} <= entities
     path = _path(recs, first)
-    body = _chunks(rrd, "/robot/body")
+    body = _chunks(rrd, "/world/robot")
     assert len(body["sim_time"]) == len(path["poses"])
     assert np.allclose(_seconds(body["sim_time"]), path["poses"][:, 0])
     seen = recs.recognitions[recs.recognitions.episode == first]
-    pictures = _chunks(rrd, "/recognition/picture")
+    pictures = _chunks(rrd, "/world/robot/camera/image")
     assert [bytes(b[0]) for b in pictures["EncodedImage:blob"]] == [
         recs.meta.pictures[int(p)] for p in seen.picture
     ]  # the camera's live pictures, each when it was taken
@@ -121,10 +129,12 @@ def test_a_collision_is_logged_where_and_when_the_robot_touched(cell, tmp_path):
     rrd = build_replay(cell, 0, episode, out=tmp_path / "c.rrd", worlds=WORLDS)
     path = _path(recs, episode)
     contacts = path["contacts"]
-    points = _chunks(rrd, "/collisions")  # a Clear at the episode's start, then every contact
+    points = _chunks(rrd, "/world/collisions")  # a Clear at the episode's start, then every contact
     assert np.allclose(
-        points["Points3D:positions"][-1], np.c_[contacts[:, 1:], np.full(len(contacts), 0.1)]
+        points["Points3D:positions"][-1],
+        np.c_[contacts[:, 1:], np.full(len(contacts), MARK_HEIGHT)],
     )
+    assert points["Points3D:radii"][-1] == [np.float32(HIT_RADIUS)]  # a big ball
     at = path["poses"][contacts[:, 0].astype(int), 0]
     assert np.allclose(_seconds(points["sim_time"])[1:], at)
     log = _chunks(rrd, "/events")
@@ -132,15 +142,26 @@ def test_a_collision_is_logged_where_and_when_the_robot_touched(cell, tmp_path):
         s for s, t in zip(_seconds(log["sim_time"]), log["TextLog:text"]) if "collided" in t[0]
     ]
     assert np.allclose(collided, at)  # the events line at the contact, not the step's start
+    hits = [t[0] for t in log["TextLog:text"] if "collided" in t[0]]
+    width, placed = len(recs.meta.maze["layout"][0]), {o["cell"]: o for o in recs.meta.obstacles[0]}
+    rows = steps[(steps.episode == episode) & ((steps["flags"] & S.FLAG_COLLIDED) != 0)]
+    for (x, y), line, r in zip(contacts[:, 1:], hits, rows.itertuples()):  # what it hit, and where
+        o = placed[int(r.state) + (-width, 1, width, -1)[int(r.action)]]  # the cell it drove into
+        name = f"{recs.meta.maze['categories'][o['category']]} #{o['instance']} r{o['orientation']}"
+        assert f": collided into the {name} at (x, y) = ({x:.2f}, {y:.2f}) m" in line, line
 
 
 def test_a_whole_run_plays_its_episodes_back_to_back(cell, tmp_path):
     recs = read_records(cell)
     rrd = build_replay(cell, 0, whole_run=True, out=tmp_path / "w.rrd", worlds=WORLDS)
     lengths = [len(_path(recs, e)["poses"]) for e in sorted(set(recs.episodes.episode))]
-    times = _seconds(_chunks(rrd, "/robot/body")["sim_time"])
+    times = _seconds(_chunks(rrd, "/world/robot")["sim_time"])
     assert len(times) == sum(lengths) and (np.diff(times) > 0).all()  # none at the same moment
-    assert len(_chunks(rrd, "/robot/path")["sim_time"]) == len(lengths)  # a path per episode
+    strips = _chunks(rrd, "/world/path")["LineStrips3D:strips"]
+    starts = [k for k, s in enumerate(strips) if len(s[0]) == 1]  # each episode's path begins anew
+    assert len(starts) == len(lengths) and starts[0] == 0
+    steps = _chunks(rrd, "/world/robot")["step"]  # the steps count on across the episodes
+    assert steps[-1] == len(recs.steps) - 1 and (np.diff(steps) >= 0).all()
 
 
 def test_a_missing_episode_is_named_and_the_robot_needs_its_reader(cell, tmp_path):
@@ -160,8 +181,8 @@ def test_a_robot_cell_without_recognitions_says_why_as_the_grid_does(tmp_path):
     run_stage("trials", [*shield, f"out={out}"])
     rrd = build_replay(out / "records.mcap", 0, 0, out=tmp_path / "s.rrd", worlds=WORLDS)
     entities = _entities(rrd)
-    assert {"/robot/body", "/robot/path", "/recognition/picture/note"} <= entities
-    assert "/recognition/picture" not in entities
+    assert {"/world/robot", "/world/path", "/world/robot/camera/image/note"} <= entities
+    assert "/world/robot/camera/image" not in entities
     assert not _chunks(rrd, "/recognition/result")  # the note only, static
 
 

@@ -289,3 +289,35 @@ def test_start_accuracy_note_names_each_recogniser_when_they_differ():
         "Relation Network), 37.5% (Few-shot, Prototypical Network) of the query pictures"
     )
     assert start_accuracy_note({"Shield": []}) == ""
+
+
+def test_the_report_says_each_part_without_a_terminal(capsys):
+    """Under ``dvc repro`` (no terminal, no bar) the report prints the part it builds, the parts
+    done, the time so far and the time left: while it reads the records, at the pace of the bytes;
+    after them, at the pace of the parts since (the records are no guide to the rest)."""
+
+    from tqdm import tqdm
+
+    from pipeline.report.build import Parts
+
+    with tqdm(total=4, disable=True) as bar:
+        parts = Parts(bar, 3)
+        parts.reading("fig8", 0, 300_000_000)
+        parts.started -= 5  # five seconds in
+        parts.reading("fig9", 100_000_000, 300_000_000)
+        parts.started += 5
+        parts.more(1)  # the records are read: the pace of the rest starts here
+        parts.finished()
+        parts.started -= 100  # the records took 100 s
+        parts.building("claims")  # no part since: no estimate yet
+        parts.finished()
+        parts.started -= 10
+        parts.paced_from = (parts.paced_from[0] - 10, parts.paced_from[1])  # claims took 10 s
+        parts.building("fig8")
+    lines = capsys.readouterr().out.splitlines()
+    assert lines == [
+        "[report] reading the records of fig8: 0 of 300 MB read (0 s)",
+        "[report] reading the records of fig9: 100 of 300 MB read (5 s, about 10 s left)",
+        "[report] claims: 1/4 parts done (100 s)",
+        "[report] fig8: 2/4 parts done (110 s, about 20 s left)",
+    ]

@@ -15,6 +15,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 
 from pipeline import palette  # noqa: E402
 from pipeline.report import figures as F  # noqa: E402
+from pipeline.report import learning_curves as LC  # noqa: E402
 from pipeline.report.overlap import FigureOverlapWarning, problems  # noqa: E402
 from pipeline.report.scale import (  # noqa: E402
     MixedScalesError,
@@ -77,10 +78,71 @@ def test_the_report_figures_pass_the_check(tmp_path):
         warnings.simplefilter("error", FigureOverlapWarning)
         F.bars(labels, samples, "Figure 8", "collisions per run", tmp_path / "b.png", paper=paper)
         ways = {f"Few-shot + DSS, way {w}": rng.poisson(2.0, (5, 300)) for w in (1, 2, 3, 4)}
-        F.curves(ways, "ways", tmp_path / "c.png")
+        LC.curves(ways, "ways", tmp_path / "c.png")
         F.optimal_path(
             ["SXX..", ".....", "X...G"], [], [0, 5, 6, 7, 8, 9, 14], "a path", tmp_path / "p.png"
         )
+
+
+def kept_figures(monkeypatch, module) -> list:
+    """The figures ``module`` saves, kept open instead of written."""
+    kept = []
+    monkeypatch.setattr(module, "save", lambda fig, path: kept.append(fig))
+    return kept
+
+
+def test_bars_that_dwarf_the_others_break_the_axis(monkeypatch):
+    """Figure 8: Q-learning's 170 collisions over the others' 5-13; the others keep their scale below
+    the break, Q-learning's runs above it, and the caption is told."""
+    kept = kept_figures(monkeypatch, F)
+    rng = np.random.default_rng(0)
+    samples = [rng.normal(m, 1.0, 100) for m in (170, 13.0, 5.7)]
+    note = F.bars(["Q-learning", "Shield", "SSRL"], samples, "Figure 8", "collisions", "b.png")
+    top, bottom = kept[0].axes
+    assert bottom.get_ylim()[0] == 0 and bottom.get_ylim()[1] == pytest.approx(
+        1.15 * samples[1].max()
+    )
+    assert top.get_ylim()[0] == pytest.approx(0.95 * samples[0].min())
+    assert note == (
+        f"the y axis is broken between {1.15 * samples[1].max():.3g} and "
+        f"{0.95 * samples[0].min():.3g}"
+    )
+    assert F.dwarfing([170, 13.0, 5.7]) == [0] and F.dwarfing([13.0, 8.0, 5.7]) == []
+    even = F.bars(["a", "b"], [rng.normal(9, 1, 50), rng.normal(6, 1, 50)], "t", "y", "e.png")
+    assert even == "" and len(kept[1].axes) == 1
+    plt.close("all")
+
+
+def test_learning_curves_show_the_later_episodes_at_their_own_scale(monkeypatch):
+    """Collisions per episode from 8 down to a few hundredths: the first 10 episodes at full scale
+    on the left, the rest on the right at the few-shot rows' scale; a row that keeps colliding
+    (Q-learning at 1) runs above the right panel's top, and the caption says so."""
+    kept = kept_figures(monkeypatch, LC)
+    episodes = np.arange(500)
+    early = 8.0 * np.exp(-episodes)  # every row starts at 8 and learns within a few episodes
+    rows = {
+        "Q-learning": np.tile(np.maximum(early, 1.0), (4, 1)),
+        "Few-shot": np.tile(early + 0.02, (4, 1)),
+        "Few-shot + DSS": np.tile(early + 0.01, (4, 1)),
+    }
+    note = LC.curves(rows, "Figure 8", "c.png")
+    left, right = kept[0].axes[:2]
+    assert left.get_xlim() == (0, 10) and left.get_ylim()[1] >= 8
+    assert right.get_xscale() == "log" and right.get_xlim() == (10, 499)
+    assert right.get_ylim()[1] == pytest.approx(LC.HEADROOM * (early[10] + 0.02))
+    assert note == (
+        "left: episodes 0-10 at full scale; right: episodes 10-499 (episode logarithmic) at the "
+        "scale of the later episodes, each point a run's mean over its last 20 episodes, where "
+        "Q-learning (up to 1.00) runs above the top"
+    )
+    rare = np.zeros((1, 60))
+    rare[0, [5, 30]] = 1  # a collision in episodes 5 and 30
+    means = LC.window_means(rare)[0]
+    assert means[4] == 0 and means[5] == pytest.approx(1 / 6) and means[24] == pytest.approx(1 / 20)
+    assert means[25] == 0 and means[30] == pytest.approx(1 / 20)
+    flat = LC.curves({"accuracy": np.full((4, 500), 0.6)}, "t", "a.png", ylabel="accuracy")
+    assert flat == "episode linear up to 10, logarithmic above" and len(kept[1].axes) == 1
+    plt.close("all")
 
 
 def test_one_palette():

@@ -8,7 +8,7 @@ from pipeline.report.generalisation import CLAIMS, growth
 from pipeline.report.layout_cells import features, fit, no_line
 from pipeline.report.stats import t_quantile_975
 
-ROWS_5X5 = ["SXX..", "..X..", "X..XX", ".X..X", "..X.G"]  # pipeline/conf/mazes/5x5.txt
+ROWS_5X5 = ["SXX..", "..X..", "X..XX", ".X..X", "..X.G"]  # conf/mazes/5x5.txt
 
 
 def test_features_of_the_papers_5x5():

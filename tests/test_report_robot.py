@@ -13,7 +13,8 @@ import pytest
 
 from pipeline.report.build import Report
 from pipeline.report.experiments import ReportInputError, load_experiment
-from pipeline.report.robot import check_cell, per_run, read_extra, robot_kind
+from pipeline.report.robot import robot_kind
+from pipeline.report.robot_cells import check_cell, per_run, read_extra
 from pipeline.stages._common import run_stage
 
 RUNS = 2
@@ -76,6 +77,30 @@ def test_one_table_per_decision_rule(recorded):
         assert (t["runs"] == RUNS).all()
     md = (out / "tables" / "robot3d_paper.md").read_text()
     assert md.startswith("Decision rule `paper`:") and "false stop" in md
+
+
+def test_a_figure_shows_the_robot_against_the_grid_per_rule(recorded, monkeypatch):
+    """One row per robot cell: the three rules' few-shot rows and the methods that see no pictures,
+    each in its rule's colour, in the tables' order."""
+    from pipeline.report import robot, robot_figure
+
+    folder, out, _ = recorded
+    assert (out / "figures" / "robot3d_robot_minus_grid.png").stat().st_size > 0
+    drawn = []
+    monkeypatch.setattr(robot, "difference_figure", lambda rows, path: drawn.append(rows))
+    section(folder, out)
+    (rows,) = drawn
+    few = [
+        (f"{method}, {maze}", rule)
+        for rule in robot_figure.RULES[:3]
+        for method, maze in FEW_SHOT_ROWS
+    ]
+    assert sorted((label, rule) for label, rule, _, _ in rows if rule != "no pictures") == sorted(
+        few
+    )
+    assert any(rule == "no pictures" for _, rule, _, _ in rows)  # shield, SSRL: no pictures
+    for _, _, on_robot, on_grid in rows:
+        assert len(on_robot) == len(on_grid) == RUNS
 
 
 def test_the_paper_rule_has_no_false_stops_and_the_range_sensor_stops_on_every_picture(recorded):

@@ -70,13 +70,15 @@ IN_SUPPORT = (WITH_SAME - NO_SAME) / 100
 
 
 class PaperTablesRecogniser:
-    """``pipeline/conf/recogniser/paper_tables.yaml``: the paper's recognition accuracy (module
+    """``conf/recogniser/paper_tables.yaml``: the paper's recognition accuracy (module
     docstring); ``substitution_way`` 0 is the static support set, 1-4 section 3.3's ways."""
 
     kind = "paper_tables"
     """Its name in the records (``describe()``)."""
     display_name = "paper's Tables 1-2"
     """The report's name for it (``pipeline.report.names``); never recorded."""
+    colour = "#8c564b"
+    """Its colour in the report's figures; never recorded."""
 
     def __init__(self, substitution_way: int = 0, carry_over: bool = False):
         SupportSet(N_WAY, K_SHOT, substitution_way, 0)  # validates the way

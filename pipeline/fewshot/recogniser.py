@@ -46,6 +46,7 @@ class RelationRecogniser(SupportSetRecogniser):
 
     kind = "relation_net"
     display_name = "Relation Network"
+    colour = "#17becf"
 
     @classmethod
     def from_files(
@@ -100,6 +101,7 @@ class ProtoRecogniser(SupportSetRecogniser):
 
     kind = "protonet"
     display_name = "Prototypical Network"
+    colour = "#e377c2"
 
     @classmethod
     def from_files(

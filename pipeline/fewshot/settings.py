@@ -3,7 +3,7 @@
 :class:`ProtoConfig` for the Prototypical Network), the meta-training hyperparameters
 (:class:`TrainConfig`, whose ``model`` chooses between them) and the accuracy study's
 (:class:`StudyConfig`, :mod:`.accuracy_study`). The stage schemas (``pipeline/stages/_schema.py``) type
-``pipeline/conf/meta_train.yaml`` and ``pipeline/conf/accuracy.yaml`` with them, so checking a config never loads torch.
+``conf/meta_train.yaml`` and ``conf/accuracy.yaml`` with them, so checking a config never loads torch.
 """
 
 from __future__ import annotations
@@ -79,7 +79,7 @@ MODELS = ("relation_net", "protonet")
 
 @dataclass
 class TrainConfig:
-    """Meta-training hyperparameters (every field is a key of ``pipeline/conf/meta_train.yaml``'s ``train``)."""
+    """Meta-training hyperparameters (every field is a key of ``conf/meta_train.yaml``'s ``train``)."""
 
     model: str = setting("relation_net", choices=MODELS)
     """``relation_net`` (Sung et al. 2018, MSE on relation scores) or ``protonet`` (Snell et al.
@@ -147,7 +147,7 @@ HUE_SHIFTS = (60.0, 120.0, 180.0, 240.0, 300.0)
 
 @dataclass
 class StudyConfig:
-    """Accuracy-study settings (``pipeline/conf/accuracy.yaml``'s ``study``)."""
+    """Accuracy-study settings (``conf/accuracy.yaml``'s ``study``)."""
 
     repeats: int = setting(100, ge=1)
     """Repetitions per substituted category (the paper: 100, giving x/800)."""

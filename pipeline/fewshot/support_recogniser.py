@@ -59,6 +59,8 @@ class SupportSetRecogniser(abc.ABC):
     """The model's name in checkpoints and records (``describe()``)."""
     display_name = ""
     """The report's name for it (``pipeline.report.names``); never recorded."""
+    colour: str | None = None
+    """Its colour in the report's figures (``#rrggbb``; ``pipeline.report.names``); never recorded."""
 
     def __init__(
         self,

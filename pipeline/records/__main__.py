@@ -1,9 +1,12 @@
-"""``python -m pipeline.records <file.mcap | folder> [--runs]``: one line a record file (config,
-completeness, runs, episodes, collisions, the episodes that hold recognitions and substitutions,
-what a damaged or cut file lost); a folder's ``*.mcap`` and ``*.mcap.partial`` files (also in
-``.staging-*`` folders; killed runs marked PARTIAL), an unreadable file named in one line on
-stderr. ``--runs``: a table, one row per run. Exit status: 0, all listed; 1, some files could not
-be read; 2, none could, or no such file or folder; 141, pipe closed.
+"""``python -m pipeline.records``: what record files hold, one line a file or a table of its runs.
+
+``python -m pipeline.records <file.mcap | folder> [--runs]`` (installed: ``safenav records``): one
+line a record file (config, completeness, runs, episodes, collisions, the episodes that hold
+recognitions and substitutions, what a damaged or cut file lost); a folder's ``*.mcap`` and
+``*.mcap.partial`` files (also in ``.staging-*`` folders; killed runs marked PARTIAL), an
+unreadable file named in one line on stderr. ``--runs``: a table, one row per run. Exit status: 0,
+all listed; 1, some files could not be read; 2, none could, or no such file or folder; 141, pipe
+closed.
 """
 
 import argparse
@@ -51,10 +54,11 @@ def _line(name: str, recs, meta) -> str:
     )
 
 
-def main(argv: list[str] | None = None) -> None:
-    """List the record files at the path given: per file its warnings and one line."""
+def main(argv: list[str] | None = None, prog: str = "python -m pipeline.records") -> None:
+    """List the record files at the path given: per file its warnings and one line. ``prog``: the
+    command's name in its help (``safenav records`` when run by :mod:`pipeline.cli`)."""
     ap = argparse.ArgumentParser(
-        prog="python -m pipeline.records",
+        prog=prog,
         description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )

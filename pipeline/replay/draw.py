@@ -46,7 +46,7 @@ class Replay(Story):
         """Every event of step ``t`` happens at its global step (the grid has no finer time)."""
         return self.tick + t
 
-    def at(self, moment: float) -> None:
+    def at(self, moment: float, t: int | None = None) -> None:
         self.rec.set_time("step", sequence=int(moment))
 
     # ---------------------------------------------------------------- what does not change
@@ -55,7 +55,7 @@ class Replay(Story):
         says in its name why it is empty (``empty``)."""
         heat = "max Q per cell" if self.q else "visits per cell (log scale)"
         bounds = legend_positions(*self.shape, len(self.labels) + 2)[1]
-        return self.layout(maze_views(name, heat, *self.shape, bounds), empty)
+        return self.layout(maze_views(name, heat, *self.shape, bounds), empty, timeline="step")
 
     def draw_static(self) -> None:
         """The maze (cells; obstacles in their category colours, named in the legend right of the

@@ -78,8 +78,11 @@ def empty_views(recs: Records, run: int, episodes: list[int]) -> EmptyViews:
     return EmptyViews(None, None)
 
 
-def log_empty(rec, empty: EmptyViews) -> None:
-    """Say in the picture and recognition views why they stay empty (static: for every step)."""
+def log_empty(
+    rec, empty: EmptyViews, picture: str = "recognition/picture", box=((-1.0, -1.0), (1.0, 1.0))
+) -> None:
+    """Say in the picture and recognition views why they stay empty (static: for every step);
+    ``picture``: the entity of the pictures, whose view shows ``box`` (two corners) without them."""
     import rerun as rr
 
     if empty.recognition is None:
@@ -91,10 +94,11 @@ def log_empty(rec, empty: EmptyViews) -> None:
         ),
         static=True,
     )
+    (x0, y0), (x1, y1) = box
     rec.log(  # the corners keep the label, centred on the middle point, inside the view
-        "recognition/picture/note",
+        f"{picture}/note",
         rr.Points2D(
-            [[-1.0, -1.0], [0.0, 0.0], [1.0, 1.0]],
+            [[x0, y0], [(x0 + x1) / 2, (y0 + y1) / 2], [x1, y1]],
             radii=[0.0, 0.01, 0.0],
             labels=["", "no picture seen: see the recognition view", ""],
             show_labels=True,

@@ -40,14 +40,34 @@ def legend_positions(height: int, width: int, n: int) -> tuple[list[list[float]]
     return points, ((-0.1, width + 2.6), (-0.1, max(height, 0.75 * n) + 0.3))
 
 
-def blueprint(world, grid: Bounds, scores: str):
+def blueprint(
+    world,
+    grid: Bounds,
+    scores: str,
+    picture=None,
+    legend: str | None = None,
+    timeline: str | None = None,
+    shares=(3, 2, 3),
+):
     """The viewer's layout, the same for every world: the world's views (``world``: the grid's
-    :func:`maze_views`, or the robot in 3D) left; the picture seen, the scores (the view named
-    ``scores``) and the recognition; the support set grid (``grid``: its bounds) and the events."""
+    :func:`maze_views`, or the robot in 3D) left; the picture seen (``picture``: a view; by default
+    of ``recognition/picture``), the scores (the view named ``scores``) and the recognition; the
+    legend (``legend``: the entity of a text document, if any), the support set grid (``grid``: its
+    bounds) and the events; the time panel on ``timeline`` (the viewer's choice when None);
+    ``shares``: the three columns' widths."""
     import rerun.blueprint as rrb
 
     V, H = rrb.Vertical, rrb.Horizontal
-    picture = rrb.Spatial2DView(origin="recognition/picture", name="picture seen")
+    if picture is None:
+        picture = rrb.Spatial2DView(origin="recognition/picture", name="picture seen")
+    right = [
+        _view2d(
+            grid, origin="support", name="support set (framed: substituted at episode, step t)"
+        ),
+        rrb.TextLogView(origin="events", name="events"),
+    ]
+    if legend is not None:
+        right.insert(0, rrb.TextDocumentView(origin=legend, name="legend"))
     return rrb.Blueprint(
         H(
             world,
@@ -61,19 +81,11 @@ def blueprint(world, grid: Bounds, scores: str):
                 rrb.TextDocumentView(origin="recognition/result", name="recognition"),
                 row_shares=[2, 2, 3],
             ),
-            V(
-                _view2d(
-                    grid,
-                    origin="support",
-                    name="support set (framed: substituted at episode, step t)",
-                ),
-                rrb.TextLogView(origin="events", name="events"),
-                row_shares=[3, 2],
-            ),
-            column_shares=[3, 2, 3],
+            V(*right, row_shares=[2, 3, 3] if legend else [3, 2]),
+            column_shares=list(shares),
         ),
         rrb.SelectionPanel(state="collapsed"),
-        rrb.TimePanel(state="collapsed"),
+        rrb.TimePanel(state="collapsed", timeline=timeline),
     )
 
 

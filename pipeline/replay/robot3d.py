@@ -1,14 +1,25 @@
 """The robot's replay in 3D (:class:`RobotReplay`; issue 30, docs/robot3d.md "Replay"): one run of
 a robot cell's records drawn into a Rerun recording stream on the timelines ``sim_time`` (the
-simulated seconds; a whole run: its episodes back to back) and ``episode``:
+simulated seconds; a whole run: its episodes back to back), ``step`` (the steps, counted across the
+replayed episodes, as on the grid) and ``episode``.
 
-* the scene as MuJoCo builds it for the run (:func:`log_scene`): floor, walls, the obstacle
-  meshes, and a dot in its category's colour under each obstacle (named on hover, as on the grid);
-* the robot's body along its path at 10 Hz, the episode's path on the floor, the collisions (red
-  points where its box met an obstacle's) and A_d (eqs. 7-8) as red arrows on the floor;
-* what every world's replay shows (:class:`.story.Story`): the live picture the camera took at
-  each recognition (the file's ``/pictures/<id>``) with its relation scores and verdict, the
-  support set and its substitutions, the events, each at the moment it happened.
+Everything 3D lies under ``world`` (z up), and the only 2D content there is the camera's picture,
+under its pinhole:
+
+* ``world/scene``: the maze as MuJoCo builds it for the run (:func:`.scene3d.log_scene`);
+  ``world/cells``: the start and goal tiles; ``world/obstacles``: a dot in its category's colour under
+  each obstacle (named on hover, as on the grid); ``world/legend``: categories and marks, named,
+  beside the maze;
+* ``world/robot``: the robot's pose at 10 Hz, carrying its body (labelled), its heading (an arrow)
+  and its camera (``world/robot/camera``, a pinhole), whose ``image`` is the live picture of each
+  recognition, taken where the robot stood; the picture's own 2D view looks through it;
+* ``world/path``: the path so far; ``world/collisions``: a big red ball where its box met an
+  obstacle; ``world/stops``: a ball in the reselection colour before each obstacle it recognised and
+  stopped for; ``world/unsafe``: A_d (eqs. 7-8) as red arrows on the floor.
+
+Beside the scene: the return and collisions of the episode so far (``metrics``), the legend in
+words (``legend``), and what every world's replay shows (:class:`.story.Story`): the recognition
+views, the support set, the events (collisions ERROR, stops WARN), each at the moment it happened.
 
 What the robot's records say (its path, its moments, its world) comes from a
 :class:`pipeline.robot.replay.RobotRun`, handed in by :func:`.build.build_replay`'s ``worlds``
@@ -17,86 +28,33 @@ What the robot's records say (its path, its moments, its world) comes from a
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
+from pipeline import palette
 from pipeline.records import Records
-from pipeline.world.renderer_env import mujoco
 
 from .notes import EmptyViews
-from .story import RED, ROBOT, Story
+from .panels import colour
+from .scene3d import (
+    LEGEND_TEXT,
+    MARGIN,
+    MARKS,
+    corners,
+    legend_positions,
+    legend_text,
+    log_robot,
+    log_scene,
+    overview_eye,
+    yaw_quaternions,
+)
+from .story import ORANGE, RED, ROBOT, Story
 
-#: What the 3D view shows (the other entities are the recognition and support views').
-SCENE = ["/scene/**", "/robot/**", "/obstacles", "/collisions", "/unsafe"]
-FLOOR = (150, 145, 135)  # a plane's colour (MuJoCo's floor is textured)
-
-
-def log_scene(rec, model, data, skip_body: str = "robot") -> None:
-    """Every drawn static geom of a compiled MuJoCo world as ``scene/<geom>`` (group 0-2: not the
-    collision boxes), but those of the body ``skip_body``."""
-    import rerun as rr
-
-    G = mujoco.mjtGeom
-    skip = model.body(skip_body).id
-    for g in range(model.ngeom):
-        if model.geom_bodyid[g] == skip or model.geom_group[g] > 2:
-            continue
-        colour = (np.clip(model.geom_rgba[g], 0, 1) * 255).astype(np.uint8)
-        pos, xmat, size = data.geom_xpos[g], data.geom_xmat[g].reshape(3, 3), model.geom_size[g]
-        quat = rr.Quaternion(xyzw=_quat_xyzw(xmat))
-        kind = model.geom_type[g]
-        if kind == G.mjGEOM_MESH:
-            m = model.geom_dataid[g]
-            v0, nv = model.mesh_vertadr[m], model.mesh_vertnum[m]
-            f0, nf = model.mesh_faceadr[m], model.mesh_facenum[m]
-            shape = rr.Mesh3D(
-                vertex_positions=model.mesh_vert[v0 : v0 + nv] @ xmat.T + pos,
-                triangle_indices=model.mesh_face[f0 : f0 + nf],
-                albedo_factor=colour,
-            )
-        elif kind == G.mjGEOM_PLANE:
-            half = [[size[0], size[1], 0.001]]
-            shape = rr.Boxes3D(centers=[pos], half_sizes=half, colors=[FLOOR], fill_mode="solid")
-        elif kind == G.mjGEOM_BOX:
-            shape = rr.Boxes3D(
-                centers=[pos],
-                half_sizes=[size],
-                quaternions=[quat],
-                colors=[colour],
-                fill_mode="solid",
-            )
-        elif kind == G.mjGEOM_CYLINDER:
-            shape = rr.Cylinders3D(
-                centers=[pos],
-                lengths=[2 * size[1]],
-                radii=[size[0]],
-                colors=[colour],
-                quaternions=[quat],
-            )
-        elif kind == G.mjGEOM_CAPSULE:  # rerun's capsule starts at its base
-            shape = rr.Capsules3D(
-                translations=[pos - xmat[:, 2] * size[1]],
-                lengths=[2 * size[1]],
-                radii=[size[0]],
-                colors=[colour],
-                quaternions=[quat],
-            )
-        elif kind in (G.mjGEOM_SPHERE, G.mjGEOM_ELLIPSOID):
-            shape = rr.Ellipsoids3D(
-                centers=[pos],
-                half_sizes=[[size[0]] * 3 if kind == G.mjGEOM_SPHERE else size],
-                quaternions=[quat],
-                colors=[colour],
-                fill_mode="solid",
-            )
-        else:
-            continue
-        rec.log(f"scene/{model.geom(g).name or f'geom{g}'}", shape, static=True)
-
-
-def _quat_xyzw(xmat: np.ndarray) -> np.ndarray:
-    q = np.zeros(4)
-    mujoco.mju_mat2Quat(q, xmat.reshape(9))
-    return np.array([q[1], q[2], q[3], q[0]])
+WORLD = "world"
+HIT_RADIUS, STOP_RADIUS, LEGEND_RADIUS = 0.12, 0.09, 0.1  # m: the marks' balls
+MARK_HEIGHT, PATH_HEIGHT = 0.15, 0.02  # m above the floor
+STOP_AHEAD = 0.3  # of a cell: a stop's ball, ahead of the robot that stopped
 
 
 class RobotReplay(Story):
@@ -104,10 +62,16 @@ class RobotReplay(Story):
     ``rec`` (the module docstring); ``robot``: the run as its records say
     (:class:`pipeline.robot.replay.RobotRun`, checked)."""
 
+    picture_entity = f"{WORLD}/robot/camera/image"
+
     def __init__(self, rec, recs: Records, run: int, robot):
         super().__init__(rec, recs, run)
         robot.check(self.steps, self.recog)
-        self.robot, self.path, self.start = robot, None, 0.0  # the episode being drawn
+        side = float(robot.camera.size)
+        self.picture_box = ((0.0, 0.0), (side, side))
+        self.robot, self.path, self.start, self.step0 = robot, None, 0.0, 0
+        self.hits: list[tuple[float, float, str]] = []  # the episode's marks so far
+        self.stops: list[tuple[float, float, str]] = []
 
     # ---------------------------------------------------------------- the clock
     def when(self, t: int, picture: int | None = None, contact: bool = False) -> float:
@@ -115,27 +79,64 @@ class RobotReplay(Story):
         replay (:meth:`pipeline.robot.replay.EpisodePath.moment` after the episode's start)."""
         return self.start + self.path.moment(t, picture, contact)
 
-    def at(self, moment: float) -> None:
+    def at(self, moment: float, t: int | None = None) -> None:
+        """``sim_time`` at ``moment``, ``step`` at step ``t`` of the episode (its first without)."""
         self.rec.set_time("sim_time", duration=float(moment))
+        self.rec.set_time("step", sequence=self.step0 + (t or 0))
 
     # ---------------------------------------------------------------- what does not change
+    def floor(self) -> tuple[tuple[float, float], tuple[float, float]]:
+        """The maze's floor inside its walls: (x range, y range) in m."""
+        half_width = self.robot.layout.width * self.robot.cell / 2
+        half_height = self.robot.layout.height * self.robot.cell / 2
+        return (-half_width, half_width), (-half_height, half_height)
+
+    def legend_at(self) -> np.ndarray:
+        """Where the legend beside the maze puts its rows: the categories, then :data:`MARKS`."""
+        return legend_positions(*self.floor(), len(self.labels) + len(MARKS))
+
     def blueprint(self, name: str, empty: EmptyViews):
-        """The viewer's layout: the robot in 3D, then the views every replay has."""
+        """The viewer's layout: the whole maze in 3D from the south (the legend beside it in
+        view) over the return and collisions so far, the live picture through the camera, and the
+        views every replay has, with the legend in words."""
         import rerun.blueprint as rrb
 
-        return self.layout(rrb.Spatial3DView(origin="/", name=f"3D: {name}", contents=SCENE), empty)
+        (x0, x1), (y0, y1) = self.floor()
+        legend = self.legend_at()
+        position, target = overview_eye(  # the floor, its walls and the legend with its names
+            (x0 - MARGIN, legend[:, 0].max() + LEGEND_TEXT),
+            (min(y0, legend[:, 1].min()) - MARGIN, y1 + MARGIN),
+        )
+        scene = rrb.Spatial3DView(
+            origin=WORLD,
+            name=f"3D: {name}",
+            contents=["$origin/**", f"- {self.picture_entity}/note"],
+            eye_controls=rrb.EyeControls3D(
+                kind=rrb.Eye3DKind.Orbital, position=position, look_target=target, eye_up=[0, 0, 1]
+            ),
+        )
+        series = rrb.TimeSeriesView(origin="metrics", name="this episode so far")
+        camera = rrb.Spatial2DView(
+            origin=f"{WORLD}/robot/camera",
+            name="live picture" + (": none, see below" if empty.recognition else ""),
+        )
+        world = rrb.Vertical(scene, series, row_shares=[5, 1])
+        return self.layout(
+            world, empty, picture=camera, legend="legend", timeline="sim_time", shares=(4, 2, 3)
+        )
 
     def draw_static(self) -> None:
-        """The scene, a dot under each obstacle in its category's colour (named on hover) and the
-        robot's body (its pose: per tick, :meth:`episode`)."""
+        """The scene, the start and goal tiles, a dot under each obstacle in its category's colour
+        (named on hover), the robot (its pose: per tick, :meth:`episode`), the legend, the series."""
         import rerun as rr
 
-        self.log("/", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
-        log_scene(self.rec, *self.robot.scene())
-        obstacles = self.robot.obstacles
-        under = self.robot.centres([o["cell"] for o in obstacles])
+        self.log(WORLD, rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+        log_scene(self.rec, *self.robot.scene(), root=f"{WORLD}/scene")
+        robot, cell = self.robot, self.robot.cell
+        obstacles = robot.obstacles
+        under = robot.centres([o["cell"] for o in obstacles])
         self.log(
-            "obstacles",
+            f"{WORLD}/obstacles",
             rr.Points3D(
                 np.c_[under, np.full(len(under), 0.01)],
                 radii=0.08,
@@ -145,11 +146,41 @@ class RobotReplay(Story):
             ),
             static=True,
         )
-        half = self.robot.half_sizes
-        body = rr.Boxes3D(
-            centers=[[0.0, 0.0, half[2]]], half_sizes=[half], colors=[ROBOT], fill_mode="solid"
+        ends = robot.centres([robot.layout.start, robot.layout.goal])
+        self.log(
+            f"{WORLD}/cells",
+            rr.Boxes3D(
+                centers=np.c_[ends, np.full(2, 0.004)],
+                half_sizes=[[0.45 * cell, 0.45 * cell, 0.002]] * 2,
+                colors=[palette.rgb(MARKS["start"]), palette.rgb(MARKS["goal"])],
+                labels=["start", "goal"],
+                show_labels=True,
+                fill_mode="solid",
+            ),
+            static=True,
         )
-        self.log("robot/body", body, static=True)
+        log_robot(self.rec, f"{WORLD}/robot", robot.half_sizes, robot.camera)
+        n, at = len(self.labels), self.legend_at()
+        self.log(
+            f"{WORLD}/legend",
+            rr.Points3D(
+                np.c_[at, np.full(len(at), MARK_HEIGHT)],
+                radii=LEGEND_RADIUS,
+                colors=[colour(c) for c in range(n)] + [palette.rgb(h) for h in MARKS.values()],
+                labels=self.labels + list(MARKS),
+                show_labels=True,
+            ),
+            static=True,
+        )
+        self.log(
+            "legend",
+            rr.TextDocument(legend_text(self.labels), media_type="text/markdown"),
+            static=True,
+        )
+        self.log("metrics/return", rr.SeriesLines(names="return", colors=[ROBOT]), static=True)
+        self.log(
+            "metrics/collisions", rr.SeriesLines(names="collisions", colors=[RED]), static=True
+        )
 
     # ---------------------------------------------------------------- what changes
     def log_unsafe(self) -> None:
@@ -158,11 +189,11 @@ class RobotReplay(Story):
 
         pairs = np.array(self.ad, dtype=np.int64).reshape(-1, 2)
         if not len(pairs):
-            self.log("unsafe", rr.Clear(recursive=False))
+            self.log(f"{WORLD}/unsafe", rr.Clear(recursive=False))
             return
         heading, reach, n = self.robot.headings(pairs[:, 1]), 0.45 * self.robot.cell, len(pairs)
         self.log(
-            "unsafe",
+            f"{WORLD}/unsafe",
             rr.Arrows3D(
                 origins=np.c_[self.robot.centres(pairs[:, 0]), np.full(n, 0.03)],
                 vectors=np.c_[reach * np.cos(heading), reach * np.sin(heading), np.zeros(n)],
@@ -189,29 +220,133 @@ class RobotReplay(Story):
 
         steps, seen = self.steps[self.steps.episode == e], self.recog[self.recog.episode == e]
         self.path, self.start = self.robot.episode(e, steps, seen), start
-        poses, contacts = self.path.poses, self.path.contacts
-        n = len(poses)
+        poses, n = self.path.poses, len(self.path.poses)
+        starts = np.array([self.path.start_tick(t) for t in range(len(steps))], np.int64)
+        step = self.step0 + np.maximum(np.searchsorted(starts, np.arange(n), side="right") - 1, 0)
+
+        def index(ticks):
+            ticks = np.asarray(ticks, np.int64)
+            return [
+                rr.TimeColumn("sim_time", duration=start + poses[ticks, 0]),
+                rr.TimeColumn("step", sequence=step[ticks]),
+                rr.TimeColumn("episode", sequence=np.full(len(ticks), e)),
+            ]
+
         self.at(start)
         self.log_unsafe()
-        floor = np.c_[poses[:, 1:3], np.full(n, 0.02)]
-        self.log("robot/path", rr.LineStrips3D([floor], colors=[ROBOT], radii=0.01))
-        self.log("collisions", rr.Clear(recursive=False))
-        yaw = poses[:, 3]
+        self.hits, self.stops = [], []
+        for marks in ("collisions", "stops"):
+            self.log(f"{WORLD}/{marks}", rr.Clear(recursive=False))
         self.rec.send_columns(
-            "robot/body",
-            indexes=[
-                rr.TimeColumn("sim_time", duration=start + poses[:, 0]),
-                rr.TimeColumn("episode", sequence=np.full(n, e)),
-            ],
+            f"{WORLD}/robot",
+            indexes=index(np.arange(n)),
             columns=rr.Transform3D.columns(
                 translation=np.c_[poses[:, 1:3], np.zeros(n)],
-                quaternion=np.c_[np.zeros((n, 2)), np.sin(yaw / 2), np.cos(yaw / 2)],
+                quaternion=yaw_quaternions(poses[:, 3]),
             ),
         )
-        for k, t in enumerate(sorted(self.path.contact_tick)):
-            self.at(self.when(t, contact=True))
-            hit = np.c_[contacts[: k + 1, 1:3], np.full(k + 1, 0.1)]
-            self.log("collisions", rr.Points3D(hit, colors=[RED], radii=0.06))
+        self.path_so_far(index)
+        self.log_series(index, steps.reward.to_numpy(np.float64), starts)
+        for t in sorted(self.path.contact_tick):
+            self.at(self.when(t, contact=True), t)
+            x, y = self.contact(t)
+            self.hits.append((x, y, f"collision: ep {e} step {t}{self.collided_where(t)}"))
+            self.log_marks("collisions", self.hits, RED, HIT_RADIUS)
         states, actions, flags = (steps[c].to_numpy() for c in ("state", "action", "flags"))
         self.events(e, states, actions, flags)
+        self.step0 += len(steps)
         return start + self.path.seconds
+
+    def log_series(self, index, rewards: np.ndarray, starts: np.ndarray) -> None:
+        """The episode's return so far at each step's end (steps begin at the ticks ``starts``) and
+        its collisions so far, a step up at each contact; ``index``: ticks -> time columns."""
+        import rerun as rr
+
+        ends = np.r_[0, starts[1:], len(self.path.poses) - 1][: len(rewards) + 1]
+        self.rec.send_columns(
+            "metrics/return",
+            indexes=index(ends),
+            columns=rr.Scalars.columns(scalars=np.r_[0.0, np.cumsum(rewards)][: len(ends)]),
+        )
+        contacts = self.path.contacts[:, 0].astype(np.int64)
+        k = len(contacts)
+        before_after = np.c_[np.arange(k), np.arange(1, k + 1)].ravel()  # the count at a contact
+        self.rec.send_columns(
+            "metrics/collisions",
+            indexes=index(np.r_[0, np.repeat(contacts, 2)]),
+            columns=rr.Scalars.columns(scalars=np.r_[0, before_after].astype(np.float64)),
+        )
+
+    def path_so_far(self, index) -> None:
+        """The path on the floor up to every tick: ``world/path`` through its corners so far (a row
+        at each corner, :func:`.scene3d.corners`), ``world/path/leg`` from the last corner to the
+        robot (a row a tick); together the path within 2 mm, in little data."""
+        import rerun as rr
+
+        xy = self.path.poses[:, 1:3]
+        floor = np.c_[xy, np.full(len(xy), PATH_HEIGHT)]
+        kept = corners(xy)
+        self.rec.send_columns(
+            f"{WORLD}/path",
+            indexes=index(kept),
+            columns=rr.LineStrips3D.columns(
+                strips=[floor[kept[: i + 1]] for i in range(len(kept))],
+                colors=np.tile(ROBOT, (len(kept), 1)).astype(np.uint8),
+                radii=np.full(len(kept), 0.012, np.float32),
+            ),
+        )
+        last = kept[np.searchsorted(kept, np.arange(len(xy)), side="right") - 1]
+        self.rec.send_columns(
+            f"{WORLD}/path/leg",
+            indexes=index(np.arange(len(xy))),
+            columns=rr.LineStrips3D.columns(
+                strips=[floor[[a, b]] for a, b in zip(last, range(len(xy)))],
+                colors=np.tile(ROBOT, (len(xy), 1)).astype(np.uint8),
+                radii=np.full(len(xy), 0.012, np.float32),
+            ),
+        )
+
+    def contact(self, t: int) -> tuple[float, float]:
+        """Where step ``t``'s collision touched (x, y in m)."""
+        k = sorted(self.path.contact_tick).index(t)
+        return float(self.path.contacts[k, 1]), float(self.path.contacts[k, 2])
+
+    def collided_where(self, t: int) -> str:
+        """`` into the chair #0 r1 at (x, y) = (0.52, -1.03) m``: the obstacle nearest the contact."""
+        if self.path is None or t not in self.path.contact_tick:
+            return ""
+        x, y = self.contact(t)
+        obstacles = self.robot.obstacles
+        centres = self.robot.centres([o["cell"] for o in obstacles])
+        hit = obstacles[int(np.argmin(np.hypot(centres[:, 0] - x, centres[:, 1] - y)))]
+        return f" into the {self.obstacle_label(hit)} at (x, y) = ({x:.2f}, {y:.2f}) m"
+
+    def stopped(self, r, number: int) -> None:
+        """A ball before the obstacle the robot looked at (the episode's ``number``-th picture) and
+        stopped for, at the current time (the picture's moment)."""
+        tick = int(self.path.pictures[number])
+        x, y, yaw = self.path.poses[tick, 1:4]
+        ahead = STOP_AHEAD * self.robot.cell
+        self.stops.append(
+            (
+                float(x + ahead * math.cos(yaw)),
+                float(y + ahead * math.sin(yaw)),
+                f"stop: step {int(r.step)}, recognised {self.cat(int(r.predicted))}",
+            )
+        )
+        self.log_marks("stops", self.stops, ORANGE, STOP_RADIUS)
+
+    def log_marks(self, name: str, marks: list, rgb, radius: float) -> None:
+        """The episode's ``marks`` (x, y, label) so far as balls of ``rgb`` at ``world/<name>``."""
+        import rerun as rr
+
+        self.log(
+            f"{WORLD}/{name}",
+            rr.Points3D(
+                [[x, y, MARK_HEIGHT] for x, y, _ in marks],
+                radii=radius,
+                colors=[rgb],
+                labels=[label for _, _, label in marks],
+                show_labels=False,
+            ),
+        )

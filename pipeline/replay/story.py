@@ -46,7 +46,13 @@ class ReplayError(UserError):
 
 class Story(abc.ABC):
     """Run ``run`` of the records ``recs``, told into the recording stream ``rec``: what every
-    world's replay shows. Subclasses set :meth:`when` / :meth:`at` and :meth:`log_unsafe`."""
+    world's replay shows. Subclasses set :meth:`when` / :meth:`at` and :meth:`log_unsafe`, and may
+    mark a step's outcome in their scene (:meth:`stopped`, :meth:`collided_where`)."""
+
+    #: Where the picture seen goes (a 2D image: never inside a 3D space without a pinhole above
+    #: it), and the corners of what its view shows when no picture comes.
+    picture_entity = "recognition/picture"
+    picture_box = ((-1.0, -1.0), (1.0, 1.0))
 
     def __init__(self, rec, recs: Records, run: int):
         meta, mz = recs.meta, recs.meta.maze
@@ -130,26 +136,37 @@ class Story(abc.ABC):
         of the episode's recognition number ``picture``; ``contact``: of step ``t``'s collision."""
 
     @abc.abstractmethod
-    def at(self, moment: float) -> None:
-        """Set the recording's time to ``moment`` (a value of :meth:`when`)."""
+    def at(self, moment: float, t: int | None = None) -> None:
+        """Set the recording's time to ``moment`` (a value of :meth:`when`), of step ``t`` of the
+        episode being drawn when given."""
 
     @abc.abstractmethod
     def log_unsafe(self) -> None:
         """Draw A_d (``self.ad``, pairs (cell, action)) in the world's scene, at the current time."""
 
+    def stopped(self, r, number: int) -> None:
+        """Recognition ``r`` (the episode's ``number``-th) stopped the robot before the obstacle:
+        mark it in the scene at the current time (the grid's action arrow shows it already)."""
+        return None
+
+    def collided_where(self, t: int) -> str:
+        """What the events line of step ``t``'s collision adds: where, and what it hit."""
+        return ""
+
     # ---------------------------------------------------------------- what does not change
-    def layout(self, world, empty: EmptyViews):
-        """The viewer's layout around the world's views ``world``; the scores view says in its name
-        why it is empty (``empty``)."""
+    def layout(self, world, empty: EmptyViews, **views):
+        """The viewer's layout around the world's views ``world`` (and ``views``: the picture view
+        and the legend, :func:`.panels.blueprint`); the scores view says in its name why it is
+        empty (``empty``)."""
         scores = "relation scores" + (f": {empty.scores_short}" if empty.scores else "")
-        return blueprint(world, self.grid.bounds(), scores)
+        return blueprint(world, self.grid.bounds(), scores, **views)
 
     def begin(self, first: int, empty: EmptyViews) -> None:
         """What the replay of episodes from ``first`` starts from, at the current time: the category
         names and colours, why empty views are empty, and A_d and the support set as the run's
         earlier episodes left them."""
         self.log("/", categories_context(self.labels), static=True)
-        log_empty(self.rec, empty)
+        log_empty(self.rec, empty, self.picture_entity, self.picture_box)
         self.ad = self.unsafe[self.unsafe.episode < first][["state", "action"]].to_numpy().tolist()
         self.start_support(first)
 
@@ -203,7 +220,7 @@ class Story(abc.ABC):
         ``verdict`` and a table of the scores."""
         import rerun as rr
 
-        self.picture("recognition/picture", int(r.picture))
+        self.picture(self.picture_entity, int(r.picture))
         sc = self.scores(r)
         table = (
             ""
@@ -256,11 +273,15 @@ class Story(abc.ABC):
             where = f"run {self.run} ep {e} step {t}: "
             f = int(flags[t]) if t < len(flags) else 0
             if f:
-                self.at(self.when(t, contact=bool(f & S.FLAG_COLLIDED)))
+                self.at(self.when(t, contact=bool(f & S.FLAG_COLLIDED)), t)
                 self.log(
                     "events",
                     f"{where}cell {int(states[t])} action {self.act(int(actions[t]))}: "
-                    + ", ".join(name for name, bit in S.FLAG_NAMES.items() if f & bit),
+                    + ", ".join(
+                        name + (self.collided_where(t) if bit == S.FLAG_COLLIDED else "")
+                        for name, bit in S.FLAG_NAMES.items()
+                        if f & bit
+                    ),
                     level="ERROR"
                     if f & S.FLAG_COLLIDED
                     else "WARN"
@@ -272,11 +293,20 @@ class Story(abc.ABC):
                 executed = t < len(actions) and int(r.action) == int(actions[t])
                 drove_on = i == len(rows) - 1 and executed and bool(f & S.FLAG_COLLIDED)
                 substituted = any(int(s.picture) == int(r.picture) for s in subs)
-                self.at(self.when(t, picture=number[r.Index]))
-                self.recognition(r, e, t, self.verdict(r, drove_on, f, substituted))
+                self.at(self.when(t, picture=number[r.Index]), t)
+                verdict = self.verdict(r, drove_on, f, substituted)
+                self.recognition(r, e, t, verdict)
+                right = "right" if int(r.predicted) == int(r.true) else "wrong"
+                self.log(
+                    "events",
+                    f"{where}picture {int(r.picture)}: predicted {self.cat(int(r.predicted))}, "
+                    f"true {self.cat(int(r.true))} ({right}): {verdict}",
+                )
+                if not drove_on:
+                    self.stopped(r, number[r.Index])
             self.additions(e, t, added.get(t, []), rows, number)
             if subs:
-                self.at(self.when(t, contact=True))
+                self.at(self.when(t, contact=True), t)
             for s in subs:
                 c, p, pid = int(s.category), int(s.position), int(s.picture)
                 if pid in self.meta.pictures:
@@ -298,7 +328,7 @@ class Story(abc.ABC):
                 moment = self.when(t, contact=True)
             moments.setdefault(moment, []).append(u)
         for moment, group in moments.items():
-            self.at(moment)
+            self.at(moment, t)
             self.ad.extend([int(u.state), int(u.action)] for u in group)
             self.log_unsafe()
             for u in group:

@@ -19,6 +19,7 @@ from matplotlib.ticker import MaxNLocator
 
 from pipeline import palette
 from pipeline.report import figures as F
+from pipeline.report.names import recogniser_colour
 from pipeline.report.recogniser_table import recogniser_row, recogniser_section  # noqa: F401  (re-exported)
 from pipeline.report.study import RESAMPLES, SEED, VARIANTS, Estimate, Study
 
@@ -222,7 +223,7 @@ def table2_figure(rep, study: Study, beside: dict[str, Study] | None = None) -> 
                 yerr=err,
                 fmt=marker + style[1:],
                 capsize=3,
-                color=palette.SERIES[k % len(palette.SERIES)],
+                color=recogniser_colour(who) or palette.SERIES[k % len(palette.SERIES)],
                 label=f"{name} (95% CI)",
             )
         paper = study.table2.get("paper_" + column)

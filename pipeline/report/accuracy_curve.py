@@ -1,5 +1,5 @@
 """The ``accuracy_curve`` section kind: collisions against the recognition accuracy of a controlled
-recogniser (``pipeline/conf/experiment/accuracy_curve.yaml``: how accurate must recognition be for
+recogniser (``conf/experiment/accuracy_curve.yaml``: how accurate must recognition be for
 few-shot reasoning to pay off?).
 
 What each cell is comes from its records: a cell with a recogniser (its records hold the support
@@ -32,7 +32,7 @@ import pandas as pd
 from pipeline.report import figures_beyond as FB
 from pipeline.report.accuracy import query_accuracy
 from pipeline.report.experiments import Cell, Experiment
-from pipeline.report.names import method_colour, method_name
+from pipeline.report.names import method_colour, method_name, recogniser_colour
 from pipeline.report.stats import break_even, describe, fmt
 
 
@@ -203,7 +203,7 @@ def marker_text(measured: tuple[int, int] | None) -> str:
         return "the Relation Network's accuracy is not marked (no accuracy study)"
     correct, tested = measured
     return (
-        f"the dotted red line is the Relation Network's query accuracy with the original support set in "
+        f"the dotted vertical line is the Relation Network's query accuracy with the original support set in "
         f"the accuracy study ({correct}/{tested} = {100 * correct / tested:.1f}%; its errors fall on particular "
         "pictures and categories, where p draws them independently)"
     )
@@ -229,6 +229,7 @@ def accuracy_curve_kind(rep, exp: Experiment, paper=None) -> None:
         rep.out / "figures" / name,
         marker,
         f"Relation Network ({100 * marker:.1f}%)" if marker is not None else "",
+        recogniser_colour("relation_net"),
     )
     rep.figure(
         f"figures/{name}",

@@ -4,7 +4,7 @@ Inputs: the MCAP records of the experiments (``<runs_dir>/<experiment>/<cell>/re
 embedding its experiment's ``report:`` block: :mod:`pipeline.report.sections`), the accuracy
 study's data files and the validation metrics of the model, the render stage's contact sheets.
 Every folder of ``runs_dir`` with records is a section, ordered by its block's ``order``;
-experiment files (``pipeline/conf/experiment/*.yaml``) without records are listed as not in the report.
+experiment files (``conf/experiment/*.yaml``) without records are listed as not in the report.
 
 Outputs: ``index.md``, ``tables/*.md|csv``, ``figures/*.png`` (these three are replaced on every
 build; the rest of the folder, e.g. ``benchmarks/``, is left alone). Deleting them and building
@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import shutil
 import threading
+import time
 from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -39,12 +40,12 @@ class Inputs:
     contact_dir: Path
     out: Path
     experiments_dir: Path | None = (
-        None  # the experiment files (pipeline/conf/experiment/): which are missing
+        None  # the experiment files (conf/experiment/): which are missing
     )
     allow_missing: bool = False  # build without missing experiments/cells, saying so at the top
     allow_mixed_scales: bool = False  # build from records of different profiles, named at the top
     profiles: dict[str, dict] = field(default_factory=dict)
-    """The profiles' ``trials`` blocks by name (``pipeline/conf/profile/``): a record's scale."""
+    """The profiles' ``trials`` blocks by name (``conf/profile/``): a record's scale."""
     beside: dict[str, tuple[Path, Path]] = field(default_factory=dict)
     """Other few-shot methods for Tables 1-2: name -> (accuracy study folder, metrics file)."""
 
@@ -141,7 +142,7 @@ def _build(inputs: Inputs) -> Path:
         tqdm(total=3, desc="report", unit="part", disable=None) as bar,
         ticking(bar),
     ):  # None: only on a terminal
-        return _build_parts(inputs, bar)
+        return _build_parts(inputs, Parts(bar, 3))
 
 
 @contextmanager
@@ -162,11 +163,61 @@ def ticking(bar: tqdm, every: float = 1.0):
         thread.join()
 
 
-def _build_parts(inputs: Inputs, bar: tqdm) -> Path:
-    """The report, part by part; ``bar`` names the part being built and counts those done."""
+class Parts:
+    """The report's parts as it builds them: named on ``bar``, and without a terminal (``dvc
+    repro``, where the bar is off) in a line that says how many parts are done, the time so far
+    and, at the pace so far, the time left."""
+
+    def __init__(self, bar: tqdm, total: int):
+        self.bar, self.total, self.done = bar, total, 0
+        self.started = time.perf_counter()
+        self.paced_from = (self.started, 0)  # the parts after the records: the pace of the rest
+
+    def building(self, part: str) -> None:
+        self.bar.set_postfix_str(part)
+        if self.bar.disable:
+            now, (since, done_then) = time.perf_counter(), self.paced_from
+            paced = self.done - done_then
+            left = (
+                f", about {(now - since) / paced * (self.total - self.done):.0f} s left"
+                if paced
+                else ""
+            )
+            elapsed = now - self.started
+            print(
+                f"[report] {part}: {self.done}/{self.total} parts done ({elapsed:.0f} s{left})",
+                flush=True,
+            )
+
+    def reading(self, folder: str, read: int, total: int) -> None:
+        """The records of ``folder`` are next: ``read`` of ``total`` bytes so far (the first part,
+        most of the time), the time left at the pace so far."""
+        self.bar.set_postfix_str(f"reading the records of {folder}")
+        if self.bar.disable:
+            elapsed = time.perf_counter() - self.started
+            left = f", about {elapsed / read * (total - read):.0f} s left" if read else ""
+            print(
+                f"[report] reading the records of {folder}: {read / 1e6:,.0f} of "
+                f"{total / 1e6:,.0f} MB read ({elapsed:.0f} s{left})",
+                flush=True,
+            )
+
+    def more(self, parts: int) -> None:
+        """``parts`` more to build, known once the records are read: the pace starts again (reading
+        the records is the long first part, and no guide to the rest)."""
+        self.total += parts
+        self.bar.total = self.total
+        self.paced_from = (time.perf_counter(), self.done + 1)
+
+    def finished(self) -> None:
+        self.done += 1
+        self.bar.update()
+
+
+def _build_parts(inputs: Inputs, parts: Parts) -> Path:
+    """The report, part by part (``parts`` names the one being built and counts those done)."""
     rep = Report(inputs.out, inputs.accuracy_dir)
-    bar.set_postfix_str(f"reading the records under {inputs.runs_dir}")
-    experiments = load_all(inputs.runs_dir)
+    experiments = load_all(inputs.runs_dir, parts.reading)
     found = scales(experiments, inputs.profiles)
     check_scales(found, inputs.runs_dir, inputs.allow_mixed_scales)
     title, scale = title_and_scale(
@@ -182,25 +233,25 @@ def _build_parts(inputs: Inputs, bar: tqdm) -> Path:
         "the interval their table names. Learning curves show the mean over runs per episode with its "
         "95% t interval shaded.\n"
     )
-    bar.total += len(experiments)
-    bar.update()
+    parts.more(len(experiments))
+    parts.finished()
     refuse_missing(rep, inputs, experiments)
-    bar.set_postfix_str("claims")
+    parts.building("claims")
     studies = [inputs.accuracy_dir, *(folder for folder, _ in inputs.beside.values())]
     claims_section(rep, experiments, studies)
-    bar.set_postfix_str("accuracy")
+    parts.building("accuracy")
     accuracy_section(rep, inputs.accuracy_dir, inputs.model_metrics, inputs.beside)
-    bar.update()
+    parts.finished()
     not_shown = []
     for exp in experiments:
-        bar.set_postfix_str(exp.folder)
+        parts.building(exp.folder)
         not_shown += section(rep, exp, experiments)
-        bar.update()
-    bar.set_postfix_str("contact sheets")
+        parts.finished()
+    parts.building("contact sheets")
     contact_sheets(rep, inputs.contact_dir)
     if not_shown:
         rep.add(f"Not in this report (no records found): {', '.join(not_shown)}.\n")
-    bar.update()
+    parts.finished()
     return rep.write()
 
 

@@ -18,7 +18,7 @@ from pipeline.report.experiments import Experiment
 from pipeline.report.names import recogniser_groups, recogniser_name, recogniser_of
 
 #: The recogniser whose verdicts fill the column "with the paper's recognition": the paper's
-#: Tables 1-2 as a recogniser (``pipeline/conf/recogniser/paper_tables.yaml``).
+#: Tables 1-2 as a recogniser (``conf/recogniser/paper_tables.yaml``).
 PAPER_RECOGNITION = "paper_tables"
 
 #: The experiments the claims read (their cells' recognisers get a claims table each).

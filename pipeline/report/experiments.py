@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -238,14 +239,19 @@ def load_experiment(folder: Path) -> Experiment | None:
     return experiment
 
 
-def load_all(runs_dir: Path) -> list[Experiment]:
-    """Every experiment under ``runs_dir``, in the report's order (``report.order``, then name)."""
+def load_all(
+    runs_dir: Path, reading: Callable[[str, int, int], None] | None = None
+) -> list[Experiment]:
+    """Every experiment under ``runs_dir``, in the report's order (``report.order``, then name).
+    ``reading(folder, bytes read, bytes in all)`` is told before each folder is read."""
     if not runs_dir.is_dir():
         return []
-    found = [
-        e
-        for f in sorted(runs_dir.iterdir())
-        if f.is_dir() and not f.name.startswith(".")
-        if (e := load_experiment(f)) is not None
-    ]
+    folders = [f for f in sorted(runs_dir.iterdir()) if f.is_dir() and not f.name.startswith(".")]
+    sizes = [sum(p.stat().st_size for p in f.rglob("*.mcap*")) for f in folders]
+    found = []
+    for k, folder in enumerate(folders):
+        if reading is not None:
+            reading(folder.name, sum(sizes[:k]), sum(sizes))
+        if (e := load_experiment(folder)) is not None:
+            found.append(e)
     return sorted(found, key=lambda e: (e.spec.order, e.name, e.folder))

@@ -1,4 +1,5 @@
-"""Figures of the report (bars, learning curves with bands, consecutive experiments, the learned path).
+"""Figures of the report (bars, consecutive experiments, the learned path; the learning curves are
+:mod:`pipeline.report.learning_curves`).
 
 Every figure is drawn from recorded data by a pure function and saved without timestamps, so the
 same records give the same PNG bytes. Colours come from the one palette (:mod:`pipeline.palette`)
@@ -24,7 +25,7 @@ from matplotlib.ticker import FuncFormatter  # noqa: E402
 
 from pipeline import palette  # noqa: E402
 from pipeline.report.overlap import FigureOverlapWarning, problems  # noqa: E402
-from pipeline.report.stats import describe, mean_band  # noqa: E402
+from pipeline.report.stats import describe  # noqa: E402
 from pipeline.world.maze import MOVES  # noqa: E402
 from pipeline.world.pictures import CATEGORIES  # noqa: E402
 
@@ -97,25 +98,46 @@ def paper_marks(ax, paper) -> dict:
     return drawn
 
 
-def bars(labels, samples, title, ylabel, path: Path, paper=None, styles=None):
+#: A bar chart breaks its y axis when its highest bars' means exceed this multiple of the rest's
+#: highest (Figure 8: Q-learning's 173.5 against the others' 5-13).
+DWARFING = 4.0
+
+
+def bars(labels, samples, title, ylabel, path: Path, paper=None, styles=None) -> str:
     """Mean (bar, its value under the name) with s.d. (thin) and 95% bootstrap interval (thick)
     per label, the runs as dots, in each row's colour; the paper's numbers where given
-    (:func:`paper_marks`), named in a legend above the axes."""
-    fig, ax = plt.subplots(figsize=(max(5.0, 1.45 * len(labels) + 1.2), 4.2), layout="constrained")
-    rng = np.random.default_rng(0)
-    means = []
-    for i, (label, v) in enumerate(zip(labels, samples)):
-        d, colour = describe(v), style(styles, label, i)["color"]
-        means.append(d["mean"])
-        ax.bar(i, d["mean"], color=colour, alpha=0.3, edgecolor=colour, lw=1.2)
-        ax.errorbar(i, d["mean"], yerr=d["std"], color="#555", capsize=4, lw=1)
-        ax.vlines(i, d["ci_low"], d["ci_high"], color="black", lw=3, zorder=5)
-        ax.scatter(i + rng.uniform(-0.3, 0.3, len(v)), v, s=4, color=colour, alpha=0.5, zorder=3)
-    drawn = paper_marks(ax, paper)
-    ticks(ax, labels, means)
-    ax.set_xlim(-0.6, len(labels) - 0.4 + (0.35 if drawn else 0))
-    ax.set_ylabel(ylabel)
-    ax.set_title(title, fontsize=10)
+    (:func:`paper_marks`), named in a legend above the axes. When some bars dwarf the others
+    (:data:`DWARFING`) the y axis is broken: the others keep a readable scale below the break.
+    Returns what the caption must say about the axis ("" when it is whole)."""
+    described = [describe(v) for v in samples]
+    means = [d["mean"] for d in described]
+    high = dwarfing(means)
+    fig, axes = plt.subplots(
+        2 if high else 1,
+        1,
+        sharex=True,
+        squeeze=False,
+        figsize=(max(5.0, 1.45 * len(labels) + 1.2), 4.8 if high else 4.2),
+        gridspec_kw={"height_ratios": [1, 2.6], "hspace": 0.05} if high else None,
+        layout="constrained",
+    )
+    for ax in axes[:, 0]:
+        rng = np.random.default_rng(0)  # the same jitter in both halves of a broken axis
+        for i, (label, v, d) in enumerate(zip(labels, samples, described)):
+            colour = style(styles, label, i)["color"]
+            ax.bar(i, d["mean"], color=colour, alpha=0.3, edgecolor=colour, lw=1.2)
+            ax.errorbar(i, d["mean"], yerr=d["std"], color="#555", capsize=4, lw=1)
+            ax.vlines(i, d["ci_low"], d["ci_high"], color="black", lw=3, zorder=5)
+            ax.scatter(
+                i + rng.uniform(-0.3, 0.3, len(v)), v, s=4, color=colour, alpha=0.5, zorder=3
+            )
+        drawn = paper_marks(ax, paper)
+    bottom = axes[-1, 0]
+    ticks(bottom, labels, means)
+    bottom.set_xlim(-0.6, len(labels) - 0.4 + (0.35 if drawn else 0))
+    bottom.set_ylabel(ylabel)
+    axes[0, 0].set_title(title, fontsize=10)
+    note = break_axis(axes[0, 0], bottom, samples, high, paper) if high else ""
     if drawn:
         fig.legend(
             drawn.values(),
@@ -125,74 +147,38 @@ def bars(labels, samples, title, ylabel, path: Path, paper=None, styles=None):
             ncols=2,
             frameon=False,
         )
-    return save(fig, path)
-
-
-def curves(
-    series: dict[str, np.ndarray],
-    title: str,
-    path: Path,
-    ylabel="collisions per episode",
-    xlabel: str = "episode",
-    styles: dict[str, dict] | None = None,
-    first: int = 0,
-):
-    """One line per label from x = ``first``: the mean over runs (rows of a runs x episodes array;
-    a 1-D array is one run) with its 95% interval shaded (:func:`~pipeline.report.stats.mean_band`),
-    drawn within the range of the values (collisions do not go below 0). Long runs get a
-    logarithmic x axis beyond 10, collisions a logarithmic axis above 1 where early episodes
-    collide many times; returns a note saying so for the caption ("" if linear). ``styles``: colour
-    and dash by label (:func:`pipeline.report.names.row_styles`); the legend is below the axes."""
-    fig, ax = plt.subplots(
-        figsize=(6.4, 3.6 + 0.22 * ((len(series) + 1) // 2)), layout="constrained"
-    )
-    for i, (label, values) in enumerate(series.items()):
-        mean, lo, hi = mean_band(values)
-        x = np.arange(mean.size) + first
-        s = style(styles, label, i)
-        marks = np.unique(np.geomspace(1, max(mean.size, 1), 14).astype(int)) - 1
-        ax.plot(
-            x,
-            mean,
-            label=label,
-            lw=1.4,
-            color=s["color"],
-            ls=s["ls"],
-            marker=s["marker"],
-            markevery=[int(m) for m in marks + i % 2 if m < mean.size],
-            ms=5,
-            fillstyle="none",
-            mew=1.1,
-        )
-        v = np.atleast_2d(np.asarray(values, dtype=float))
-        if v.shape[0] > 1 and np.isfinite(v).any():
-            lo, hi = np.clip(lo, np.nanmin(v), None), np.clip(hi, None, np.nanmax(v))
-            ax.fill_between(x, lo, hi, color=s["color"], alpha=0.15, lw=0)
-    ax.set_xlim(left=first)
-    values = [np.asarray(v, dtype=float) for v in series.values()]
-    notes = []
-    if (
-        values
-        and all(np.nanmin(v, initial=0) >= 0 for v in values)
-        and max(np.nanmax(v, initial=0) for v in values) > 4
-    ):
-        # early episodes collide many times, later ones rarely: linear below 1, logarithmic above
-        ax.set_yscale("symlog", linthresh=1.0, linscale=1.5)
-        ax.set_ylim(bottom=0)
-        ax.yaxis.set_major_formatter(PLAIN)
-        notes.append(f"{ylabel} linear up to 1, logarithmic above")
-    if max((np.atleast_2d(v).shape[1] for v in values), default=0) > 100:
-        # the first episodes, where the methods differ most, get room: linear to 10, logarithmic on
-        ax.set_xscale("symlog", linthresh=10.0, linscale=1.0)
-        ax.set_xlim(left=first)
-        ax.xaxis.set_major_formatter(PLAIN)
-        notes.append(f"{xlabel} linear up to 10, logarithmic above")
-    ax.set_xlabel(xlabel)
-    ax.set_ylabel(ylabel)
-    ax.set_title(title, fontsize=10)
-    fig.legend(fontsize=8, loc="outside lower center", ncols=2, frameon=False)
     save(fig, path)
-    return "; ".join(notes)
+    return note
+
+
+def dwarfing(means: list[float]) -> list[int]:
+    """The bars (indices) whose means exceed :data:`DWARFING` times every other bar's: those above
+    the first such gap from the top; none when there is no such gap."""
+    order = sorted(range(len(means)), key=lambda i: -means[i])
+    for k in range(len(order) - 1):
+        if means[order[k]] > DWARFING * max(means[order[k + 1]], 1e-9):
+            return order[: k + 1]
+    return []
+
+
+def break_axis(top, bottom, samples, high: list[int], paper) -> str:
+    """Split the y axis between the highest runs of the bars below the break (with the paper's
+    numbers) and the lowest runs of the bars above it; diagonal marks where it breaks. Returns
+    the caption's words."""
+    below = [np.max(v) for i, v in enumerate(samples) if i not in high]
+    below += [ref.number() for ref in paper or [] if ref is not None and ref.number() is not None]
+    above = [v for i, v in enumerate(samples) if i in high]
+    lower_top = 1.15 * max(below)
+    upper = (0.95 * min(np.min(v) for v in above), 1.05 * max(np.max(v) for v in above))
+    bottom.set_ylim(0, lower_top)
+    top.set_ylim(*upper)
+    top.spines.bottom.set_visible(False)
+    bottom.spines.top.set_visible(False)
+    top.tick_params(bottom=False)
+    marks = {"marker": [(-1, -0.5), (1, 0.5)], "ms": 10, "ls": "none", "color": "k", "mec": "k"}
+    top.plot([0, 1], [0, 0], transform=top.transAxes, clip_on=False, **marks)
+    bottom.plot([0, 1], [1, 1], transform=bottom.transAxes, clip_on=False, **marks)
+    return f"the y axis is broken between {lower_top:.3g} and {upper[0]:.3g}"
 
 
 def long_term(series: dict[str, np.ndarray], title: str, path: Path, paper=None, styles=None):

@@ -14,18 +14,23 @@ from matplotlib.ticker import MaxNLocator
 
 from pipeline import palette
 from pipeline.report.figures import save
+from pipeline.report.names import recogniser_colour
 
 
 def accuracy_curves(
-    panels: list[dict], path: Path, marker: float | None = None, marker_label: str = ""
+    panels: list[dict],
+    path: Path,
+    marker: float | None = None,
+    marker_label: str = "",
+    marker_colour: str = palette.SERIES[0],
 ):
     """One panel per maze: collisions per run against the recognition accuracy ``p``. Each panel:
     ``title``; ``curves`` (label -> ``(p, mean, ci_low, ci_high)`` arrays: a line with its band);
     ``references`` (label -> ``(mean, ci_low, ci_high)``: a horizontal line with its band);
     ``measured`` (curve label -> ``(x, mean, ci_low, ci_high)``: a star with its interval, in the
     colour of that curve); ``colours`` (curve label -> colour: the methods' declared colours;
-    others take the cycle's by position). ``marker``: a vertical line at that accuracy, named
-    ``marker_label``."""
+    others take the cycle's by position). ``marker``: a dotted vertical line at that accuracy, named
+    ``marker_label``, in ``marker_colour`` (the recogniser's declared colour)."""
     fig, axes = plt.subplots(1, len(panels), figsize=(4.3 * len(panels), 3.8), squeeze=False)
     colours = palette.SERIES
     for ax, panel in zip(axes[0], panels):
@@ -56,7 +61,7 @@ def accuracy_curves(
                 label=f"{label}, Relation Network",
             )
         if marker is not None:
-            ax.axvline(marker, color=palette.SERIES[0], ls=":", lw=1, label=marker_label)
+            ax.axvline(marker, color=marker_colour, ls=":", lw=1.4, label=marker_label)
         ax.set_ylim(bottom=0)
         ax.set_xlabel("recognition accuracy p")
         ax.set_title(panel["title"], fontsize=10)
@@ -176,7 +181,7 @@ def feature_scatter(df, features: dict[str, str], path: Path, fit, colours: dict
 def gain_curves(curves: dict[str, dict], beside: dict[str, dict], path: Path):
     """Two panels, the DSS gain and the relative gain against r: per recogniser (``curves``: label
     -> ``r`` and ``gain``/``relative`` as ``(mean, ci_low, ci_high)`` arrays) a line with its band,
-    in the series colours by position; ``beside`` (label -> maze -> ``(r, gain, relative)``): points
+    in the recogniser's declared colour (the series colours by position for one without); ``beside`` (label -> maze -> ``(r, gain, relative)``): points
     named by maze (Table 3's), in black, filled for the first label and hollow for the second."""
     fig, axes = plt.subplots(1, 2, figsize=(10, 4.0))
     for ax, key, unit in (
@@ -185,7 +190,7 @@ def gain_curves(curves: dict[str, dict], beside: dict[str, dict], path: Path):
     ):
         for i, (label, c) in enumerate(curves.items()):
             mean, lo, hi = c[key]
-            colour = palette.SERIES[(i + 1) % len(palette.SERIES)]
+            colour = recogniser_colour(label) or palette.SERIES[(i + 1) % len(palette.SERIES)]
             ax.plot(c["r"], mean, "o-", color=colour, label=label, ms=4, lw=1.4)
             ax.fill_between(c["r"], lo, hi, color=colour, alpha=0.2, lw=0)
         for j, (label, points) in enumerate(beside.items()):

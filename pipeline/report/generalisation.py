@@ -1,5 +1,5 @@
 """The ``generalisation`` section kind: do the paper's claims (section 4.2.2, Figure 8, Table 3)
-hold beyond its three mazes? (``pipeline/conf/experiment/generalisation.yaml``, issue 14.)
+hold beyond its three mazes? (``conf/experiment/generalisation.yaml``, issue 14.)
 
 The experiment runs every method on many generated layouts of each of the paper's sizes
 (``experiment.layouts``: :mod:`pipeline.world.layout_sets`). The records say what each cell ran:

@@ -45,7 +45,7 @@ def features(rows: list[str]) -> dict[str, int]:
 
 @dataclass
 class LayoutCells:
-    """The cells run on one generated layout, by method (``pipeline/conf/method/`` name)."""
+    """The cells run on one generated layout, by method (``conf/method/`` name)."""
 
     size: str
     maze: str

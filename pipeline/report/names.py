@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from functools import cache
 
+from pipeline import palette
 from pipeline.rl.methods import declaration
 from pipeline.rl.rules import METHODS, Safety, reasons_with_pictures
 
@@ -66,9 +67,19 @@ def row_styles(rows: list[list[dict]]) -> list[dict]:
     """A line colour and style per row (each a list of its cells' ``info``), the same in every
     figure: a row of one declared method takes the method's colour (:data:`METHODS`); rows that
     share a method take shades of it, a dash and a marker each (:data:`DASHES`, :data:`MARKERS`);
-    a row of several or
-    undeclared methods takes grey shades."""
+    a row of several or undeclared methods takes grey shades. When every row is of one method
+    (Figure 10: the ways of one method), the rows take the palette's distinct series colours
+    (:data:`pipeline.palette.SERIES`) instead of shades that would tell them apart poorly."""
     keys = [" / ".join(sorted({method_name(info["method"]) for info in infos})) for infos in rows]
+    if len(rows) > 1 and len(set(keys)) == 1:  # one method throughout: its colour tells nothing
+        return [
+            {
+                "color": palette.SERIES[k % len(palette.SERIES)],
+                "ls": DASHES[k % len(DASHES)],
+                "marker": MARKERS[k % len(MARKERS)],
+            }
+            for k in range(len(rows))
+        ]
     out = []
     for i, key in enumerate(keys):
         peers = [j for j, other in enumerate(keys) if other == key]
@@ -93,10 +104,10 @@ def sees_pictures(method: dict) -> bool:
 
 
 @cache
-def recogniser_names() -> dict[str, str]:
-    """Display names of the recognisers that record a ``kind`` (``describe()`` in the records),
-    by kind: each declares its own as ``display_name`` beside its ``kind``
-    (:class:`pipeline.fewshot.recogniser.SupportSetRecogniser`'s subclasses, and
+def recogniser_declarations() -> dict[str, tuple[str, str | None]]:
+    """The recognisers that record a ``kind`` (``describe()`` in the records), by kind: the
+    display name and colour each declares beside its ``kind`` (``display_name``, ``colour``:
+    :class:`pipeline.fewshot.recogniser.SupportSetRecogniser`'s subclasses, and
     :class:`pipeline.fewshot.paper_tables.PaperTablesRecogniser`, which scores without a network)."""
     from pipeline.fewshot.paper_tables import PaperTablesRecogniser
     from pipeline.fewshot.recogniser import SupportSetRecogniser
@@ -106,8 +117,13 @@ def recogniser_names() -> dict[str, str]:
         cls = todo.pop()
         todo += cls.__subclasses__()
         if getattr(cls, "kind", "") and getattr(cls, "display_name", ""):
-            found[cls.kind] = cls.display_name
+            found[cls.kind] = (cls.display_name, getattr(cls, "colour", None))
     return found
+
+
+def recogniser_names() -> dict[str, str]:
+    """Display names of the recognisers that record a ``kind``, by kind."""
+    return {kind: name for kind, (name, _) in recogniser_declarations().items()}
 
 
 def recogniser_name(kind: str) -> str:
@@ -115,13 +131,22 @@ def recogniser_name(kind: str) -> str:
     return recogniser_names().get(kind, kind)
 
 
+def recogniser_colour(name: str) -> str | None:
+    """The colour a recogniser declares, found by its kind or its display name (None when nothing
+    declares one): a recogniser is drawn in one colour in every figure."""
+    for kind, (display, colour) in recogniser_declarations().items():
+        if name in (kind, display):
+            return colour
+    return None
+
+
 @cache
 def recogniser_groups() -> dict[str, str]:
-    """The recognisers' config groups (``pipeline/conf/recogniser/<name>.yaml``) by the ``_target_``
+    """The recognisers' config groups (``conf/recogniser/<name>.yaml``) by the ``_target_``
     each builds (the first name, sorted, where two share one)."""
     import yaml
 
-    from pipeline.conf import conf_dir
+    from pipeline.configs import conf_dir
 
     found: dict[str, str] = {}
     for path in sorted(conf_dir("recogniser").glob("*.yaml")):

@@ -10,7 +10,7 @@ import re
 import numpy as np
 import pandas as pd
 
-from pipeline.report import figures as F
+from pipeline.report import learning_curves as LC
 from pipeline.report.experiments import Cell, Experiment
 from pipeline.report.names import row_styles
 from pipeline.report.paper_numbers import PaperValue
@@ -95,7 +95,7 @@ def curves_part(
     where = "" if maze is None else f", {maze}"
     name = f"{exp.folder}_learning_curves{'' if maze is None else '_' + safe(maze)}.png"
     n_runs = sorted({a.shape[0] for _, a in series})
-    scales = F.curves(
+    scales = LC.curves(
         {row.label: a for row, a in series},
         f"Collisions per episode{where}: mean over runs, 95% band",
         rep.out / "figures" / name,
@@ -139,7 +139,7 @@ def support_part(
     where = "" if maze is None else f", {maze}"
     name = f"{exp.folder}_support_accuracy{'' if maze is None else '_' + safe(maze)}.png"
     title = f"Query accuracy of the run's support set over the run{where}"
-    scales = F.curves(
+    scales = LC.curves(
         series,
         title,
         rep.out / "figures" / name,

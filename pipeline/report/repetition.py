@@ -1,5 +1,5 @@
 """The ``repetition`` section kind: what drives the dynamic support set's gain?
-(``pipeline/conf/experiment/repetition.yaml``, issue 29.)
+(``conf/experiment/repetition.yaml``, issue 29.)
 
 On the paper's 5x5 nine of the ten physical obstacles appear once, so a picture substituted after a
 collision is never seen again; the 7x7 and 11x11 put 16 and 49 obstacles on the same ten. The

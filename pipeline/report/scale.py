@@ -2,7 +2,7 @@
 
 Each record file embeds the config its cell ran with, including the profile's ``trials`` block
 (runs, episodes, layouts) and the cell's own ``runs`` and ``episodes``. A cell's profile is the
-one of ``pipeline/conf/profile/`` whose ``trials`` block it recorded (the stage hands them over as
+one of ``conf/profile/`` whose ``trials`` block it recorded (the stage hands them over as
 ``profiles``). Records of different profiles in one report are refused unless asked for, and
 records of the ``smoke`` profile say so in the report's title.
 """

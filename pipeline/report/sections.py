@@ -34,6 +34,7 @@ import pandas as pd
 
 from pipeline.records import read_records
 from pipeline.report import figures as F
+from pipeline.report import learning_curves as LC
 from pipeline.report.accuracy_curve import accuracy_curve_kind
 from pipeline.report.experiments import Cell, Experiment
 from pipeline.report.generalisation import generalisation_section
@@ -96,7 +97,7 @@ def default_kind(rep, exp: Experiment, paper: dict[str, PaperValue], bars: bool 
     )
     if bars:
         name = f"{exp.folder}_collisions.png"
-        F.bars(
+        axis = F.bars(
             [r.label for r, _ in rows],
             [collisions(cells) for _, cells in rows],
             f"{exp.spec.title or exp.name} (ours)",
@@ -110,6 +111,7 @@ def default_kind(rep, exp: Experiment, paper: dict[str, PaperValue], bars: bool 
             "Collisions per run: mean (bar; its value under the name), s.d. (thin), 95% bootstrap "
             "CI (thick), runs (dots)"
             + ("; the paper's number as a black dash" if paper else "")
+            + (f"; {axis} (diagonal marks), so the lower bars keep their scale" if axis else "")
             + ".",
         )
     if exp.spec.curves is not False:
@@ -165,7 +167,7 @@ def long_term_kind(rep, exp: Experiment, paper: dict[str, PaperValue]) -> None:
         }
         if ends:
             name = f"{exp.folder}_support_accuracy.png"
-            F.curves(
+            LC.curves(
                 ends,
                 "Query accuracy of the support set at the end of each experiment",
                 rep.out / "figures" / name,

@@ -1,4 +1,4 @@
-"""How the report presents one experiment: the ``report:`` block of ``pipeline/conf/experiment/<name>.yaml``.
+"""How the report presents one experiment: the ``report:`` block of ``conf/experiment/<name>.yaml``.
 
 The block is optional. Without it an experiment gets the default section: a table of collisions
 per run (mean ± s.d. [95% bootstrap CI]) with one row per cell, learning curves with a 95% band and,

@@ -22,7 +22,7 @@ _ONE_HOT = np.eye(
 
 
 class FixedAccuracyRecogniser:
-    """``pipeline/conf/recogniser/fixed_accuracy.yaml``: ``p`` in [0, 1], ``learn`` true/false."""
+    """``conf/recogniser/fixed_accuracy.yaml``: ``p`` in [0, 1], ``learn`` true/false."""
 
     def __init__(
         self,

@@ -53,14 +53,14 @@ Runs and episodes
     starts the next episode of the same run (A_d is knowledge that persists).
 
 Arguments
-    ``maze`` (built-in name or ``Layout``), ``method`` (name in ``pipeline/conf/method/`` or
+    ``maze`` (built-in name or ``Layout``), ``method`` (name in ``conf/method/`` or
     ``MethodSpec``), ``recogniser`` (an object of the ``pipeline.rl.recogniser.Recogniser``
     protocol; needed by the methods that reason with pictures, ``fewshot`` and ``fewshot_dss``),
     ``run``, ``render_mode``, ``tile_size`` (pixels per cell of ``rgb_array``), ``rule`` and
     ``threshold`` (the decision rule), ``world`` (``rl.run_world``: the grid, or the camera robot's
     ``RobotWorld``, which ``SafeNav3D-*`` passes). This class lives in
     ``rl`` and so never imports ``fewshot`` or the configs: recognisers by name (``"relation_net"``,
-    ``"oracle"``, ``"fixed_accuracy"``, the files of ``pipeline/conf/recogniser/``) are built by
+    ``"oracle"``, ``"fixed_accuracy"``, the files of ``conf/recogniser/``) are built by
     ``pipeline.envs.make_env``, the entry point of the registered ids, which then constructs this
     class.
 
@@ -101,7 +101,7 @@ from pipeline.world.maze import Layout, load_layout
 #: How to pass a recogniser, for the error messages.
 HOW_TO_PASS = (
     "pass recogniser=<name> to gymnasium.make or pipeline.envs.make_env (a file of "
-    "pipeline/conf/recogniser/: relation_net, oracle, fixed_accuracy), or a Recogniser object "
+    "conf/recogniser/: relation_net, oracle, fixed_accuracy), or a Recogniser object "
     "(pipeline.rl.recogniser) to SafeNavigationEnv"
 )
 

@@ -31,24 +31,24 @@ from typing import Any
 from omegaconf import OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
-from pipeline.conf import conf_dir
+from pipeline.configs import conf_dir
 from pipeline.errors import ConfigError
 from pipeline.rl.codes import Learner
 from pipeline.rl.rules import METHODS, Method, Safety, reasons_with_pictures
 from pipeline.schema import check, setting
 
-#: ``pipeline/conf/method/<name>.yaml``: each file holds only what differs from :class:`MethodSpec`'s defaults.
+#: ``conf/method/<name>.yaml``: each file holds only what differs from :class:`MethodSpec`'s defaults.
 METHOD_DIR: Path = conf_dir("method")
 
 
 @dataclass
 class MethodSpec:
     """One method of the comparison; the defaults are the base method (tabular Q-learning with the
-    paper's hyperparameters, section 4.1), and ``pipeline/conf/method/<name>.yaml`` states what differs.
+    paper's hyperparameters, section 4.1), and ``conf/method/<name>.yaml`` states what differs.
     This dataclass is also the Hydra schema of the ``method`` config group."""
 
     name: str = setting("qlearning", nonempty=True)
-    """The method's name (its file in ``pipeline/conf/method/``), carried into the records."""
+    """The method's name (its file in ``conf/method/``), carried into the records."""
     learner: str = setting(Learner.q.name, choices=[m.name for m in Learner])
     """``q`` (Q-learning, eq. 9) or ``sarsa``."""
     safety: str = setting(Safety.none.name, choices=[m.name for m in Safety])
@@ -93,7 +93,7 @@ def check_method(spec: MethodSpec, key: str = "method") -> MethodSpec:
 
 
 def method_names() -> list[str]:
-    """The methods of ``pipeline/conf/method/``, sorted."""
+    """The methods of ``conf/method/``, sorted."""
     return sorted(p.stem for p in METHOD_DIR.glob("*.yaml"))
 
 
@@ -105,7 +105,7 @@ IDENTITY = ("learner", "safety", "constrained", "dynamic_support")
 @cache
 def declared_fields() -> dict[str, dict[str, Any]]:
     """The fields of every declared method (:data:`pipeline.rl.rules.METHODS`) that has a file
-    in ``pipeline/conf/method/``, by name, in the declared order."""
+    in ``conf/method/``, by name, in the declared order."""
     return {m.name: load_method(m.name).as_dict() for m in METHODS if m.name in method_names()}
 
 
@@ -130,7 +130,7 @@ def declaration(method: dict[str, Any]) -> Method | None:
 def load_method(
     name: str, overrides: dict[str, Any] | None = None, key: str = "method"
 ) -> MethodSpec:
-    """``pipeline/conf/method/<name>.yaml`` merged onto the base method, then ``overrides`` (field -> value),
+    """``conf/method/<name>.yaml`` merged onto the base method, then ``overrides`` (field -> value),
     type- and range-checked by the schema; errors name ``key``."""
     path = METHOD_DIR / f"{name}.yaml"
     if not path.is_file():

@@ -12,7 +12,7 @@ TRUE_CATEGORY = np.array([picture_category(p) for p in range(N_PICTURES)], dtype
 
 
 class OracleRecogniser:
-    """``pipeline/conf/recogniser/oracle.yaml``. The trial stage passes ``substitution_way`` and
+    """``conf/recogniser/oracle.yaml``. The trial stage passes ``substitution_way`` and
     ``carry_over`` to every recogniser; an oracle has no support set to change."""
 
     def __init__(self, substitution_way: int = 0, carry_over: bool = False):

@@ -4,7 +4,7 @@ README "Where we differ from the paper").
 
 ``apply_action`` is the single implementation of these rules; the batched kernel and the
 Gymnasium environment both call it. It is also the only code that tells safety methods apart
-(:class:`Safety`, defined here) and the one place that declares the methods of ``pipeline/conf/method/``
+(:class:`Safety`, defined here) and the one place that declares the methods of ``conf/method/``
 (:data:`METHODS`: display name, colour, order). Adding a method means a member and a branch in this
 file if its rule is new (and a line in ``reasons_with_pictures`` if it looks at pictures), its entry
 in :data:`METHODS`, its yaml and a test (docs/extending.md).
@@ -63,19 +63,19 @@ class Rule(IntEnum):
 
 @dataclass(frozen=True)
 class Method:
-    """What the rest of the code knows of a method of ``pipeline/conf/method/`` beyond its fields: how the
+    """What the rest of the code knows of a method of ``conf/method/`` beyond its fields: how the
     report names and draws it. Never recorded (the records keep ``MethodSpec``'s fields only), so
     changing a display name or a colour changes the report, not the records."""
 
     name: str
-    """Its config name: ``pipeline/conf/method/<name>.yaml`` and ``MethodSpec.name``."""
+    """Its config name: ``conf/method/<name>.yaml`` and ``MethodSpec.name``."""
     display: str
     """Its name in tables, legends and the claims."""
     colour: str
     """Its colour in every figure where a series is one method (a matplotlib colour)."""
 
 
-#: Every method of ``pipeline/conf/method/``, in the order of the report's tables and figures (the paper's
+#: Every method of ``conf/method/``, in the order of the report's tables and figures (the paper's
 #: Figure 8, then Table 3's rows); ``tests/test_declarations.py`` checks it against the yaml files.
 METHODS = (
     Method("qlearning", "Q-learning", "#7f7f7f"),

@@ -23,7 +23,7 @@ from pipeline.world.maze import Layout, shortest_path_length
 
 
 class MethodParams(NamedTuple):
-    """A method's hyperparameters and rule switches (``methods.MethodSpec``, pipeline/conf/method/*.yaml)."""
+    """A method's hyperparameters and rule switches (``methods.MethodSpec``, conf/method/*.yaml)."""
 
     gamma: float  #: discount (eq. 9)
     alpha: float  #: learning rate (eq. 9)

@@ -33,6 +33,7 @@ MAX_TURN = 2.84  # rad/s
 MAX_WHEEL = MAX_SPEED / WHEEL_RADIUS  # rad/s of one wheel
 CAMERA_FOV = (62.2, 48.8)  # degrees, horizontal x vertical
 CAMERA_HEIGHT = 0.15
+CAMERA_POS = (LENGTH / 2 + 0.002, 0.0, CAMERA_HEIGHT)  # in the body's frame (x forward, z up)
 LDS_HEIGHT = 0.172
 LDS_RANGE = (0.12, 3.5)
 N_RAYS = 36
@@ -91,7 +92,7 @@ def add_robot(spec, kv: float = 40.0) -> None:
     )
     body.add_camera(
         name=CAMERA,
-        pos=[LENGTH / 2 + 0.002, 0.0, CAMERA_HEIGHT],
+        pos=list(CAMERA_POS),
         xyaxes=[0, -1, 0, 0, 0, 1],  # looks along the body's +x
         fovy=CAMERA_FOV[1],
     )

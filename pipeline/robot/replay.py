@@ -25,7 +25,8 @@ from pipeline.errors import UserError
 from pipeline.records import FileMeta
 from pipeline.records import schema as S
 from pipeline.robot.limits import check_settings
-from pipeline.robot.model import HEIGHT, LENGTH, WIDTH
+from pipeline.robot.live_world import PICTURE_SIZE
+from pipeline.robot.model import CAMERA_FOV, CAMERA_POS, HEIGHT, LENGTH, WIDTH
 from pipeline.robot.motion import drive_key, episode_path
 from pipeline.robot.sim import CONTROL_HZ, HEADINGS
 from pipeline.robot.world import build_world, centre_of
@@ -37,6 +38,18 @@ from pipeline.world.renderer_env import mujoco
 OBSTACLE_KEYS = ("cell", "physical", "category", "instance", "orientation")
 #: The robot's body box (m): half its length, width and height (:mod:`pipeline.robot.model`).
 HALF_SIZES = (LENGTH / 2, WIDTH / 2, HEIGHT / 2)
+
+
+@dataclass(frozen=True)
+class Camera:
+    """The robot's forward camera as the replay draws it (:mod:`pipeline.robot.model`): where it
+    sits in the body's frame (m; x forward, z up), its vertical field of view (degrees) and the side
+    of the live picture (pixels; the square centre of its 4:3 frame, so the picture's field is the
+    vertical one both ways)."""
+
+    position: tuple[float, float, float] = CAMERA_POS
+    fov_y: float = CAMERA_FOV[1]
+    size: int = PICTURE_SIZE
 
 
 class RobotRecordError(UserError):
@@ -135,6 +148,7 @@ class RobotRun:
     file: Path
 
     half_sizes = HALF_SIZES
+    camera = Camera()
 
     @property
     def placement(self) -> Placement:

@@ -1,7 +1,7 @@
 """Planning a trials run: every cell of an experiment as a single-cell config, and the refusal of
 command-line overrides that no cell can take (an override is applied or refused, never ignored).
 
-An experiment (``pipeline/conf/experiment/<name>.yaml``) lists cells, or generates them from layout sets
+An experiment (``conf/experiment/<name>.yaml``) lists cells, or generates them from layout sets
 (:meth:`~pipeline.stages._experiment_schema.Experiment.all_cells`); each cell pins some keys (its method, maze,
 substitution way, support mode, method fields, recogniser arguments or group) and takes the rest
 from the command line and the experiment's globals. Planning works on the stage's config
@@ -139,14 +139,12 @@ def refuse_pinned_overrides(exp, declared, methods, given, method_over) -> None:
 
 
 def recogniser_group(name: str, key: str) -> dict[str, Any]:
-    """The recogniser config ``pipeline/conf/recogniser/<name>.yaml`` that a cell chooses."""
+    """The recogniser config ``conf/recogniser/<name>.yaml`` that a cell chooses."""
     folder = Path(CONF_DIR) / "recogniser"
     path = folder / f"{name}.yaml"
     if not path.is_file():
         known = ", ".join(sorted(p.stem for p in folder.glob("*.yaml")))
-        raise ConfigError(
-            f"config key '{key}': no recogniser {name!r} (pipeline/conf/recogniser/: {known})"
-        )
+        raise ConfigError(f"config key '{key}': no recogniser {name!r} (conf/recogniser/: {known})")
     return OmegaConf.to_container(OmegaConf.load(path), resolve=True)
 
 

@@ -79,7 +79,7 @@ def recogniser_key(cfg: TrialsConfig) -> str | None:
 
 
 def make_recogniser(cfg: TrialsConfig, key: str = "recogniser", built: dict | None = None):
-    """The cell's recogniser (``pipeline/conf/recogniser/``), or None for methods that see no pictures;
+    """The cell's recogniser (``conf/recogniser/``), or None for methods that see no pictures;
     ``key`` names the config key in an error (a cell's own when it pins recogniser arguments).
 
     ``built`` (:func:`recogniser_key` -> recogniser) shares one recogniser among cells: each run

@@ -1,7 +1,7 @@
 """The one entry path of every stage: compose the typed config, run, and turn a user error into one
 line and exit status 2.
 
-``python -m pipeline <stage> key=value ...`` composes ``pipeline/conf/<stage>.yaml`` with Hydra's compose
+``python -m pipeline <stage> key=value ...`` composes ``conf/<stage>.yaml`` with Hydra's compose
 API, converts it to the stage's schema (``pipeline/stages/_schema.py``) and checks every range;
 any :class:`~pipeline.errors.UserError` (a bad config, layout, checkpoint, image folder or record
 file) prints ``error: <what>: <problem>`` on stderr and exits 2, before any work where it can be
@@ -31,16 +31,18 @@ from typing import Any
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
-from pipeline.conf import HYDRA_MODULE, HYDRA_PATH, conf_dir
+from pipeline.configs import conf_dir, hydra_configs
 from pipeline.errors import ConfigError, Interrupted, UserError
 from pipeline.schema import check
 from pipeline.stages._help import stage_help
 
-#: The config folder shipped in the package (``pipeline/conf``), as a file-system path.
+#: The config folder shipped in the package (``conf``), as a file-system path.
 CONF_DIR = str(conf_dir())
 
 #: The flags that print a stage's help (``pipeline/stages/_help.py``) instead of running it.
 HELP_FLAGS = {"-h", "--help"}
+#: Every key of the schema, where ``--help`` shows the common ones (``COMMON_KEYS``).
+FULL_HELP_FLAG = "--help-all"
 
 #: ``run(typed_config, overrides)``: the stage's work; ``overrides`` are the command line's.
 Runner = Callable[[Any, list[str]], Any]
@@ -91,9 +93,8 @@ def typed(cfg: DictConfig) -> Any:
 
 
 def compose(config_name: str, overrides: list[str]) -> DictConfig:
-    """``pipeline/conf/<config_name>.yaml`` with ``overrides``; a bad override raises :class:`ConfigError`."""
+    """``conf/<config_name>.yaml`` with ``overrides``; a bad override raises :class:`ConfigError`."""
     from hydra import compose as hydra_compose
-    from hydra import initialize_config_module
     from hydra.errors import HydraException
 
     from pipeline.stages._schema import register
@@ -101,7 +102,7 @@ def compose(config_name: str, overrides: list[str]) -> DictConfig:
     refuse_deleted(config_name, overrides)
     register(config_name)
     try:
-        with initialize_config_module(config_module=HYDRA_MODULE, version_base="1.3"):
+        with hydra_configs():
             cfg = hydra_compose(config_name=config_name, overrides=overrides)
     except (HydraException, OmegaConfBaseException, ValueError) as exc:
         raise ConfigError(null_group(overrides) or one_line(exc)) from None
@@ -112,7 +113,7 @@ def compose(config_name: str, overrides: list[str]) -> DictConfig:
 
 
 def groups() -> list[str]:
-    """The config groups (``method``, ``experiment``...): the folders of ``pipeline/conf``."""
+    """The config groups (``method``, ``experiment``...): the folders of ``conf``."""
     return sorted(p.name for p in conf_dir().iterdir() if p.is_dir() and any(p.glob("*.yaml")))
 
 
@@ -156,14 +157,13 @@ def below_null(config_name: str, overrides: list[str]) -> str:
     ``+experiment=<name>``, where OmegaConf fails an assertion): the first such override, found by
     composing the value overrides one more at a time (only on this error path)."""
     from hydra import compose as hydra_compose
-    from hydra import initialize_config_module
 
     chosen = [o for o in overrides if override_key(o) in groups() or o.startswith("hydra")]
     values = [o for o in overrides if o not in chosen]
     previous = None
     for i in range(len(values) + 1):
         try:
-            with initialize_config_module(config_module=HYDRA_MODULE, version_base="1.3"):
+            with hydra_configs():
                 cfg = hydra_compose(config_name=config_name, overrides=chosen + values[:i])
         except AssertionError:
             key = override_key(values[i - 1])
@@ -264,7 +264,7 @@ def _hydra_mode(args: list[str]) -> bool:
 
 
 def load_config(stage: str, overrides: list[str] = ()) -> Any:
-    """``pipeline/conf/<stage>.yaml`` with ``overrides``, as the stage's typed config (checked)."""
+    """``conf/<stage>.yaml`` with ``overrides``, as the stage's typed config (checked)."""
     return typed(compose(stage, list(overrides)))
 
 
@@ -289,18 +289,18 @@ def run_stage(stage: str, overrides: list[str] = ()) -> Any:
 
 
 def wants_help(args: list[str]) -> bool:
-    return bool(HELP_FLAGS & set(args))
+    return bool((HELP_FLAGS | {FULL_HELP_FLAG}) & set(args))
 
 
-def print_help(stage: str) -> None:
-    print(stage_help(stage, CONF_DIR), end="", flush=True)
+def print_help(stage: str, full: bool = False) -> None:
+    print(stage_help(stage, CONF_DIR, full), end="", flush=True)
 
 
 def stage_main(config_name: str, run: Runner, args: list[str] | None = None) -> Any:
     """Run a stage from the command line (``args``, default ``sys.argv[1:]``)."""
     args = list(sys.argv[1:] if args is None else args)
     if wants_help(args):
-        return print_help(config_name)
+        return print_help(config_name, full=FULL_HELP_FLAG in args)
     if _hydra_mode(args):
         return _hydra_main(config_name, run, args)
     with user_facing():
@@ -349,7 +349,7 @@ def _hydra_main(config_name: str, run: Runner, args: list[str]) -> None:
             for point in sweep_points(args):
                 load_config(config_name, point)
 
-    @hydra.main(config_path=HYDRA_PATH, config_name=config_name, version_base="1.3")
+    @hydra.main(config_path=str(conf_dir()), config_name=config_name, version_base="1.3")
     def task(cfg: DictConfig) -> Any:
         with user_facing():
             return _run_and_say(

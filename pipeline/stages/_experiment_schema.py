@@ -1,4 +1,4 @@
-"""The typed schema of the ``experiment`` config group (``pipeline/conf/experiment/<name>.yaml``): its cells,
+"""The typed schema of the ``experiment`` config group (``conf/experiment/<name>.yaml``): its cells,
 the cells it generates over sets of layouts, and how the report presents it.
 
 The trials stage's schema (:class:`pipeline.stages._trials_schema.TrialsConfig`) types its ``experiment``
@@ -44,7 +44,7 @@ class Cell:
     (the experiment file's globals or the command line); keys given here are pinned."""
 
     method: str = setting(nonempty=True)
-    """A method of ``pipeline/conf/method/``."""
+    """A method of ``conf/method/``."""
     maze: str | None = setting(None, path=True)
     """The cell's maze (as the top-level ``maze``); none: the top level's."""
     substitution: int | None = setting(None, choices=SUBSTITUTION_WAYS)
@@ -62,7 +62,7 @@ class Cell:
     (``recogniser=<name>``, ``recogniser.<arg>=``), checked against that recogniser's parameters;
     only for methods that recognise pictures. The command line does not change them."""
     recogniser_group: str | None = None
-    """A recogniser of ``pipeline/conf/recogniser/`` (``protonet``) this cell runs instead of the top level's;
+    """A recogniser of ``conf/recogniser/`` (``protonet``) this cell runs instead of the top level's;
     the top level's recogniser arguments do not reach it, its own ``recogniser`` pins do."""
 
 
@@ -116,10 +116,10 @@ def refuse_too_many(layouts: Layouts) -> None:
 
 @dataclass
 class Experiment:
-    """``pipeline/conf/experiment/<name>.yaml``: the cells, and how the report presents them."""
+    """``conf/experiment/<name>.yaml``: the cells, and how the report presents them."""
 
     name: str = setting(nonempty=True)
-    """The experiment's name (its file in ``pipeline/conf/experiment/``), carried into the records."""
+    """The experiment's name (its file in ``conf/experiment/``), carried into the records."""
     cells: dict[str, Cell] = field(default_factory=dict)
     """The cells listed by hand, by name (the name of each cell's folder under ``out``)."""
     layouts: Layouts | None = None

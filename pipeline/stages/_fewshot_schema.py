@@ -1,6 +1,6 @@
-"""The schemas of the few-shot stages: :class:`MetaTrainConfig` (``pipeline/conf/meta_train.yaml``,
+"""The schemas of the few-shot stages: :class:`MetaTrainConfig` (``conf/meta_train.yaml``,
 its ``data`` group typed by :class:`DataConfig`) and :class:`AccuracyConfig`
-(``pipeline/conf/accuracy.yaml``); the conventions: ``pipeline/stages/_schema.py``.
+(``conf/accuracy.yaml``); the conventions: ``pipeline/stages/_schema.py``.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ DATA_SOURCES = ("rendered", "folder")
 
 @dataclass
 class DataConfig:
-    """Where meta-training's classes come from (``pipeline/conf/data/``): ``rendered``, the render stage's
+    """Where meta-training's classes come from (``conf/data/``): ``rendered``, the render stage's
     ``train``, ``val`` and ``test`` splits in ``images_dir``; ``folder``, three folder-per-class trees
     (:func:`pipeline.fewshot.data.load_folder`), such as miniImageNet's."""
 
@@ -39,9 +39,9 @@ class MetaTrainConfig:
     ``model=protonet``, a Prototypical Network) and write its checkpoint and validation metrics."""
 
     profile: Profile = field(default_factory=Profile)
-    """The scale (``pipeline/conf/profile/``): training and validation episodes default to its ``meta_train`` keys."""
+    """The scale (``conf/profile/``): training and validation episodes default to its ``meta_train`` keys."""
     data: DataConfig = field(default_factory=DataConfig)
-    """Where the classes come from (``pipeline/conf/data/``)."""
+    """Where the classes come from (``conf/data/``)."""
     images_dir: str = setting(nonempty=True, path=True)
     """``data=rendered``: the render stage's output, whose train and val splits are read."""
     checkpoint: str = setting(nonempty=True, path=True)
@@ -65,9 +65,9 @@ class AccuracyConfig:
     """``python -m pipeline accuracy``: the few-shot accuracy study (Tables 1 and 2)."""
 
     profile: Profile = field(default_factory=Profile)
-    """The scale (``pipeline/conf/profile/``): ``study.repeats`` defaults to its ``accuracy.repeats``."""
+    """The scale (``conf/profile/``): ``study.repeats`` defaults to its ``accuracy.repeats``."""
     recogniser: dict[str, Any] = field(default_factory=dict)
-    """The recogniser group (``pipeline/conf/recogniser/``), as in the trials."""
+    """The recogniser group (``conf/recogniser/``), as in the trials."""
     out_dir: str = setting(nonempty=True, path=True)
     """``baseline.csv``, ``table1.csv``, ``table2.csv`` and ``summary.json``."""
     threads: int = setting(ge=1)

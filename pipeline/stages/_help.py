@@ -1,8 +1,9 @@
-"""``python -m pipeline <stage> --help``: the stage's config groups and keys, from the schema.
+"""``python -m pipeline <stage> --help``: the stage's config groups and keys, from the schema
+(``--help-all``: every key, where ``--help`` shows the common ones).
 
 Every line comes from a declaration, none is kept by hand: the stage's description from its
 module's docstring (:func:`describe`), its groups and their default options from
-``pipeline/conf/<stage>.yaml``'s defaults list (and the schema's fields named like a folder of ``pipeline/conf/``,
+``conf/<stage>.yaml``'s defaults list (and the schema's fields named like a folder of ``conf/``,
 such as ``experiment``), each option's summary from its file's leading comment (or, where every
 option shares that comment, from the keys it sets), and each key's type, range or choices and
 description from its dataclass field (:mod:`pipeline.schema`). A key's default is read from the
@@ -47,7 +48,7 @@ def describe(stage: str) -> str:
 
 @dataclass
 class Group:
-    """A config group a stage reads: ``<name>=<option>`` picks ``pipeline/conf/<name>/<option>.yaml``."""
+    """A config group a stage reads: ``<name>=<option>`` picks ``conf/<name>/<option>.yaml``."""
 
     name: str
     default: str | None
@@ -158,8 +159,8 @@ class StageHelp:
         return Group(name, default, options, package_global)
 
     def _groups(self) -> list[Group]:
-        """The groups of ``pipeline/conf/<stage>.yaml``'s defaults list, then the schema's fields that
-        name a folder of ``pipeline/conf/`` without a default (``experiment``: ``+experiment=<name>``)."""
+        """The groups of ``conf/<stage>.yaml``'s defaults list, then the schema's fields that
+        name a folder of ``conf/`` without a default (``experiment``: ``+experiment=<name>``)."""
         hints = typing.get_type_hints(self.schema)
         chosen: dict[str, str | None] = {}
         for entry in self._defaults_list():
@@ -257,10 +258,7 @@ class StageHelp:
         docs = field_docs(self.schema)
         for group in self.groups:
             how = f"{group.name}=<option>" if group.default else f"+{group.name}=<option>"
-            doc = (
-                docs.get(group.name)
-                or f"pipeline/conf/{group.name}/, each option sets the keys it names."
-            )
+            doc = docs.get(group.name) or f"conf/{group.name}/, each option sets the keys it names."
             yield from _wrap(f"{group.name} ({how}): {doc}", 2, 4)
             width = max(len(o) for o in group.options) + 3
             for option, summary in group.options.items():
@@ -270,8 +268,36 @@ class StageHelp:
                     line, WIDTH, initial_indent=" " * 6, subsequent_indent=" " * (6 + width)
                 )
 
+    def short_text(self) -> str:
+        """``--help`` of a stage whose schema declares ``COMMON_KEYS``: each group's options on
+        a line, then those keys with the first sentence of their words; ``--help-all`` for the
+        rest. One screen where the whole schema is several."""
+        lines = [f"python -m pipeline {self.stage} [key=value ...]: {describe(self.stage)}", ""]
+        lines.append("Config groups (group=option; * the default):")
+        hows = [f"{g.name}=" if g.default else f"+{g.name}=" for g in self.groups]
+        width = max(map(len, hows), default=0) + 2
+        for how, group in zip(hows, self.groups):
+            names = " ".join(o + ("*" if o == group.default else "") for o in group.options)
+            lines += textwrap.wrap(
+                how.ljust(width) + names,
+                WIDTH,
+                initial_indent="  ",
+                subsequent_indent=" " * (width + 2),
+            )
+        lines += ["", "Common keys (key: type, allowed values = default):"]
+        for name in self.schema.COMMON_KEYS:
+            key_lines = self.key_lines(self.schema, self.values, only={name})
+            head, *words = list(key_lines)
+            first = SENTENCE_END.split(" ".join(w.strip() for w in words), maxsplit=1)[0]
+            lines += [head, *_wrap(first, 6)]
+        lines += [
+            "",
+            f"Every key and what each option does: python -m pipeline {self.stage} --help-all",
+        ]
+        return "\n".join(lines) + "\n"
+
     def text(self) -> str:
-        """The whole ``--help`` text."""
+        """The whole ``--help`` text (``--help-all`` where the schema declares ``COMMON_KEYS``)."""
         lines = [f"python -m pipeline {self.stage} [key=value ...]: {describe(self.stage)}", ""]
         if self.groups:
             head = "Config groups (group=option; * the default):"
@@ -290,8 +316,10 @@ class StageHelp:
         return "\n".join(lines).replace("\n\n\n", "\n\n") + "\n"
 
 
-def stage_help(stage: str, conf: str | Path) -> str:
-    """The ``--help`` text of ``stage``, whose configs are in the folder ``conf``."""
+def stage_help(stage: str, conf: str | Path, full: bool = False) -> str:
+    """The ``--help`` text of ``stage``, whose configs are in the folder ``conf``: its common keys
+    where its schema declares them (``COMMON_KEYS``), else (or ``full``) every key."""
     from pipeline.stages._schema import schema_of
 
-    return StageHelp(stage, schema_of(stage), Path(conf)).text()
+    found = StageHelp(stage, schema_of(stage), Path(conf))
+    return found.text() if full or not hasattr(found.schema, "COMMON_KEYS") else found.short_text()

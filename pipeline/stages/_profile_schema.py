@@ -1,4 +1,4 @@
-"""The typed schema of the ``profile`` config group (``pipeline/conf/profile/*.yaml``): the scale
+"""The typed schema of the ``profile`` config group (``conf/profile/*.yaml``): the scale
 of every stage (``paper``, ``smoke``), which the stages' schemas read through ``profile.<stage>``.
 """
 
@@ -40,14 +40,14 @@ class TrialsProfile:
     layout_runs: int = setting(ge=1)
     """Runs per cell of an experiment over generated layouts (``generalisation.yaml``'s ``runs``)."""
     repetition_layouts: int = setting(ge=1)
-    """Generated layouts per repetition count of ``pipeline/conf/experiment/repetition.yaml``."""
+    """Generated layouts per repetition count of ``conf/experiment/repetition.yaml``."""
     repetition_runs: int = setting(ge=1)
     """Runs per cell of ``repetition.yaml``."""
 
 
 @dataclass
 class MetaTrainProfile:
-    """Meta-training's scale (``train.<key>`` of ``pipeline/conf/meta_train.yaml`` reads these)."""
+    """Meta-training's scale (``train.<key>`` of ``conf/meta_train.yaml`` reads these)."""
 
     episodes: int = setting(ge=1)
     """Training episodes of the Relation Network."""

@@ -62,6 +62,14 @@ def cell_line(cfg: TrialsConfig, cell: CellRun, summary: dict, seconds: float) -
     )
 
 
+def progress_line(done: int, total: int, elapsed: float) -> str:
+    """``210/2100 cells (7 s, about 63 s left)``: where a stage without a bar (``progress=false``,
+    as under ``dvc repro``) stands, the time left estimated from the pace so far."""
+    left = elapsed / done * (total - done) if done else float("nan")
+    ahead = f", about {left:.0f} s left" if done < total else ""
+    return f"{done}/{total} cells ({elapsed:.0f} s{ahead})"
+
+
 def follow(
     cfg: TrialsConfig, cells: list[CellRun], results: Iterable[tuple[int, dict, CellTime]]
 ) -> dict[int, tuple[dict, CellTime]]:
@@ -84,8 +92,7 @@ def follow(
                 print(cell_line(cfg, cells[i], summary, spent.seconds))
             elif bar.disable and (len(by_index) % tenth == 0 or len(by_index) == len(cells)):
                 print(
-                    f"{len(by_index)}/{len(cells)} cells ({time.perf_counter() - t0:.0f} s)",
-                    flush=True,
+                    progress_line(len(by_index), len(cells), time.perf_counter() - t0), flush=True
                 )
             bar.update()
     if many:

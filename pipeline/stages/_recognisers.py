@@ -1,10 +1,10 @@
-"""Build a recogniser from its config group (``pipeline/conf/recogniser/<name>.yaml``) through ``_target_``.
+"""Build a recogniser from its config group (``conf/recogniser/<name>.yaml``) through ``_target_``.
 
 A recogniser is any callable returning an object of the ``pipeline.rl.recogniser.Recogniser``
 protocol whose keyword arguments include ``substitution_way`` and ``carry_over`` (the trial stage
 fills those from the cell). The callable's signature is its schema: the yaml's other keys must be
 its parameters, with values of their annotated types. Adding a recogniser: its module, its yaml
-and a test; the lists of recognisers (in messages, in tests) come from ``pipeline/conf/recogniser/``.
+and a test; the lists of recognisers (in messages, in tests) come from ``conf/recogniser/``.
 """
 
 from __future__ import annotations
@@ -26,12 +26,12 @@ from pipeline.stages._common import CONF_DIR
 
 FILLED_BY_STAGE = ("substitution_way", "carry_over")
 
-#: ``pipeline/conf/recogniser/<name>.yaml``: one file per recogniser, the group ``recogniser=<name>`` chooses.
+#: ``conf/recogniser/<name>.yaml``: one file per recogniser, the group ``recogniser=<name>`` chooses.
 RECOGNISER_DIR = Path(CONF_DIR) / "recogniser"
 
 
 def recogniser_names() -> list[str]:
-    """The recognisers of ``pipeline/conf/recogniser/``, sorted."""
+    """The recognisers of ``conf/recogniser/``, sorted."""
     return sorted(p.stem for p in RECOGNISER_DIR.glob("*.yaml"))
 
 
@@ -56,7 +56,7 @@ def _config_type(hint: Any) -> Any:
 
 
 def declared_targets() -> dict[str, str]:
-    """The ``_target_`` of every recogniser of ``pipeline/conf/recogniser/``, with its name: the
+    """The ``_target_`` of every recogniser of ``conf/recogniser/``, with its name: the
     only code a config may name."""
     out = {}
     for name in recogniser_names():
@@ -68,7 +68,7 @@ def declared_targets() -> dict[str, str]:
 def _target(node: dict, key: str) -> Callable:
     """The recogniser ``node`` names. A config (a file, an experiment, an override, a DVC params
     file) names code only through ``_target_``, and only one a recogniser of
-    ``pipeline/conf/recogniser/`` declares: anything else is refused before it is imported."""
+    ``conf/recogniser/`` declares: anything else is refused before it is imported."""
     target = node.get("_target_")
     choose = f"choose a recogniser: {key}={'|'.join(recogniser_names())}"
     if not target:
@@ -76,7 +76,7 @@ def _target(node: dict, key: str) -> Callable:
     if str(target) not in declared_targets():
         raise ConfigError(
             f"config key '{key}._target_': {str(target)!r} is not a recogniser of "
-            f"pipeline/conf/recogniser/ (a config may name no other code); {choose}"
+            f"conf/recogniser/ (a config may name no other code); {choose}"
         )
     try:
         return get_method(str(target))

@@ -1,4 +1,4 @@
-"""The typed schema of the render stage's config (``pipeline/conf/render.yaml``): the maze
+"""The typed schema of the render stage's config (``conf/render.yaml``): the maze
 camera of the query pictures, the catalogue camera of the support set, the rendering quality and
 the meta-training set's scale. Registered with the other stages' schemas (:mod:`._schema`).
 """
@@ -63,7 +63,7 @@ class RenderConfig:
     """``python -m pipeline render``: the query, support and meta-training pictures and one manifest."""
 
     profile: Profile = field(default_factory=Profile)
-    """The scale (``pipeline/conf/profile/``): the class and picture counts default to its ``render`` keys."""
+    """The scale (``conf/profile/``): the class and picture counts default to its ``render`` keys."""
     out_dir: str = setting(nonempty=True, path=True)
     """The pictures and ``manifest.csv``; its parent folder must exist."""
     index_file: str | None = setting(None, path=True)

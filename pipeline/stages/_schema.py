@@ -1,6 +1,6 @@
 """The typed schema of every stage's config (Hydra structured configs, registered in the ConfigStore).
 
-``pipeline/conf/<stage>.yaml`` names its schema first in its defaults list (``- trials_schema``) and gives the
+``conf/<stage>.yaml`` names its schema first in its defaults list (``- trials_schema``) and gives the
 values; the dataclasses give each key's type, range or choices and, in the string under it, its
 description (:mod:`pipeline.schema`). Hydra refuses wrong types and unknown keys while composing;
 :func:`pipeline.schema.check` refuses values out of range; ``python -m pipeline <stage> --help``
@@ -79,7 +79,7 @@ class ReportConfig:
     """Build from cells recorded at different scales (profiles), each named at the top."""
 
 
-#: Stage name -> its schema class as ``module:Class`` (``pipeline/conf/<stage>.yaml`` lists
+#: Stage name -> its schema class as ``module:Class`` (``conf/<stage>.yaml`` lists
 #: ``<stage>_schema`` first in its defaults).
 SCHEMA_OF = {
     "trials": "pipeline.stages._trials_schema:TrialsConfig",

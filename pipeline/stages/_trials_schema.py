@@ -1,4 +1,4 @@
-"""The trials stage's schema: :class:`TrialsConfig` (``pipeline/conf/trials.yaml``), typing its
+"""The trials stage's schema: :class:`TrialsConfig` (``conf/trials.yaml``), typing its
 ``method`` group by :class:`~pipeline.rl.methods.MethodSpec`, ``experiment`` by
 :class:`~pipeline.stages._experiment_schema.Experiment` and ``profile`` by
 :class:`~pipeline.stages._profile_schema.Profile` (the conventions: ``pipeline/stages/_schema.py``).
@@ -44,16 +44,31 @@ class TrialsConfig:
         "hydra",
     )
 
+    #: The keys ``--help`` shows first, in one screen (``--help-all``: every key of the schema).
+    COMMON_KEYS: ClassVar[tuple[str, ...]] = (
+        "maze",
+        "world",
+        "runs",
+        "episodes",
+        "seed",
+        "substitution",
+        "rule",
+        "record",
+        "out",
+        "overwrite",
+        "workers",
+    )
+
     profile: Profile = field(default_factory=Profile)
-    """The scale (``pipeline/conf/profile/``): ``runs`` and ``episodes`` default to its ``trials`` keys."""
+    """The scale (``conf/profile/``): ``runs`` and ``episodes`` default to its ``trials`` keys."""
     method: MethodSpec = field(default_factory=MethodSpec)
-    """The method (``pipeline/conf/method/``): its file over the base method, then ``method.<field>=``."""
+    """The method (``conf/method/``): its file over the base method, then ``method.<field>=``."""
     recogniser: dict[str, Any] = field(default_factory=dict)
-    """The recogniser group (``pipeline/conf/recogniser/``): ``_target_`` and its arguments."""
+    """The recogniser group (``conf/recogniser/``): ``_target_`` and its arguments."""
     experiment: Experiment | None = None
-    """An experiment (``+experiment=<name>``, ``pipeline/conf/experiment/``): several cells, one run each."""
+    """An experiment (``+experiment=<name>``, ``conf/experiment/``): several cells, one run each."""
     maze: str = setting(nonempty=True, path=True)
-    """A built-in layout (``pipeline/conf/mazes/<name>.txt``), a path to a layout file, or a generated layout ``random:<W>x<H>:<obstacles>:<seed>[:unique]`` (``pipeline/world/generate.py``)."""
+    """A built-in layout (``conf/mazes/<name>.txt``), a path to a layout file, or a generated layout ``random:<W>x<H>:<obstacles>:<seed>[:unique]`` (``pipeline/world/generate.py``)."""
     substitution: int = setting(choices=SUBSTITUTION_WAYS)
     """Dynamic support set: substitution way 1-4 (section 3.3); used by methods with dynamic_support."""
     world: str = setting("grid", choices=WORLDS)

@@ -2,7 +2,7 @@
 
 On the rendered query and support pictures with the meta-trained checkpoint (docs/fewshot.md).
 
-    python -m pipeline accuracy [recogniser=<name of pipeline/conf/recogniser/>] [recogniser.checkpoint=...] [study.repeats=...]
+    python -m pipeline accuracy [recogniser=<name of conf/recogniser/>] [recogniser.checkpoint=...] [study.repeats=...]
 
 Writes ``out_dir``/baseline.csv, table1.csv, table2.csv, draws.csv (every random draw) and
 summary.json (with the colour test: the query pictures hue-turned by each of ``study.hue_shifts``,

@@ -1,6 +1,6 @@
 """Stage ``render``: the query, support and meta-training pictures, rendered with MuJoCo, and their manifest.
 
-    python -m pipeline render [key=value ...]            # config pipeline/conf/render.yaml
+    python -m pipeline render [key=value ...]            # config conf/render.yaml
 
 Renders into ``<out_dir>/.staging-<pid>/``, moves ``{query,support,train,val,test,views}/`` into
 ``<out_dir>`` when every picture is there (a failed render leaves the previous pictures and

@@ -8,15 +8,20 @@ A robot cell (its recorded config says ``world: robot3d``; docs/robot3d.md) repl
 (:func:`pipeline.robot.replay.robot_run`) to the replay (:data:`WORLDS`).
 
 The file may also be given positionally (``python -m pipeline replay <file.mcap> run=3 ...``).
-Logic in :mod:`pipeline.replay`; this is the thin entry point (pipeline/conf/replay.yaml) and
+Logic in :mod:`pipeline.replay`; this is the thin entry point (conf/replay.yaml) and
 starts the viewer.
 
 ``viewer=web`` serves the recording with the Rerun CLI of the rerun-sdk wheel and prints the one
 address that opens it (``http://127.0.0.1:<web_port>?url=rerun+http://127.0.0.1:<grpc_port>/proxy``,
-URL-encoded); the bare web port only opens Rerun's welcome page. The viewer lives and dies with the
-command: Ctrl-C or SIGTERM stop it, and so does the command's death on Linux (parent-death signal).
-Both ports are checked before any work (a busy one is a config error naming its key; port 0 picks a
-free one), and a bind address off the loopback needs ``allow_remote=true``.
+URL-encoded); the bare web port only opens Rerun's welcome page. The server starts empty and this
+command sends it the recording over gRPC (:func:`send_recording`): given the file, rerun 0.41's
+server keeps a core busy for as long as it runs. The viewer lives and dies with the command: Ctrl-C
+or SIGTERM stop it, and so does the command's death on Linux (parent-death signal). Both ports are
+checked before any work (a busy one is a config error naming its key; port 0 picks a free one), and a
+bind address off the loopback needs ``allow_remote=true``.
+
+``viewer=native`` needs a display: without one (no ``DISPLAY`` or ``WAYLAND_DISPLAY`` on Linux) it is
+a config error before any work, naming the alternatives.
 """
 
 from __future__ import annotations
@@ -63,7 +68,8 @@ def run(cfg: ReplayConfig, overrides: list[str] = ()) -> Path:
     path = Path(cfg.file).resolve()
     if not path.is_file():
         raise ConfigError(f"config key 'file': no such record file: {path}")
-    web = web_address(cfg) if cfg.viewer == "web" else None  # refused before any work
+    check_display(cfg.viewer)  # refused before any work, as are the web viewer's ports
+    web = web_address(cfg) if cfg.viewer == "web" else None
     rrd = write_replay(path, cfg)
     print(f"open it with: rerun {rrd}", flush=True)
     if web is not None:
@@ -130,10 +136,14 @@ class WebAddress:
     grpc_port: int
 
     @property
+    def grpc(self) -> str:
+        """The gRPC proxy that serves the recording."""
+        return f"rerun+http://{self.host}:{self.grpc_port}/proxy"
+
+    @property
     def url(self) -> str:
         """The page that opens the recording: the web port, told where the gRPC proxy is."""
-        grpc = f"rerun+http://{self.host}:{self.grpc_port}/proxy"
-        return f"http://{self.host}:{self.web_port}?url={quote(grpc, safe='')}"
+        return f"http://{self.host}:{self.web_port}?url={quote(self.grpc, safe='')}"
 
 
 def web_address(cfg: ReplayConfig) -> WebAddress:
@@ -197,7 +207,8 @@ def _bound(ip, port: int, key: str) -> Iterator[socket.socket]:
 
 def serve_web(rrd: str | Path, web: WebAddress) -> None:
     """Serve ``rrd`` at ``web`` until Ctrl-C, SIGTERM (through the stage's handler) or the server's
-    end; the server never outlives this call."""
+    end; the server never outlives this call. It starts empty and gets the recording over gRPC
+    (:func:`send_recording`), so it sleeps while no viewer asks for anything."""
     cmd = rerun_command() + [
         "--serve-web",
         "--bind",
@@ -206,7 +217,6 @@ def serve_web(rrd: str | Path, web: WebAddress) -> None:
         str(web.web_port),
         "--port",
         str(web.grpc_port),
-        str(rrd),
     ]
     env = {
         "RUST_LOG": "warn",
@@ -216,6 +226,7 @@ def serve_web(rrd: str | Path, web: WebAddress) -> None:
     proc = subprocess.Popen(cmd, env=env, start_new_session=True, preexec_fn=_die_with_parent)  # noqa: PLW1509
     try:
         _wait_listening(proc, web)
+        send_recording(rrd, web.grpc)
         print(f"serving {rrd} at {web.url}  (Ctrl-C to stop)", flush=True)
         if proc.wait():
             raise SystemExit(f"error: the Rerun viewer exited with status {proc.returncode}")
@@ -225,6 +236,24 @@ def serve_web(rrd: str | Path, web: WebAddress) -> None:
         raise Interrupted(exc.code, f"viewer stopped; the recording stays at {rrd}") from None
     finally:
         _stop(proc)
+
+
+def send_recording(rrd: str | Path, grpc: str) -> None:
+    """Send the recording and blueprint of ``rrd`` to the Rerun server at ``grpc``, which keeps them
+    for every viewer that connects, under the file's own application and recording ids (a server
+    handed the file instead, ``rerun --serve-web file.rrd``, spins a core in rerun 0.41 for as long
+    as it runs, once the file is read: docs/replay.md)."""
+    import rerun as rr
+    import rerun.chunk
+
+    store = rerun.chunk.RrdReader(rrd).recordings()[0]
+    rec = rr.RecordingStream(
+        store.application_id, recording_id=store.recording_id, send_properties=False
+    )
+    rec.connect_grpc(grpc)
+    rec.log_file_from_path(rrd)
+    rec.flush()  # waits for the file's importer and the network
+    rec.disconnect()
 
 
 def _wait_listening(proc: subprocess.Popen, web: WebAddress) -> None:
@@ -274,6 +303,21 @@ def rerun_command() -> list[str]:
     spec = importlib.util.find_spec("rerun_cli")
     exe = Path(spec.origin).with_name("rerun") if spec and spec.origin else None
     return [str(exe)] if exe and exe.exists() else [sys.executable, "-m", "rerun_cli"]
+
+
+def check_display(viewer: str) -> None:
+    """``viewer=native`` on Linux without a display (neither ``DISPLAY`` nor ``WAYLAND_DISPLAY``):
+    a :class:`ConfigError` naming the key and the alternatives (the viewer would fail to open a
+    window after the replay's work, while the command exits 0)."""
+    if viewer != "native" or not sys.platform.startswith("linux"):
+        return
+    if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+        raise ConfigError(
+            "config key 'viewer': viewer=native needs a display and there is none (DISPLAY and "
+            "WAYLAND_DISPLAY are unset); use viewer=web to serve the replay to a browser, or "
+            "viewer=none to save the .rrd only (then open it with rerun <file>.rrd where there is a "
+            "display)"
+        )
 
 
 def open_viewer(rrd: str | Path, viewer: str) -> subprocess.Popen | None:

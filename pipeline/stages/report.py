@@ -17,7 +17,7 @@ from pipeline.stages._schema import ReportConfig
 
 
 def profile_trials() -> dict[str, dict]:
-    """Each profile's ``trials`` block by name (``pipeline/conf/profile/*.yaml``): what names the
+    """Each profile's ``trials`` block by name (``conf/profile/*.yaml``): what names the
     scale of the records (:mod:`pipeline.report.scale`)."""
     return {
         p.stem: (yaml.safe_load(p.read_text()) or {}).get("trials")

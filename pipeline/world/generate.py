@@ -3,7 +3,7 @@
 Wherever a maze is accepted (``maze=`` of the trials stage and of experiment cells, the ``maze``
 keyword of the Gymnasium environment), :func:`pipeline.world.maze.load_layout` passes a name that
 starts with ``random:`` here. The layout is ``W`` cells wide and ``H`` high, with the start in the
-top-left corner and the goal in the bottom-right one (as in ``pipeline/conf/mazes/``), exactly
+top-left corner and the goal in the bottom-right one (as in ``conf/mazes/``), exactly
 ``obstacles`` obstacles and the goal reachable:
 
 * ``random:<W>x<H>:<obstacles>:<seed>`` (:func:`scatter`): the cells other than start and goal,
@@ -13,7 +13,7 @@ top-left corner and the goal in the bottom-right one (as in ``pipeline/conf/maze
   cells) and, for sparse grids, is close to drawing the obstacles uniformly among the layouts
   with a reachable goal.
 * ``random:<W>x<H>:<obstacles>:<seed>:unique`` (:func:`lined_path`): the paper's kind of layout
-  (``pipeline/conf/mazes/5x5.txt``): a single shortest path from start to goal that runs between
+  (``conf/mazes/5x5.txt``): a single shortest path from start to goal that runs between
   obstacles. A random monotone path (a shuffle of ``W-1`` moves east and ``H-1`` south) is drawn;
   obstacles on the free neighbours of the path ("lining" cells, in a random order) close every
   other path of the same length; the remaining obstacles go on the other lining cells first, then

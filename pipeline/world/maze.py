@@ -1,4 +1,4 @@
-"""A maze by name: a built-in layout (``pipeline/conf/mazes/<name>.txt``, the paper's 5x5, 7x7 and
+"""A maze by name: a built-in layout (``conf/mazes/<name>.txt``, the paper's 5x5, 7x7 and
 11x11 of section 4.1, Figures 6 and 11), a layout file, or a generated layout (``random:...``,
 :mod:`pipeline.world.generate`).
 
@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from pipeline.conf import conf_dir
+from pipeline.configs import conf_dir
 from pipeline.world import generate
 from pipeline.world.layout import (
     ACTION_NAMES,
@@ -50,7 +50,7 @@ MAX_LAYOUT_BYTES = 4_100_000
 
 def load_layout(spec: str | Path) -> Layout:
     """Load a layout by built-in name (``5x5``, ``7x7``, ``11x11``: files in
-    ``pipeline/conf/mazes/``), by path, or generate one from a
+    ``conf/mazes/``), by path, or generate one from a
     ``random:<W>x<H>:<obstacles>:<seed>[:unique]`` name (:mod:`pipeline.world.generate`)."""
     if generate.is_spec(spec):
         return generate.generate_layout(spec)

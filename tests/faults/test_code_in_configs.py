@@ -1,5 +1,5 @@
 """Configs that name code to run. A config names code only through a recogniser's ``_target_``,
-and only one a recogniser of ``pipeline/conf/recogniser/`` declares: every other target, from any
+and only one a recogniser of ``conf/recogniser/`` declares: every other target, from any
 place a config comes from (the command line, an experiment's cell, the accuracy stage,
 ``gymnasium.make``'s options), is one clear error naming the key, before anything is imported or
 called (Hydra's own blocklist stays behind it as a second line)."""

@@ -27,7 +27,7 @@ command-line overrides and then the stage's own refusals (:func:`load`); a confi
 Where each key is reached: a declaration (a dataclass field) is tested once, at the first path
 that reaches it: the ``Profile`` shared by four stages in the trials, the fields of an
 experiment's cells, layout sets and report block under ``+experiment=<name>`` (each experiment of
-``pipeline/conf/experiment/`` is walked; ``test_every_declaration_is_reached`` fails for a
+``conf/experiment/`` is walked; ``test_every_declaration_is_reached`` fails for a
 declaration none reaches). Not derived here: mappings typed ``Any`` (``recogniser``, a cell's
 ``params`` and ``recogniser``): their keys are the arguments of the code they configure, refused
 there (``test_code_in_configs.py``, ``tests/test_config_schema.py``).
@@ -63,7 +63,7 @@ from omegaconf.errors import OmegaConfBaseException
 
 import pipeline  # noqa: F401  (registers the Gymnasium environments)
 from faults._checks import FAST, one_line_error
-from pipeline.conf import conf_dir
+from pipeline.configs import conf_dir
 from pipeline.errors import ConfigError, UserError
 from pipeline.stages._common import (
     below_null,
@@ -530,7 +530,7 @@ def test_render_mode_human_without_pygame_is_refused_at_make():
 
 def test_a_bad_value_in_a_config_file_names_its_key():
     """What Hydra raises when a file holds a value of the wrong type (``dvc exp run -S
-    pipeline/conf/profile/paper.yaml:trials.episodes=abc`` writes one): the key is in its text."""
+    conf/profile/paper.yaml:trials.episodes=abc`` writes one): the key is in its text."""
     from hydra.errors import ConfigCompositionException
 
     from pipeline.stages._common import one_line

@@ -34,11 +34,11 @@ def test_the_closure_follows_imports_inside_functions_targets_and_parent_package
     assert "pipeline/robot/live_world.py" in trials  # imported inside a function (world=robot3d)
     assert "pipeline/rl/fixed_accuracy.py" in trials  # accuracy_curve's recogniser's _target_
     assert "pipeline/robot/__init__.py" in trials  # runs before pipeline.robot.world
-    assert "pipeline/conf/mazes" in trials  # read as data by pipeline/world/maze.py
+    assert "conf/mazes" in trials  # read as data by pipeline/world/maze.py
     report = STAGES["report"].code()
     assert "pipeline/report" in report  # every module of the folder: listed as the folder
     assert "pipeline/rl/rules.py" in report  # the deps the old hand-kept list missed
-    assert {"pipeline/conf/experiment", "pipeline/conf/profile"} <= set(report)
+    assert {"conf/experiment", "conf/profile"} <= set(report)
 
 
 def test_a_stage_depends_on_its_own_schema_and_not_on_the_others():
@@ -52,15 +52,15 @@ def test_a_stage_depends_on_its_own_schema_and_not_on_the_others():
 
 def test_params_are_the_composed_files_without_the_output_neutral_keys():
     trials = dict(STAGES["trials"].params())
-    keys = trials["pipeline/conf/trials.yaml"]
+    keys = trials["conf/trials.yaml"]
     assert {"seed", "robot", "world", "rule", "threshold", "maze"} <= set(keys)
     assert not {"out", "progress", "threads", "workers", "overwrite"} & set(keys)
-    assert trials["pipeline/conf/experiment/${item}.yaml"] == []  # whole file
-    assert "trials.layouts" in trials["pipeline/conf/profile/paper.yaml"]  # generalisation's
+    assert trials["conf/experiment/${item}.yaml"] == []  # whole file
+    assert "trials.layouts" in trials["conf/profile/paper.yaml"]  # generalisation's
     protonet = dict(STAGES["meta_train_protonet"].params())
-    assert protonet["pipeline/conf/model/protonet.yaml"] == []
-    assert "meta_train.protonet_episodes" in protonet["pipeline/conf/profile/paper.yaml"]
-    assert "meta_train.episodes" not in protonet["pipeline/conf/profile/paper.yaml"]
+    assert protonet["conf/model/protonet.yaml"] == []
+    assert "meta_train.protonet_episodes" in protonet["conf/profile/paper.yaml"]
+    assert "meta_train.episodes" not in protonet["conf/profile/paper.yaml"]
 
 
 def test_a_changed_stage_command_is_read_back():
@@ -75,12 +75,12 @@ def test_a_changed_stage_command_is_read_back():
 # ------------------------------------------------------------------- what DVC itself sees
 def code_and_params_only(text: str) -> str:
     """dvc.yaml without outs and data deps, each command ``true``: stages DVC can commit in a copy
-    of the package alone."""
+    of the package and its configs alone."""
     data = yaml.safe_load(text)
     for definition in data["stages"].values():
         body = definition.get("do", definition)
         body["cmd"] = "true"
-        body["deps"] = [d for d in body["deps"] if d.startswith(f"{dvc_deps.PACKAGE}/")]
+        body["deps"] = [d for d in body["deps"] if d.split("/")[0] in dvc_deps.derived_roots()]
         body.pop("outs", None)
         body.pop("metrics", None)
     data.pop("plots", None)
@@ -89,7 +89,7 @@ def code_and_params_only(text: str) -> str:
 
 def touch_everything(repo: Path) -> None:
     """Append a line to every file of the package and change every config value."""
-    for path in (repo / dvc_deps.PACKAGE).rglob("*"):
+    for path in (p for root in dvc_deps.derived_roots() for p in (repo / root).rglob("*")):
         if path.is_file() and path.suffix in (".py", ".txt"):
             path.write_text(path.read_text() + "\n# touched\n")
         elif path.is_file() and path.suffix == ".yaml":
@@ -106,11 +106,8 @@ def changed(value):
 @pytest.mark.skipif(not DVC.exists(), reason="dvc is not installed beside this python")
 def test_dvc_status_names_every_stage_for_every_module_folder_and_key(tmp_path):
     repo = tmp_path / "repo"
-    shutil.copytree(
-        ROOT / dvc_deps.PACKAGE,
-        repo / dvc_deps.PACKAGE,
-        ignore=shutil.ignore_patterns("__pycache__"),
-    )
+    for root in dvc_deps.derived_roots():
+        shutil.copytree(ROOT / root, repo / root, ignore=shutil.ignore_patterns("__pycache__"))
     (repo / ".dvc").mkdir()
     (repo / ".dvc" / "config").write_text("[core]\n    no_scm = true\n    analytics = false\n")
     (repo / "dvc.yaml").write_text(code_and_params_only(TEXT))

@@ -1,5 +1,5 @@
 """Hostile maze layout files (docs/reliability.md "Layouts"), derived from the built-in mazes
-(``pipeline/conf/mazes/*.txt``): every cell replaced by a character the grammar does not have, the
+(``conf/mazes/*.txt``): every cell replaced by a character the grammar does not have, the
 start or the goal removed or doubled, rows made ragged, the goal or the start walled in, a blank
 line inside, other encodings and line ends, binary bytes, empty and huge files. A new built-in maze
 gets its cases without an edit here.
