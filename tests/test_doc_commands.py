@@ -5,7 +5,8 @@ without ``.venv/bin/``) must compose into a checked config: the stage exists and
 is one the stage takes, with a value it allows (each point of a ``-m`` sweep). A command with a
 placeholder (``<file>``, ``...``) is a pattern, not a command, and is left out, as is one that
 names what docs/extending.md has the reader write first (``mine``). The sweep of
-docs/extending.md runs as written, and prints what its comment says it does.
+docs/extending.md runs as written, and prints what its comment says it does; so does every records
+listing and replay that reads only the committed records sample (they work on a fresh clone).
 """
 
 from __future__ import annotations
@@ -100,3 +101,40 @@ def test_the_documented_sweep_prints_what_its_comment_says(tmp_path):
     }
     comment = doc.read_text().split("runs/epsilon   #", 1)[1].splitlines()[0]
     assert "shield 36 and 39 collisions, SSRL 21 and 21" in comment
+
+
+def sample_commands() -> list[tuple[str, list[str]]]:
+    """(where, argv) of every documented records listing or replay that reads only committed files
+    (the records sample, ``datasets/sample/``): they must run on a fresh clone."""
+    found = []
+    for doc in DOCS:
+        for argv in fenced_commands(doc):
+            tool = argv[2:3] == ["pipeline.records"] or argv[2:4] == ["pipeline", "replay"]
+            paths = [a.split("=", 1)[-1] for a in argv[3:] if "/" in a]
+            if tool and paths and all(p.startswith("datasets/sample/") for p in paths):
+                found.append((doc.relative_to(ROOT).as_posix(), argv))
+    return found
+
+
+SAMPLE_COMMANDS = sample_commands()
+
+
+def test_the_docs_show_commands_on_the_committed_sample():
+    assert {where for where, _ in SAMPLE_COMMANDS} >= {"README.md", "docs/replay.md"}
+
+
+@pytest.mark.parametrize(
+    "where, argv", SAMPLE_COMMANDS, ids=[f"{w}: {' '.join(a[2:])}" for w, a in SAMPLE_COMMANDS]
+)
+def test_a_documented_command_on_the_sample_runs_as_written(where, argv, tmp_path):
+    """Run from a folder holding the venv and the datasets (the venv activated, as README says:
+    ``python`` is the venv's); what it writes (``replays/``) stays in that folder."""
+    (tmp_path / ".venv").symlink_to(ROOT / ".venv")
+    (tmp_path / "datasets").symlink_to(ROOT / "datasets")
+    python = str(ROOT / ".venv" / "bin" / "python")
+    command = [python if a in ("python", ".venv/bin/python") else a for a in argv]
+    env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}
+    done = subprocess.run(
+        command, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600
+    )
+    assert done.returncode == 0, f"{where}: {' '.join(argv)}\n{done.stderr[-3000:]}"
