@@ -180,8 +180,8 @@ def test_the_badge_check_finds_the_badge_of_2d_content_in_a_3d_view(chromium, tm
         WebAddress,
         _stop,
         _wait_listening,
-        rerun_command,
         send_recording,
+        server_command,
     )
 
     rrd = tmp_path / "badge.rrd"
@@ -194,19 +194,7 @@ def test_the_badge_check_finds_the_badge_of_2d_content_in_a_3d_view(chromium, tm
     rrd.write_bytes(stream.read(flush=True) or b"")
     rec.disconnect()
     web = WebAddress("127.0.0.1", "127.0.0.1", *_free_ports(2))
-    server = subprocess.Popen(
-        [
-            *rerun_command(),
-            "--serve-web",
-            "--bind",
-            web.bind,
-            "--web-viewer-port",
-            str(web.web_port),
-            "--port",
-            str(web.grpc_port),
-        ],
-        env={**os.environ, "RUST_LOG": "warn"},
-    )
+    server = subprocess.Popen(server_command(web), env={**os.environ, "RUST_LOG": "warn"})
     try:
         _wait_listening(server, web)
         send_recording(rrd, web.grpc)

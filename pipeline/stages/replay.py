@@ -205,11 +205,9 @@ def _bound(ip, port: int, key: str) -> Iterator[socket.socket]:
         yield sock
 
 
-def serve_web(rrd: str | Path, web: WebAddress) -> None:
-    """Serve ``rrd`` at ``web`` until Ctrl-C, SIGTERM (through the stage's handler) or the server's
-    end; the server never outlives this call. It starts empty and gets the recording over gRPC
-    (:func:`send_recording`), so it sleeps while no viewer asks for anything."""
-    cmd = rerun_command() + [
+def server_command(web: WebAddress) -> list[str]:
+    """The Rerun web server at ``web``, started empty (it is sent the recording)."""
+    return rerun_command() + [
         "--serve-web",
         "--bind",
         web.bind,
@@ -218,6 +216,13 @@ def serve_web(rrd: str | Path, web: WebAddress) -> None:
         "--port",
         str(web.grpc_port),
     ]
+
+
+def serve_web(rrd: str | Path, web: WebAddress) -> None:
+    """Serve ``rrd`` at ``web`` until Ctrl-C, SIGTERM (through the stage's handler) or the server's
+    end; the server never outlives this call. It starts empty and gets the recording over gRPC
+    (:func:`send_recording`), so it sleeps while no viewer asks for anything."""
+    cmd = server_command(web)
     env = {
         "RUST_LOG": "warn",
         **os.environ,
