@@ -203,9 +203,28 @@ def test_pyproject_declares_safenav_as_the_cli_entry_point():
 
     from pipeline import cli
 
+    from pipeline.stages._help import CONSOLE_SCRIPT
+
     scripts = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["scripts"]
     assert scripts == {"safenav": "pipeline.cli:console_script"}
     assert callable(cli.console_script)
+    assert CONSOLE_SCRIPT in scripts  # the name a stage's --help prints
+
+
+def test_a_stage_help_names_the_command_it_was_run_by():
+    by_script = safenav("trials", "--help")
+    assert by_script.returncode == 0, by_script.stderr
+    lines = by_script.stdout.splitlines()
+    assert lines[0].startswith("safenav trials [key=value ...]: ")
+    assert lines[-1].endswith(": safenav trials --help-all")
+    by_module = subprocess.run(
+        [sys.executable, "-m", "pipeline", "trials", "--help"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert by_module.stdout.splitlines()[0].startswith("python -m pipeline trials [key=value")
+    assert by_module.stdout.replace("python -m pipeline", "safenav") == by_script.stdout
 
 
 def test_safenav_help_lists_every_stage_and_every_tool():

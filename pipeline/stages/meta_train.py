@@ -12,7 +12,7 @@ docs/fewshot.md).
 
 Writes ``checkpoint`` (weights + config + every figure below), ``metrics_file`` (the quoted figure
 only, a DVC metric: test accuracy over 600 episodes with its 95% interval as ``accuracy``,
-``ci_low``, ``ci_high``), ``<checkpoint stem>.validation.json`` beside the checkpoint (validation
+``ci_lower``, ``ci_upper``), ``<checkpoint stem>.validation.json`` beside the checkpoint (validation
 accuracy, the selection's figures and the test's again: what the report reads; not a metric),
 ``<checkpoint stem>.train_info.json`` (timings, threads, flags, paths: not a metric; named after
 the checkpoint, so two trainings into one folder keep theirs) and ``history_file`` (one row per
@@ -58,7 +58,7 @@ def quoted_metrics(scores: dict) -> dict[str, float]:
     """``metrics_file``'s content: the test accuracy and its 95% interval, nothing else (so
     ``dvc metrics show`` adds one column per figure a person compares)."""
     acc, ci = scores["test_accuracy"], scores["test_ci95"]
-    return {"accuracy": acc, "ci_low": acc - ci, "ci_high": acc + ci}
+    return {"accuracy": acc, "ci_lower": acc - ci, "ci_upper": acc + ci}
 
 
 def _folder_sets(cfg: MetaTrainConfig, given: set[str]) -> tuple[list[PictureSet], dict[str, str]]:
