@@ -202,7 +202,6 @@ def test_pyproject_declares_safenav_as_the_cli_entry_point():
     import tomllib
 
     from pipeline import cli
-
     from pipeline.stages._help import CONSOLE_SCRIPT
 
     scripts = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["scripts"]

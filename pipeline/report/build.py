@@ -28,8 +28,8 @@ from tqdm import tqdm
 
 from pipeline.files import claim_folder, remove_abandoned, swap_in, work_folder, write_json_atomic
 from pipeline.report.claims_section import claims_section
-from pipeline.report.headline import headline
 from pipeline.report.experiments import ReportInputError, load_all
+from pipeline.report.headline import headline
 from pipeline.report.scale import check_scales, scales, title_and_scale
 from pipeline.report.sections import section
 
