@@ -47,7 +47,7 @@ class MetaTrainConfig:
     checkpoint: str = setting(nonempty=True, path=True)
     """The selected checkpoint (set by the ``model`` group)."""
     metrics_file: str = setting(nonempty=True, path=True)
-    """Its test accuracy and 95% interval (DVC metrics: ``accuracy``, ``ci_lower``, ``ci_upper``;
+    """Its test accuracy and 95% interval (``accuracy``, ``ci_lower``, ``ci_upper``;
     ``<checkpoint stem>.validation.json`` (validation and selection) and ``.train_info.json``
     (timings) go beside the checkpoint)."""
     history_file: str = setting(nonempty=True, path=True)

@@ -11,7 +11,7 @@ docs/fewshot.md).
     python -m pipeline meta_train data=folder data.train_dir=DIR data.val_dir=DIR data.test_dir=DIR   # any folder-per-class trees
 
 Writes ``checkpoint`` (weights + config + every figure below), ``metrics_file`` (the quoted figure
-only, a DVC metric: test accuracy over 600 episodes with its 95% interval as ``accuracy``,
+only: test accuracy over 600 episodes with its 95% interval as ``accuracy``,
 ``ci_lower``, ``ci_upper``), ``<checkpoint stem>.validation.json`` beside the checkpoint (validation
 accuracy, the selection's figures and the test's again: what the report reads; not a metric),
 ``<checkpoint stem>.train_info.json`` (timings, threads, flags, paths: not a metric; named after
@@ -56,7 +56,8 @@ SPLIT_WORDS = {"train_dir": "training", "val_dir": "validation", "test_dir": "te
 
 def quoted_metrics(scores: dict) -> dict[str, float]:
     """``metrics_file``'s content: the test accuracy and its 95% interval, nothing else (so
-    ``dvc metrics show`` adds one column per figure a person compares)."""
+    ``dvc metrics show <metrics_file>`` prints one column per figure a person compares, the
+    interval's ends in order: DVC sorts the keys)."""
     acc, ci = scores["test_accuracy"], scores["test_ci95"]
     return {"accuracy": acc, "ci_lower": acc - ci, "ci_upper": acc + ci}
 
