@@ -15,6 +15,7 @@ import os
 import re
 import shlex
 import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -138,3 +139,67 @@ def test_a_documented_command_on_the_sample_runs_as_written(where, argv, tmp_pat
         command, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600
     )
     assert done.returncode == 0, f"{where}: {' '.join(argv)}\n{done.stderr[-3000:]}"
+
+
+#: The DVC commands that only read; each documented one runs on the checkout as written.
+DVC_VIEWS = (["metrics", "show"], ["metrics", "diff"], ["params", "diff"], ["exp", "show"])
+DVC = Path(sys.executable).with_name("dvc")
+#: A terminal's width for the views: a laptop's full-screen terminal.
+SCREEN = 160
+
+
+def dvc_views() -> list[tuple[str, list[str]]]:
+    """(where, argv) of every documented ``dvc`` command that only reads."""
+    return [
+        (doc.relative_to(ROOT).as_posix(), argv)
+        for doc in DOCS
+        for argv in fenced_commands(doc)
+        if argv[:1] == ["dvc"] and argv[1:3] in DVC_VIEWS
+    ]
+
+
+DVC_VIEW_COMMANDS = dvc_views()
+
+
+def test_the_docs_show_each_dvc_view():
+    shown = {tuple(argv[1:3]) for _, argv in DVC_VIEW_COMMANDS}
+    assert shown == set(map(tuple, DVC_VIEWS))
+
+
+def git_status() -> str:
+    done = subprocess.run(
+        ["git", "status", "--porcelain"], cwd=ROOT, capture_output=True, text=True
+    )
+    return done.stdout
+
+
+@pytest.mark.parametrize(
+    "where, argv", DVC_VIEW_COMMANDS, ids=[f"{w}: {' '.join(a)}" for w, a in DVC_VIEW_COMMANDS]
+)
+def test_a_documented_dvc_view_runs_on_the_checkout_within_a_screen(where, argv):
+    """Each runs as written on the committed files (a fresh clone has them), prints no line wider
+    than a screen, and leaves ``git status`` as it was."""
+    before = git_status()
+    env = {**os.environ, "COLUMNS": str(SCREEN), "DVC_NO_ANALYTICS": "1"}
+    done = subprocess.run(
+        [str(DVC), *argv[1:]], cwd=ROOT, env=env, capture_output=True, text=True, timeout=300
+    )
+    assert done.returncode == 0, f"{where}: {' '.join(argv)}\n{done.stderr[-3000:]}"
+    widest = max((len(line) for line in done.stdout.splitlines()), default=0)
+    assert widest <= SCREEN, f"{where}: {' '.join(argv)} prints {widest} columns\n{done.stdout}"
+    assert git_status() == before
+
+
+def test_dvc_exp_show_opens_with_the_headline():
+    """The first columns of ``dvc exp show`` are the headline's keys, readable, not folded."""
+    env = {**os.environ, "COLUMNS": str(SCREEN), "DVC_NO_ANALYTICS": "1"}
+    done = subprocess.run(
+        [str(DVC), "exp", "show", "--no-pager"], cwd=ROOT, env=env, capture_output=True, text=True
+    )
+    header = next(line for line in done.stdout.splitlines() if "Experiment" in line)
+    assert header.split()[:4] == [
+        "Experiment",
+        "Created",
+        "accuracy.relation_net",
+        "accuracy.protonet",
+    ]
