@@ -30,12 +30,12 @@ from typing import Any
 
 from omegaconf import OmegaConf
 
+from pipeline.config.experiment import SUBSTITUTION_WAYS
 from pipeline.configs import conf_dir
 from pipeline.errors import ConfigError
 from pipeline.rl.gym_env import SafeNavigationEnv
 from pipeline.rl.methods import MethodSpec, get_method
 from pipeline.rl.recogniser import Recogniser
-from pipeline.stages._experiment_schema import SUBSTITUTION_WAYS
 from pipeline.threads import TORCH_THREADS_BESIDE_NUMBA, ThreadBudget
 from pipeline.world.maze import Layout
 

@@ -212,8 +212,8 @@ def test_metrics_are_a_file_per_cell_and_per_template_and_size_over_layouts(tmp_
     layouts' means with an interval over layouts)."""
     import json
 
-    from pipeline.stages._experiment_schema import Cell as CellSpec
-    from pipeline.stages._experiment_schema import Experiment, Layouts, LayoutSet
+    from pipeline.config.experiment import Cell as CellSpec
+    from pipeline.config.experiment import Experiment, Layouts, LayoutSet
     from pipeline.stages._metrics import KEYS, write_metrics
 
     def summary(runs: list[int]) -> dict:

@@ -2,7 +2,7 @@
 line and exit status 2.
 
 ``python -m pipeline <stage> key=value ...`` composes ``conf/<stage>.yaml`` with Hydra's compose
-API, converts it to the stage's schema (``pipeline/stages/_schema.py``) and checks every range;
+API, converts it to the stage's schema (``pipeline/config/schemas.py``) and checks every range;
 any :class:`~pipeline.errors.UserError` (a bad config, layout, checkpoint, image folder or record
 file) prints ``error: <what>: <problem>`` on stderr and exits 2, before any work where it can be
 detected up front. With ``-m`` (multirun sweeps) or Hydra's own flags (``--cfg``, ``--hydra-help``...)
@@ -97,7 +97,7 @@ def compose(config_name: str, overrides: list[str]) -> DictConfig:
     from hydra import compose as hydra_compose
     from hydra.errors import HydraException
 
-    from pipeline.stages._schema import register
+    from pipeline.config.schemas import register
 
     refuse_deleted(config_name, overrides)
     register(config_name)
@@ -128,7 +128,7 @@ def override_key(override: str) -> str:
 def refuse_deleted(config_name: str, overrides: list[str]) -> None:
     """``~key`` of a key the stage's schema declares is refused: the key would silently take the
     dataclass's default, or the placeholder ``???`` (``~out`` wrote to a folder named ``???``)."""
-    from pipeline.stages._schema import schema_of
+    from pipeline.config.schemas import schema_of
 
     declared = {f.name for f in dataclasses.fields(schema_of(config_name))}
     for override in overrides:
@@ -341,7 +341,7 @@ def _hydra_main(config_name: str, run: Runner, args: list[str]) -> None:
     import hydra
     from hydra.core.hydra_config import HydraConfig
 
-    from pipeline.stages._schema import register
+    from pipeline.config.schemas import register
 
     register(config_name)
     if any(a in ("-m", "--multirun") for a in args):  # refuse a bad sweep before launching any job

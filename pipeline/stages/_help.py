@@ -319,7 +319,7 @@ class StageHelp:
 def stage_help(stage: str, conf: str | Path, full: bool = False) -> str:
     """The ``--help`` text of ``stage``, whose configs are in the folder ``conf``: its common keys
     where its schema declares them (``COMMON_KEYS``), else (or ``full``) every key."""
-    from pipeline.stages._schema import schema_of
+    from pipeline.config.schemas import schema_of
 
     found = StageHelp(stage, schema_of(stage), Path(conf))
     return found.text() if full or not hasattr(found.schema, "COMMON_KEYS") else found.short_text()

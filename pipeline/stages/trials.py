@@ -29,6 +29,7 @@ from typing import Any
 
 import numba
 
+from pipeline.config.trials import TrialsConfig
 from pipeline.errors import ConfigError, Interrupted, UserError
 from pipeline.files import (
     OWNER_FILE,
@@ -56,7 +57,6 @@ from pipeline.stages._cell_run import CellRun, make_recogniser, pictures_dir, re
 from pipeline.stages._common import stage_main
 from pipeline.stages._metrics import write_metrics
 from pipeline.stages._progress import compact, follow, prepare_kernel
-from pipeline.stages._trials_schema import TrialsConfig
 from pipeline.stages._workers import cell_results, worker_pool
 from pipeline.threads import trials_budget
 from pipeline.world.maze import load_layout

@@ -1,6 +1,6 @@
 """Hostile config overrides derived from the schema declarations (docs/reliability.md "Configs").
 
-For every stage (``pipeline.stages._schema.schemas()``) and every key of its schema, nested ones
+For every stage (``pipeline.config.schemas.schemas()``) and every key of its schema, nested ones
 included (``train.lr``, ``robot.cell``, ``experiment.layouts.sizes.0.count``...), the cases come
 from the key's declaration (its annotation and its :func:`pipeline.schema.setting` metadata), so a
 key added to a schema gets its cases without an edit here:
@@ -63,6 +63,7 @@ from omegaconf.errors import OmegaConfBaseException
 
 import pipeline  # noqa: F401  (registers the Gymnasium environments)
 from faults._checks import FAST, one_line_error
+from pipeline.config.schemas import schemas
 from pipeline.configs import conf_dir
 from pipeline.errors import ConfigError, UserError
 from pipeline.stages._common import (
@@ -76,7 +77,6 @@ from pipeline.stages._common import (
     refuse_merged_away,
     typed,
 )
-from pipeline.stages._schema import schemas
 
 SCHEMAS = schemas()
 #: What a stage needs to compose at all (``file`` has no default).
