@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from pipeline.errors import ConfigError
-from pipeline.stages._common import run_stage
+from pipeline.stages import run_stage
 
 ROOT = Path(__file__).resolve().parents[1]
 

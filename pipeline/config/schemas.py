@@ -4,7 +4,7 @@
 values; the dataclasses give each key's type, range or choices and, in the string under it, its
 description (:mod:`pipeline.schema`). Hydra refuses wrong types and unknown keys while composing;
 :func:`pipeline.schema.check` refuses values out of range; ``python -m pipeline <stage> --help``
-prints the same declarations (``pipeline/stages/_help.py``).
+prints the same declarations (``pipeline/config/help.py``).
 
 Each stage's schema lives in its own module, named in :data:`SCHEMA_OF` and imported only when
 that stage composes its config: a stage loads the code its own config needs and no other's

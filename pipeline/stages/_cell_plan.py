@@ -18,12 +18,12 @@ from typing import Any
 from hydra.core.override_parser.overrides_parser import OverridesParser
 from omegaconf import OmegaConf
 
+from pipeline.config.compose import CONF_DIR, one_line
 from pipeline.config.experiment import Experiment
 from pipeline.config.trials import TrialsConfig
 from pipeline.errors import ConfigError
 from pipeline.rl.methods import MethodSpec, load_method
 from pipeline.schema import check
-from pipeline.stages._common import CONF_DIR, one_line
 
 #: Keys a cell may pin; the top level (experiment globals, command line) gives the others. A cell
 #: also pins method fields (``params``) and recogniser arguments (``recogniser``).

@@ -20,9 +20,9 @@ from hydra.utils import get_method
 from omegaconf import OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
+from pipeline.config.compose import CONF_DIR
 from pipeline.errors import ConfigError, UserError
 from pipeline.kernels import pin_kernels
-from pipeline.stages._common import CONF_DIR
 
 FILLED_BY_STAGE = ("substitution_way", "carry_over")
 

@@ -32,7 +32,7 @@ from pipeline.fewshot.study_tables import (
 )
 from pipeline.fewshot.views import has_views, views_predictions
 from pipeline.files import write_json_atomic
-from pipeline.stages._common import stage_main
+from pipeline.stages import stage_main
 from pipeline.stages._recognisers import (
     build_recogniser,
     recogniser_arguments,

@@ -33,7 +33,7 @@ from pipeline.fewshot.data import PictureSet, load_folder, load_split, read_mani
 from pipeline.fewshot.episodes import require_episodes
 from pipeline.fewshot.training import config_dict, meta_train
 from pipeline.files import write_json_atomic
-from pipeline.stages._common import stage_main
+from pipeline.stages import stage_main
 
 #: The keys of the training result that the checkpoint and ``<checkpoint stem>.validation.json``
 #: hold (deterministic for a seed); the others (timings) go to :func:`info_file`.

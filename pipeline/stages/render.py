@@ -34,7 +34,7 @@ from pipeline.files import (
     write_atomic,
     write_index,
 )
-from pipeline.stages._common import stage_main
+from pipeline.stages import stage_main
 from pipeline.world.contact_sheet import contact_sheet, save_png_atomic
 from pipeline.world.obstacle_models import category_index
 from pipeline.world.render_plan import (

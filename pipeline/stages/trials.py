@@ -47,6 +47,7 @@ from pipeline.files import (
     write_json_atomic,
 )
 from pipeline.rl.memory import available_memory, memory_estimate
+from pipeline.stages import stage_main
 from pipeline.stages._cell_plan import (
     experiment_cells,
     generated_key,
@@ -54,7 +55,6 @@ from pipeline.stages._cell_plan import (
     refuse_inapplicable,
 )
 from pipeline.stages._cell_run import CellRun, make_recogniser, pictures_dir, recorded_pictures
-from pipeline.stages._common import stage_main
 from pipeline.stages._metrics import write_metrics
 from pipeline.stages._progress import compact, follow, prepare_kernel
 from pipeline.stages._workers import cell_results, worker_pool

@@ -10,7 +10,7 @@ import pytest
 
 from pipeline.envs import make_recogniser
 from pipeline.errors import UserError
-from pipeline.stages._common import run_stage
+from pipeline.stages import run_stage
 from pipeline.stages._recognisers import declared_targets
 
 CANARY = "tests.faults._canary"

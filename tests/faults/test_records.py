@@ -29,7 +29,7 @@ from faults._checks import sha
 from faults.test_record_recovery import chunks
 from pipeline.records import RecordsError, RecordsWarning, read_records
 from pipeline.records.scan import MAGIC
-from pipeline.stages._common import run_stage
+from pipeline.stages import run_stage
 
 N = 16
 
