@@ -18,6 +18,7 @@ from entry import cli
 from fakes import FIG8_WITHOUT_MODELS
 
 from pipeline.config.compose import load_config
+from pipeline.config.recognisers import recogniser_names
 from pipeline.config.schemas import schemas
 from pipeline.errors import ConfigError
 from pipeline.rl.fixed_accuracy import FixedAccuracyRecogniser
@@ -25,7 +26,6 @@ from pipeline.rl.methods import METHOD_DIR, MethodSpec, get_method, method_names
 from pipeline.rl.oracle import TRUE_CATEGORY
 from pipeline.stages import run_stage
 from pipeline.stages._cell_plan import experiment_cells
-from pipeline.stages._recognisers import recogniser_names
 
 SCHEMAS = schemas()  # every stage's schema class
 

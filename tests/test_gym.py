@@ -15,7 +15,7 @@ from gymnasium.utils.env_checker import check_env, data_equivalence
 
 import pipeline
 from pipeline import _registration, palette
-from pipeline.envs import recogniser_names
+from pipeline.config.recognisers import recogniser_names
 from pipeline.errors import ConfigError
 from pipeline.rl import gym_render
 from pipeline.rl.codes import StepFlag

@@ -13,7 +13,7 @@ The trials' (:mod:`.trials`) types the ``method`` group by
 :class:`~pipeline.rl.methods.MethodSpec` and ``experiment`` by
 :class:`~pipeline.config.experiment.Experiment`; the few-shot stages' (:mod:`.fewshot`)
 type ``data``; every stage types ``profile`` by :class:`~pipeline.config.profile.Profile`; a
-recogniser is typed by the signature of its ``_target_`` (``pipeline.stages._recognisers``). The
+recogniser is typed by the signature of its ``_target_`` (``pipeline.config.recognisers``). The
 replay and report schemas, which import nothing of the package's science, are here.
 """
 

@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 from omegaconf import OmegaConf
 
 from pipeline.config.compose import one_line
+from pipeline.config.recognisers import build_recogniser
 from pipeline.config.trials import TrialsConfig
 from pipeline.errors import ConfigError, Interrupted, UserError
 from pipeline.files import disk_problem, size_text, write_json_atomic
@@ -28,7 +29,6 @@ from pipeline.rl.rng import run_seeds
 from pipeline.rl.rules import Rule
 from pipeline.rl.run_world import run_placement
 from pipeline.rl.runner import run_trials
-from pipeline.stages._recognisers import build_recogniser
 from pipeline.world.geometry import build_geometry
 from pipeline.world.maze import ACTION_NAMES, MOVES, Layout
 from pipeline.world.pictures import CATEGORIES

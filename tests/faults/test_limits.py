@@ -235,7 +235,7 @@ def test_the_command_line_says_it_in_one_line_and_exits_2(tmp_path):
 
 
 def test_a_recogniser_images_dir_over_the_limit_is_one_line_too(tmp_path):
-    """The recogniser's arguments are typed by its ``_target_`` (``pipeline.stages._recognisers``),
+    """The recogniser's arguments are typed by its ``_target_`` (``pipeline.config.recognisers``),
     not by a schema: its manifest is refused where it is read."""
     with pytest.raises(DataError, match=r"cannot open the picture manifest .*File name too long"):
         read_manifest(tmp_path / LONG)
