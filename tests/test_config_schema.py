@@ -17,6 +17,7 @@ import yaml
 from entry import cli
 from fakes import FIG8_WITHOUT_MODELS
 
+from pipeline.cells.plan import experiment_cells
 from pipeline.config.compose import load_config
 from pipeline.config.recognisers import recogniser_names
 from pipeline.config.schemas import schemas
@@ -25,7 +26,6 @@ from pipeline.rl.fixed_accuracy import FixedAccuracyRecogniser
 from pipeline.rl.methods import METHOD_DIR, MethodSpec, get_method, method_names
 from pipeline.rl.oracle import TRUE_CATEGORY
 from pipeline.stages import run_stage
-from pipeline.stages._cell_plan import experiment_cells
 
 SCHEMAS = schemas()  # every stage's schema class
 

@@ -96,7 +96,7 @@ class TrialsConfig:
     index_file: str | None = setting(None, path=True)
     """An experiment: every file of ``out`` with its SHA-256 (``pipeline.files.write_index``), for dvc.yaml."""
     metrics_dir: str | None = setting(None, path=True)
-    """An experiment's DVC metrics go to this folder (replaced): one small file per cell, or per template and size over generated layouts (``pipeline/stages/_metrics.py``)."""
+    """An experiment's DVC metrics go to this folder (replaced): one small file per cell, or per template and size over generated layouts (``pipeline/cells/metrics.py``)."""
     timing_file: str | None = setting(None, path=True)
     """Each cell's trial seconds are written here (kept out of ``out``, which is byte-reproducible)."""
     record: str = setting(choices=RECORD_LEVELS)

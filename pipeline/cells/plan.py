@@ -2,10 +2,10 @@
 command-line overrides that no cell can take (an override is applied or refused, never ignored).
 
 An experiment (``conf/experiment/<name>.yaml``) lists cells, or generates them from layout sets
-(:meth:`~pipeline.config.experiment.Experiment.all_cells`); each cell pins some keys (its method, maze,
-substitution way, support mode, method fields, recogniser arguments or group) and takes the rest
-from the command line and the experiment's globals. Planning works on the stage's config
-dataclasses (``pipeline/config/trials.py``, whose experiment schema imports the report's spec), so it sits with them.
+(:meth:`~pipeline.config.experiment.Experiment.all_cells`); each cell pins some keys (its method,
+maze, substitution way, support mode, method fields, recogniser arguments or group) and takes the
+rest from the command line and the experiment's globals. Planning works on the stage's config
+dataclasses (:mod:`pipeline.config.trials`, whose experiment schema imports the report's spec).
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """One cell of a trials run: what it runs with (its config, layout, recogniser and the pictures its
 records keep) and running it into its folder (``records.mcap``, ``summary.json``).
 
-The stage (:mod:`pipeline.stages.trials`) and its worker processes (:mod:`pipeline.stages._workers`)
+The stage (:mod:`pipeline.stages.trials`) and its worker processes (:mod:`pipeline.cells.workers`)
 both run cells through :func:`run_cell`. Here the runner (``pipeline/rl``) meets the record writer
 (``pipeline/records``): the runner writes through the ``EpisodeSink`` protocol and knows no file
 format, the writer knows no runner, so the stage joins them.
