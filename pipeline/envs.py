@@ -1,6 +1,6 @@
 """What ``gymnasium.make("SafeNav-<maze>-v0", ...)`` calls: the environment with its recogniser.
 
-``make_env`` is the entry point of the registered ids (``pipeline._registration``). It takes the
+``make_env`` is the entry point of the registered ids (``pipeline.registration``). It takes the
 keywords of :class:`pipeline.rl.gym_env.SafeNavigationEnv`, and the recogniser also by name::
 
     gymnasium.make("SafeNav-5x5-v0", method="fewshot_dss", recogniser="oracle")

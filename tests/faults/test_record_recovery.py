@@ -144,10 +144,10 @@ def said_lost(message: str, word: str = "lost") -> set[tuple[int, int]]:
 
 
 def cli(args: list[str], capsys) -> tuple[int, str, str]:
-    from pipeline.records.__main__ import main
+    from pipeline.cli import main  # safenav records <args>
 
     try:
-        main([str(a) for a in args])
+        main(["records", *(str(a) for a in args)])
         code = 0
     except SystemExit as e:
         code = e.code
