@@ -13,10 +13,10 @@ import yaml
 from entry import cli
 
 from pipeline.__main__ import available_stages
+from pipeline.config.compose import CONF_DIR, load_config
+from pipeline.config.help import describe
 from pipeline.errors import ConfigError
 from pipeline.stages import trials
-from pipeline.stages._common import CONF_DIR, load_config
-from pipeline.stages._help import describe
 
 ROOT = Path(__file__).resolve().parents[1]
 TINY = ["method=ssrl", "maze=5x5", "runs=2", "episodes=3", "progress=false"]
@@ -56,7 +56,7 @@ def test_help_lists_every_stage_with_the_first_line_of_its_docstring():
 
 def test_a_stage_help_is_its_schema_with_the_stage_named():
     """The text itself is pinned in tests/test_config_help.py; here, the command line prints it."""
-    from pipeline.stages._help import stage_help
+    from pipeline.config.help import stage_help
 
     out = pipeline("trials", "method=ssrl", "--help")
     assert out.returncode == 0 and out.stderr == "", out.stderr
@@ -202,7 +202,7 @@ def test_pyproject_declares_safenav_as_the_cli_entry_point():
     import tomllib
 
     from pipeline import cli
-    from pipeline.stages._help import CONSOLE_SCRIPT
+    from pipeline.config.help import CONSOLE_SCRIPT
 
     scripts = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["scripts"]
     assert scripts == {"safenav": "pipeline.cli:console_script"}

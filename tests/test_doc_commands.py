@@ -22,7 +22,7 @@ from pathlib import Path
 import pytest
 
 from pipeline.__main__ import available_stages
-from pipeline.stages._common import load_config, sweep_points
+from pipeline.config.compose import load_config, sweep_points
 
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]

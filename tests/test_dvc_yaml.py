@@ -9,7 +9,7 @@ from pathlib import Path
 
 import yaml
 
-from pipeline.stages._common import CONF_DIR
+from pipeline.config.compose import CONF_DIR
 
 ROOT = Path(__file__).resolve().parents[1]
 EXPERIMENT_DIR = Path(CONF_DIR) / "experiment"

@@ -10,7 +10,7 @@ from PIL import Image
 from pipeline.errors import ConfigError
 from pipeline.fewshot.data import DataError, load_folder
 from pipeline.fewshot.episodes import require_episodes
-from pipeline.stages._common import run_stage
+from pipeline.stages import run_stage
 
 SHRINK = [
     "train.input_size=24",

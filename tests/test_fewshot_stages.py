@@ -7,10 +7,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from pipeline.config.compose import load_config
 from pipeline.errors import ConfigError
 from pipeline.fewshot.synthetic import write_synthetic_dataset
-from pipeline.stages import meta_train
-from pipeline.stages._common import load_config, run_stage
+from pipeline.stages import meta_train, run_stage
 
 SHRINK = [
     "train.input_size=24",

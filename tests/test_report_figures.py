@@ -1,5 +1,5 @@
 """The figure checks (pipeline/report/overlap.py), the one palette, the report's statement of its
-scale (pipeline/report/scale.py) and the trials stage's metrics files (pipeline/stages/_metrics.py)."""
+scale (pipeline/report/scale.py) and the trials stage's metrics files (pipeline/cells/metrics.py)."""
 
 from __future__ import annotations
 
@@ -212,9 +212,9 @@ def test_metrics_are_a_file_per_cell_and_per_template_and_size_over_layouts(tmp_
     layouts' means with an interval over layouts)."""
     import json
 
-    from pipeline.stages._experiment_schema import Cell as CellSpec
-    from pipeline.stages._experiment_schema import Experiment, Layouts, LayoutSet
-    from pipeline.stages._metrics import KEYS, write_metrics
+    from pipeline.cells.metrics import KEYS, write_metrics
+    from pipeline.config.experiment import Cell as CellSpec
+    from pipeline.config.experiment import Experiment, Layouts, LayoutSet
 
     def summary(runs: list[int]) -> dict:
         return {

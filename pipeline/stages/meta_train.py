@@ -26,14 +26,14 @@ from pathlib import Path
 import pandas as pd
 import torch
 
+from pipeline.config.fewshot import MetaTrainConfig
 from pipeline.errors import ConfigError
 from pipeline.fewshot.checkpoint import save_checkpoint
 from pipeline.fewshot.data import PictureSet, load_folder, load_split, read_manifest
 from pipeline.fewshot.episodes import require_episodes
 from pipeline.fewshot.training import config_dict, meta_train
 from pipeline.files import write_json_atomic
-from pipeline.stages._common import stage_main
-from pipeline.stages._fewshot_schema import MetaTrainConfig
+from pipeline.stages import stage_main
 
 #: The keys of the training result that the checkpoint and ``<checkpoint stem>.validation.json``
 #: hold (deterministic for a seed); the others (timings) go to :func:`info_file`.

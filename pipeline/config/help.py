@@ -28,7 +28,13 @@ from typing import Any
 
 import yaml
 
+from pipeline.configs import conf_dir
 from pipeline.schema import constraint, field_docs
+
+#: The flags that print a stage's help instead of running it.
+HELP_FLAGS = {"-h", "--help"}
+#: Every key of the schema, where ``--help`` shows the common ones (``COMMON_KEYS``).
+FULL_HELP_FLAG = "--help-all"
 
 WIDTH = 100
 GLOBAL = "@package _global_"
@@ -328,7 +334,15 @@ class StageHelp:
 def stage_help(stage: str, conf: str | Path, full: bool = False) -> str:
     """The ``--help`` text of ``stage``, whose configs are in the folder ``conf``: its common keys
     where its schema declares them (``COMMON_KEYS``), else (or ``full``) every key."""
-    from pipeline.stages._schema import schema_of
+    from pipeline.config.schemas import schema_of
 
     found = StageHelp(stage, schema_of(stage), Path(conf))
     return found.text() if full or not hasattr(found.schema, "COMMON_KEYS") else found.short_text()
+
+
+def wants_help(args: list[str]) -> bool:
+    return bool((HELP_FLAGS | {FULL_HELP_FLAG}) & set(args))
+
+
+def print_help(stage: str, full: bool = False) -> None:
+    print(stage_help(stage, conf_dir(), full), end="", flush=True)
