@@ -242,7 +242,7 @@ def test_metrics_are_a_file_per_cell_and_per_template_and_size_over_layouts(tmp_
     assert files == ["shield_5x5.json", "ssrl_5x5.json"]
     shield = json.loads((folder / "shield_5x5.json").read_text())
     assert tuple(shield) == KEYS and shield["collisions"] == 13.0 and shield["converged"] == 0.5
-    assert shield["ci_low"] <= 13.0 <= shield["ci_high"]
+    assert shield["ci_lower"] <= 13.0 <= shield["ci_upper"]
     assert json.loads((folder / "ssrl_5x5.json").read_text())["collisions"] == 7.0
     # sets that share a size (the repetition experiment) are told apart by their obstacles
     exp.layouts.sizes.append(LayoutSet(size="5x5", obstacles=4, count=1, seed=10, unique=False))
