@@ -1,5 +1,5 @@
 """An experiment's trials run in this process, for benchmarks that compare two settings of the
-same code (``pipeline.stages._common.run_stage``, its printing silenced)."""
+same code (``pipeline.stages.run_stage``, its printing silenced)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import shutil
 import time
 from pathlib import Path
 
-from pipeline.stages._common import run_stage
+from pipeline.stages import run_stage
 
 
 @contextlib.contextmanager

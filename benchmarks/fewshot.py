@@ -28,11 +28,12 @@ import numpy as np
 import torch
 
 from benchmarks._output import write_figures
+from pipeline.config.compose import load_config
 from pipeline.fewshot.accuracy_study import run_study
 from pipeline.fewshot.data import PictureSet, load_split
 from pipeline.fewshot.recogniser import RelationRecogniser
 from pipeline.fewshot.training import TrainConfig, meta_train
-from pipeline.stages._common import load_config, run_stage
+from pipeline.stages import run_stage
 
 
 def bench_training(images_dir: str, out: Path) -> dict:

@@ -55,7 +55,7 @@ def per_setting(size: int, supersample: int) -> dict:
 
 
 def stage(overrides: list[str]) -> dict:
-    from pipeline.stages._schema import register
+    from pipeline.config.schemas import register
     from pipeline.stages.render import run
 
     register("render")  # conf/render.yaml names render_schema

@@ -2,7 +2,7 @@
 
     python -m benchmarks.score_cache [--experiment table3] [--repeats 2] [--out /tmp/bench-score-cache]
 
-Runs the trials stage in this process (``pipeline.stages._common.run_stage``) at the paper's
+Runs the trials stage in this process (``pipeline.stages.run_stage``) at the paper's
 scale, records written, first with sharing turned off (``pipeline.fewshot.score_cache.disabled``:
 each run recomputes a column after its own substitutions, as before the store) and then with it,
 ``--repeats`` times each, interleaved, after a smoke-scale warm-up (numba's cache, torch's import).

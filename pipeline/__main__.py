@@ -1,9 +1,9 @@
 """``python -m pipeline <stage> [hydra overrides...]``: one thin Hydra entry point per stage.
 
 Each stage lives in ``pipeline/stages/<stage>.py`` with a ``main()`` that composes
-``conf/<stage>.yaml`` (``pipeline/stages/_common.py``); the first line of its docstring is the
+``conf/<stage>.yaml`` (:func:`pipeline.stages.stage_main`); the first line of its docstring is the
 description ``--help`` lists. ``<stage> --help`` prints the stage's groups and keys from the schema
-(``pipeline/stages/_help.py``) without importing the stage's module.
+(``pipeline/config/help.py``) without importing the stage's module.
 """
 
 from __future__ import annotations
@@ -13,9 +13,8 @@ import pkgutil
 import sys
 
 import pipeline.stages as _stages
+from pipeline.config.help import FULL_HELP_FLAG, describe, print_help, wants_help
 from pipeline.errors import quiet_broken_pipe
-from pipeline.stages._common import FULL_HELP_FLAG, print_help, wants_help
-from pipeline.stages._help import describe
 
 
 def available_stages() -> list[str]:

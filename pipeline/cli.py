@@ -45,7 +45,7 @@ def help_text(prog: str) -> str:
     """``python -m pipeline --help`` (its usage line and its stages) with ``prog`` for its name,
     then the tools. Its text is taken, not rewritten here, and not given a ``prog`` argument there:
     ``pipeline/__main__.py`` is a code dep of every DVC stage, and editing it reruns them all. A
-    stage's own ``--help`` still names ``python -m pipeline``, the same command."""
+    stage's own ``--help`` names the command it was run by (``pipeline.config.help.program``)."""
     tools = available_tools()
     stages_help = usage(available_stages()).replace("python -m pipeline", prog)
     width = max(map(len, tools)) + 2

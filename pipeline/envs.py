@@ -1,6 +1,6 @@
 """What ``gymnasium.make("SafeNav-<maze>-v0", ...)`` calls: the environment with its recogniser.
 
-``make_env`` is the entry point of the registered ids (``pipeline._registration``). It takes the
+``make_env`` is the entry point of the registered ids (``pipeline.registration``). It takes the
 keywords of :class:`pipeline.rl.gym_env.SafeNavigationEnv`, and the recogniser also by name::
 
     gymnasium.make("SafeNav-5x5-v0", method="fewshot_dss", recogniser="oracle")
@@ -8,13 +8,14 @@ keywords of :class:`pipeline.rl.gym_env.SafeNavigationEnv`, and the recogniser a
                    recogniser_options={"p": 0.8}, render_mode="rgb_array")
 
 Why here: the environment lives in ``rl``, which never imports ``fewshot`` (the science
-packages stay independent; README "Layout"), and a recogniser by name may be the Relation Network of ``fewshot``. Building
-recognisers from ``conf/recogniser/<name>.yaml`` is the stages' job, done by
-``pipeline.stages._recognisers.build_recogniser`` (its ``_target_`` and the argument check against
-the target's signature). This module is wiring like the stages: it loads the yaml and hands it to
-that same function, so the trials stage and ``gymnasium.make`` build a recogniser through one path,
-and the ``rl`` environment only ever receives an object. ``make_recogniser`` is the resolver.
-Nothing here is imported by ``import pipeline``.
+packages stay independent; README "Layout"), and a recogniser by name may be the Relation Network
+of ``fewshot``. Building recognisers from ``conf/recogniser/<name>.yaml`` is
+:func:`pipeline.config.recognisers.build_recogniser` (its ``_target_`` and the argument check
+against the target's signature). This module is wiring like the stages (beside them: neither imports
+the other): it loads the yaml and hands it to that same function, so the trials stage and
+``gymnasium.make`` build a recogniser through one path, and the ``rl`` environment only ever
+receives an object. ``make_recogniser`` is the resolver. Nothing here is imported by
+``import pipeline``.
 
 Relative paths in a yaml (``relation_net``: ``datasets/...``) are read from the working directory,
 as in the stages: run from the project root or pass absolute paths in ``recogniser_options``.
@@ -30,23 +31,14 @@ from typing import Any
 
 from omegaconf import OmegaConf
 
-from pipeline.configs import conf_dir
+from pipeline.config.experiment import SUBSTITUTION_WAYS
+from pipeline.config.recognisers import RECOGNISER_DIR, build_recogniser, recogniser_names
 from pipeline.errors import ConfigError
 from pipeline.rl.gym_env import SafeNavigationEnv
 from pipeline.rl.methods import MethodSpec, get_method
 from pipeline.rl.recogniser import Recogniser
-from pipeline.stages._experiment_schema import SUBSTITUTION_WAYS
 from pipeline.threads import TORCH_THREADS_BESIDE_NUMBA, ThreadBudget
 from pipeline.world.maze import Layout
-
-#: ``conf/recogniser/<name>.yaml``: the recognisers by name (the trials stage's config
-#: group).
-RECOGNISER_DIR = conf_dir("recogniser")
-
-
-def recogniser_names() -> list[str]:
-    """The recognisers of ``conf/recogniser/``, sorted."""
-    return sorted(p.stem for p in RECOGNISER_DIR.glob("*.yaml"))
 
 
 def _check_name(name: str) -> Path:
@@ -69,9 +61,6 @@ def make_recogniser(
     """The recogniser ``conf/recogniser/<name>.yaml``, with ``options`` overriding its keys, built
     as the trials stage builds it. Bad names and values raise ``ValueError`` (``ConfigError``).
     A recogniser that scores with torch leaves torch on one thread (:mod:`pipeline.threads`)."""
-    # Hydra (slow to import) only when a recogniser is built, not for every environment
-    from pipeline.stages._recognisers import build_recogniser
-
     node = OmegaConf.to_container(OmegaConf.load(_check_name(name)), resolve=True)
     node.update(dict(options or {}))
     recogniser = build_recogniser(node, substitution_way=substitution_way, carry_over=carry_over)

@@ -1,6 +1,6 @@
 """The one error type for user errors: a bad config, layout, checkpoint, image folder or record file.
 
-Every stage catches :class:`UserError` once, at its entry (``pipeline.stages._common.stage_main``),
+Every stage catches :class:`UserError` once, at its entry (``pipeline.stages.stage_main``),
 and prints one line naming the thing and the problem, then exits with status 2. Anything else is a
 bug and keeps its traceback.
 """

@@ -10,7 +10,7 @@ import csv
 import sys
 from pathlib import Path
 
-from pipeline.stages._common import load_config
+from pipeline.config.compose import load_config
 from pipeline.stages.render import MANIFEST, write_contact_sheets
 
 

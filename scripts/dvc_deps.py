@@ -5,17 +5,20 @@
 
 - **deps (code)**: the import closure of the stage's command, ``python -m pipeline <stage>``:
   ``pipeline/__main__.py``, ``pipeline/stages/<stage>.py``, the schema module the stage composes
-  its config with (``pipeline.stages._schema.SCHEMA_OF``, imported by name) and the module of every
+  its config with (``pipeline.config.schemas.SCHEMA_OF``, imported by name) and the module of every
   ``_target_`` its recogniser files name (imported by Hydra), with every module they import
   (the import graph of import-linter's ``grimp``, imports inside functions included, imports for
   type checkers only left out), every package above them (its ``__init__.py`` runs first), and
   the config folders the code reads as data (``conf_dir("mazes")``, ``CONF_DIR) / "experiment"``).
-  A folder whose every file is in the closure is listed as the folder.
-- **params**: the files Hydra composes for the command: the stage's file (whole, or without the
-  keys its schema declares ``OUTPUT_NEUTRAL``: where outputs go, progress, threads), every group
-  file it chooses (whole: an experiment, a model, a recogniser, a data source; the methods and
-  recognisers an experiment's cells name), and of a profile only the keys the composed config
-  reads (``${profile.<stage>.<key>}``).
+  A folder whose every file is in the closure is listed as the folder. The experiment file the
+  command composes is a dependency too, whole (:data:`STRUCTURE_GROUPS`): it declares cells and
+  how the report presents them, structure rather than knobs, and as parameters its cell tables
+  and quoted claims made ``dvc params diff`` hundreds of lines, each over a thousand characters.
+- **params**: the other files Hydra composes for the command: the stage's file (whole, or without
+  the keys its schema declares ``OUTPUT_NEUTRAL``: where outputs go, progress, threads), every
+  group file it chooses (whole: a model, a recogniser, a data source; the methods and recognisers
+  an experiment's cells name), and of a profile only the keys the composed config reads
+  (``${profile.<stage>.<key>}``).
 
 The hand-written parts of dvc.yaml stay: commands, data dependencies (``datasets/...``), outs,
 metrics and comments. The generated lines follow a ``# code:`` and a ``# config:`` comment.
@@ -42,6 +45,8 @@ WRAP = 100
 INDEX_DIR = "datasets/index/"
 EXPERIMENT_ITEM = "+experiment=${item}"
 RECORDS_MARK = "# records: every experiment's index (python -m scripts.dvc_deps --write)"
+#: Config groups whose files are dependencies (whole files), not parameters (module docstring).
+STRUCTURE_GROUPS = ("experiment",)
 
 
 def relative(path: Path) -> str:
@@ -156,8 +161,8 @@ def compose(stage: str, overrides: list[str]):
     from hydra import compose as hydra_compose
     from omegaconf import OmegaConf
 
+    from pipeline.config.schemas import register
     from pipeline.configs import hydra_configs
-    from pipeline.stages._schema import register
 
     register(stage)
     with hydra_configs():
@@ -234,7 +239,7 @@ class Stage:
         return out
 
     def code(self) -> list[str]:
-        from pipeline.stages._schema import SCHEMA_OF
+        from pipeline.config.schemas import SCHEMA_OF
 
         entries = {
             f"{PACKAGE}.__main__",
@@ -244,18 +249,27 @@ class Stage:
         }
         modules = closure(entries)
         files = {relative(module_file(m)) for m in modules}
-        return folded(files) + sorted(conf_folders_read(modules))
+        return folded(files) + sorted(conf_folders_read(modules)) + self.structure_files()
+
+    def structure_files(self) -> list[str]:
+        """The files of :data:`STRUCTURE_GROUPS` the command composes (dependencies, whole)."""
+        files = (
+            self.group_file(group, choice)
+            for group in STRUCTURE_GROUPS
+            for choice in sorted(self.groups.get(group, ()))
+        )
+        return list(dict.fromkeys(files))  # a foreach stage's items: one ``${item}`` file
 
     def params(self) -> list[tuple[str, list[str]]]:
         """(file, keys) pairs; no keys: the whole file."""
-        from pipeline.stages._schema import schema_of
+        from pipeline.config.schemas import schema_of
 
         stage_file = conf_root() / f"{self.stage}.yaml"
         neutral = set(getattr(schema_of(self.stage), "OUTPUT_NEUTRAL", ()))
         keys = [k for k in yaml.safe_load(stage_file.read_text()) if k not in neutral]
         out = [(relative(stage_file), keys if neutral else [])]
         for group in sorted(self.groups):
-            if group == "profile":
+            if group == "profile" or group in STRUCTURE_GROUPS:
                 continue
             files = dict.fromkeys(self.group_file(group, c) for c in sorted(self.groups[group]))
             out += [(file, []) for file in files]

@@ -13,10 +13,10 @@ import yaml
 from entry import cli
 
 from pipeline.__main__ import available_stages
+from pipeline.config.compose import CONF_DIR, load_config
+from pipeline.config.help import describe
 from pipeline.errors import ConfigError
 from pipeline.stages import trials
-from pipeline.stages._common import CONF_DIR, load_config
-from pipeline.stages._help import describe
 
 ROOT = Path(__file__).resolve().parents[1]
 TINY = ["method=ssrl", "maze=5x5", "runs=2", "episodes=3", "progress=false"]
@@ -56,7 +56,7 @@ def test_help_lists_every_stage_with_the_first_line_of_its_docstring():
 
 def test_a_stage_help_is_its_schema_with_the_stage_named():
     """The text itself is pinned in tests/test_config_help.py; here, the command line prints it."""
-    from pipeline.stages._help import stage_help
+    from pipeline.config.help import stage_help
 
     out = pipeline("trials", "method=ssrl", "--help")
     assert out.returncode == 0 and out.stderr == "", out.stderr
@@ -124,7 +124,7 @@ def test_each_trials_stage_writes_into_its_persistent_out_with_overwrite():
         cfg = load_config("trials", cmd[4:])
         declared = trials_stage["do"]["outs"]
         outs = [next(iter(o)).replace("${item}", item) for o in declared]
-        assert outs == [cfg.out, cfg.index_file] and cfg.overwrite, (item, outs, cfg.out)
+        assert outs == [cfg.out, cfg.index_file, cfg.metrics_dir] and cfg.overwrite, (item, outs)
         assert all(next(iter(o.values())).get("persist") for o in declared), declared
 
 
@@ -202,10 +202,28 @@ def test_pyproject_declares_safenav_as_the_cli_entry_point():
     import tomllib
 
     from pipeline import cli
+    from pipeline.config.help import CONSOLE_SCRIPT
 
     scripts = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["scripts"]
     assert scripts == {"safenav": "pipeline.cli:console_script"}
     assert callable(cli.console_script)
+    assert CONSOLE_SCRIPT in scripts  # the name a stage's --help prints
+
+
+def test_a_stage_help_names_the_command_it_was_run_by():
+    by_script = safenav("trials", "--help")
+    assert by_script.returncode == 0, by_script.stderr
+    lines = by_script.stdout.splitlines()
+    assert lines[0].startswith("safenav trials [key=value ...]: ")
+    assert lines[-1].endswith(": safenav trials --help-all")
+    by_module = subprocess.run(
+        [sys.executable, "-m", "pipeline", "trials", "--help"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert by_module.stdout.splitlines()[0].startswith("python -m pipeline trials [key=value")
+    assert by_module.stdout.replace("python -m pipeline", "safenav") == by_script.stdout
 
 
 def test_safenav_help_lists_every_stage_and_every_tool():
@@ -240,8 +258,10 @@ def test_safenav_runs_a_stage_and_the_records_tool_as_python_m_does(tmp_path):
         timeout=300,
     )
     assert listed.stdout == by_module.stdout and "2 runs, 6 episodes" in listed.stdout
-    stage_help = safenav("trials", "--help")
-    assert stage_help.returncode == 0 and stage_help.stdout == pipeline("trials", "--help").stdout
+    stage_help = safenav("trials", "--help")  # the same text, under the name it was run by
+    by_module_help = pipeline("trials", "--help").stdout
+    assert stage_help.returncode == 0
+    assert stage_help.stdout == by_module_help.replace("python -m pipeline", "safenav")
 
 
 def test_safenav_records_help_names_the_command():

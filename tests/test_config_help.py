@@ -11,10 +11,10 @@ import typing
 
 import pytest
 
+from pipeline.config.compose import CONF_DIR
+from pipeline.config.help import StageHelp, describe, nested, stage_help
+from pipeline.config.schemas import schemas
 from pipeline.schema import constraint, field_docs, setting
-from pipeline.stages._common import CONF_DIR
-from pipeline.stages._help import StageHelp, describe, nested, stage_help
-from pipeline.stages._schema import schemas
 
 SCHEMAS = schemas()  # every stage's schema class
 
@@ -167,7 +167,7 @@ def test_the_trials_help_shows_the_common_keys_in_one_screen():
     """``trials --help``: every group's options on one line each, the keys ``COMMON_KEYS`` declares
     with the first sentence of their words, and the way to the rest; ``--help-all`` is the whole
     schema."""
-    from pipeline.stages._trials_schema import TrialsConfig
+    from pipeline.config.trials import TrialsConfig
 
     lines = stage_help("trials", CONF_DIR).splitlines()
     assert len(lines) <= 50
@@ -221,7 +221,7 @@ def test_help_on_the_command_line_imports_no_heavy_library():
 
 
 def test_a_stage_entry_point_prints_the_help_instead_of_running(capsys):
-    from pipeline.stages._common import stage_main
+    from pipeline.stages import stage_main
 
     def run(cfg, overrides):
         raise AssertionError("--help must not run the stage")

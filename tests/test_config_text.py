@@ -9,10 +9,10 @@ import pytest
 import yaml
 from omegaconf import OmegaConf
 
+from pipeline.cells.plan import experiment_cells
+from pipeline.cells.run import NOT_RECORDED, CellRun, recorded_config
+from pipeline.config.compose import load_config
 from pipeline.records.config_text import ConfigText, config_text, joined, pieces, to_json
-from pipeline.stages._cell_plan import experiment_cells
-from pipeline.stages._cell_run import NOT_RECORDED, CellRun, recorded_config
-from pipeline.stages._common import load_config
 from pipeline.world.maze import load_layout
 
 

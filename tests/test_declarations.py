@@ -11,6 +11,7 @@ import pytest
 from omegaconf import OmegaConf
 
 from pipeline import palette
+from pipeline.config.recognisers import RECOGNISER_DIR, recogniser_names, recogniser_target
 from pipeline.report.layout_cells import LayoutCells, methods_of
 from pipeline.report.names import (
     method_colour,
@@ -25,7 +26,6 @@ from pipeline.report.names import (
 )
 from pipeline.rl.methods import declaration, get_method, method_names
 from pipeline.rl.rules import METHODS
-from pipeline.stages._recognisers import RECOGNISER_DIR, _target, recogniser_names
 
 
 def recorded(name: str, **fields) -> dict:
@@ -105,7 +105,7 @@ def test_generalisation_orders_methods_as_declared():
 @pytest.mark.parametrize("name", recogniser_names())
 def test_every_recogniser_that_records_a_kind_declares_its_display_name(name):
     node = OmegaConf.to_container(OmegaConf.load(RECOGNISER_DIR / f"{name}.yaml"))
-    target = _target(node, f"recogniser {name}")
+    target = recogniser_target(node, f"recogniser {name}")
     cls = getattr(target, "__self__", target)  # ``Class.from_files``: the class
     assert inspect.isclass(cls)
     if getattr(cls, "kind", ""):

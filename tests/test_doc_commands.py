@@ -11,16 +11,18 @@ listing and replay that reads only the committed records sample (they work on a 
 
 from __future__ import annotations
 
+import json
 import os
 import re
 import shlex
 import subprocess
+import sys
 from pathlib import Path
 
 import pytest
 
 from pipeline.__main__ import available_stages
-from pipeline.stages._common import load_config, sweep_points
+from pipeline.config.compose import load_config, sweep_points
 
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
@@ -138,3 +140,81 @@ def test_a_documented_command_on_the_sample_runs_as_written(where, argv, tmp_pat
         command, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600
     )
     assert done.returncode == 0, f"{where}: {' '.join(argv)}\n{done.stderr[-3000:]}"
+
+
+#: The DVC commands that only read; each documented one runs on the checkout as written.
+DVC_VIEWS = (["metrics", "show"], ["metrics", "diff"], ["params", "diff"], ["exp", "show"])
+DVC = Path(sys.executable).with_name("dvc")
+#: A terminal's width for the views: a laptop's full-screen terminal.
+SCREEN = 160
+
+
+def dvc_views() -> list[tuple[str, list[str]]]:
+    """(where, argv) of every documented ``dvc`` command that only reads."""
+    return [
+        (doc.relative_to(ROOT).as_posix(), argv)
+        for doc in DOCS
+        for argv in fenced_commands(doc)
+        if argv[:1] == ["dvc"] and argv[1:3] in DVC_VIEWS
+    ]
+
+
+DVC_VIEW_COMMANDS = dvc_views()
+
+
+def test_the_docs_show_each_dvc_view():
+    shown = {tuple(argv[1:3]) for _, argv in DVC_VIEW_COMMANDS}
+    assert shown == set(map(tuple, DVC_VIEWS))
+
+
+@pytest.fixture(scope="module")
+def fresh_clone(tmp_path_factory) -> Path:
+    """A clone of the last commit: what a new user has (the checkout's own edits left out)."""
+    clone = tmp_path_factory.mktemp("clone") / "repo"
+    subprocess.run(
+        ["git", "clone", "-q", "--depth", "1", ROOT.as_uri(), str(clone)], check=True, timeout=300
+    )
+    return clone
+
+
+def git_status(repo: Path) -> str:
+    done = subprocess.run(
+        ["git", "status", "--porcelain"], cwd=repo, capture_output=True, text=True
+    )
+    return done.stdout
+
+
+@pytest.mark.parametrize(
+    "where, argv", DVC_VIEW_COMMANDS, ids=[f"{w}: {' '.join(a)}" for w, a in DVC_VIEW_COMMANDS]
+)
+def test_a_documented_dvc_view_runs_on_a_fresh_clone_within_a_screen(where, argv, fresh_clone):
+    """Each runs as written on a clone of the last commit, prints no line wider than a screen,
+    and leaves ``git status`` empty."""
+    env = {**os.environ, "COLUMNS": str(SCREEN), "DVC_NO_ANALYTICS": "1"}
+    done = subprocess.run(
+        [str(DVC), *argv[1:]], cwd=fresh_clone, env=env, capture_output=True, text=True, timeout=300
+    )
+    assert done.returncode == 0, f"{where}: {' '.join(argv)}\n{done.stderr[-3000:]}"
+    widest = max((len(line) for line in done.stdout.splitlines()), default=0)
+    assert widest <= SCREEN, f"{where}: {' '.join(argv)} prints {widest} columns\n{done.stdout}"
+    assert git_status(fresh_clone) == ""
+
+
+def test_dvc_exp_show_opens_with_the_headline():
+    """The first columns of ``dvc exp show`` after the experiment's are the headline's keys, in
+    the order the report writes them."""
+    env = {**os.environ, "DVC_NO_ANALYTICS": "1"}
+    done = subprocess.run(
+        [str(DVC), "exp", "show", "--csv"], cwd=ROOT, env=env, capture_output=True, text=True
+    )
+    assert done.returncode == 0, done.stderr
+    header = done.stdout.splitlines()[0].split(",")
+    headline = json.loads((ROOT / "reports" / "headline.json").read_text())
+    keys = [
+        f"{group}.{key}" if isinstance(values, dict) else group
+        for group, values in headline.items()
+        for key in (values if isinstance(values, dict) else [None])
+    ]
+    assert keys[:2] == ["accuracy.relation_net", "accuracy.protonet"]
+    first = header.index(keys[0])
+    assert header[first : first + len(keys)] == keys

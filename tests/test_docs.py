@@ -17,7 +17,7 @@ import yaml
 from omegaconf import OmegaConf
 
 from pipeline.__main__ import available_stages
-from pipeline.stages._common import compose
+from pipeline.config.compose import compose
 
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]

@@ -127,7 +127,7 @@ def test_exp_run_set_param_reruns_trials_and_shows_param_and_metrics(tmp_path):
     }
     metrics = {Path(f).stem: m["data"] for f, m in two["metrics"].items()}
     assert set(metrics) == {"restore", "carry", "restore_paper", "carry_paper"}
-    assert set(metrics["restore"]) == {"collisions", "ci_low", "ci_high", "converged"}
+    assert set(metrics["restore"]) == {"collisions", "ci_lower", "ci_upper", "converged"}
     assert (
         base["params"]["conf/profile/smoke.yaml"]["data"]["trials"]["runs"] == 2
     )  # applied to the workspace
@@ -201,10 +201,11 @@ def _flags() -> dict[str, dict]:
     def flags(entry) -> dict:  # a plain path has none
         return next(iter(entry.values())) if isinstance(entry, dict) else {}
 
+    metrics = next(o for o in trials["outs"] if next(iter(o)).startswith("datasets/metrics/"))
     out = {
         "images": flags(stages["render"]["outs"][0]),
         "records": flags(trials["outs"][0]),
-        "metrics": flags(trials["metrics"][0]),
+        "metrics": flags(metrics),
     }
     out["overwrite"] = "overwrite=true" if "overwrite=true" in trials["cmd"].split() else ""
     return out

@@ -147,7 +147,7 @@ def test_the_lock_is_hashed_cpu_only_and_for_this_python():
 def test_a_trial_embeds_exactly_these_versions(tmp_path):
     """The versions in a real record file are the ones compared with the lock above."""
     from pipeline.records import read_records
-    from pipeline.stages._common import run_stage
+    from pipeline.stages import run_stage
 
     run_stage(
         "trials", ["method=ssrl", "runs=1", "episodes=2", f"out={tmp_path}", "progress=false"]

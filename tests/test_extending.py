@@ -16,8 +16,8 @@ from pathlib import Path
 
 import pandas as pd
 
+from pipeline.config.compose import CONF_DIR
 from pipeline.rl.methods import METHOD_DIR
-from pipeline.stages._common import CONF_DIR
 
 ROOT = Path(__file__).resolve().parents[1]
 DISPLAY = "Mine (test rule)"
@@ -47,7 +47,7 @@ def declare(rules: Path, entry: str) -> None:
 
 SCRIPT = """
 import json, sys
-from pipeline.stages._common import run_stage
+from pipeline.stages import run_stage
 
 common = ["profile=smoke", "progress=false", "runs=2", "episodes=4", "record=episodes"]
 run_stage("trials", ["+experiment=mine", *common])

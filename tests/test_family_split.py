@@ -93,8 +93,8 @@ def test_family_names_read_as_words():
 
 
 def test_the_render_stage_passes_its_split_keys_on_and_refuses_bad_view_distances():
+    from pipeline.config.compose import load_config
     from pipeline.errors import ConfigError
-    from pipeline.stages._common import load_config
     from pipeline.stages.render import plan_config
 
     cfg = load_config(

@@ -10,7 +10,7 @@ from PIL import Image
 from pipeline.errors import ConfigError
 from pipeline.fewshot.data import DataError, load_folder
 from pipeline.fewshot.episodes import require_episodes
-from pipeline.stages._common import run_stage
+from pipeline.stages import run_stage
 
 SHRINK = [
     "train.input_size=24",
@@ -128,8 +128,8 @@ def test_meta_train_on_folders(tmp_path, trees):
     quoted = json.loads((out / "metrics.json").read_text())
     assert quoted == {
         "accuracy": pytest.approx(metrics["test_accuracy"]),
-        "ci_low": pytest.approx(metrics["test_accuracy"] - metrics["test_ci95"]),
-        "ci_high": pytest.approx(metrics["test_accuracy"] + metrics["test_ci95"]),
+        "ci_lower": pytest.approx(metrics["test_accuracy"] - metrics["test_ci95"]),
+        "ci_upper": pytest.approx(metrics["test_accuracy"] + metrics["test_ci95"]),
     }
     first = (out / "metrics.json").read_bytes()
     run_stage("meta_train", args)  # the same trees and seed: the same model selection and figures

@@ -18,7 +18,7 @@ from pipeline.fewshot.paper_tables import (
     PaperTablesRecogniser,
     not_in_support,
 )
-from pipeline.stages._common import run_stage
+from pipeline.stages import run_stage
 from pipeline.world.pictures import CATEGORIES, picture_category
 
 PAPER_ORIGINAL = {"chair": 0, "kettle": 3, "carton": 2, "basin": 8, "basket": 4}  # of 8, Table 1

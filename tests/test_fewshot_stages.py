@@ -7,10 +7,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from pipeline.config.compose import load_config
 from pipeline.errors import ConfigError
 from pipeline.fewshot.synthetic import write_synthetic_dataset
-from pipeline.stages import meta_train
-from pipeline.stages._common import load_config, run_stage
+from pipeline.stages import meta_train, run_stage
 
 SHRINK = [
     "train.input_size=24",
@@ -47,10 +47,10 @@ def test_meta_train_then_accuracy(tmp_path):
     # metrics.json: the quoted test figure only (one DVC column each); the rest beside the checkpoint
     assert on_disk == meta_train.quoted_metrics(metrics) and set(on_disk) == {
         "accuracy",
-        "ci_low",
-        "ci_high",
+        "ci_lower",
+        "ci_upper",
     }
-    assert on_disk["ci_low"] < on_disk["accuracy"] < on_disk["ci_high"]
+    assert on_disk["ci_lower"] < on_disk["accuracy"] < on_disk["ci_upper"]
     scores = json.loads((tmp_path / "m" / "rn.validation.json").read_text())
     assert set(scores) == set(meta_train.SCORE_KEYS) and scores["val_episodes"] == 20
     assert scores["val_accuracy"] == pytest.approx(metrics["val_accuracy"])

@@ -13,8 +13,9 @@ import numpy as np
 import pytest
 from fakes import FIG8_WITHOUT_MODELS
 
+from pipeline.config.compose import load_config
 from pipeline.errors import ConfigError
-from pipeline.stages._common import load_config, run_stage
+from pipeline.stages import run_stage
 from pipeline.stages.trials import resolve_cells
 from pipeline.world.generate import (
     UNIQUE_DRAWS,

@@ -14,8 +14,8 @@ from fakes import always_right
 from gymnasium.utils.env_checker import check_env, data_equivalence
 
 import pipeline
-from pipeline import _registration, palette
-from pipeline.envs import recogniser_names
+from pipeline import palette, registration
+from pipeline.config.recognisers import recogniser_names
 from pipeline.errors import ConfigError
 from pipeline.rl import gym_render
 from pipeline.rl.codes import StepFlag
@@ -25,7 +25,7 @@ from pipeline.world.pictures import CATEGORIES
 
 ROOT = Path(__file__).resolve().parents[1]
 OUR_IDS = sorted(
-    i for i, spec in gym.registry.items() if spec.entry_point == _registration.ENTRY_POINT
+    i for i, spec in gym.registry.items() if spec.entry_point == registration.ENTRY_POINT
 )
 N, E, S, W = 0, 1, 2, 3
 
@@ -46,12 +46,12 @@ def test_the_registered_ids_and_their_step_limit():
     )
     for env_id in OUR_IDS:
         spec = gym.spec(env_id)
-        assert spec.kwargs["method"] == _registration.DEFAULT_METHOD
+        assert spec.kwargs["method"] == registration.DEFAULT_METHOD
         assert spec.kwargs.get("registered_maze", "any") in env_id.replace("SafeNav-v0", "any")
-        assert spec.max_episode_steps == get_method(_registration.DEFAULT_METHOD).max_steps
+        assert spec.max_episode_steps == get_method(registration.DEFAULT_METHOD).max_steps
     pipeline.register_envs()  # again: nothing changes, no "Overriding environment" warning
     assert (
-        sorted(i for i, s in gym.registry.items() if s.entry_point == _registration.ENTRY_POINT)
+        sorted(i for i, s in gym.registry.items() if s.entry_point == registration.ENTRY_POINT)
         == OUR_IDS
     )
 
@@ -102,7 +102,7 @@ def test_every_way_of_importing_registers(code):
 
 def test_a_failing_registration_does_not_break_importing_gymnasium():
     out = run_python(
-        "import warnings, pipeline, pipeline._registration as r\n"
+        "import warnings, pipeline, pipeline.registration as r\n"
         "r.MAZES = ('nonexistent',) * 3; r.ENV_IDS = ('bad id',) * 3  # gymnasium refuses this id\n"
         "with warnings.catch_warnings(record=True) as w:\n"
         "    warnings.simplefilter('always')\n"
@@ -115,11 +115,11 @@ def test_a_failing_registration_does_not_break_importing_gymnasium():
 def test_gymnasium_has_no_plugin_entry_points():
     """Why pyproject.toml declares no ``gymnasium.envs`` entry point: Gymnasium 1.x does not read
     them. Should a version load plugins again, this fails: then add
-    ``[project.entry-points."gymnasium.envs"] __root__ = "pipeline._registration:register_envs"``."""
-    from gymnasium.envs import registration
+    ``[project.entry-points."gymnasium.envs"] __root__ = "pipeline.registration:register_envs"``."""
+    from gymnasium.envs import registration as gymnasium_registration
 
-    assert not hasattr(registration, "load_plugin_envs") and not hasattr(
-        registration, "load_env_plugins"
+    assert not hasattr(gymnasium_registration, "load_plugin_envs") and not hasattr(
+        gymnasium_registration, "load_env_plugins"
     )
 
 
@@ -383,7 +383,7 @@ def test_time_limit_and_the_environments_own_truncation_agree():
 @pytest.mark.parametrize("name", method_names())
 def test_every_method_keeps_the_registered_step_limit(name):
     """One ``max_episode_steps`` serves every method made through the ids: they all stop at 200."""
-    assert get_method(name).max_steps == _registration.MAX_EPISODE_STEPS
+    assert get_method(name).max_steps == registration.MAX_EPISODE_STEPS
 
 
 def test_rl_imports_neither_fewshot_nor_the_wiring():

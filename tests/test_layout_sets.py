@@ -8,10 +8,11 @@ import pytest
 from omegaconf import OmegaConf
 from omegaconf.errors import ConfigKeyError
 
+from pipeline.cells.plan import experiment_cells
+from pipeline.config.compose import load_config
+from pipeline.config.experiment import Cell, Experiment, Layouts, LayoutSet
 from pipeline.errors import ConfigError
-from pipeline.stages._cell_plan import experiment_cells
-from pipeline.stages._common import load_config, run_stage
-from pipeline.stages._experiment_schema import Cell, Experiment, Layouts, LayoutSet
+from pipeline.stages import run_stage
 from pipeline.world.layout_sets import GeneratedCell, LayoutSetError, expand, layout_mazes
 from pipeline.world.maze import load_layout
 

@@ -24,9 +24,9 @@ CONF = ROOT / "conf"
 INSTALLED_PROBE = """
 import json, pipeline
 from pipeline.configs import conf_dir
-from pipeline.envs import recogniser_names
+from pipeline.config.recognisers import recogniser_names
 from pipeline.rl.methods import method_names
-from pipeline.stages._common import load_config
+from pipeline.config.compose import load_config
 from pipeline.world.maze import load_layout
 
 cfg = load_config("trials", ["+experiment=fig10", "method=ssrl", "profile=smoke"])

@@ -671,12 +671,12 @@ def test_code_columns_of_every_size_read_back_exactly():
 
 
 def test_the_info_command_lists_runs_and_warns_about_truncation(tmp_path, capsys):
-    from pipeline.records.__main__ import main
+    from pipeline.cli import main  # safenav records <folder> --runs
 
     write_synthetic(tmp_path / "a.mcap", runs=2, episodes_per_run=4)
     data = (tmp_path / "a.mcap").read_bytes()
     (tmp_path / "b.mcap").write_bytes(data[: len(data) // 2])
-    main([str(tmp_path), "--runs"])
+    main(["records", str(tmp_path), "--runs"])
     out = capsys.readouterr().out
     assert "a.mcap: complete; 2 runs, 8 episodes" in out
     assert (

@@ -10,9 +10,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from pipeline.config.compose import load_config
 from pipeline.errors import ConfigError
 from pipeline.files import write_atomic
-from pipeline.stages._common import load_config
 from pipeline.world.camera import side_azimuth
 from pipeline.world.metaset import build_meta_instance, make_families
 from pipeline.world.obstacle_models import build_obstacle, category_index

@@ -180,7 +180,7 @@ def _columns(rrd: Path, entity: str) -> dict[str, list]:
 
 def test_the_trials_stage_records_the_worlds_moves_and_names(tmp_path):
     from pipeline.records import read_records
-    from pipeline.stages._common import run_stage
+    from pipeline.stages import run_stage
     from pipeline.world.maze import ACTION_NAMES, MOVES
     from pipeline.world.pictures import CATEGORIES
 
@@ -378,7 +378,7 @@ def test_the_recording_is_named_by_experiment_cell_run_and_episode(with_support,
 
 
 def test_the_default_replay_file_names_the_cell(with_support, tmp_path, monkeypatch):
-    from pipeline.stages._common import run_stage
+    from pipeline.stages import run_stage
 
     assert (
         replay_stem("datasets/runs/fig8/fewshot_dss/records.mcap", 3, 120)
@@ -400,7 +400,7 @@ def test_the_trials_stage_records_the_initial_support_set(tmp_path):
     from pipeline.errors import ConfigError
     from pipeline.fewshot.synthetic import write_synthetic_dataset
     from pipeline.records import read_records
-    from pipeline.stages._common import run_stage
+    from pipeline.stages import run_stage
 
     images = tmp_path / "images"
     write_synthetic_dataset(images, n_train=1, n_val=1, per_class=1, size=12)
@@ -603,7 +603,7 @@ def test_web_viewer_refuses_a_busy_port(recorded, tmp_path):
 
 
 def test_web_viewer_needs_allow_remote_off_the_loopback(recorded, tmp_path, capsys):
-    from pipeline.stages._common import load_config
+    from pipeline.config.compose import load_config
     from pipeline.stages.replay import web_address
 
     path, _ = recorded
@@ -697,7 +697,7 @@ def test_every_empty_recognition_view_says_why():
 
 def test_the_stage_without_an_episode_prints_the_one_it_opens(recorded, tmp_path, capsys):
     from pipeline.errors import ConfigError
-    from pipeline.stages._common import run_stage
+    from pipeline.stages import run_stage
 
     path, written = recorded
     first = min(w["episode"] for w in written if w["run"] == 1 and len(w["recognitions"]["step"]))

@@ -34,7 +34,7 @@ TRIALS = [
 def cell(tmp_path_factory) -> Path:
     """A tiny robot cell's records (the trials stage, in this process): 1 run of 3 episodes (also
     for tests/test_replay_robot_scene.py)."""
-    from pipeline.stages._common import run_stage
+    from pipeline.stages import run_stage
 
     folder = tmp_path_factory.mktemp("robot") / "tiny" / "fewshot_dss_robot3d"
     run_stage("trials", [*TRIALS, f"out={folder}"])
@@ -88,7 +88,7 @@ def _path(recs, episode: int) -> dict:
 def test_the_stage_replays_a_robot_cell_in_3d_from_its_records(cell, tmp_path, capsys):
     """The robot's body at every pose of its path on ``sim_time``, the path, the scene, the live
     picture of each recognition (the file's own bytes) and the views the grid's replay has."""
-    from pipeline.stages._common import run_stage
+    from pipeline.stages import run_stage
 
     recs = read_records(cell)
     assert recs.meta.config["world"] == "robot3d" and not (cell.parent / "robot.mcap").exists()
@@ -174,7 +174,7 @@ def test_a_missing_episode_is_named_and_the_robot_needs_its_reader(cell, tmp_pat
 
 def test_a_robot_cell_without_recognitions_says_why_as_the_grid_does(tmp_path):
     """A shield recognises no pictures: the robot moves, the recognition views say why (static)."""
-    from pipeline.stages._common import run_stage
+    from pipeline.stages import run_stage
 
     out = tmp_path / "shield"
     shield = ["world=robot3d", "method=shield", "runs=1", "episodes=1", "progress=false"]

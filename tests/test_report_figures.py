@@ -1,5 +1,5 @@
 """The figure checks (pipeline/report/overlap.py), the one palette, the report's statement of its
-scale (pipeline/report/scale.py) and the trials stage's metrics files (pipeline/stages/_metrics.py)."""
+scale (pipeline/report/scale.py) and the trials stage's metrics files (pipeline/cells/metrics.py)."""
 
 from __future__ import annotations
 
@@ -212,9 +212,9 @@ def test_metrics_are_a_file_per_cell_and_per_template_and_size_over_layouts(tmp_
     layouts' means with an interval over layouts)."""
     import json
 
-    from pipeline.stages._experiment_schema import Cell as CellSpec
-    from pipeline.stages._experiment_schema import Experiment, Layouts, LayoutSet
-    from pipeline.stages._metrics import KEYS, write_metrics
+    from pipeline.cells.metrics import KEYS, write_metrics
+    from pipeline.config.experiment import Cell as CellSpec
+    from pipeline.config.experiment import Experiment, Layouts, LayoutSet
 
     def summary(runs: list[int]) -> dict:
         return {
@@ -242,7 +242,7 @@ def test_metrics_are_a_file_per_cell_and_per_template_and_size_over_layouts(tmp_
     assert files == ["shield_5x5.json", "ssrl_5x5.json"]
     shield = json.loads((folder / "shield_5x5.json").read_text())
     assert tuple(shield) == KEYS and shield["collisions"] == 13.0 and shield["converged"] == 0.5
-    assert shield["ci_low"] <= 13.0 <= shield["ci_high"]
+    assert shield["ci_lower"] <= 13.0 <= shield["ci_upper"]
     assert json.loads((folder / "ssrl_5x5.json").read_text())["collisions"] == 7.0
     # sets that share a size (the repetition experiment) are told apart by their obstacles
     exp.layouts.sizes.append(LayoutSet(size="5x5", obstacles=4, count=1, seed=10, unique=False))

@@ -15,7 +15,7 @@ from pipeline.report.build import Report
 from pipeline.report.experiments import ReportInputError, load_experiment
 from pipeline.report.robot import robot_kind
 from pipeline.report.robot_cells import check_cell, per_run, read_extra
-from pipeline.stages._common import run_stage
+from pipeline.stages import run_stage
 
 RUNS = 2
 FEW_SHOT_ROWS = [

@@ -243,7 +243,7 @@ def test_the_gymnasium_robot_refuses_what_it_cannot_run(kwargs, message):
 )
 def test_robot_and_rule_config_is_applied_or_refused(tmp_path, overrides, message):
     from pipeline.errors import ConfigError
-    from pipeline.stages._common import run_stage
+    from pipeline.stages import run_stage
 
     with pytest.raises((ConfigError, ValueError), match=message):
         run_stage(
@@ -254,7 +254,7 @@ def test_robot_and_rule_config_is_applied_or_refused(tmp_path, overrides, messag
 
 def test_an_experiments_profile_sets_its_scale():
     """robot3d declares no runs or episodes of its own: ``profile=smoke`` is 3 x 20."""
-    from pipeline.stages._common import load_config
+    from pipeline.config.compose import load_config
 
     cfg = load_config("trials", ["+experiment=robot3d", "profile=smoke"])
     assert (cfg.runs, cfg.episodes) == (3, 20)
@@ -266,7 +266,7 @@ def test_a_robot_cell_is_one_record_file_that_the_records_tool_reads(tmp_path):
     import sys
 
     from pipeline.records import read_records
-    from pipeline.stages._common import run_stage
+    from pipeline.stages import run_stage
 
     out = tmp_path / "cell"
     run_stage(
@@ -298,7 +298,7 @@ def test_cached_and_uncached_runs_give_the_same_record_bytes(tmp_path):
     cache cleared writes the same bytes as one run after another cell filled them."""
     from pipeline.fewshot import support_recogniser
     from pipeline.robot import live_world
-    from pipeline.stages._common import run_stage
+    from pipeline.stages import run_stage
 
     args = [
         "method=fewshot_dss",
@@ -428,7 +428,7 @@ def test_a_rule_every_reading_cell_pins_is_refused_not_ignored(tmp_path):
     """robot3d pins the rule of every cell that reads one (the few-shot cells; the shield and SSRL
     read none): ``rule=`` on the command line would change nothing."""
     from pipeline.errors import ConfigError
-    from pipeline.stages._common import run_stage
+    from pipeline.stages import run_stage
 
     with pytest.raises(ConfigError, match="config key 'rule': every cell of experiment robot3d"):
         run_stage("trials", ["+experiment=robot3d", "rule=open_set", f"out={tmp_path}"])

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from pipeline.errors import ConfigError
-from pipeline.stages._common import run_stage
+from pipeline.stages import run_stage
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -143,7 +143,7 @@ def test_record_levels(tmp_path, level):
 def test_a_stage_without_a_bar_says_how_long_is_left():
     """Under ``dvc repro`` (``progress=false``) a study prints a line every tenth of its cells: how
     far it is, and the time left at the pace so far."""
-    from pipeline.stages._progress import progress_line
+    from pipeline.cells.progress import progress_line
 
     assert progress_line(210, 2100, 7.0) == "210/2100 cells (7 s, about 63 s left)"
     assert progress_line(2100, 2100, 70.4) == "2100/2100 cells (70 s)"

@@ -25,7 +25,7 @@ from .notes import empty_views, first_recognition
 from .story import ReplayError, Story
 
 APPLICATION = "fewshot_safe_rl_replay"
-#: The recorded config's ``world`` values (``pipeline/stages/_experiment_schema.WORLDS``).
+#: The recorded config's ``world`` values (``pipeline/config/experiment.WORLDS``).
 GRID_WORLD, ROBOT_WORLD = "grid", "robot3d"
 
 

@@ -6,9 +6,10 @@ study's data files and the validation metrics of the model, the render stage's c
 Every folder of ``runs_dir`` with records is a section, ordered by its block's ``order``;
 experiment files (``conf/experiment/*.yaml``) without records are listed as not in the report.
 
-Outputs: ``index.md``, ``tables/*.md|csv``, ``figures/*.png`` (these three are replaced on every
-build; the rest of the folder, e.g. ``benchmarks/``, is left alone). Deleting them and building
-again gives the same bytes. On a terminal, a progress bar on stderr counts the parts (reading the
+Outputs: ``index.md``, ``headline.json`` (the numbers DVC shows: :mod:`pipeline.report.headline`),
+``tables/*.md|csv``, ``figures/*.png`` (these four are replaced on every build; the rest of the
+folder, e.g. ``benchmarks/``, is left alone). Deleting them and building again gives the same
+bytes. On a terminal, a progress bar on stderr counts the parts (reading the
 records, the accuracy section, one per experiment, the contact sheets) and names the one being
 built; elsewhere (a pipe, a log) stderr holds only errors, in one line.
 """
@@ -25,9 +26,10 @@ from pathlib import Path
 import pandas as pd
 from tqdm import tqdm
 
-from pipeline.files import claim_folder, remove_abandoned, swap_in, work_folder
+from pipeline.files import claim_folder, remove_abandoned, swap_in, work_folder, write_json_atomic
 from pipeline.report.claims_section import claims_section
 from pipeline.report.experiments import ReportInputError, load_all
+from pipeline.report.headline import headline
 from pipeline.report.scale import check_scales, scales, title_and_scale
 from pipeline.report.sections import section
 
@@ -48,6 +50,8 @@ class Inputs:
     """The profiles' ``trials`` blocks by name (``conf/profile/``): a record's scale."""
     beside: dict[str, tuple[Path, Path]] = field(default_factory=dict)
     """Other few-shot methods for Tables 1-2: name -> (accuracy study folder, metrics file)."""
+    models: dict[str, Path] = field(default_factory=dict)
+    """The meta-trained models' metrics files by model name: ``headline.json``'s accuracies."""
 
 
 class Report:
@@ -121,8 +125,9 @@ def contact_sheets(rep: Report, contact_dir: Path) -> None:
 
 
 def build_report(inputs: Inputs) -> Path:
-    """Build the report into a temporary folder beside ``out`` and swap ``index.md``, ``tables/``
-    and ``figures/`` in only when it is complete: a failed build leaves the previous report whole."""
+    """Build the report into a temporary folder beside ``out`` and swap ``index.md``,
+    ``headline.json``, ``tables/`` and ``figures/`` in only when it is complete: a failed build
+    leaves the previous report whole."""
     out = inputs.out
     out.mkdir(parents=True, exist_ok=True)
     staging = work_folder(out, ".building")
@@ -238,7 +243,8 @@ def _build_parts(inputs: Inputs, parts: Parts) -> Path:
     refuse_missing(rep, inputs, experiments)
     parts.building("claims")
     studies = [inputs.accuracy_dir, *(folder for folder, _ in inputs.beside.values())]
-    claims_section(rep, experiments, studies)
+    claims = claims_section(rep, experiments, studies)
+    write_json_atomic(inputs.out / "headline.json", headline(claims, inputs.models, experiments))
     parts.building("accuracy")
     accuracy_section(rep, inputs.accuracy_dir, inputs.model_metrics, inputs.beside)
     parts.finished()

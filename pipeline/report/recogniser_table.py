@@ -3,8 +3,8 @@ validation beside it) and whether it relies on colour.
 
 * Test: 5-way 5-shot accuracy over 600 episodes of the *test families*, held out from training
   and from checkpoint selection and structurally apart from every training family
-  (``pipeline/world/family_split.py``), from ``metrics_file`` (``accuracy``, ``ci_low``,
-  ``ci_high``: the 95% interval of the mean over episodes). This is the figure to quote.
+  (``pipeline/world/family_split.py``), from ``metrics_file`` (``accuracy``, ``ci_lower``,
+  ``ci_upper``: the 95% interval of the mean over episodes). This is the figure to quote.
 * Validation: the same on fresh episodes of the validation families, which chose the checkpoint
   (so it is optimistic), from the accuracy study's copy of the checkpoint's scores
   (``summary.json``'s ``checkpoint_metrics``; the same figures as
@@ -55,7 +55,7 @@ def recogniser_row(name: str, metrics: Path, accuracy_dir: Path) -> dict:
     row["recogniser"] = name
     if metrics.exists():
         m = json.loads(metrics.read_text())
-        row["test [95%]"] = f"{100 * m['accuracy']:.2f}% {_interval(m['ci_low'], m['ci_high'])}"
+        row["test [95%]"] = f"{100 * m['accuracy']:.2f}% {_interval(m['ci_lower'], m['ci_upper'])}"
     else:
         row["test [95%]"] = f"no metrics file `{metrics}`"
     summary = _summary(accuracy_dir)

@@ -104,6 +104,11 @@ class ReportSpec:
     drawn unless false; a kind without it refuses the key)."""
     path: PathSpec | None = None
     """A learned-path figure in its own section before this one (the paper's Figure 7)."""
+    headline: list[str] = field(default_factory=list)
+    """Cells whose mean collisions per run go into ``reports/headline.json`` as
+    ``<experiment>.<cell>``: the few numbers ``dvc exp show`` and ``dvc metrics show`` print
+    (:mod:`pipeline.report.headline`); the per-cell detail is ``dvc metrics show
+    datasets/metrics/<experiment>``."""
 
     # ------------------------------------------------------------------ reading and checking
     @classmethod
@@ -141,6 +146,8 @@ class ReportSpec:
 
         for name in self.cells:
             need("cells", name)
+        for name in self.headline:
+            need("headline", name)
         if self.kind in PER_CELL_KINDS:
             if self.groups:
                 out.append(

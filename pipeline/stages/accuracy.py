@@ -19,6 +19,12 @@ from pathlib import Path
 
 import numpy as np
 
+from pipeline.config.fewshot import AccuracyConfig
+from pipeline.config.recognisers import (
+    build_recogniser,
+    recogniser_arguments,
+    recognisers_taking,
+)
 from pipeline.errors import ConfigError
 from pipeline.fewshot.accuracy_study import run_study
 from pipeline.fewshot.colour import colour_test
@@ -31,13 +37,7 @@ from pipeline.fewshot.study_tables import (
 )
 from pipeline.fewshot.views import has_views, views_predictions
 from pipeline.files import write_json_atomic
-from pipeline.stages._common import stage_main
-from pipeline.stages._fewshot_schema import AccuracyConfig
-from pipeline.stages._recognisers import (
-    build_recogniser,
-    recogniser_arguments,
-    recognisers_taking,
-)
+from pipeline.stages import stage_main
 from pipeline.threads import torch_budget
 from pipeline.world.pictures import CATEGORIES, N_PICTURES, picture_category
 

@@ -11,8 +11,8 @@ docs/fewshot.md).
     python -m pipeline meta_train data=folder data.train_dir=DIR data.val_dir=DIR data.test_dir=DIR   # any folder-per-class trees
 
 Writes ``checkpoint`` (weights + config + every figure below), ``metrics_file`` (the quoted figure
-only, a DVC metric: test accuracy over 600 episodes with its 95% interval as ``accuracy``,
-``ci_low``, ``ci_high``), ``<checkpoint stem>.validation.json`` beside the checkpoint (validation
+only: test accuracy over 600 episodes with its 95% interval as ``accuracy``,
+``ci_lower``, ``ci_upper``), ``<checkpoint stem>.validation.json`` beside the checkpoint (validation
 accuracy, the selection's figures and the test's again: what the report reads; not a metric),
 ``<checkpoint stem>.train_info.json`` (timings, threads, flags, paths: not a metric; named after
 the checkpoint, so two trainings into one folder keep theirs) and ``history_file`` (one row per
@@ -26,14 +26,14 @@ from pathlib import Path
 import pandas as pd
 import torch
 
+from pipeline.config.fewshot import MetaTrainConfig
 from pipeline.errors import ConfigError
 from pipeline.fewshot.checkpoint import save_checkpoint
 from pipeline.fewshot.data import PictureSet, load_folder, load_split, read_manifest
 from pipeline.fewshot.episodes import require_episodes
 from pipeline.fewshot.training import config_dict, meta_train
 from pipeline.files import write_json_atomic
-from pipeline.stages._common import stage_main
-from pipeline.stages._fewshot_schema import MetaTrainConfig
+from pipeline.stages import stage_main
 
 #: The keys of the training result that the checkpoint and ``<checkpoint stem>.validation.json``
 #: hold (deterministic for a seed); the others (timings) go to :func:`info_file`.
@@ -56,9 +56,10 @@ SPLIT_WORDS = {"train_dir": "training", "val_dir": "validation", "test_dir": "te
 
 def quoted_metrics(scores: dict) -> dict[str, float]:
     """``metrics_file``'s content: the test accuracy and its 95% interval, nothing else (so
-    ``dvc metrics show`` adds one column per figure a person compares)."""
+    ``dvc metrics show <metrics_file>`` prints one column per figure a person compares, the
+    interval's ends in order: DVC sorts the keys)."""
     acc, ci = scores["test_accuracy"], scores["test_ci95"]
-    return {"accuracy": acc, "ci_low": acc - ci, "ci_high": acc + ci}
+    return {"accuracy": acc, "ci_lower": acc - ci, "ci_upper": acc + ci}
 
 
 def _folder_sets(cfg: MetaTrainConfig, given: set[str]) -> tuple[list[PictureSet], dict[str, str]]:

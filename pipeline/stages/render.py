@@ -22,6 +22,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
+from pipeline.config.render import RenderConfig
 from pipeline.errors import ConfigError
 from pipeline.files import (
     claim_folder,
@@ -33,8 +34,7 @@ from pipeline.files import (
     write_atomic,
     write_index,
 )
-from pipeline.stages._common import stage_main
-from pipeline.stages._render_schema import RenderConfig
+from pipeline.stages import stage_main
 from pipeline.world.contact_sheet import contact_sheet, save_png_atomic
 from pipeline.world.obstacle_models import category_index
 from pipeline.world.render_plan import (

@@ -42,10 +42,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from urllib.parse import quote
 
+from pipeline.config.schemas import ReplayConfig
 from pipeline.errors import ConfigError, Interrupted
 from pipeline.files import DiskError
-from pipeline.stages._common import stage_main
-from pipeline.stages._schema import ReplayConfig
+from pipeline.stages import stage_main
 
 #: Seconds to wait for the Rerun server to listen on both ports, and for it to end when stopped.
 START_TIMEOUT, STOP_TIMEOUT = 30.0, 5.0

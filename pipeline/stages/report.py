@@ -9,11 +9,12 @@ from pathlib import Path
 
 import yaml
 
+from pipeline.config.compose import CONF_DIR
+from pipeline.config.schemas import ReportConfig
 from pipeline.errors import ConfigError
 from pipeline.report.build import Inputs, build_report
 from pipeline.report.scale import MixedScalesError
-from pipeline.stages._common import CONF_DIR, stage_main
-from pipeline.stages._schema import ReportConfig
+from pipeline.stages import stage_main
 
 
 def profile_trials() -> dict[str, dict]:
@@ -41,6 +42,7 @@ def run(cfg: ReportConfig, overrides: list[str] = ()) -> Path:
         beside={
             "Prototypical Network": (Path(cfg.protonet_accuracy_dir), Path(cfg.protonet_metrics))
         },
+        models={"relation_net": Path(cfg.model_metrics), "protonet": Path(cfg.protonet_metrics)},
     )
     try:
         index = build_report(inputs)

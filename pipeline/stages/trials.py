@@ -13,9 +13,10 @@ the previous run that this one does not have are removed then, and the staging f
 runs (never a live process's: :func:`pipeline.files.abandoned`). An experiment run by hand into the
 ``out`` its file declares (its DVC stage's cached out) ends with a note that DVC owns that folder.
 
-The stage composes and hands over: the cells are planned in :mod:`pipeline.stages._cell_plan`,
-each runs through :func:`pipeline.stages._cell_run.run_cell` (one after another, or side by side
-in :mod:`pipeline.stages._workers`), and :mod:`pipeline.stages._progress` prints as they complete.
+The stage composes and hands over: the cells are planned in :mod:`pipeline.cells.plan`,
+each runs through :func:`pipeline.cells.run.run_cell` (one after another, or side by side
+in :mod:`pipeline.cells.workers`), :mod:`pipeline.cells.progress` prints as they complete, and
+:mod:`pipeline.cells.metrics` writes an experiment's DVC metrics.
 """
 
 from __future__ import annotations
@@ -29,6 +30,17 @@ from typing import Any
 
 import numba
 
+from pipeline.cells.metrics import write_metrics
+from pipeline.cells.plan import (
+    experiment_cells,
+    generated_key,
+    parse_overrides,
+    refuse_inapplicable,
+)
+from pipeline.cells.progress import compact, follow, prepare_kernel
+from pipeline.cells.run import CellRun, make_recogniser, pictures_dir, recorded_pictures
+from pipeline.cells.workers import cell_results, worker_pool
+from pipeline.config.trials import TrialsConfig
 from pipeline.errors import ConfigError, Interrupted, UserError
 from pipeline.files import (
     OWNER_FILE,
@@ -46,18 +58,7 @@ from pipeline.files import (
     write_json_atomic,
 )
 from pipeline.rl.memory import available_memory, memory_estimate
-from pipeline.stages._cell_plan import (
-    experiment_cells,
-    generated_key,
-    parse_overrides,
-    refuse_inapplicable,
-)
-from pipeline.stages._cell_run import CellRun, make_recogniser, pictures_dir, recorded_pictures
-from pipeline.stages._common import stage_main
-from pipeline.stages._metrics import write_metrics
-from pipeline.stages._progress import compact, follow, prepare_kernel
-from pipeline.stages._trials_schema import TrialsConfig
-from pipeline.stages._workers import cell_results, worker_pool
+from pipeline.stages import stage_main
 from pipeline.threads import trials_budget
 from pipeline.world.maze import load_layout
 
@@ -68,9 +69,9 @@ INDEXED = ("method", "maze", "substitution", "support", "collisions", "converged
 def resolve_cells(cfg: TrialsConfig, overrides: list[str]) -> list[CellRun]:
     """The cells to run, each with its layout loaded, its recorded pictures read and its
     recogniser built (once for all the cells that ask for the same one:
-    :func:`~pipeline.stages._cell_run.make_recogniser`). Cells that will run in worker processes
+    :func:`~pipeline.cells.run.make_recogniser`). Cells that will run in worker processes
     get no recogniser here: the workers build what they run, and check it before any cell starts
-    (:func:`pipeline.stages._workers.worker_pool`)."""
+    (:func:`pipeline.cells.workers.worker_pool`)."""
     configs = {"": cfg} if cfg.experiment is None else experiment_cells(cfg, overrides)
     refuse_inapplicable(configs, parse_overrides(overrides))
     declared = cfg.experiment.all_cells() if cfg.experiment is not None else {}

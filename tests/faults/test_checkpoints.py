@@ -19,7 +19,7 @@ from pipeline.fewshot.checkpoint import CheckpointError, load_checkpoint, probe,
 from pipeline.fewshot.model import ModelConfig, RelationNetwork
 from pipeline.fewshot.protonet import PrototypicalNetwork
 from pipeline.fewshot.settings import ProtoConfig
-from pipeline.stages._common import run_stage
+from pipeline.stages import run_stage
 
 NORM = {"mean": [0.5, 0.4, 0.3], "std": [0.2, 0.2, 0.2]}
 FC1 = "relation.fc1.weight"
@@ -222,7 +222,7 @@ def test_the_trials_stage_refuses_a_nan_checkpoint_before_touching_out(payloads,
 @pytest.fixture(scope="module")
 def tiny_model(tmp_path_factory):
     from pipeline.fewshot.synthetic import write_synthetic_dataset
-    from pipeline.stages._common import run_stage
+    from pipeline.stages import run_stage
 
     d = tmp_path_factory.mktemp("model")
     write_synthetic_dataset(d / "images", n_train=6, n_val=5, per_class=8, seed=1)

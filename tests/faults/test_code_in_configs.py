@@ -8,10 +8,10 @@ import sys
 
 import pytest
 
+from pipeline.config.recognisers import declared_targets
 from pipeline.envs import make_recogniser
 from pipeline.errors import UserError
-from pipeline.stages._common import run_stage
-from pipeline.stages._recognisers import declared_targets
+from pipeline.stages import run_stage
 
 CANARY = "tests.faults._canary"
 HOSTILE = [

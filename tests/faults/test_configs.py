@@ -1,6 +1,6 @@
 """Hostile config overrides derived from the schema declarations (docs/reliability.md "Configs").
 
-For every stage (``pipeline.stages._schema.schemas()``) and every key of its schema, nested ones
+For every stage (``pipeline.config.schemas.schemas()``) and every key of its schema, nested ones
 included (``train.lr``, ``robot.cell``, ``experiment.layouts.sizes.0.count``...), the cases come
 from the key's declaration (its annotation and its :func:`pipeline.schema.setting` metadata), so a
 key added to a schema gets its cases without an edit here:
@@ -17,7 +17,7 @@ key added to a schema gets its cases without an edit here:
 
 Each case asserts that loading the stage's config with it raises a
 :class:`~pipeline.errors.UserError` of one line naming the key. A Hydra compose takes 0.1-0.3 s,
-all the cases through :func:`pipeline.stages._common.load_config` about 70 s; so each stage (and
+all the cases through :func:`pipeline.config.compose.load_config` about 70 s; so each stage (and
 experiment) is composed once, and a case applies its override with Hydra's own code for
 command-line overrides and then the stage's own refusals (:func:`load`); a config group's override
 (``method=abc``) is composed. The first case of each kind and of each stage runs through
@@ -63,9 +63,7 @@ from omegaconf.errors import OmegaConfBaseException
 
 import pipeline  # noqa: F401  (registers the Gymnasium environments)
 from faults._checks import FAST, one_line_error
-from pipeline.configs import conf_dir
-from pipeline.errors import ConfigError, UserError
-from pipeline.stages._common import (
+from pipeline.config.compose import (
     below_null,
     compose,
     groups,
@@ -76,7 +74,9 @@ from pipeline.stages._common import (
     refuse_merged_away,
     typed,
 )
-from pipeline.stages._schema import schemas
+from pipeline.config.schemas import schemas
+from pipeline.configs import conf_dir
+from pipeline.errors import ConfigError, UserError
 
 SCHEMAS = schemas()
 #: What a stage needs to compose at all (``file`` has no default).
@@ -149,7 +149,7 @@ def composed(stage: str, base: tuple[str, ...]):
 def load(stage: str, base: tuple[str, ...], override: str):
     """``load_config(stage, [*base, override])`` without composing again: ``override`` applied
     by Hydra's own code for command-line overrides to the config composed with ``base``, then the
-    refusals of :func:`~pipeline.stages._common.compose` and :func:`~pipeline.stages._common.typed`.
+    refusals of :func:`~pipeline.config.compose.compose` and :func:`~pipeline.config.compose.typed`.
     A config group (``method=...``) changes what is composed: through ``load_config``.
     ``test_load_is_load_config`` holds the two equal."""
     if override_key(override) in groups():
@@ -533,7 +533,7 @@ def test_a_bad_value_in_a_config_file_names_its_key():
     conf/profile/paper.yaml:trials.episodes=abc`` writes one): the key is in its text."""
     from hydra.errors import ConfigCompositionException
 
-    from pipeline.stages._common import one_line
+    from pipeline.config.compose import one_line
 
     exc = ConfigCompositionException(
         "In 'profile/paper': ValidationError raised while composing config:\n"

@@ -184,7 +184,7 @@ def test_sigterm_while_numba_compiles_stops_at_once_in_one_line(tmp_path):
     the stages' signal handling and sends itself SIGTERM in the middle of it."""
     script = """
 import os, signal, threading, numba, numpy as np
-from pipeline.stages._common import user_facing
+from pipeline.stages import user_facing
 def kernel(a):
     s = 0.0
     for i in range(a.shape[0]):

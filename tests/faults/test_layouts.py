@@ -28,7 +28,7 @@ from entry import ROOT, cli
 
 from faults._checks import FAST, one_line_error
 from pipeline.errors import ConfigError
-from pipeline.stages._common import run_stage
+from pipeline.stages import run_stage
 from pipeline.world.maze import BUILTIN_DIR, MAX_LAYOUT_BYTES, MazeError, load_layout
 
 MAZES = {p.stem: p.read_text(encoding="utf-8") for p in sorted(BUILTIN_DIR.glob("*.txt"))}

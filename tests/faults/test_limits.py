@@ -17,12 +17,12 @@ from entry import ROOT
 
 import pipeline  # noqa: F401  (registers the SafeNav ids)
 import pipeline.stages.render as render
+from pipeline.config.compose import load_config
+from pipeline.config.schemas import schemas
 from pipeline.errors import ConfigError
 from pipeline.fewshot.data import DataError, read_manifest
 from pipeline.rl.oracle import OracleRecogniser
 from pipeline.schema import path_problem
-from pipeline.stages._common import load_config
-from pipeline.stages._schema import schemas
 from pipeline.world.family_split import MAX_DISTANCE, split_families
 from pipeline.world.render_plan import PlanConfig, make_plan, plan_size
 
@@ -235,7 +235,7 @@ def test_the_command_line_says_it_in_one_line_and_exits_2(tmp_path):
 
 
 def test_a_recogniser_images_dir_over_the_limit_is_one_line_too(tmp_path):
-    """The recogniser's arguments are typed by its ``_target_`` (``pipeline.stages._recognisers``),
+    """The recogniser's arguments are typed by its ``_target_`` (``pipeline.config.recognisers``),
     not by a schema: its manifest is refused where it is read."""
     with pytest.raises(DataError, match=r"cannot open the picture manifest .*File name too long"):
         read_manifest(tmp_path / LONG)

@@ -39,7 +39,7 @@ from pipeline.fewshot.data import MANIFEST, DataError, load_folder, load_split, 
 from pipeline.fewshot.model import RelationNetwork
 from pipeline.fewshot.settings import ModelConfig
 from pipeline.fewshot.synthetic import write_synthetic_dataset
-from pipeline.stages._common import run_stage
+from pipeline.stages import run_stage
 
 SIZE = 24
 ROOT_USER = hasattr(os, "geteuid") and os.geteuid() == 0

@@ -144,10 +144,10 @@ def said_lost(message: str, word: str = "lost") -> set[tuple[int, int]]:
 
 
 def cli(args: list[str], capsys) -> tuple[int, str, str]:
-    from pipeline.records.__main__ import main
+    from pipeline.cli import main  # safenav records <args>
 
     try:
-        main([str(a) for a in args])
+        main(["records", *(str(a) for a in args)])
         code = 0
     except SystemExit as e:
         code = e.code
@@ -314,7 +314,7 @@ def test_an_unusable_file_is_named_in_one_line(files, tmp_path, capsys, case, pr
         with pytest.raises(RecordsError, match=problem.replace("(", r"\(").replace(")", r"\)")):
             read_records(bad)
     # replay: the same one line, blaming the file, exit 2
-    from pipeline.stages._common import stage_main
+    from pipeline.stages import stage_main
     from pipeline.stages.replay import run as replay_run
 
     with pytest.raises(SystemExit) as exc:

@@ -29,7 +29,7 @@ from faults._checks import sha
 from faults.test_record_recovery import chunks
 from pipeline.records import RecordsError, RecordsWarning, read_records
 from pipeline.records.scan import MAGIC
-from pipeline.stages._common import run_stage
+from pipeline.stages import run_stage
 
 N = 16
 
@@ -145,11 +145,11 @@ def test_a_damaged_file_reads_whole_or_as_a_prefix_with_one_line_or_is_one_error
         n = len(kept)
         said = re.search(rf"kept {n}( of {len(every)})? episodes", msgs[0])
         assert said or (n == 0 and "no complete episode could be read" in msgs[0]), msgs[0]
-    # python -m pipeline.records FILE: the same, in one line
-    from pipeline.records.__main__ import main
+    # safenav records FILE (python -m pipeline.records FILE): the same, in one line
+    from pipeline.cli import main
 
     try:
-        main([str(bad)])
+        main(["records", str(bad)])
         code = 0
     except SystemExit as exc:
         code = exc.code

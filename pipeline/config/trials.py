@@ -1,7 +1,7 @@
 """The trials stage's schema: :class:`TrialsConfig` (``conf/trials.yaml``), typing its
 ``method`` group by :class:`~pipeline.rl.methods.MethodSpec`, ``experiment`` by
-:class:`~pipeline.stages._experiment_schema.Experiment` and ``profile`` by
-:class:`~pipeline.stages._profile_schema.Profile` (the conventions: ``pipeline/stages/_schema.py``).
+:class:`~pipeline.config.experiment.Experiment` and ``profile`` by
+:class:`~pipeline.config.profile.Profile` (the conventions: ``pipeline/config/schemas.py``).
 """
 
 from __future__ import annotations
@@ -11,9 +11,7 @@ from typing import Any, ClassVar
 
 from omegaconf import II, MISSING
 
-from pipeline.rl.methods import MethodSpec
-from pipeline.schema import setting
-from pipeline.stages._experiment_schema import (
+from pipeline.config.experiment import (
     RULES,
     SUBSTITUTION_WAYS,
     SUPPORT_MODES,
@@ -21,7 +19,9 @@ from pipeline.stages._experiment_schema import (
     Experiment,
     RobotConfig,
 )
-from pipeline.stages._profile_schema import Profile
+from pipeline.config.profile import Profile
+from pipeline.rl.methods import MethodSpec
+from pipeline.schema import setting
 
 RECORD_LEVELS = ("steps", "episodes", "none")
 
@@ -96,7 +96,7 @@ class TrialsConfig:
     index_file: str | None = setting(None, path=True)
     """An experiment: every file of ``out`` with its SHA-256 (``pipeline.files.write_index``), for dvc.yaml."""
     metrics_dir: str | None = setting(None, path=True)
-    """An experiment's DVC metrics go to this folder (replaced): one small file per cell, or per template and size over generated layouts (``pipeline/stages/_metrics.py``)."""
+    """An experiment's DVC metrics go to this folder (replaced): one small file per cell, or per template and size over generated layouts (``pipeline/cells/metrics.py``)."""
     timing_file: str | None = setting(None, path=True)
     """Each cell's trial seconds are written here (kept out of ``out``, which is byte-reproducible)."""
     record: str = setting(choices=RECORD_LEVELS)

@@ -21,7 +21,7 @@ from pipeline.report.stats import bootstrap_ci
 
 #: The keys of every metrics file (the columns of ``dvc metrics show``): mean collisions per run,
 #: its 95% bootstrap interval, the fraction of runs whose greedy path converged.
-KEYS = ("collisions", "ci_low", "ci_high", "converged")
+KEYS = ("collisions", "ci_lower", "ci_upper", "converged")
 
 
 def rows(experiment, summaries: dict[str, dict]) -> dict[str, list[dict]]:

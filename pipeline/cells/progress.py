@@ -11,8 +11,8 @@ from collections.abc import Iterable
 
 from tqdm import tqdm
 
-from pipeline.stages._cell_run import CellRun, CellTime
-from pipeline.stages._trials_schema import TrialsConfig
+from pipeline.cells.run import CellRun, CellTime
+from pipeline.config.trials import TrialsConfig
 
 #: Above this many cells an experiment's progress is a bar (or a line per tenth), not a line per cell.
 COMPACT_AT = 30

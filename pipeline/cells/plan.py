@@ -2,10 +2,10 @@
 command-line overrides that no cell can take (an override is applied or refused, never ignored).
 
 An experiment (``conf/experiment/<name>.yaml``) lists cells, or generates them from layout sets
-(:meth:`~pipeline.stages._experiment_schema.Experiment.all_cells`); each cell pins some keys (its method, maze,
-substitution way, support mode, method fields, recogniser arguments or group) and takes the rest
-from the command line and the experiment's globals. Planning works on the stage's config
-dataclasses (``pipeline/stages/_trials_schema.py``, whose experiment schema imports the report's spec), so it sits with them.
+(:meth:`~pipeline.config.experiment.Experiment.all_cells`); each cell pins some keys (its method,
+maze, substitution way, support mode, method fields, recogniser arguments or group) and takes the
+rest from the command line and the experiment's globals. Planning works on the stage's config
+dataclasses (:mod:`pipeline.config.trials`, whose experiment schema imports the report's spec).
 """
 
 from __future__ import annotations
@@ -18,12 +18,12 @@ from typing import Any
 from hydra.core.override_parser.overrides_parser import OverridesParser
 from omegaconf import OmegaConf
 
+from pipeline.config.compose import CONF_DIR, one_line
+from pipeline.config.experiment import Experiment
+from pipeline.config.trials import TrialsConfig
 from pipeline.errors import ConfigError
 from pipeline.rl.methods import MethodSpec, load_method
 from pipeline.schema import check
-from pipeline.stages._common import CONF_DIR, one_line
-from pipeline.stages._experiment_schema import Experiment
-from pipeline.stages._trials_schema import TrialsConfig
 
 #: Keys a cell may pin; the top level (experiment globals, command line) gives the others. A cell
 #: also pins method fields (``params``) and recogniser arguments (``recogniser``).

@@ -16,18 +16,17 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from hydra.utils import get_method
 from omegaconf import OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
+from pipeline.configs import conf_dir
 from pipeline.errors import ConfigError, UserError
 from pipeline.kernels import pin_kernels
-from pipeline.stages._common import CONF_DIR
 
 FILLED_BY_STAGE = ("substitution_way", "carry_over")
 
 #: ``conf/recogniser/<name>.yaml``: one file per recogniser, the group ``recogniser=<name>`` chooses.
-RECOGNISER_DIR = Path(CONF_DIR) / "recogniser"
+RECOGNISER_DIR = conf_dir("recogniser")
 
 
 def recogniser_names() -> list[str]:
@@ -40,7 +39,7 @@ def recognisers_taking(parameter: str) -> list[str]:
     out = []
     for name in recogniser_names():
         node = OmegaConf.to_container(OmegaConf.load(RECOGNISER_DIR / f"{name}.yaml"))
-        if parameter in inspect.signature(_target(node, f"recogniser {name}")).parameters:
+        if parameter in inspect.signature(recogniser_target(node, f"recogniser {name}")).parameters:
             out.append(name)
     return out
 
@@ -65,7 +64,7 @@ def declared_targets() -> dict[str, str]:
     return out
 
 
-def _target(node: dict, key: str) -> Callable:
+def recogniser_target(node: dict, key: str) -> Callable:
     """The recogniser ``node`` names. A config (a file, an experiment, an override, a DVC params
     file) names code only through ``_target_``, and only one a recogniser of
     ``conf/recogniser/`` declares: anything else is refused before it is imported."""
@@ -78,6 +77,8 @@ def _target(node: dict, key: str) -> Callable:
             f"config key '{key}._target_': {str(target)!r} is not a recogniser of "
             f"conf/recogniser/ (a config may name no other code); {choose}"
         )
+    from hydra.utils import get_method  # Hydra (slow to import) only when a recogniser is built
+
     try:
         return get_method(str(target))
     except Exception as exc:  # hydra raises ImportError/ValueError/InstantiationException variants
@@ -88,7 +89,7 @@ def _target(node: dict, key: str) -> Callable:
 
 def recogniser_arguments(node: dict, key: str = "recogniser") -> tuple[Callable, dict[str, Any]]:
     """The target and its checked arguments (without the ones the stage fills)."""
-    target = _target(node, key)
+    target = recogniser_target(node, key)
     sig = inspect.signature(target)
     hints = typing.get_type_hints(target.__init__ if inspect.isclass(target) else target)
     params = {

@@ -1,7 +1,7 @@
 """The typed schema of the ``experiment`` config group (``conf/experiment/<name>.yaml``): its cells,
 the cells it generates over sets of layouts, and how the report presents it.
 
-The trials stage's schema (:class:`pipeline.stages._trials_schema.TrialsConfig`) types its ``experiment``
+The trials stage's schema (:class:`pipeline.config.trials.TrialsConfig`) types its ``experiment``
 key by :class:`Experiment`; ranges, choices and descriptions are declared on the fields as
 everywhere (:mod:`pipeline.schema`).
 """

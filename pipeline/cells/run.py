@@ -1,7 +1,7 @@
 """One cell of a trials run: what it runs with (its config, layout, recogniser and the pictures its
 records keep) and running it into its folder (``records.mcap``, ``summary.json``).
 
-The stage (:mod:`pipeline.stages.trials`) and its worker processes (:mod:`pipeline.stages._workers`)
+The stage (:mod:`pipeline.stages.trials`) and its worker processes (:mod:`pipeline.cells.workers`)
 both run cells through :func:`run_cell`. Here the runner (``pipeline/rl``) meets the record writer
 (``pipeline/records``): the runner writes through the ``EpisodeSink`` protocol and knows no file
 format, the writer knows no runner, so the stage joins them.
@@ -19,6 +19,9 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 
 from omegaconf import OmegaConf
 
+from pipeline.config.compose import one_line
+from pipeline.config.recognisers import build_recogniser
+from pipeline.config.trials import TrialsConfig
 from pipeline.errors import ConfigError, Interrupted, UserError
 from pipeline.files import disk_problem, size_text, write_json_atomic
 from pipeline.rl.methods import MethodSpec
@@ -26,9 +29,6 @@ from pipeline.rl.rng import run_seeds
 from pipeline.rl.rules import Rule
 from pipeline.rl.run_world import run_placement
 from pipeline.rl.runner import run_trials
-from pipeline.stages._common import one_line
-from pipeline.stages._recognisers import build_recogniser
-from pipeline.stages._trials_schema import TrialsConfig
 from pipeline.world.geometry import build_geometry
 from pipeline.world.maze import ACTION_NAMES, MOVES, Layout
 from pipeline.world.pictures import CATEGORIES

@@ -4,16 +4,16 @@
 values; the dataclasses give each key's type, range or choices and, in the string under it, its
 description (:mod:`pipeline.schema`). Hydra refuses wrong types and unknown keys while composing;
 :func:`pipeline.schema.check` refuses values out of range; ``python -m pipeline <stage> --help``
-prints the same declarations (``pipeline/stages/_help.py``).
+prints the same declarations (``pipeline/config/help.py``).
 
 Each stage's schema lives in its own module, named in :data:`SCHEMA_OF` and imported only when
 that stage composes its config: a stage loads the code its own config needs and no other's
 (``scripts/dvc_deps.py`` derives each stage's code dependencies in dvc.yaml from those imports).
-The trials' (``_trials_schema.py``) types the ``method`` group by
+The trials' (:mod:`.trials`) types the ``method`` group by
 :class:`~pipeline.rl.methods.MethodSpec` and ``experiment`` by
-:class:`~pipeline.stages._experiment_schema.Experiment`; the few-shot stages' (``_fewshot_schema.py``)
-type ``data``; every stage types ``profile`` by :class:`~pipeline.stages._profile_schema.Profile`; a
-recogniser is typed by the signature of its ``_target_`` (``pipeline.stages._recognisers``). The
+:class:`~pipeline.config.experiment.Experiment`; the few-shot stages' (:mod:`.fewshot`)
+type ``data``; every stage types ``profile`` by :class:`~pipeline.config.profile.Profile`; a
+recogniser is typed by the signature of its ``_target_`` (``pipeline.config.recognisers``). The
 replay and report schemas, which import nothing of the package's science, are here.
 """
 
@@ -82,10 +82,10 @@ class ReportConfig:
 #: Stage name -> its schema class as ``module:Class`` (``conf/<stage>.yaml`` lists
 #: ``<stage>_schema`` first in its defaults).
 SCHEMA_OF = {
-    "trials": "pipeline.stages._trials_schema:TrialsConfig",
-    "render": "pipeline.stages._render_schema:RenderConfig",
-    "meta_train": "pipeline.stages._fewshot_schema:MetaTrainConfig",
-    "accuracy": "pipeline.stages._fewshot_schema:AccuracyConfig",
+    "trials": "pipeline.config.trials:TrialsConfig",
+    "render": "pipeline.config.render:RenderConfig",
+    "meta_train": "pipeline.config.fewshot:MetaTrainConfig",
+    "accuracy": "pipeline.config.fewshot:AccuracyConfig",
     "replay": f"{__name__}:ReplayConfig",
     "report": f"{__name__}:ReportConfig",
 }

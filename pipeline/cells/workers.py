@@ -4,7 +4,7 @@ trials key ``workers``).
 The cells of an experiment are independent: each has its own seed-derived runs and writes only
 its own folder, so running them in any order, in any process, gives the same bytes. The parent
 sends each worker the cell's config and layout (not its recogniser: a worker builds each
-recogniser it needs once, :func:`pipeline.stages._cell_run.make_recogniser`, and reads the recorded
+recogniser it needs once, :func:`pipeline.cells.run.make_recogniser`, and reads the recorded
 pictures once); it collects each cell's summary, and the stage writes the experiment's index and
 metrics in cell order, as with one process.
 
@@ -27,8 +27,7 @@ from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import replace
 from pathlib import Path
 
-from pipeline.errors import Interrupted
-from pipeline.stages._cell_run import (
+from pipeline.cells.run import (
     CellRun,
     CellTime,
     make_recogniser,
@@ -36,9 +35,10 @@ from pipeline.stages._cell_run import (
     recorded_pictures,
     run_cell,
 )
+from pipeline.errors import Interrupted
 from pipeline.threads import ThreadBudget, trials_budget
 
-#: Per worker process: recognisers by :func:`~pipeline.stages._cell_run.recogniser_key`, pictures by folder.
+#: Per worker process: recognisers by :func:`~pipeline.cells.run.recogniser_key`, pictures by folder.
 _BUILT: dict = {}
 _PICTURES: dict = {}
 _BUDGET: list[ThreadBudget] = [trials_budget(0, 1)]

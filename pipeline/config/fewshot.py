@@ -1,6 +1,6 @@
 """The schemas of the few-shot stages: :class:`MetaTrainConfig` (``conf/meta_train.yaml``,
 its ``data`` group typed by :class:`DataConfig`) and :class:`AccuracyConfig`
-(``conf/accuracy.yaml``); the conventions: ``pipeline/stages/_schema.py``.
+(``conf/accuracy.yaml``); the conventions: ``pipeline/config/schemas.py``.
 """
 
 from __future__ import annotations
@@ -10,9 +10,9 @@ from typing import Any
 
 from omegaconf import MISSING
 
+from pipeline.config.profile import Profile
 from pipeline.fewshot.settings import StudyConfig, TrainConfig
 from pipeline.schema import setting
-from pipeline.stages._profile_schema import Profile
 
 DATA_SOURCES = ("rendered", "folder")
 
@@ -47,7 +47,7 @@ class MetaTrainConfig:
     checkpoint: str = setting(nonempty=True, path=True)
     """The selected checkpoint (set by the ``model`` group)."""
     metrics_file: str = setting(nonempty=True, path=True)
-    """Its test accuracy and 95% interval (DVC metrics: ``accuracy``, ``ci_low``, ``ci_high``;
+    """Its test accuracy and 95% interval (``accuracy``, ``ci_lower``, ``ci_upper``;
     ``<checkpoint stem>.validation.json`` (validation and selection) and ``.train_info.json``
     (timings) go beside the checkpoint)."""
     history_file: str = setting(nonempty=True, path=True)

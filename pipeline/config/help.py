@@ -18,6 +18,7 @@ import ast
 import dataclasses
 import importlib.util
 import re
+import sys
 import textwrap
 import typing
 from collections.abc import Iterator
@@ -27,7 +28,13 @@ from typing import Any
 
 import yaml
 
+from pipeline.configs import conf_dir
 from pipeline.schema import constraint, field_docs
+
+#: The flags that print a stage's help instead of running it.
+HELP_FLAGS = {"-h", "--help"}
+#: Every key of the schema, where ``--help`` shows the common ones (``COMMON_KEYS``).
+FULL_HELP_FLAG = "--help-all"
 
 WIDTH = 100
 GLOBAL = "@package _global_"
@@ -35,6 +42,14 @@ ROLE = re.compile(r":\w+:`~?([^`]+)`")
 PROFILE_REF = re.compile(r"\$\{profile\.([\w.]+)\}")
 SENTENCE_END = re.compile(r"(?<!\bal\.)(?<!e\.g\.)(?<!i\.e\.)(?<=[.?])\s")
 Loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+#: The installed command (``[project.scripts]`` in pyproject.toml), named in the help it prints.
+CONSOLE_SCRIPT = "safenav"
+
+
+def program() -> str:
+    """The command as the user typed it: ``safenav`` when run by the installed command (its
+    ``sys.argv[0]``), else ``python -m pipeline``."""
+    return CONSOLE_SCRIPT if Path(sys.argv[0]).name == CONSOLE_SCRIPT else "python -m pipeline"
 
 
 def describe(stage: str) -> str:
@@ -272,7 +287,7 @@ class StageHelp:
         """``--help`` of a stage whose schema declares ``COMMON_KEYS``: each group's options on
         a line, then those keys with the first sentence of their words; ``--help-all`` for the
         rest. One screen where the whole schema is several."""
-        lines = [f"python -m pipeline {self.stage} [key=value ...]: {describe(self.stage)}", ""]
+        lines = [f"{program()} {self.stage} [key=value ...]: {describe(self.stage)}", ""]
         lines.append("Config groups (group=option; * the default):")
         hows = [f"{g.name}=" if g.default else f"+{g.name}=" for g in self.groups]
         width = max(map(len, hows), default=0) + 2
@@ -292,13 +307,13 @@ class StageHelp:
             lines += [head, *_wrap(first, 6)]
         lines += [
             "",
-            f"Every key and what each option does: python -m pipeline {self.stage} --help-all",
+            f"Every key and what each option does: {program()} {self.stage} --help-all",
         ]
         return "\n".join(lines) + "\n"
 
     def text(self) -> str:
         """The whole ``--help`` text (``--help-all`` where the schema declares ``COMMON_KEYS``)."""
-        lines = [f"python -m pipeline {self.stage} [key=value ...]: {describe(self.stage)}", ""]
+        lines = [f"{program()} {self.stage} [key=value ...]: {describe(self.stage)}", ""]
         if self.groups:
             head = "Config groups (group=option; * the default):"
             lines += [head, *self.group_lines(), ""]
@@ -319,7 +334,15 @@ class StageHelp:
 def stage_help(stage: str, conf: str | Path, full: bool = False) -> str:
     """The ``--help`` text of ``stage``, whose configs are in the folder ``conf``: its common keys
     where its schema declares them (``COMMON_KEYS``), else (or ``full``) every key."""
-    from pipeline.stages._schema import schema_of
+    from pipeline.config.schemas import schema_of
 
     found = StageHelp(stage, schema_of(stage), Path(conf))
     return found.text() if full or not hasattr(found.schema, "COMMON_KEYS") else found.short_text()
+
+
+def wants_help(args: list[str]) -> bool:
+    return bool((HELP_FLAGS | {FULL_HELP_FLAG}) & set(args))
+
+
+def print_help(stage: str, full: bool = False) -> None:
+    print(stage_help(stage, conf_dir(), full), end="", flush=True)
