@@ -83,6 +83,32 @@ def _saved_rows(path) -> dict | None:
             return None
 
 
+def _saving_server(saved, attempts: int = 3) -> tuple[subprocess.Popen, int]:
+    """A Rerun gRPC server on a free loopback port, saving what it receives to ``saved``, once it
+    accepts connections. A port another process took between the choice and the bind (the tests
+    run two workers, each starting servers) ends that server at once: another port is tried."""
+    for _ in range(attempts):
+        port = _free_port()
+        server = subprocess.Popen(
+            [
+                *rerun_command(),
+                *("--serve-grpc", "--bind", "127.0.0.1", "--port", str(port)),
+                *("--save", str(saved)),
+            ],
+            env={**os.environ, "RUST_LOG": "warn"},
+        )
+        deadline = time.monotonic() + 30
+        while server.poll() is None and time.monotonic() < deadline:
+            try:
+                socket.create_connection(("127.0.0.1", port), timeout=0.5).close()
+                return server, port
+            except OSError:
+                time.sleep(0.1)
+        server.terminate()
+        server.wait(30)
+    raise AssertionError(f"no Rerun server accepted connections in {attempts} attempts")
+
+
 def test_the_server_started_empty_gets_the_whole_recording_over_grpc(tmp_path):
     """What the web viewer's server holds after :func:`send_recording`: every row of the ``.rrd``,
     under the file's own application and recording ids (a Rerun server saving what it receives)."""
@@ -90,28 +116,10 @@ def test_the_server_started_empty_gets_the_whole_recording_over_grpc(tmp_path):
 
     write_synthetic(tmp_path / "r.mcap", runs=1, episodes_per_run=2, seed=3)
     rrd = build_replay(tmp_path / "r.mcap", 0, 1, out=tmp_path / "r.rrd")
-    port, saved = _free_port(), tmp_path / "saved.rrd"
-    server = subprocess.Popen(
-        [
-            *rerun_command(),
-            "--serve-grpc",
-            "--bind",
-            "127.0.0.1",
-            "--port",
-            str(port),
-            "--save",
-            str(saved),
-        ],
-        env={**os.environ, "RUST_LOG": "warn"},
-    )
+    saved = tmp_path / "saved.rrd"
+    server, port = _saving_server(saved)
     try:
         deadline = time.monotonic() + 30
-        while server.poll() is None and time.monotonic() < deadline:
-            try:
-                socket.create_connection(("127.0.0.1", port), timeout=0.5).close()
-                break
-            except OSError:
-                time.sleep(0.1)
         send_recording(rrd, f"rerun+http://127.0.0.1:{port}/proxy")
         expected = _rows(rrd)
         while time.monotonic() < deadline + 30 and _saved_rows(saved) != expected:
