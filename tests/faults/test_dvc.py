@@ -131,6 +131,7 @@ def changed(value):
     return ["changed", value]
 
 
+@pytest.mark.slow  # real `dvc commit` and `dvc status` in a copy; fast: the derived listing above
 @pytest.mark.skipif(not DVC.exists(), reason="dvc is not installed beside this python")
 def test_dvc_status_names_every_stage_for_every_module_folder_and_key(tmp_path):
     repo = tmp_path / "repo"
