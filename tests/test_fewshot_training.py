@@ -17,10 +17,10 @@ from pipeline.threads import cores
 TINY = dict(
     input_size=24,
     relation_padding=1,
-    n_query=3,
-    episodes=40,
-    val_every=20,
-    val_episodes=30,
+    n_query=2,
+    episodes=20,
+    val_every=10,
+    val_episodes=10,
     eval_episodes=60,
     eval_queries=5,
 )
@@ -44,10 +44,10 @@ def test_short_training_beats_chance(images):
     result = meta_train(train, val, TrainConfig(**TINY), progress=False, clock=frozen)
     m = result.metrics
     assert m["val_accuracy"] - m["val_ci95"] > 0.5  # chance is 0.2
-    assert m["val_episodes"] == 60 and m["episodes_trained"] == 40
-    assert m["selected_episode"] in (20, 40) and not m["stopped_by_time_budget"]
+    assert m["val_episodes"] == 60 and m["episodes_trained"] == 20
+    assert m["selected_episode"] in (10, 20) and not m["stopped_by_time_budget"]
     assert not result.network.training
-    assert [h["episode"] for h in result.history] == [20, 40]
+    assert [h["episode"] for h in result.history] == [10, 20]
 
 
 def test_training_is_deterministic(images):
