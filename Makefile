@@ -26,9 +26,12 @@ lint: $(STAMP)
 	$(BIN)/lint-imports
 
 # pytest-xdist: one worker a core (tests/conftest.py pins each to its share), a test file's tests on
-# one worker (its module fixtures are built once). `make test-slow`: the end-to-end tests.
+# one worker (its module fixtures are built once), the longest files first (tests/conftest.py
+# orders them by the last run's durations; xdist keeps that order). `make test-slow`: the
+# end-to-end tests.
 TEST_WORKERS ?= auto
-PYTEST := MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile
+PYTEST := MUJOCO_GL=$${MUJOCO_GL:-egl} $(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile \
+  --no-loadscope-reorder
 test: $(STAMP)
 	$(PYTEST)
 

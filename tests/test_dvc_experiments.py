@@ -167,6 +167,7 @@ def test_exp_run_set_param_reruns_trials_and_shows_param_and_metrics(tmp_path):
     )
 
 
+@pytest.mark.slow  # real `dvc repro` and `dvc exp run --temp`; fast: test_dvc_yaml.py's site cache test
 def test_site_cache_from_any_cwd_and_in_a_temp_experiment(tmp_path):
     """The site cache form of setup.sh: `dvc exp run --temp` (a copy under .dvc/tmp) and dvc run from a
     subfolder work and write no second cache."""

@@ -15,6 +15,7 @@ import textwrap
 from pathlib import Path
 
 import pandas as pd
+import pytest
 
 from pipeline.config.compose import CONF_DIR
 from pipeline.rl.methods import METHOD_DIR
@@ -56,6 +57,7 @@ run_stage("report", ["runs_dir=runs", "out=report", "allow_missing=true", "accur
 """
 
 
+@pytest.mark.slow  # a copy of the package run in a child process; fast: tests/test_declarations.py
 def test_a_new_safety_method_needs_its_rule_its_declaration_and_its_yaml(tmp_path):
     copy = tmp_path / "repo"
     ignore = shutil.ignore_patterns("__pycache__", "*.nbi", "*.nbc")

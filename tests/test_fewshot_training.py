@@ -1,5 +1,8 @@
-"""Meta-training on tiny synthetic classes beats chance clearly and is deterministic; the manifest
-contract is checked."""
+"""Meta-training on tiny synthetic classes beats chance clearly and is deterministic; the time
+budget (``max_minutes``) is honoured on an injected clock; the manifest contract is checked.
+
+No test here depends on the machine's speed: training runs on a clock that stands still (the
+budget never runs out), or on one where each episode takes a minute."""
 
 import numpy as np
 import pytest
@@ -14,14 +17,18 @@ from pipeline.threads import cores
 TINY = dict(
     input_size=24,
     relation_padding=1,
-    n_query=3,
-    episodes=60,
-    val_every=30,
-    val_episodes=30,
+    n_query=2,
+    episodes=20,
+    val_every=10,
+    val_episodes=10,
     eval_episodes=60,
     eval_queries=5,
-    max_minutes=2.0,
 )
+
+
+def frozen() -> float:
+    """A clock that stands still: the time budget never runs out, whatever the machine's load."""
+    return 0.0
 
 
 @pytest.fixture(scope="module")
@@ -34,13 +41,13 @@ def images(tmp_path_factory):
 def test_short_training_beats_chance(images):
     train, val = load_split(images, "train", 24), load_split(images, "val", 24)
     torch.set_num_threads(cores())  # its share of the cores under pytest-xdist
-    result = meta_train(train, val, TrainConfig(**TINY), progress=False)
+    result = meta_train(train, val, TrainConfig(**TINY), progress=False, clock=frozen)
     m = result.metrics
     assert m["val_accuracy"] - m["val_ci95"] > 0.5  # chance is 0.2
-    assert m["val_episodes"] == 60 and m["episodes_trained"] == 60
-    assert m["selected_episode"] in (30, 60)
+    assert m["val_episodes"] == 60 and m["episodes_trained"] == 20
+    assert m["selected_episode"] in (10, 20) and not m["stopped_by_time_budget"]
     assert not result.network.training
-    assert [h["episode"] for h in result.history] == [30, 60]
+    assert [h["episode"] for h in result.history] == [10, 20]
 
 
 def test_training_is_deterministic(images):
@@ -48,11 +55,48 @@ def test_training_is_deterministic(images):
     cfg = TrainConfig(
         **{**TINY, "episodes": 6, "val_every": 3, "val_episodes": 5, "eval_episodes": 5}
     )
-    a = meta_train(train, val, cfg, progress=False)
-    b = meta_train(train, val, cfg, progress=False)
+    a = meta_train(train, val, cfg, progress=False, clock=frozen)
+    b = meta_train(train, val, cfg, progress=False, clock=frozen)
     for k, v in a.network.state_dict().items():
         torch.testing.assert_close(v, b.network.state_dict()[k], rtol=0, atol=0)
     assert a.metrics["val_accuracy"] == b.metrics["val_accuracy"]
+
+
+@pytest.mark.parametrize(
+    "max_minutes, trained, history",
+    [
+        (2.5, 3, [(2, 120.0), (3, 180.0)]),  # past the budget in episode 3: validated, then stop
+        (4.0, 5, [(2, 120.0), (4, 240.0), (5, 300.0)]),  # at 4 min the budget is spent, not past
+        (10.0, 6, [(2, 120.0), (4, 240.0), (6, 360.0)]),  # every episode within the budget
+    ],
+)
+def test_the_time_budget_stops_after_the_episode_that_spends_it(
+    images, monkeypatch, max_minutes, trained, history
+):
+    """On a clock where each training episode takes one minute, ``max_minutes`` stops the loop
+    after the episode that takes it past the budget; that episode is validated (a candidate for
+    selection) and the metrics say the budget stopped it."""
+    from pipeline.fewshot import training
+
+    now, step = [0.0], training._train_step
+
+    def one_minute(*args, **kwargs):
+        now[0] += 60.0
+        return step(*args, **kwargs)
+
+    monkeypatch.setattr(training, "_train_step", one_minute)
+    train, val = load_split(images, "train", 24), load_split(images, "val", 24)
+    cfg = TrainConfig(
+        **{**TINY, "episodes": 6, "val_every": 2, "val_episodes": 3, "eval_episodes": 3},
+        max_minutes=max_minutes,
+    )
+    result = meta_train(train, val, cfg, progress=False, clock=lambda: now[0])
+    m = result.metrics
+    assert m["episodes_trained"] == trained
+    assert m["stopped_by_time_budget"] == (trained < 6)
+    assert m["train_seconds"] == 60.0 * trained
+    assert [(h["episode"], h["elapsed_s"]) for h in result.history] == history
+    assert m["selected_episode"] in [e for e, _ in history]
 
 
 def test_episodes_and_interval():

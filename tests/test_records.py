@@ -427,18 +427,30 @@ def test_a_corrupt_chunk_is_skipped_with_a_warning(tmp_path):
 
 def test_a_killed_writer_keeps_what_it_was_handed_flush_seconds_before(tmp_path):
     """Chunks close every ``flush_every`` episodes; what came after the last one is written as a
-    provisional chunk once ``flush_seconds`` pass: a kill then loses nothing handed over."""
+    provisional chunk once ``flush_seconds`` pass: a kill then loses nothing handed over. The child
+    kills itself once the file on disk holds every episode (not after a guess at how long the
+    writer's thread takes on a loaded machine); it exits 3 if that never happens."""
     script = f"""
-import os, sys, time
+import os, sys, time, warnings
 sys.path.insert(0, {str(Path(__file__).resolve().parents[1])!r})
 from tests.synthetic_records import LAYOUT_5X5, batches
-from pipeline.records import RecordWriter
+from pipeline.records import RecordWriter, read_records
 w = RecordWriter({str(tmp_path / "k.mcap")!r}, maze={{"layout": LAYOUT_5X5}}, flush_every=5,
                  flush_seconds=0.3)
 for batch, _ in batches(LAYOUT_5X5, batch_size=3, runs=1, episodes_per_run=14):
     w.episodes(**batch)
-time.sleep(1.5)
-os._exit(9)  # killed: no close(), no interpreter clean-up
+end = time.monotonic() + 60
+while time.monotonic() < end:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        try:  # the writer's thread may be mid-chunk: read again
+            held = len(read_records(w.partial_path, pictures=False).episodes)
+        except Exception:
+            held = 0
+    if held == 14:
+        os._exit(9)  # killed: no close(), no interpreter clean-up
+    time.sleep(0.05)
+sys.exit(3)
 """
     res = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
     assert res.returncode == 9, res.stderr

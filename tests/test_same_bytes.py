@@ -1,8 +1,9 @@
 """Records of one config are byte-identical whatever CPU kernels torch picks (issue 31;
-docs/records.md "The schema"): a Relation Network cell run in two processes,
+docs/records.md "The schema"): a Relation Network cell of each world run in two processes,
 one with ``ATEN_CPU_CAPABILITY=default``, one with ``=avx2`` (oneDNN and MKL free to pick their
 best), and the files compared. A subprocess each: the kernel path is chosen once per process."""
 
+import json
 import os
 import subprocess
 import sys
@@ -24,14 +25,32 @@ def _cpu_has(flag: str) -> bool:
         return False
 
 
-@pytest.mark.skipif(not _cpu_has("avx2"), reason="this CPU has no AVX2 kernels to compare with")
-@pytest.mark.parametrize(  # the robot's cell: live pictures, mm-rounded motion table (issue 38)
-    "world,runs", [("grid", 10), ("robot3d", 2)]
-)
-def test_a_cell_gives_the_same_record_bytes_under_two_kernel_paths(tmp_path, world, runs):
-    images = tmp_path / "images"
+#: The worlds and their runs (the robot's cell: live pictures, mm-rounded motion table, issue 38).
+WORLDS = {"grid": 10, "robot3d": 2}
+
+#: One child process runs every world's cell: the kernel path is chosen once per process, and the
+#: start-up (torch, numba, MuJoCo) is paid once per path instead of once per cell.
+RUN_CELLS = """
+import json, sys
+from pipeline.__main__ import main
+for args in json.loads(sys.argv[1]):
+    main(args)
+"""
+
+
+@pytest.fixture(scope="module")
+def under_two_kernel_paths(tmp_path_factory):
+    """``{capability: {world: {file name: bytes}}}`` and the folder of the last run's cells."""
+    tmp = tmp_path_factory.mktemp("same_bytes")
+    images = tmp / "images"
     write_synthetic_dataset(images, n_train=6, n_val=5, per_class=4, seed=2)
-    out = tmp_path / "out"  # the same out for both: the records keep the config
+    paths = [f"recogniser.checkpoint={CHECKPOINT}", f"recogniser.images_dir={images}"]
+    cells = {  # the same out for both paths: the records keep the config
+        world: ["trials", "method=fewshot_dss", "maze=5x5", f"runs={runs}", "episodes=100"]
+        + [f"world={world}", *paths, f"images_dir={images}", f"out={tmp / world}"]
+        + ["overwrite=true", "progress=false"]
+        for world, runs in WORLDS.items()
+    }
     got = {}
     for capability in ("default", "avx2"):
         env = {
@@ -40,20 +59,30 @@ def test_a_cell_gives_the_same_record_bytes_under_two_kernel_paths(tmp_path, wor
             "ONEDNN_MAX_CPU_ISA": "ALL",
             "MKL_CBWR": "AUTO",
         }
-        args = ["method=fewshot_dss", "maze=5x5", f"runs={runs}", "episodes=100", f"world={world}"]
-        paths = [f"recogniser.checkpoint={CHECKPOINT}", f"recogniser.images_dir={images}"]
         proc = subprocess.run(
-            [sys.executable, "-m", "pipeline", "trials", *args, *paths, f"images_dir={images}"]
-            + [f"out={out}", "overwrite=true", "progress=false"],
+            [sys.executable, "-c", RUN_CELLS, json.dumps(list(cells.values()))],
             env=env,
             cwd=ROOT,
             capture_output=True,
             text=True,
-            timeout=300,
+            timeout=600,
         )
         assert proc.returncode == 0, proc.stderr
-        got[capability] = {n: (out / n).read_bytes() for n in ("records.mcap", "summary.json")}
-    assert got["default"] == got["avx2"]
-    records = read_records(out / "records.mcap")
+        got[capability] = {
+            world: {n: (tmp / world / n).read_bytes() for n in ("records.mcap", "summary.json")}
+            for world in WORLDS
+        }
+    return got, tmp
+
+
+@pytest.mark.skipif(not _cpu_has("avx2"), reason="this CPU has no AVX2 kernels to compare with")
+@pytest.mark.parametrize("world,runs", WORLDS.items())
+def test_a_cell_gives_the_same_record_bytes_under_two_kernel_paths(
+    under_two_kernel_paths, world, runs
+):
+    got, tmp = under_two_kernel_paths
+    assert got["default"][world] == got["avx2"][world]
+    records = read_records(tmp / world / "records.mcap")
     assert len(records.recognitions) > 10 * runs and records.recognitions.score_0.notna().all()
     assert records.meta.config["recogniser"]["checkpoint"] == str(CHECKPOINT)
+    assert records.meta.config["world"] == world

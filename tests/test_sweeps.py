@@ -1,4 +1,5 @@
-"""Hydra multirun sweeps of the trials stage through the joblib and submitit_local launchers."""
+"""Hydra multirun sweeps of the trials stage through the joblib and submitit_local launchers (the
+latter under ``make test-slow``)."""
 
 import json
 import os
@@ -11,7 +12,13 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 
 
-@pytest.mark.parametrize("launcher", ["joblib", "submitit_local"])
+@pytest.mark.parametrize(
+    "launcher",
+    [  # README's sweep; submitit's local launcher (its SLURM launcher: tests/test_slurm.py) is slow
+        "joblib",
+        pytest.param("submitit_local", marks=pytest.mark.slow),
+    ],
+)
 def test_sweep_over_methods(tmp_path, launcher):
     args = [
         sys.executable,

@@ -2,7 +2,8 @@
 owner removes (:func:`pipeline.files.exclusive_folder`) and the work folders that no process
 removes while their own process lives (:func:`pipeline.files.abandoned`). The lock's cases run in
 this process against stand-in owners; the stage's run as real processes on one ``out``: a run A,
-a second run B and an ``overwrite=true`` run C, in the grid and in the robot world."""
+a second run B and an ``overwrite=true`` run C, in the grid and in the robot world (the
+robot's under ``make test-slow``)."""
 
 from __future__ import annotations
 
@@ -252,7 +253,13 @@ WORLDS = {  # runs, episodes and the rest: each run lasts a few seconds
 }
 
 
-@pytest.mark.parametrize("world", WORLDS)
+@pytest.mark.parametrize(
+    "world",
+    [  # the lock is taken by the trials stage whatever the world: the robot's run is end to end
+        "grid",
+        pytest.param("robot", marks=pytest.mark.slow),
+    ],
+)
 def test_a_run_keeps_its_out_from_a_second_run_and_an_overwrite_run(tmp_path, world):
     """A writes; B (same ``out``) and C (``overwrite=true``) are refused in one line naming A's
     pid, and touch neither A's lock nor its staging folder; A's records read back complete, and

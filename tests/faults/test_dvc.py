@@ -16,7 +16,35 @@ from scripts import dvc_deps
 ROOT = Path(__file__).resolve().parents[2]
 DVC = Path(sys.executable).parent / "dvc"
 TEXT = dvc_deps.DVC_YAML.read_text()
-STAGES = dvc_deps.stages_of(TEXT)
+
+
+class _Stages:
+    """dvc.yaml's stages as ``scripts/dvc_deps.py`` derives them, derived at the first use: each
+    composes its configs (seconds), once in the worker that runs these tests, not in every worker
+    that collects this file."""
+
+    def __init__(self) -> None:
+        self._stages: dict | None = None
+
+    def _derived(self) -> dict:
+        if self._stages is None:
+            self._stages = dvc_deps.stages_of(TEXT)
+        return self._stages
+
+    def __getitem__(self, name: str):
+        return self._derived()[name]
+
+    def __contains__(self, name: object) -> bool:
+        return name in self._derived()
+
+    def items(self):
+        return self._derived().items()
+
+    def values(self):
+        return self._derived().values()
+
+
+STAGES = _Stages()
 
 
 def test_dvc_yaml_lists_the_derived_deps_and_params():
@@ -105,6 +133,7 @@ def changed(value):
     return ["changed", value]
 
 
+@pytest.mark.slow  # real `dvc commit` and `dvc status` in a copy; fast: the derived listing above
 @pytest.mark.skipif(not DVC.exists(), reason="dvc is not installed beside this python")
 def test_dvc_status_names_every_stage_for_every_module_folder_and_key(tmp_path):
     repo = tmp_path / "repo"

@@ -86,6 +86,17 @@ def _alive(pid: int) -> bool:
     return False
 
 
+def _wait_for_cells(stage: subprocess.Popen, out: Path, timeout=120.0) -> None:
+    """Until the workers of ``stage`` run cells: a cell's partial records in its staging folder
+    (an event, not a guess at how long start-up takes on a loaded machine)."""
+    t0 = time.time()
+    while not list(out.glob(".staging-*/*/records.mcap.partial")):
+        if stage.poll() is not None:
+            raise AssertionError(f"the stage ended before running a cell: {stage.stderr.read()}")
+        assert time.time() - t0 < timeout, f"no cell started within {timeout:.0f} s"
+        time.sleep(0.1)
+
+
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux /proc")
 def test_workers_end_when_their_stage_is_killed(tmp_path):
     """``kill -9`` of a ``workers=2`` stage: its worker processes (and the resource tracker they
@@ -101,7 +112,7 @@ def test_workers_end_when_their_stage_is_killed(tmp_path):
             children = _children(stage.pid)
             time.sleep(0.2)
         assert len(children) >= 2, children
-        time.sleep(2.0)  # the workers are running cells
+        _wait_for_cells(stage, tmp_path)
         stage.kill()
         stage.wait(timeout=10)
         t0 = time.time()
@@ -122,10 +133,7 @@ def test_a_terminated_multi_worker_stage_says_one_line(tmp_path):
         "progress=false", f"out={tmp_path}",
     )  # fmt: skip
     try:
-        t0 = time.time()
-        while time.time() - t0 < 60 and len(_children(stage.pid)) < 3:
-            time.sleep(0.2)
-        time.sleep(2.0)
+        _wait_for_cells(stage, tmp_path)
         stage.send_signal(signal.SIGTERM)
         _, err = stage.communicate(timeout=60)
     finally:
