@@ -96,7 +96,7 @@ def main(argv: list[str] | None = None) -> int:
     figures["load_after"] = os.getloadavg()[0]
     path = write_figures(ROOT / "reports/benchmarks/fresh_clone.json", figures, __spec__.name)
     for key, value in figures.items():
-        if key.endswith("_seconds"):
+        if key.endswith("_seconds") and not isinstance(value, dict):
             print(f"{key.removesuffix('_seconds'):<8} {value / 60:6.1f} min")
     for stage, seconds in figures.get("repro_stages_seconds", {}).items():
         print(f"  {stage:<28} {seconds:7.1f} s")
