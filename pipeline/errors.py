@@ -34,7 +34,10 @@ def quiet_broken_pipe():
     """``... | head``: a reader that stops early ends the command with status 141 (as a shell's
     SIGPIPE would), without a traceback."""
     try:
-        yield
+        try:
+            yield
+        finally:
+            sys.stdout.flush()  # the last write inside: a reader gone before it is seen here
     except BrokenPipeError:
         os.dup2(
             os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno()
