@@ -53,30 +53,32 @@ def child(out: str, columns: int, images: str) -> None:
     """In the child: every model's scores of ``columns`` random support states, and the seconds."""
     import torch
 
-    from pipeline.fewshot.recogniser import ProtoRecogniser, RelationRecogniser
+    from pipeline.fewshot.recogniser import ProtoRecogniser, RelationRecogniser, softmax_rows
 
     torch.set_num_threads(1)
     rng = np.random.default_rng(0)
     saved = {}
     for kind, cls in (("relation_net", RelationRecogniser), ("protonet", ProtoRecogniser)):
         rec = cls.from_files(MODELS[kind], images)
-        codes = np.array(sorted(rec._part))
+        codes = np.array(sorted(rec.parts))
         start = time.perf_counter()
-        table = np.stack(
-            [
-                rec._column(rec._class_state(np.sort(rng.choice(codes, 5, replace=False))))
-                for _ in range(columns)
-            ],
-            axis=1,
-        )
+        with torch.no_grad():
+            table = np.stack([rec.forward(parts(rec, codes, rng)) for _ in range(columns)], axis=1)
         saved[f"{kind}_seconds"] = np.array((time.perf_counter() - start) / columns)
         if kind == "protonet":  # its scores are the softmax of a row of five columns
             table = np.concatenate(
-                [rec._scores(table[:, j : j + 5]) for j in range(0, columns - 4, 5)], axis=1
+                [softmax_rows(table[:, j : j + 5]) for j in range(0, columns - 4, 5)], axis=1
             )
         saved[kind] = table.astype(np.float32)
     saved["aten"] = np.array(torch.backends.cpu.get_cpu_capability())
     np.savez(out, **saved)
+
+
+def parts(rec, codes, rng):
+    """The stacked parts of 5 random members of ``codes`` (a category's support members)."""
+    import torch
+
+    return torch.stack([rec.parts[int(m)] for m in np.sort(rng.choice(codes, 5, replace=False))])
 
 
 def ulp(a: np.ndarray, b: np.ndarray) -> np.ndarray:

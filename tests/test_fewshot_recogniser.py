@@ -124,12 +124,9 @@ def test_a_recogniser_that_does_not_score_cannot_be_built():
     naming it, not at its first score."""
     from pipeline.fewshot.recogniser import SupportSetRecogniser
 
-    class NoColumn(SupportSetRecogniser):
-        def _prepare(self, query_f, support_f):
-            return query_f, support_f
+    class NoForward(SupportSetRecogniser):
+        def prepare(self, query_features, support_features):
+            return query_features, support_features
 
-        def _class_state(self, members):
-            return torch.zeros(1)
-
-    with pytest.raises(TypeError, match="abstract method.*_column"):
-        NoColumn(None, torch.zeros(0), np.zeros(0), torch.zeros(0))
+    with pytest.raises(TypeError, match="abstract method.*forward"):
+        NoForward(None, torch.zeros(0), np.zeros(0), torch.zeros(0))

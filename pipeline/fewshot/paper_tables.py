@@ -38,7 +38,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .support_set import SupportSet
+from .support_set import SupportSet, check_picture, started
 
 #: Table 1, first row: pictures of each category named right with the original support set (of 8).
 ORIGINAL = np.array([0, 3, 2, 8, 4]) / 8
@@ -123,12 +123,12 @@ class PaperTablesRecogniser:
     def learn_from_collision(self, run: int, picture_id: int, true_category: int) -> int:
         """Substitute the picture into its category at the position the way chooses (section
         3.3); return the position, or -1 for the static support set."""
-        self.replace_check(picture_id, true_category)
+        check_picture(CATEGORY, picture_id, true_category)
         return self._run(run)[0].substitute(true_category, int(picture_id))
 
     def replace(self, run: int, category: int, position: int, picture_id: int) -> None:
         """Put ``picture_id`` at ``position`` of ``category`` (the accuracy study's substitutions)."""
-        self.replace_check(picture_id, category)
+        check_picture(CATEGORY, picture_id, category)
         if not 0 <= position < K_SHOT:
             raise ValueError(f"support position {position} out of range 0..{K_SHOT - 1}")
         self._run(run)[0].members[category, position] = int(picture_id)
@@ -146,19 +146,5 @@ class PaperTablesRecogniser:
             "carry_over": self.carry_over,
         }
 
-    @staticmethod
-    def replace_check(picture_id: int, category: int) -> None:
-        if not 0 <= picture_id < N_PICTURES:
-            raise ValueError(f"picture id {picture_id} out of range 0..{N_PICTURES - 1}")
-        if CATEGORY[picture_id] != category:
-            raise ValueError(
-                f"picture {picture_id} shows category {CATEGORY[picture_id]}, not {category}"
-            )
-
     def _run(self, run: int):
-        try:
-            return self._runs[run]
-        except KeyError:
-            raise KeyError(
-                f"run {run} was not started; call start_run({run}, seed) first"
-            ) from None
+        return started(self._runs, run)

@@ -3,10 +3,10 @@ dynamic support set of section 3.3). It implements the trial runner's ``Recognis
 (``pipeline/rl/recogniser.py``) structurally, without importing ``pipeline.rl``.
 
 :class:`.support_recogniser.SupportSetRecogniser` owns what both few-shot methods share (the runs,
-their support sets, the score table, loading from files); the two subclasses here say how a
-category's support members become its class state and how that state scores every picture:
-:class:`RelationRecogniser` and :class:`ProtoRecogniser` (a prototype, the mean embedding;
-Prototypical Networks).
+their support sets, the score table, loading from files); the two subclasses here implement its two
+hooks, ``prepare`` (each picture's part of a class state) and ``forward`` (every picture's score
+against one category's members): :class:`RelationRecogniser` and :class:`ProtoRecogniser` (a
+prototype, the mean embedding; Prototypical Networks).
 
 Cost model of the Relation Network. Every picture (the 40 query pictures and the original support pictures) is embedded
 once by f_varphi. g_phi's first convolution is linear in the concatenated pair, so it splits into a
@@ -36,13 +36,18 @@ from .protonet import negative_squared_distances
 from .settings import ProtoConfig
 from .support_recogniser import SupportSetRecogniser
 
-__all__ = ["ProtoRecogniser", "RelationRecogniser", "SupportSetRecogniser"]
+__all__ = ["ProtoRecogniser", "RelationRecogniser", "SupportSetRecogniser", "softmax_rows"]
+
+
+def softmax_rows(table: np.ndarray) -> np.ndarray:
+    """Each row's softmax (Snell et al. eq. 2): raw scores (logits) to a probability a category."""
+    return torch.softmax(torch.from_numpy(table), dim=1).numpy()
 
 
 class RelationRecogniser(SupportSetRecogniser):
     """Relation Network recogniser (paper section 3.2.1, eq. 2): a category's state is the class
-    half of g_phi's first convolution (with its bias) of the summed K feature maps; its column is
-    the rest of g_phi on every picture's query half. Scores are relation scores in [0, 1]."""
+    half of g_phi's first convolution (with its bias) of the summed K feature maps; the rest of
+    g_phi on every picture's query half scores it. Scores are relation scores in [0, 1]."""
 
     kind = "relation_net"
     display_name = "Relation Network"
@@ -61,42 +66,36 @@ class RelationRecogniser(SupportSetRecogniser):
         carry_over: bool = False,
     ) -> RelationRecogniser:
         """Load a trained Relation Network checkpoint and the pictures of ``images_dir`` (see
-        :meth:`SupportSetRecogniser._from_files`). ``input_size`` and ``relation_padding``, when
+        :meth:`SupportSetRecogniser._load`). ``input_size`` and ``relation_padding``, when
         given, are the model shape the config expects; ``query_hue_shift`` turns the query pictures' hue."""
-        expected = None
+        shape = None
         if input_size is not None or relation_padding is not None:
-            expected = ModelConfig(
+            shape = ModelConfig(
                 input_size if input_size is not None else 84,
                 relation_padding if relation_padding is not None else 0,
             )
-        return cls._from_files(
-            checkpoint,
-            images_dir,
-            expected,
-            query_hue_shift,
-            substitution_way=substitution_way,
-            carry_over=carry_over,
+        return cls._load(
+            checkpoint, images_dir, shape, query_hue_shift, substitution_way, carry_over
         )
 
-    def _prepare(self, query_f, support_f):
+    def prepare(self, query_features, support_features):
+        """Every picture's class half; the query pictures' query halves and the bias are kept."""
         relation = self.network.relation
-        q_class, self._query_half = relation.first_conv_halves(query_f, query_f)
-        s_class, _ = relation.first_conv_halves(support_f, support_f[:1])
+        q_class, self._query_half = relation.first_conv_halves(query_features, query_features)
+        s_class, _ = relation.first_conv_halves(support_features, support_features[:1])
         self._bias = relation.first_conv_bias().detach().clone()
         return q_class, s_class
 
-    def _class_state(self, members: np.ndarray) -> torch.Tensor:
-        return self._bias + torch.stack([self._part[int(m)] for m in members]).sum(0)
-
-    @torch.no_grad()
-    def _column(self, state: torch.Tensor) -> np.ndarray:
-        h = state.unsqueeze(0) + self._query_half
+    def forward(self, parts: torch.Tensor) -> np.ndarray:
+        """The class half of the members' summed maps (the sum of their halves, plus the bias)
+        added to every query half, through the rest of g_phi."""
+        h = (self._bias + parts.sum(0)).unsqueeze(0) + self._query_half
         return self.network.relation.after_first_conv(h).numpy()
 
 
 class ProtoRecogniser(SupportSetRecogniser):
     """Prototypical Network recogniser (Snell et al. 2017, eqs. 1-2): a category's state is its
-    prototype, the mean of its K members' embeddings; its column holds every picture's negative
+    prototype, the mean of its K members' embeddings; every picture's raw score is its negative
     squared distance to it; a picture's scores are the softmax of its row, p(category | picture)."""
 
     kind = "protonet"
@@ -115,28 +114,22 @@ class ProtoRecogniser(SupportSetRecogniser):
         carry_over: bool = False,
     ) -> ProtoRecogniser:
         """Load a trained Prototypical Network checkpoint and the pictures of ``images_dir`` (see
-        :meth:`SupportSetRecogniser._from_files`). ``input_size``, when given, is the input side
+        :meth:`SupportSetRecogniser._load`). ``input_size``, when given, is the input side
         the config expects; ``query_hue_shift`` turns the query pictures' hue."""
-        expected = ProtoConfig(input_size) if input_size is not None else None
-        return cls._from_files(
-            checkpoint,
-            images_dir,
-            expected,
-            query_hue_shift,
-            substitution_way=substitution_way,
-            carry_over=carry_over,
+        shape = ProtoConfig(input_size) if input_size is not None else None
+        return cls._load(
+            checkpoint, images_dir, shape, query_hue_shift, substitution_way, carry_over
         )
 
-    def _prepare(self, query_f, support_f):
-        self._queries = query_f.flatten(1)
-        return self._queries, support_f.flatten(1)
+    def prepare(self, query_features, support_features):
+        """Every picture's flattened embedding; the query pictures' are kept."""
+        self._queries = query_features.flatten(1)
+        return self._queries, support_features.flatten(1)
 
-    def _class_state(self, members: np.ndarray) -> torch.Tensor:
-        return torch.stack([self._part[int(m)] for m in members]).mean(0)
+    def forward(self, parts: torch.Tensor) -> np.ndarray:
+        """Negative squared distances to the prototype, the mean of the members' embeddings."""
+        return negative_squared_distances(parts.mean(0).unsqueeze(0), self._queries)[:, 0].numpy()
 
-    @torch.no_grad()
-    def _column(self, state: torch.Tensor) -> np.ndarray:
-        return negative_squared_distances(state.unsqueeze(0), self._queries)[:, 0].numpy()
-
-    def _scores(self, table: np.ndarray) -> np.ndarray:
-        return torch.softmax(torch.from_numpy(table), dim=1).numpy()
+    def scores(self, run: int, picture_ids: np.ndarray) -> np.ndarray:
+        """The softmax of each picture's row: p(category | picture), in [0, 1]."""
+        return softmax_rows(super().scores(run, picture_ids))

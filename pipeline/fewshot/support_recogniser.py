@@ -1,8 +1,10 @@
 """The recogniser both few-shot methods share (paper section 3.2.1, eq. 2, and the dynamic support
 set of section 3.3): :class:`SupportSetRecogniser` owns the runs, their support sets
 (:mod:`.support_set`, substitution ways 1-4, carry-over), the (pictures x categories) table and its
-per-category invalidation, loading from files. A subclass (:mod:`.recogniser`) says how a
-category's support members become its class state and how that state scores every picture.
+per-category invalidation, loading from files. A subclass (:mod:`.recogniser`) implements two
+hooks, as easyfsl's ``FewShotClassifier`` asks for ``process_support_set`` and ``forward``:
+:meth:`~SupportSetRecogniser.prepare` (what each picture contributes, computed once) and
+:meth:`~SupportSetRecogniser.forward` (every picture's score against one category's members).
 
 Each run owns its support set. ``start_run`` restores the original support set, or, with
 ``carry_over=True`` (long-term autonomy, paper Figure 10), keeps the run's current one and only reseeds
@@ -27,7 +29,7 @@ from .data import DataError, PictureSet, load_split, read_manifest, to_tensor
 from .model import RelationNetwork
 from .protonet import PrototypicalNetwork
 from .score_cache import source_key, store_for
-from .support_set import SupportSet
+from .support_set import SupportSet, check_picture, started
 from .training import embed_all
 
 
@@ -42,7 +44,6 @@ def canonical(members: np.ndarray) -> np.ndarray:
 @dataclass
 class _Run:
     support: SupportSet
-    state: torch.Tensor  # (C, ...): every category's class state (class half, prototype)
     table: np.ndarray  # (P, C) raw scores: relation scores, or logits
     valid: np.ndarray  # (C,) bool: column c of ``table`` is current
 
@@ -97,12 +98,12 @@ class SupportSetRecogniser(abc.ABC):
         with torch.no_grad():
             query_f = _embedded(network, query_images)
             support_f = _embedded(network, support_images)
-            query_parts, support_parts = self._prepare(query_f, support_f)
-        # the part each support member contributes to its category's state: query picture p -> p,
-        # original support picture j -> -(j + 1) (the member codes of support_set.py)
-        self._part = {int(p): query_parts[p] for p in range(self.n_pictures)}
+            query_parts, support_parts = self.prepare(query_f, support_f)
+        #: the part each support member contributes to its category's score: query picture p -> p,
+        #: original support picture j -> -(j + 1) (the member codes of support_set.py)
+        self.parts = {int(p): query_parts[p] for p in range(self.n_pictures)}
         for j in range(len(support_parts)):
-            self._part[-(j + 1)] = support_parts[j]
+            self.parts[-(j + 1)] = support_parts[j]
         self._runs: dict[int, _Run] = {}
         # columns shared with every recogniser of this process that scores the same way
         # (:mod:`.score_cache`): same kind, weights and pictures
@@ -111,50 +112,27 @@ class SupportSetRecogniser(abc.ABC):
                 f"{type(self).__qualname__}:{self.kind}", network, query_images, support_images
             )
         )
-        template = SupportSet(n_way, k_shot, 0, 0)
-        self._original_state = torch.stack(
-            [self._class_state(canonical(template.members[c])) for c in range(n_way)]
-        )
-        self._original_table = np.stack(
-            [
-                self._shared_column(template.members[c], self._original_state[c])
-                for c in range(n_way)
-            ],
-            axis=1,
-        )
+        template = SupportSet(n_way, k_shot, 0, 0).members
+        self._original_table = np.stack([self._column(members) for members in template], axis=1)
 
-    # -- what a subclass provides ------------------------------------------------------------
+    # -- the two hooks a recogniser implements -------------------------------------------------
     @abc.abstractmethod
-    def _prepare(
-        self, query_f: torch.Tensor, support_f: torch.Tensor
+    def prepare(
+        self, query_features: torch.Tensor, support_features: torch.Tensor
     ) -> tuple[torch.Tensor, torch.Tensor]:
-        """From the eval-mode embeddings, each query and support picture's part of a class state
-        (and whatever the scoring keeps about the query pictures)."""
+        """Called once, from the eval-mode embeddings of the query (P, ...) and original support
+        (C*K, ...) pictures: return each picture's part of a category's state (row ``i`` of each),
+        and keep what :meth:`forward` needs of the query pictures."""
 
     @abc.abstractmethod
-    def _class_state(self, members: np.ndarray) -> torch.Tensor:
-        """A category's state from its K members' parts."""
-
-    @abc.abstractmethod
-    def _column(self, state: torch.Tensor) -> np.ndarray:
-        """Raw scores (P,) of every query picture against one category's state, all in one batch."""
-
-    def _scores(self, table: np.ndarray) -> np.ndarray:
-        """The reported per-category scores of rows of the raw table (identity by default)."""
-        return table
+    def forward(self, parts: torch.Tensor) -> np.ndarray:
+        """Raw scores (P,) of every query picture against the category whose K members' parts are
+        ``parts`` (K, ...), stacked in :func:`canonical` order; all pictures in one batch, no grad.
+        :meth:`predictions` takes the arg max of a row; :meth:`scores` returns rows as they are."""
 
     # -- construction from files -------------------------------------------------------------
     @classmethod
-    def _from_files(
-        cls,
-        checkpoint,
-        images_dir,
-        expected,
-        query_hue_shift: float,
-        *,
-        substitution_way: int,
-        carry_over: bool,
-    ):
+    def _load(cls, checkpoint, images_dir, expected, query_hue_shift, substitution_way, carry_over):
         """Load a ``cls.kind`` checkpoint and the query/support pictures of ``images_dir``'s
         manifest, resized to the checkpoint's input size and normalised with its statistics.
         ``expected``, when given, is the model shape the config expects: a checkpoint of another
@@ -243,7 +221,6 @@ class SupportSetRecogniser(abc.ABC):
             return
         self._runs[run] = _Run(
             support=SupportSet(self.n_way, self.k_shot, self.substitution_way, seed),
-            state=self._original_state.clone(),
             table=self._original_table.copy(),
             valid=np.ones(self.n_way, dtype=bool),
         )
@@ -259,16 +236,16 @@ class SupportSetRecogniser(abc.ABC):
             raise ValueError(
                 f"picture ids must lie in 0..{self.n_pictures - 1}, got {ids.tolist()}"
             )
-        return self._scores(self._table(run)[ids])
+        return self._table(run)[ids]
 
     def learn_from_collision(self, run: int, picture_id: int, true_category: int) -> int:
         """Substitute query picture ``picture_id`` into ``true_category`` at the position the
         substitution way chooses (section 3.3); return it, or -1 for a static support set."""
         state = self._run(run)
-        self._check_picture(picture_id, true_category)
+        check_picture(self.query_categories, picture_id, true_category)
         pos = state.support.substitute(true_category, int(picture_id))
         if pos >= 0:
-            self._refresh(state, true_category)
+            state.valid[true_category] = False
         return pos
 
     # -- extras for the accuracy study and the records ---------------------------------------
@@ -276,11 +253,11 @@ class SupportSetRecogniser(abc.ABC):
         """Put query picture ``picture_id`` at ``position`` of ``category`` (the accuracy study's
         chosen substitutions, section 4.2.1), whatever the substitution way."""
         state = self._run(run)
-        self._check_picture(picture_id, category)
+        check_picture(self.query_categories, picture_id, category)
         if not 0 <= position < self.k_shot:
             raise ValueError(f"support position {position} out of range 0..{self.k_shot - 1}")
         state.support.members[category, position] = int(picture_id)
-        self._refresh(state, category)
+        state.valid[category] = False
 
     def support_members(self, run: int) -> np.ndarray:
         """(C, K) member codes of run ``run``'s support set: a query picture id (>= 0) or
@@ -316,35 +293,23 @@ class SupportSetRecogniser(abc.ABC):
 
     # -- internals ---------------------------------------------------------------------------
     def _run(self, run: int) -> _Run:
-        try:
-            return self._runs[run]
-        except KeyError:
-            raise KeyError(
-                f"run {run} was not started; call start_run({run}, seed) first"
-            ) from None
+        return started(self._runs, run)
 
-    def _check_picture(self, picture_id: int, category: int) -> None:
-        if not 0 <= picture_id < self.n_pictures:
-            raise ValueError(f"picture id {picture_id} out of range 0..{self.n_pictures - 1}")
-        if self.query_categories[picture_id] != category:
-            raise ValueError(
-                f"picture {picture_id} shows category {self.query_categories[picture_id]}, not {category}"
-            )
+    def _column(self, members: np.ndarray) -> np.ndarray:
+        """The column of a category whose support members are ``members`` (any order): from the
+        shared store, computed by :meth:`forward` the first time."""
+        ordered = canonical(members)
+        key = tuple(int(m) for m in ordered)
+        return self._store.column(key, lambda: self._forward(ordered))
 
-    def _refresh(self, state: _Run, category: int) -> None:
-        state.state[category] = self._class_state(canonical(state.support.members[category]))
-        state.valid[category] = False
-
-    def _shared_column(self, members: np.ndarray, class_state: torch.Tensor) -> np.ndarray:
-        """The column of a category whose support members are ``members`` (position order) and
-        whose class state is ``class_state``: from the shared store, computed the first time."""
-        key = tuple(int(m) for m in canonical(members))
-        return self._store.column(key, lambda: self._column(class_state))
+    @torch.no_grad()
+    def _forward(self, ordered: np.ndarray) -> np.ndarray:
+        return self.forward(torch.stack([self.parts[int(m)] for m in ordered]))
 
     def _table(self, run: int) -> np.ndarray:
         state = self._run(run)
         for c in np.flatnonzero(~state.valid):
-            state.table[:, c] = self._shared_column(state.support.members[c], state.state[c])
+            state.table[:, c] = self._column(state.support.members[c])
             state.valid[c] = True
         return state.table
 

@@ -95,3 +95,23 @@ class SupportSet:
         pos = self.choosers[category].next_position(self.rng)
         self.members[category, pos] = member
         return pos
+
+
+def started(runs: dict, run: int):
+    """Run ``run``'s entry of a recogniser's ``runs``; a run not started is a ``KeyError`` that
+    names the call to make."""
+    try:
+        return runs[run]
+    except KeyError:
+        raise KeyError(f"run {run} was not started; call start_run({run}, seed) first") from None
+
+
+def check_picture(categories: np.ndarray, picture_id: int, category: int) -> None:
+    """Refuse a picture id outside ``categories`` (each query picture's true category) or a
+    picture that does not show ``category``."""
+    if not 0 <= picture_id < len(categories):
+        raise ValueError(f"picture id {picture_id} out of range 0..{len(categories) - 1}")
+    if categories[picture_id] != category:
+        raise ValueError(
+            f"picture {picture_id} shows category {categories[picture_id]}, not {category}"
+        )
