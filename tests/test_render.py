@@ -13,11 +13,12 @@ import pytest
 from pipeline.config.compose import load_config
 from pipeline.errors import ConfigError
 from pipeline.files import write_atomic
+from pipeline.manifest import COLUMNS, SPLITS
 from pipeline.world.camera import side_azimuth
 from pipeline.world.metaset import build_meta_instance, make_families
 from pipeline.world.obstacle_models import build_obstacle, category_index
 from pipeline.world.pictures import CATEGORIES, N_PICTURES, picture_id
-from pipeline.world.render_plan import MANIFEST_COLUMNS, SPLITS, PlanConfig, make_plan
+from pipeline.world.render_plan import PlanConfig, make_plan
 from pipeline.world.render_runner import render_batch
 
 SMALL = [
@@ -70,7 +71,7 @@ def test_counts_columns_and_query_faces(rendered):
     tmp, figures = rendered
     out = tmp / "images"
     rows = _manifest(out)
-    assert tuple(rows[0].keys()) == MANIFEST_COLUMNS
+    assert tuple(rows[0].keys()) == COLUMNS
     by = {s: [r for r in rows if r["split"] == s] for s in SPLITS}
     assert len(by["query"]) == N_PICTURES == 40
     assert len(by["support"]) == 5 * 5

@@ -1,10 +1,5 @@
-"""Reading the rendered picture sets through their manifest (the render stage's output contract).
-
-``<images_dir>/manifest.csv`` has the columns ``split, category, class_name, instance, face,
-orientation_deg, picture_id, file``: ``file`` is relative to ``images_dir``; for the ``query`` and
-``support`` splits ``category`` is the obstacle category (0..4, the paper's chair, kettle, carton,
-basin, basket); for ``train`` and ``val`` it is a class index within the split; ``picture_id`` is
-the query-picture id (``category * 8 + instance * 4 + face``) on query rows and -1 elsewhere.
+"""Reading the rendered picture sets through their manifest (the render stage's output contract,
+:mod:`pipeline.manifest`: columns, splits and what each column holds).
 
 Meta-training can instead read any folder-per-class tree (:func:`load_folder`: ``<dir>/<class>/<picture>``,
 such as miniImageNet in Ravi and Larochelle's split), one tree for the training classes and one for the
@@ -25,21 +20,8 @@ from PIL import Image
 from tqdm.auto import tqdm
 
 from pipeline.errors import UserError
+from pipeline.manifest import COLUMNS, MANIFEST, SPLITS, WHOLE_NUMBERS
 
-MANIFEST = "manifest.csv"
-COLUMNS = (
-    "split",
-    "category",
-    "class_name",
-    "instance",
-    "face",
-    "orientation_deg",
-    "picture_id",
-    "file",
-)
-SPLITS = ("query", "support", "train", "val", "test", "views")
-#: Manifest columns that hold whole numbers (a manifest line with another value is refused, naming it).
-WHOLE_NUMBERS = ("category", "instance", "face", "picture_id")
 #: File endings :func:`load_folder` reads as pictures (any case); other files are left alone.
 PICTURE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".webp")
 

@@ -34,13 +34,12 @@ from pipeline.files import (
     write_atomic,
     write_index,
 )
+from pipeline.manifest import COLUMNS, MANIFEST, SPLITS
 from pipeline.stages import stage_main
 from pipeline.world.contact_sheet import contact_sheet, save_png_atomic
 from pipeline.world.obstacle_models import category_index
 from pipeline.world.render_plan import (
-    MANIFEST_COLUMNS,
     META_SPLITS,
-    SPLITS,
     CatalogueCamera,
     MazeCamera,
     PlanConfig,
@@ -51,7 +50,6 @@ from pipeline.world.render_runner import render_all
 from pipeline.world.renderer_env import RendererUnavailable, backend_problem
 from pipeline.world.sheet_labels import family_rows, query_rows, support_rows, views_rows
 
-MANIFEST = "manifest.csv"
 #: Rough costs behind the up-front estimate (:func:`estimate`), fitted to the default render (2
 #: workers: 6,465 pictures in 36 s) and ``profile=smoke`` (1 worker) on 2 CPU cores (llvmpipe),
 #: with tracemalloc for the memory: PNG bytes per pixel (84 px studio pictures: 5 kB); memory the
@@ -123,7 +121,7 @@ def plan_config(cfg: RenderConfig) -> PlanConfig:
 
 def manifest_bytes(rows: list[dict]) -> bytes:
     buf = io.StringIO()
-    w = csv.DictWriter(buf, fieldnames=list(MANIFEST_COLUMNS), lineterminator="\n")
+    w = csv.DictWriter(buf, fieldnames=list(COLUMNS), lineterminator="\n")
     w.writeheader()
     w.writerows(rows)
     return buf.getvalue().encode()

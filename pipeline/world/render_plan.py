@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from pipeline.manifest import SPLITS, Row
 from pipeline.world.camera import CameraPose, framing_distance, robot_camera
 from pipeline.world.family_split import MIN_DISTANCE, split_families
 from pipeline.world.metaset import Family, build_meta_instance, jitter_palette
@@ -37,17 +38,6 @@ from pipeline.world.renderer import Background, Lighting, Shot
 from pipeline.world.scenes import BACKGROUND_MATERIALS
 from pipeline.world.shapes import ObjectModel
 
-MANIFEST_COLUMNS = (
-    "split",
-    "category",
-    "class_name",
-    "instance",
-    "face",
-    "orientation_deg",
-    "picture_id",
-    "file",
-)
-SPLITS = ("query", "support", "train", "val", "test", "views")
 META_SPLITS = ("train", "val", "test")  # the meta-training families' splits
 QUERY_ORIENTATIONS_DEG = (0.0, 45.0)  # instance 1 = instance 0 turned 45 degrees clockwise
 
@@ -101,41 +91,31 @@ def _rng(*key: int) -> np.random.Generator:
     return np.random.default_rng(np.random.SeedSequence([int(k) for k in key]))
 
 
-def _row(split, category, class_name, instance, face, orientation, pid, file) -> dict:
-    return dict(
-        zip(
-            MANIFEST_COLUMNS,
-            (
-                split,
-                int(category),
-                class_name,
-                int(instance),
-                int(face),
-                round(float(orientation), 3),
-                int(pid),
-                file,
-            ),
-        )
-    )
+def _query_obstacles(cfg: PlanConfig, name: str) -> tuple[Batch, list[tuple[int, int, int, float]]]:
+    """A maze batch of the ten query obstacles (each category's instance 0) and, for each, its
+    object in the batch, category, instance (0 unturned, 1 turned) and turn in degrees."""
+    cats = [category_index(c) for c in cfg.categories]
+    objs = [build_obstacle(c, np.random.default_rng(obstacle_seed(cfg.seed, c, 0))) for c in cats]
+    obstacles = [
+        (k, c, inst, QUERY_ORIENTATIONS_DEG[inst])
+        for k, c in enumerate(cats)
+        for inst in range(INSTANCES_PER_CATEGORY)
+    ]
+    return Batch(name, "maze", objs), obstacles
 
 
 def query_batch(cfg: PlanConfig) -> tuple[Batch, list[dict]]:
-    cats = [category_index(c) for c in cfg.categories]
-    objs = [build_obstacle(c, np.random.default_rng(obstacle_seed(cfg.seed, c, 0))) for c in cats]
-    batch, rows = Batch("query", "maze", objs), []
-    mz = cfg.maze
-    for k, c in enumerate(cats):
-        for inst in range(INSTANCES_PER_CATEGORY):
-            orient = QUERY_ORIENTATIONS_DEG[inst]
-            for face in range(N_FACES):
-                cam = robot_camera(
-                    face, mz.camera_distance, mz.camera_height, mz.target_height, mz.fovy
-                )
-                pid = picture_id(c, inst, face)
-                f = f"query/{CATEGORIES[c]}/q{pid:02d}_i{inst}_f{face}.png"
-                batch.shots.append(Shot(k, -orient, objs[k].palette, cam))
-                batch.files.append(f)
-                rows.append(_row("query", c, CATEGORIES[c], inst, face, orient, pid, f))
+    (batch, obstacles), rows, mz = _query_obstacles(cfg, "query"), [], cfg.maze
+    for k, c, inst, orient in obstacles:
+        for face in range(N_FACES):
+            cam = robot_camera(
+                face, mz.camera_distance, mz.camera_height, mz.target_height, mz.fovy
+            )
+            pid = picture_id(c, inst, face)
+            f = f"query/{CATEGORIES[c]}/q{pid:02d}_i{inst}_f{face}.png"
+            batch.shots.append(Shot(k, -orient, batch.objects[k].palette, cam))
+            batch.files.append(f)
+            rows.append(Row("query", c, CATEGORIES[c], inst, face, orient, pid, f)._asdict())
     return batch, rows
 
 
@@ -172,36 +152,33 @@ def support_batch(cfg: PlanConfig) -> tuple[Batch, list[dict]]:
             f = f"support/{CATEGORIES[c]}/s_i{inst}.png"
             batch.shots.append(shot)
             batch.files.append(f)
-            rows.append(_row("support", c, CATEGORIES[c], inst, -1, -turn, -1, f))
+            rows.append(
+                Row("support", c, CATEGORIES[c], inst, -1, round(-turn, 3), -1, f)._asdict()
+            )
     return batch, rows
 
 
 def views_batch(cfg: PlanConfig) -> tuple[Batch, list[dict]]:
     """The colour test's larger query-like set (module docstring): ``views_per_obstacle`` maze
     pictures of each of the ten query obstacles, from random sides and distances."""
-    cats = [category_index(c) for c in cfg.categories]
-    objs = [build_obstacle(c, np.random.default_rng(obstacle_seed(cfg.seed, c, 0))) for c in cats]
-    batch, rows = Batch("views", "maze", objs), []
-    mz = cfg.maze
-    for k, c in enumerate(cats):
-        for inst in range(INSTANCES_PER_CATEGORY):
-            orient = QUERY_ORIENTATIONS_DEG[inst]
-            for j in range(cfg.views_per_obstacle):
-                r = _rng(cfg.seed, 7, c, inst, j)
-                distance = float(r.uniform(*cfg.views_distance))
-                azimuth = float(r.uniform(0.0, 360.0))
-                drop = mz.target_height - mz.camera_height
-                cam = CameraPose(
-                    (0.0, 0.0, mz.target_height),
-                    float(np.hypot(distance, drop)),
-                    azimuth,
-                    float(np.rad2deg(np.arctan2(drop, distance))),
-                    mz.fovy,
-                )
-                f = f"views/{CATEGORIES[c]}/v_i{inst}_{j:03d}.png"
-                batch.shots.append(Shot(k, -orient, objs[k].palette, cam))
-                batch.files.append(f)
-                rows.append(_row("views", c, CATEGORIES[c], inst, -1, orient, -1, f))
+    (batch, obstacles), rows, mz = _query_obstacles(cfg, "views"), [], cfg.maze
+    for k, c, inst, orient in obstacles:
+        for j in range(cfg.views_per_obstacle):
+            r = _rng(cfg.seed, 7, c, inst, j)
+            distance = float(r.uniform(*cfg.views_distance))
+            azimuth = float(r.uniform(0.0, 360.0))
+            drop = mz.target_height - mz.camera_height
+            cam = CameraPose(
+                (0.0, 0.0, mz.target_height),
+                float(np.hypot(distance, drop)),
+                azimuth,
+                float(np.rad2deg(np.arctan2(drop, distance))),
+                mz.fovy,
+            )
+            f = f"views/{CATEGORIES[c]}/v_i{inst}_{j:03d}.png"
+            batch.shots.append(Shot(k, -orient, batch.objects[k].palette, cam))
+            batch.files.append(f)
+            rows.append(Row("views", c, CATEGORIES[c], inst, -1, orient, -1, f)._asdict())
     return batch, rows
 
 
@@ -235,7 +212,7 @@ def meta_batch(cfg: PlanConfig, split: str, index: int, fam: Family) -> tuple[Ba
         batch.shots.append(Shot(i, yaw, jitter_palette(objs[i].palette, r), cam, light, bgr))
         f = f"{split}/c{index:03d}/p{k:03d}.png"
         batch.files.append(f)
-        rows.append(_row(split, index, fam.name, i, -1, -yaw % 360, -1, f))
+        rows.append(Row(split, index, fam.name, i, -1, round(-yaw % 360, 3), -1, f)._asdict())
     return batch, rows
 
 

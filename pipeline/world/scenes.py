@@ -11,7 +11,7 @@
 
 A scene holds several objects at the origin; a picture shows exactly one of them (the others are
 made fully transparent, which MuJoCo skips when drawing), so one compiled model and one renderer
-serve many pictures. Materials are shared by name (:data:`FINISHES`).
+serve many pictures. Materials are shared by name (:data:`MATERIALS`).
 """
 
 from __future__ import annotations
@@ -24,7 +24,6 @@ from pipeline.world.renderer_env import mujoco
 from pipeline.world.shapes import ObjectModel, Part
 
 SETTINGS = ("maze", "catalogue", "studio")
-BACKGROUND_MATERIALS = ("bg_plain", "bg_checker", "bg_speckle", "bg_stripes")
 
 
 @dataclass(frozen=True)
@@ -38,26 +37,65 @@ class SceneLayout:
     has_backdrop: bool
 
 
-def _texture(
-    spec, name: str, builtin, rgb1, rgb2, size: int = 64, mark=None, markrgb=(0, 0, 0), random=0.0
-):
-    kw = dict(
-        name=name,
-        type=mujoco.mjtTexture.mjTEXTURE_2D,
-        builtin=builtin,
-        width=size,
-        height=size,
-        rgb1=list(rgb1),
-        rgb2=list(rgb2),
-    )
-    if mark is not None:
-        kw.update(mark=mark, markrgb=list(markrgb), random=random)
-    return spec.add_texture(**kw)
+@dataclass(frozen=True)
+class Texture:
+    """A built-in 2D texture: MuJoCo's ``mjBUILTIN_<builtin>`` of two colours, ``size`` pixels
+    square, with an optional ``mjMARK_<mark>`` in ``markrgb`` (``random``: the share of random
+    pixels)."""
+
+    builtin: str
+    rgb1: tuple[float, float, float]
+    rgb2: tuple[float, float, float]
+    size: int = 64
+    mark: str | None = None
+    markrgb: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    random: float = 0.0
+
+    def add(self, spec, name: str):
+        kw = dict(
+            name=name,
+            type=mujoco.mjtTexture.mjTEXTURE_2D,
+            builtin=getattr(mujoco.mjtBuiltin, f"mjBUILTIN_{self.builtin}"),
+            width=self.size,
+            height=self.size,
+            rgb1=list(self.rgb1),
+            rgb2=list(self.rgb2),
+        )
+        if self.mark is not None:
+            mark = getattr(mujoco.mjtMark, f"mjMARK_{self.mark}")
+            kw.update(mark=mark, markrgb=list(self.markrgb), random=self.random)
+        return spec.add_texture(**kw)
 
 
-def _material(
-    spec, name: str, texture: str | None = None, texrepeat=(1.0, 1.0), texuniform=False, **kw
-):
+WHITE = (1.0, 1.0, 1.0)
+#: The textures of every scene, by name (``weave`` is drawn: :func:`_weave_texture`).
+TEXTURES = {
+    "speckle": Texture("FLAT", WHITE, WHITE, 64, "RANDOM", (0.75, 0.75, 0.75), 0.08),
+    "stripes": Texture("GRADIENT", WHITE, (0.55, 0.55, 0.55), 32),
+    "bg_checker": Texture("CHECKER", WHITE, (0.6, 0.6, 0.6), 64),
+    "bg_speckle": Texture("FLAT", WHITE, WHITE, 128, "RANDOM", (0.5, 0.5, 0.5), 0.15),
+    "bg_stripes": Texture("GRADIENT", WHITE, (0.5, 0.5, 0.5), 32),
+}
+#: The materials of every scene, by name: an object's finishes (``shapes.FINISHES``), then the
+#: backgrounds (``bg_``); a material named as a texture wears it (MuJoCo's keyword arguments).
+MATERIALS = {
+    "matte": dict(specular=0.05, shininess=0.1),
+    "plastic": dict(specular=0.45, shininess=0.6),
+    "metal": dict(specular=0.9, shininess=0.9),
+    "weave": dict(texrepeat=(1.0, 6.0), specular=0.05, shininess=0.1),
+    "speckle": dict(texrepeat=(2.0, 2.0), texuniform=True, specular=0.05, shininess=0.1),
+    "stripes": dict(texrepeat=(4.0, 4.0), texuniform=True, specular=0.2, shininess=0.3),
+    "bg_plain": dict(specular=0.0, shininess=0.0),
+    "bg_checker": dict(texrepeat=(2.0, 2.0), texuniform=True, specular=0.0),
+    "bg_speckle": dict(texrepeat=(1.0, 1.0), texuniform=True, specular=0.0),
+    "bg_stripes": dict(texrepeat=(3.0, 3.0), texuniform=True, specular=0.0),
+}
+#: The maze floor's (:func:`add_floor_tiles`: its material's repeat depends on the cell size).
+TILES = Texture("CHECKER", (0.62, 0.60, 0.55), (0.55, 0.53, 0.49), 128, "EDGE", (0.25, 0.25, 0.25))
+BACKGROUND_MATERIALS = tuple(name for name in MATERIALS if name.startswith("bg_"))
+
+
+def _material(spec, name: str, texture: str | None, texrepeat=(1.0, 1.0), texuniform=False, **kw):
     mat = spec.add_material(name=name, texrepeat=list(texrepeat), texuniform=texuniform, **kw)
     if texture is not None:
         mat.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = texture
@@ -81,60 +119,13 @@ def _weave_texture(spec) -> None:
 
 
 def _add_materials(spec) -> None:
-    """Object finishes (shared by every setting) and background materials."""
-    B = mujoco.mjtBuiltin
+    """Every scene's textures (:data:`TEXTURES`) and materials (:data:`MATERIALS`)."""
     _weave_texture(spec)
-    _texture(
-        spec,
-        "speckle",
-        B.mjBUILTIN_FLAT,
-        (1, 1, 1),
-        (1, 1, 1),
-        64,
-        mujoco.mjtMark.mjMARK_RANDOM,
-        (0.75, 0.75, 0.75),
-        0.08,
-    )
-    _texture(spec, "stripes", B.mjBUILTIN_GRADIENT, (1, 1, 1), (0.55, 0.55, 0.55), 32)
-    _material(spec, "matte", specular=0.05, shininess=0.1)
-    _material(spec, "plastic", specular=0.45, shininess=0.6)
-    _material(spec, "metal", specular=0.9, shininess=0.9)
-    _material(spec, "weave", "weave", texrepeat=(1.0, 6.0), specular=0.05, shininess=0.1)
-    _material(
-        spec,
-        "speckle",
-        "speckle",
-        texrepeat=(2.0, 2.0),
-        texuniform=True,
-        specular=0.05,
-        shininess=0.1,
-    )
-    _material(
-        spec,
-        "stripes",
-        "stripes",
-        texrepeat=(4.0, 4.0),
-        texuniform=True,
-        specular=0.2,
-        shininess=0.3,
-    )
-    _texture(spec, "bg_checker", B.mjBUILTIN_CHECKER, (1, 1, 1), (0.6, 0.6, 0.6), 64)
-    _texture(
-        spec,
-        "bg_speckle",
-        B.mjBUILTIN_FLAT,
-        (1, 1, 1),
-        (1, 1, 1),
-        128,
-        mujoco.mjtMark.mjMARK_RANDOM,
-        (0.5, 0.5, 0.5),
-        0.15,
-    )
-    _texture(spec, "bg_stripes", B.mjBUILTIN_GRADIENT, (1, 1, 1), (0.5, 0.5, 0.5), 32)
-    _material(spec, "bg_plain", specular=0.0, shininess=0.0)
-    _material(spec, "bg_checker", "bg_checker", texrepeat=(2.0, 2.0), texuniform=True, specular=0.0)
-    _material(spec, "bg_speckle", "bg_speckle", texrepeat=(1.0, 1.0), texuniform=True, specular=0.0)
-    _material(spec, "bg_stripes", "bg_stripes", texrepeat=(3.0, 3.0), texuniform=True, specular=0.0)
+    for name, texture in TEXTURES.items():
+        texture.add(spec, name)
+    textured = {"weave", *TEXTURES}
+    for name, kw in MATERIALS.items():
+        _material(spec, name, name if name in textured else None, **kw)
 
 
 def _add_part(spec, body, part: Part, name: str, mesh_name: str) -> None:
@@ -199,19 +190,9 @@ def add_sky(spec, setting: str) -> None:
 
 def add_floor_tiles(spec, cell: float) -> None:
     """The maze floor's material ``tiles``: a checker of 0.5 m squares, whatever the cell size."""
-    _texture(
-        spec,
-        "tiles",
-        mujoco.mjtBuiltin.mjBUILTIN_CHECKER,
-        (0.62, 0.60, 0.55),
-        (0.55, 0.53, 0.49),
-        128,
-        mujoco.mjtMark.mjMARK_EDGE,
-        (0.25, 0.25, 0.25),
-    )
-    _material(
-        spec, "tiles", "tiles", texrepeat=(0.5 / cell, 0.5 / cell), texuniform=True, specular=0.1
-    )
+    TILES.add(spec, "tiles")
+    repeat = (0.5 / cell, 0.5 / cell)
+    _material(spec, "tiles", "tiles", texrepeat=repeat, texuniform=True, specular=0.1)
 
 
 def add_maze_lights(worldbody, shadows: bool) -> None:
