@@ -19,7 +19,7 @@ from pipeline.world.metaset import build_meta_instance, make_families
 from pipeline.world.obstacle_models import build_obstacle, category_index
 from pipeline.world.pictures import CATEGORIES, N_PICTURES, picture_id
 from pipeline.world.render_plan import PlanConfig, make_plan
-from pipeline.world.render_runner import render_batch
+from pipeline.world.render_runner import Drawing, render_batch
 
 SMALL = [
     "n_train_classes=3",
@@ -149,7 +149,7 @@ def test_seed_changes_pictures(rendered, tmp_path):
         views_per_obstacle=0,
     )
     batches, _ = make_plan(cfg)
-    render_batch(batches[0], str(tmp_path), 32)
+    render_batch(batches[0], str(tmp_path), Drawing(32))
     f = batches[0].files[0]
     assert (tmp_path / f).read_bytes() != (rendered[0] / "images" / f).read_bytes()
 

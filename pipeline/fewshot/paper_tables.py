@@ -38,18 +38,17 @@ from __future__ import annotations
 
 import numpy as np
 
+from .accuracy_study import PAPER_BASELINE, PAPER_TABLE1, PAPER_TABLE2
 from .support_set import SupportSet, check_picture, started
 
 #: Table 1, first row: pictures of each category named right with the original support set (of 8).
-ORIGINAL = np.array([0, 3, 2, 8, 4]) / 8
+ORIGINAL = np.array(PAPER_BASELINE["correct"]) / 8
 #: Table 1, the substituted category's own cell, one substitution: with the substituted picture
 #: counted (of 800) and without it ("no same picture", of 700).
-WITH_SAME = np.array([186, 689, 383, 792, 577])
-NO_SAME = np.array([95, 596, 331, 697, 487])
+WITH_SAME = np.diagonal(PAPER_TABLE1["with_same"])
+NO_SAME = np.diagonal(PAPER_TABLE1["no_same"])
 #: Table 2, mean accuracy (%) without the substituted pictures, n = 0..5 substitutions.
-TABLE2_NO_SAME = np.array([42.5, 48.04, 48.46, 48.41, 48.68, 48.60])
-#: Table 2 with the substituted pictures counted (the model's check, not its input).
-TABLE2_WITH_SAME = np.array([42.5, 49.03, 50.83, 52.47, 53.64, 54.91])
+TABLE2_NO_SAME = np.array([no_same for _, no_same in PAPER_TABLE2.values()]) * 100
 
 N_WAY, K_SHOT, PER_CATEGORY = 5, 5, 8  # the paper's 5-way 5-shot set, 8 query pictures a category
 N_PICTURES = N_WAY * PER_CATEGORY

@@ -49,7 +49,8 @@ class _Run:
 
 
 class SupportSetRecogniser(abc.ABC):
-    """A few-shot recogniser over a dynamic C-way K-shot support set; subclasses score.
+    """A few-shot recogniser over a dynamic C-way K-shot support set; a subclass implements the
+    two hooks :meth:`prepare` and :meth:`forward`.
 
     ``query_images``: (P, 3, H, W) normalised, row ``p`` = query picture id ``p``;
     ``query_categories``: (P,) true categories; ``support_images``: (C*K, 3, H, W), class ``c`` in
@@ -92,9 +93,8 @@ class SupportSetRecogniser(abc.ABC):
         self.query_categories = cats
         self.n_pictures = len(cats)
         self.class_names: tuple[str, ...] = tuple(f"category_{c}" for c in range(n_way))
-        self.checkpoint: dict | None = (
-            None  # config and metrics of the checkpoint, when loaded from files
-        )
+        #: config and metrics of the checkpoint, when loaded from files
+        self.checkpoint: dict | None = None
         with torch.no_grad():
             query_f = _embedded(network, query_images)
             support_f = _embedded(network, support_images)

@@ -44,9 +44,8 @@ class PositionChooser:
             raise ValueError(f"substitution way must be 1, 2, 3 or 4, got {way}")
         self.way, self.k = way, k_shot
         self.count = 0  # substitutions made so far in this category
-        self.round_left: list[int] = list(
-            range(k_shot)
-        )  # way 3/4: positions not yet replaced this round
+        # way 3/4: positions not yet replaced this round
+        self.round_left: list[int] = list(range(k_shot))
         self.first_round: list[int] = []  # way 4: the first round's order
 
     def next_position(self, rng: np.random.Generator) -> int:

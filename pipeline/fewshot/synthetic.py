@@ -111,10 +111,8 @@ def write_synthetic_dataset(
                     (category * 2 + instance) * 4 + face,
                     0.0,
                 )
-        for k in range(5):
-            write(
-                "support", cls, category, name, k, 0, -1, 40.0
-            )  # a different "catalogue" background
+        for k in range(5):  # the support pictures: a different "catalogue" background
+            write("support", cls, category, name, k, 0, -1, 40.0)
         for k in range(views_per_category):
             write("views", cls, category, name, k % 2, -1, -1, 0.0)
     pd.DataFrame(rows, columns=list(COLUMNS)).to_csv(images_dir / MANIFEST, index=False)

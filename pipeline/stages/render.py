@@ -46,7 +46,7 @@ from pipeline.world.render_plan import (
     make_plan,
     plan_size,
 )
-from pipeline.world.render_runner import render_all
+from pipeline.world.render_runner import Drawing, render_all
 from pipeline.world.renderer_env import RendererUnavailable, backend_problem
 from pipeline.world.sheet_labels import family_rows, query_rows, support_rows, views_rows
 
@@ -220,18 +220,11 @@ def render_into(
     def bar(it, n):
         return tqdm(it, total=n, desc="render batches", unit="batch")
 
-    n = render_all(
-        batches,
-        str(staging),
-        cfg.size,
-        cfg.workers,
-        cfg.quality.offsamples,
-        cfg.quality.shadow_size,
-        cfg.maze.cell,
-        cfg.quality.supersample,
-        cfg.quality.studio_shadows,
-        progress=bar,
+    q = cfg.quality
+    drawing = Drawing(
+        cfg.size, cfg.maze.cell, q.offsamples, q.shadow_size, q.supersample, q.studio_shadows
     )
+    n = render_all(batches, str(staging), drawing, cfg.workers, progress=bar)
     missing = [r["file"] for r in rows if not (staging / r["file"]).is_file()]
     if missing:
         raise RuntimeError(f"{len(missing)} pictures missing after rendering, e.g. {missing[:3]}")

@@ -31,16 +31,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pipeline.world import shapes
 from pipeline.world.obstacle_models import hsv
-from pipeline.world.shapes import (
-    ObjectModel,
-    Part,
-    frustum,
-    quat_from_axis_angle,
-    rod,
-    tube_arc,
-    vessel,
-)
+from pipeline.world.shapes import ObjectModel, Part
 
 TIER_KINDS = ("box", "cylinder", "sphere", "ellipsoid", "capsule", "cone", "torus", "bowl", "disc")
 FINISH_CHOICES = ("matte", "plastic", "metal", "speckle", "stripes", "weave")
@@ -225,22 +218,22 @@ def _tier_part(
             (0.0, 0.0, z),
             slot=slot,
             finish=finish,
-            mesh=frustum(w, w * taper * 0.5, h, 24),
+            mesh=shapes.frustum(w, w * taper * 0.5, h, 24),
         ), h
     if kind == "torus":
         tube = min(h, w * 0.5) / 2
-        ring = tube_arc(w, tube, 0, 360, segments=32)
+        ring = shapes.tube_arc(w, tube, 0, 360, segments=32)
         return Part(
             "mesh",
             (),
             (0.0, 0.0, z + tube),
-            quat_from_axis_angle((1.0, 0.0, 0.0), np.pi / 2),
+            shapes.quat_from_axis_angle((1.0, 0.0, 0.0), np.pi / 2),
             slot=slot,
             finish=finish,
             mesh=ring,
         ), 2 * tube
     assert kind == "bowl"
-    m = vessel([(w * 0.5, 0.0), (w * 0.9, h * 0.6), (w, h)], 0.01, 28)
+    m = shapes.vessel([(w * 0.5, 0.0), (w * 0.9, h * 0.6), (w, h)], 0.01, 28)
     return Part("mesh", (), (0.0, 0.0, z), slot=slot, finish=finish, mesh=m), h
 
 
@@ -269,7 +262,9 @@ def build_meta_instance(fam: Family, rng: np.random.Generator) -> ObjectModel:
     if fam.leg_style != "none":
         lh = fam.leg_height * scale * vary()
         if fam.leg_style == "pedestal":
-            parts.append(rod((0, 0, 0), (0, 0, lh), 0.02 * vary(), slot=first_slot, finish="metal"))
+            parts.append(
+                shapes.rod((0, 0, 0), (0, 0, lh), 0.02 * vary(), slot=first_slot, finish="metal")
+            )
             parts.append(
                 Part(
                     "cylinder",
@@ -287,7 +282,7 @@ def build_meta_instance(fam: Family, rng: np.random.Generator) -> ObjectModel:
                 a = 2 * np.pi * k / n_legs + np.pi / n_legs
                 x, y = spread * np.cos(a), spread * np.sin(a)
                 parts.append(
-                    rod(
+                    shapes.rod(
                         (x * 1.15, y * 1.15, 0),
                         (x, y, lh),
                         0.015 * vary(),
@@ -322,7 +317,7 @@ def build_meta_instance(fam: Family, rng: np.random.Generator) -> ObjectModel:
             r0 = w * 0.8
             p0 = (r0 * np.cos(a), r0 * np.sin(a), zc)
             p1 = ((r0 + length) * np.cos(a), (r0 + length) * np.sin(a), zc + length * 0.3)
-            parts.append(rod(p0, p1, 0.012, kind="capsule", slot=slot, finish="plastic"))
+            parts.append(shapes.rod(p0, p1, 0.012, kind="capsule", slot=slot, finish="plastic"))
             parts.append(Part("sphere", (0.025,), p1, slot=slot, finish="plastic"))
     if fam.handle:
         z0, h, w, slot, _ = tier_z[0]
@@ -334,7 +329,7 @@ def build_meta_instance(fam: Family, rng: np.random.Generator) -> ObjectModel:
                 (w, 0.0, z0 + h / 2),
                 slot=(slot + 1) % fam.n_colours,
                 finish="plastic",
-                mesh=tube_arc(hr, 0.012, -90, 90),
+                mesh=shapes.tube_arc(hr, 0.012, -90, 90),
             )
         )
     return ObjectModel(fam.name, tuple(parts), palette)

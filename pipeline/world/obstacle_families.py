@@ -138,9 +138,8 @@ def kettle(rng: np.random.Generator) -> ObjectModel:
             Part("mesh", (), (0.0, 0.0, z0), slot=0, finish=bfin, mesh=frustum(r * 1.1, r_top, h))
         )
     top = z0 + h
-    parts.append(
-        Part("cylinder", (r_top * 0.8, 0.012), (0.0, 0.0, top + 0.006), slot=1, finish="plastic")
-    )  # lid
+    lid = Part("cylinder", (r_top * 0.8, 0.012), (0.0, 0.0, top + 0.006), slot=1, finish="plastic")
+    parts.append(lid)
     parts.append(
         Part("sphere", (rng.uniform(0.02, 0.03),), (0.0, 0.0, top + 0.03), slot=1, finish="plastic")
     )

@@ -15,6 +15,7 @@ import multiprocessing as mp
 import os
 from collections.abc import Callable, Iterable
 from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -32,28 +33,29 @@ def png_bytes(img: np.ndarray) -> bytes:
     return buf.getvalue()
 
 
-def render_batch(
-    batch: Batch,
-    out_dir: str,
-    size: int,
-    offsamples: int = 0,
-    shadow_size: int = 512,
-    cell: float = 1.0,
-    supersample: int = 2,
-    studio_shadows: bool = False,
-) -> int:
+@dataclass(frozen=True)
+class Drawing:
+    """How every picture is drawn: ``size`` pixels square, ``cell`` metres a maze cell, and the
+    quality (render.yaml ``quality``: anti-aliasing samples, shadow map, supersampling, shadows in
+    the meta-training studio)."""
+
+    size: int
+    cell: float = 1.0
+    offsamples: int = 0
+    shadow_size: int = 512
+    supersample: int = 2
+    studio_shadows: bool = False
+
+
+def render_batch(batch: Batch, out_dir: str, drawing: Drawing) -> int:
     """Render every shot of ``batch`` into ``out_dir``; returns the number of pictures."""
-    shadows = batch.setting != "studio" or studio_shadows
+    d = drawing
+    shadows = batch.setting != "studio" or d.studio_shadows
     spec, layout = build_scene(
-        batch.setting,
-        batch.objects,
-        cell=cell,
-        shadow_size=shadow_size,
-        offsamples=offsamples,
-        shadows=shadows,
+        batch.setting, batch.objects, d.cell, d.shadow_size, d.offsamples, shadows
     )
     root = Path(out_dir)
-    with SceneRenderer(spec, layout, size, supersample) as r:
+    with SceneRenderer(spec, layout, d.size, d.supersample) as r:
         for shot, rel in zip(batch.shots, batch.files):
             write_atomic(root / rel, png_bytes(r.render(shot)), fsync=False)
     return len(batch.shots)
@@ -66,28 +68,16 @@ def _worker_init(threads: int) -> None:
 def render_all(
     batches: list[Batch],
     out_dir: str,
-    size: int,
+    drawing: Drawing,
     workers: int = 2,
-    offsamples: int = 0,
-    shadow_size: int = 512,
-    cell: float = 1.0,
-    supersample: int = 2,
-    studio_shadows: bool = False,
     progress: Callable[[Iterable, int], Iterable] | None = None,
 ) -> int:
     """Render all batches (largest first, for load balance) with ``workers`` processes."""
     order = sorted(range(len(batches)), key=lambda i: -len(batches[i].shots))
     total = sum(len(b.shots) for b in batches)
-    kw = dict(
-        offsamples=offsamples,
-        shadow_size=shadow_size,
-        cell=cell,
-        supersample=supersample,
-        studio_shadows=studio_shadows,
-    )
     done = 0
     if workers <= 1:
-        it = (render_batch(batches[i], out_dir, size, **kw) for i in order)
+        it = (render_batch(batches[i], out_dir, drawing) for i in order)
         for n in progress(it, len(order)) if progress else it:
             done += n
         return done
@@ -95,7 +85,7 @@ def render_all(
     with ProcessPoolExecutor(
         max_workers=workers, mp_context=ctx, initializer=_worker_init, initargs=(1,)
     ) as pool:
-        futs = [pool.submit(render_batch, batches[i], out_dir, size, **kw) for i in order]
+        futs = [pool.submit(render_batch, batches[i], out_dir, drawing) for i in order]
         it = as_completed(futs)
         for fut in progress(it, len(futs)) if progress else it:
             done += fut.result()
