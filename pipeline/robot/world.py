@@ -32,12 +32,12 @@ from pipeline.world.pictures import INSTANCES_PER_CATEGORY
 from pipeline.world.placement import Placement
 from pipeline.world.renderer_env import mujoco
 from pipeline.world.scenes import (
-    WALL_RGBA,
     _add_materials,
     _add_part,
     add_floor_tiles,
     add_maze_lights,
     add_sky,
+    add_walls,
 )
 from pipeline.world.shapes import ObjectModel, yaw_quat
 
@@ -154,15 +154,7 @@ def build_world(
     t = WALL_HALF_THICKNESS
     walls = [(0, hy + t, hx + 2 * t, t), (0, -hy - t, hx + 2 * t, t)]
     walls += [(hx + t, 0, t, hy), (-hx - t, 0, t, hy)]
-    for k, (x, y, sx, sy) in enumerate(walls):
-        wb.add_geom(
-            name=f"wall{k}",
-            type=G.mjGEOM_BOX,
-            size=[sx, sy, WALL_HEIGHT / 2],
-            pos=[x, y, WALL_HEIGHT / 2],
-            rgba=list(WALL_RGBA),
-            material="bg_plain",
-        )
+    add_walls(wb, walls, WALL_HEIGHT)
     wmap = WorldMap(layout, float(cell), tuple(layout.obstacles), ())
     boxes = []
     for o, c in enumerate(layout.obstacles):

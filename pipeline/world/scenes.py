@@ -195,6 +195,20 @@ def add_floor_tiles(spec, cell: float) -> None:
     _material(spec, "tiles", "tiles", texrepeat=repeat, texuniform=True, specular=0.1)
 
 
+def add_walls(worldbody, boxes, height: float) -> None:
+    """Border walls ``wall<k>``: a box ``(x, y, half_x, half_y)`` each, ``height`` tall, in
+    :data:`WALL_RGBA`."""
+    for k, (x, y, sx, sy) in enumerate(boxes):
+        worldbody.add_geom(
+            name=f"wall{k}",
+            type=mujoco.mjtGeom.mjGEOM_BOX,
+            size=[sx, sy, height / 2],
+            pos=[x, y, height / 2],
+            rgba=list(WALL_RGBA),
+            material="bg_plain",
+        )
+
+
 def add_maze_lights(worldbody, shadows: bool) -> None:
     """The maze's light: a warm key light from above (casting shadows with ``shadows``) and a
     cool fill."""
@@ -251,18 +265,11 @@ def build_scene(
             material="tiles",
             pos=[0.0, 0.0, 0.0],
         )
-        half, hw, wh = 2.5 * cell, 0.05, 0.6
-        for k, (x, y, sx, sy) in enumerate(
-            [(0, half, half, hw), (0, -half, half, hw), (half, 0, hw, half), (-half, 0, hw, half)]
-        ):
-            wb.add_geom(
-                name=f"wall{k}",
-                type=G.mjGEOM_BOX,
-                size=[sx + hw, sy + hw, wh / 2],
-                pos=[x, y, wh / 2],
-                rgba=list(WALL_RGBA),
-                material="bg_plain",
-            )
+        half, hw = 2.5 * cell, 0.05  # walls straddle the border of the 5x5 cells
+        long, thick = half + hw, hw + hw
+        walls = [(0, half, long, thick), (0, -half, long, thick)]
+        walls += [(half, 0, thick, long), (-half, 0, thick, long)]
+        add_walls(wb, walls, 0.6)
         for k, (cx, cy) in enumerate([(-2, 1), (1, -2), (2, 2)]):  # other obstacles: dark blocks
             wb.add_geom(
                 name=f"block{k}",
