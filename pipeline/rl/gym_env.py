@@ -84,6 +84,7 @@ from __future__ import annotations
 from typing import Any, ClassVar
 
 import gymnasium as gym
+import numba as nb
 import numpy as np
 from gymnasium import spaces
 
@@ -94,7 +95,7 @@ from pipeline.rl.recogniser import Recogniser
 from pipeline.rl.rng import run_seeds
 from pipeline.rl.rules import Rule, apply_action, empty_added, reasons_with_pictures
 from pipeline.rl.run_world import GRID, World
-from pipeline.rl.structs import MethodParams
+from pipeline.rl.structs import MazeArrays, MethodParams, Sights
 from pipeline.world.geometry import build_geometry
 from pipeline.world.maze import Layout, load_layout
 
@@ -104,6 +105,15 @@ HOW_TO_PASS = (
     "conf/recogniser/: relation_net, oracle, fixed_accuracy), or a Recogniser object "
     "(pipeline.rl.recogniser) to SafeNavigationEnv"
 )
+
+
+@nb.njit(cache=True)
+def _apply_action(s, a, method, maze, sight, unsafe, added):
+    """``rules.apply_action`` for a caller in Python, its records given as plain tuples: numba
+    types a plain tuple from Python several times faster than a named one, and this environment
+    calls it every step."""
+    method, maze, sight = MethodParams(*method), MazeArrays(*maze), Sights(*sight)
+    return apply_action(s, a, method, maze, sight, unsafe, added)
 
 
 class SafeNavigationEnv(gym.Env):
@@ -154,6 +164,8 @@ class SafeNavigationEnv(gym.Env):
         self.observation_space = spaces.Discrete(self.layout.n_cells)
         self.action_space = spaces.Discrete(4)
         self._added = empty_added()
+        # what apply_action reads of the method and the maze, as plain tuples (see _apply_action)
+        self._records = tuple(self._params), tuple(MazeArrays.of(self.layout, self.geometry))
         self._new_run(0)
 
     def _new_run(self, seed: int) -> None:
@@ -163,6 +175,13 @@ class SafeNavigationEnv(gym.Env):
         n_pictures = max(1, len(self.world_model.picture_category))
         self.predicted = np.zeros(n_pictures, dtype=np.int8)
         self.confident = np.zeros(n_pictures, dtype=np.bool_)
+        # what apply_action reads of what the run sees (the answers are updated in place)
+        self._sight = (
+            self.world.pictures,
+            self.world.true_category,
+            self.predicted,
+            self.confident,
+        )
         if self._sees_pictures:
             self.recogniser.start_run(self.run_id, run_seeds(seed, self.run_id).recogniser)
             self._answer()
@@ -198,24 +217,8 @@ class SafeNavigationEnv(gym.Env):
         if not self.action_space.contains(a):
             raise ValueError(f"action {action!r} outside Discrete(4)")
         s = self.state
-        p, g = self._params, self.geometry
-        out, s2, reward, terminated, flags, picture, n_added = apply_action(
-            s,
-            a,
-            p.safety,
-            p.rule,
-            p.recovery,
-            p.constrained,
-            g.next_cell,
-            g.obstacle,
-            g.ssrl_pairs,
-            self.layout.goal,
-            self.world.pictures,
-            self.world.true_category,
-            self.predicted,
-            self.confident,
-            self.unsafe,
-            self._added,
+        out, s2, reward, terminated, flags, picture, n_added = _apply_action(
+            s, a, *self._records, self._sight, self.unsafe, self._added
         )
         added = [tuple(int(x) for x in self._added[k]) for k in range(n_added)]
         recognition = None

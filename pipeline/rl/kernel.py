@@ -28,6 +28,7 @@ if nb.config.THREADING_LAYER == "default":
 from pipeline.rl.codes import Learner, Outcome, Status, StepFlag
 from pipeline.rl.policy import greedy_path_is_optimal, max_allowed, select_action, td_update
 from pipeline.rl.rules import apply_action, empty_added
+from pipeline.rl.structs import Sights
 
 
 @nb.njit(cache=True)
@@ -89,9 +90,7 @@ def _end_episode(results, r, ep, t, col, ret, prev, e, flags, qr, ur, maze):
     results.reached_goal[r, ep] = (flags & StepFlag.goal) != 0
     results.prevented[r, ep] = prev
     results.epsilon[r, ep] = e
-    results.greedy_optimal[r, ep] = greedy_path_is_optimal(
-        qr, ur, maze.next_cell, maze.obstacle, maze.start, maze.goal, maze.optimal_length
-    )
+    results.greedy_optimal[r, ep] = greedy_path_is_optimal(qr, ur, maze)
 
 
 @nb.njit(cache=True)
@@ -141,13 +140,8 @@ def advance_run(
     capacity = trace.states.shape[1]
     added = empty_added()
     qr, ur = state.q[r], state.unsafe[r]
-    # the tables apply_action needs, unpacked once (it takes plain arrays: see there why)
-    next_cell, obstacle, ssrl_pairs = maze.next_cell, maze.obstacle, maze.ssrl_pairs
-    pictures, true_category, predicted, confident = (
-        sights.pictures[r],
-        sights.true_category[r],
-        sights.predicted[r],
-        sights.confident[r],
+    sight = Sights(
+        sights.pictures[r], sights.true_category[r], sights.predicted[r], sights.confident[r]
     )
     rng, sarsa = state.rng, method.learner == Learner.sarsa
     ep, t, s, pend, pend_resel, col, prev, e, ret = _resume(state, r)
@@ -164,28 +158,13 @@ def advance_run(
         pend = -1
         while True:
             out, s2, rew, term, flags, pic, n_added = apply_action(
-                s,
-                a,
-                method.safety,
-                method.rule,
-                method.recovery,
-                method.constrained,
-                next_cell,
-                obstacle,
-                ssrl_pairs,
-                maze.goal,
-                pictures,
-                true_category,
-                predicted,
-                confident,
-                ur,
-                added,
+                s, a, method, maze, sight, ur, added
             )
             if n_added:
                 _log_additions(additions, r, ep, t, added, n_added)
             if pic >= 0:
-                true = true_category[obstacle[s, a]]
-                _log_recognition(recognitions, r, ep, t, s, a, pic, predicted[pic], true)
+                true = sight.true_category[maze.obstacle[s, a]]
+                _log_recognition(recognitions, r, ep, t, s, a, pic, sight.predicted[pic], true)
             if out != Outcome.prevented:
                 break
             prev += 1
@@ -210,7 +189,9 @@ def advance_run(
             _log_step(trace, r, s, a, rew, flags, resel, end and not term)
         substitute = out == Outcome.collided and method.dynamic and pic >= 0
         if substitute:
-            _note_substitution(substitution, r, ep, t - 1, pic, true_category[obstacle[s, a]])
+            _note_substitution(
+                substitution, r, ep, t - 1, pic, sight.true_category[maze.obstacle[s, a]]
+            )
         if end:
             _end_episode(results, r, ep, t, col, ret, prev, e, flags, qr, ur, maze)
             # the next episode starts at the start cell with fresh counters
@@ -224,6 +205,7 @@ def advance_run(
     return status
 
 
+# The records one by one: a parallel loop takes records of arrays, not a record of records.
 @nb.njit(cache=True, parallel=True, nogil=True)  # the record writer runs meanwhile
 def advance_batch(
     run_ids,

@@ -101,11 +101,12 @@ def td_update(q, s, a, target, alpha):
 
 
 @nb.njit(cache=True)
-def greedy_path_is_optimal(q, unsafe, next_cell, obstacle, start, goal, optimal_length):
+def greedy_path_is_optimal(q, unsafe, maze):
     """True iff the greedy policy over the allowed actions, with a unique argmax at every step,
-    walks from start to goal in ``optimal_length`` moves (i.e. follows an optimal path)."""
-    s = start
-    for _ in range(optimal_length):
+    walks from ``maze``'s start to its goal in ``maze.optimal_length`` moves (i.e. follows an
+    optimal path; ``maze`` a ``structs.MazeArrays``)."""
+    s = maze.start
+    for _ in range(maze.optimal_length):
         best = -np.inf
         arg = -1
         unique = False
@@ -119,9 +120,9 @@ def greedy_path_is_optimal(q, unsafe, next_cell, obstacle, start, goal, optimal_
                 unique = True
             elif v == best:
                 unique = False
-        if arg < 0 or not unique or obstacle[s, arg] >= 0:
+        if arg < 0 or not unique or maze.obstacle[s, arg] >= 0:
             return False
-        s = next_cell[s, arg]
-        if s == goal:
+        s = maze.next_cell[s, arg]
+        if s == maze.goal:
             return True
-    return s == goal
+    return s == maze.goal

@@ -126,66 +126,47 @@ def stops(rule, names_true_category, confident):
     return True
 
 
-# Plain arguments, not the ``structs`` records: numba reference-counts every array of a tuple
-# argument on each call (a tenth of the kernel's speed when paid every step), and types a tuple
-# argument from Python more slowly than scalars (the Gymnasium env calls this every step).
-@nb.njit(cache=True)
-def apply_action(
-    s,
-    a,
-    safety,
-    rule,
-    recovery,
-    constrained,
-    next_cell,
-    obstacle,
-    ssrl_pairs,
-    goal,
-    pictures,
-    true_category,
-    predicted,
-    confident,
-    unsafe,
-    added,
-):
-    """Apply action ``a`` in cell ``s`` for a method with safety rule ``safety`` (a ``Safety``),
-        decision rule ``rule`` (a :class:`Rule`), ``recovery`` and ``constrained``
-        (``structs.MethodParams``).
+# Inlined into the kernel's step loop, where the records then cost nothing (a call would
+# reference-count each of their arrays every step). From Python: ``gym_env._apply_action``.
+@nb.njit(cache=True, inline="always")
+def apply_action(s, a, method, maze, sight, unsafe, added):
+    """Apply action ``a`` in cell ``s`` under ``method``'s safety rule ``safety`` (a ``Safety``),
+    decision rule ``rule`` (a :class:`Rule`), ``recovery`` and ``constrained``
+    (``structs.MethodParams``), in ``maze`` (``structs.MazeArrays``: ``next_cell``, ``obstacle``,
+    ``ssrl_pairs``, ``goal``), with what the run sees (``structs.Sights`` of one run:
+    ``pictures[s, a]`` the picture id on the face ahead, ``true_category[o]`` obstacle ``o``'s
+    category, ``predicted[picture]`` the recogniser's current answer, ``confident[picture]`` whether
+    its top score reaches the open-set threshold). ``unsafe`` (A_d) is updated in place; each
+    addition is written to a row ``(cell, action, source)`` of ``added`` (``empty_added``;
+    ``source`` a ``Source``).
 
-        ``next_cell``, ``obstacle``, ``ssrl_pairs`` and ``goal`` are the maze's (``structs.MazeArrays``);
-        ``pictures[s, a]`` is the run's picture id table, ``true_category[o]`` the category of
-        obstacle ``o``, ``predicted[picture]`` the recogniser's current answer and ``confident[picture]``
-    whether its top score reaches the open-set threshold. ``unsafe`` (A_d) is
-        updated in place; each addition is written to a row ``(cell, action, source)`` of ``added``
-        (``empty_added``; ``source`` a ``Source``).
-
-        Returns ``(outcome, next_state, reward, terminal, flags, picture, n_added)``: an ``Outcome``
-        value (an int: numba hands enum members to Python slowly), ``StepFlag`` bits, the picture seen
-        (or -1) and the number of rows written to ``added``.
+    Returns ``(outcome, next_state, reward, terminal, flags, picture, n_added)``: an ``Outcome``
+    value (an int: numba hands enum members to Python slowly), ``StepFlag`` bits, the picture seen
+    (or -1) and the number of rows written to ``added``.
     """
     n_added = 0
-    o = obstacle[s, a]
+    o = maze.obstacle[s, a]
     if o < 0:
-        s2 = next_cell[s, a]
-        if s2 == goal:
+        s2 = maze.next_cell[s, a]
+        if s2 == maze.goal:
             return Outcome.moved.value, s2, 1.0, True, StepFlag.goal, -1, 0
         return Outcome.moved.value, s2, 0.0, False, 0, -1, 0
     picture = -1
-    if reasons_with_pictures(safety):
-        picture = pictures[s, a]
-        if stops(rule, predicted[picture] == true_category[o], confident[picture]):
+    if reasons_with_pictures(method.safety):
+        picture = sight.pictures[s, a]
+        names_true_category = sight.predicted[picture] == sight.true_category[o]
+        if stops(method.rule, names_true_category, sight.confident[picture]):
             n_added = _add_unsafe(unsafe, s, a, Source.recognition, added, n_added)
             return Outcome.prevented.value, s, 0.0, False, 0, picture, n_added
-    if safety != Safety.none:
+    if method.safety != Safety.none:
         n_added = _add_unsafe(unsafe, s, a, Source.collision, added, n_added)
-    if safety == Safety.ssrl:
+    if method.safety == Safety.ssrl:
         for k in range(4):
-            c = ssrl_pairs[o, k, 0]
+            c = maze.ssrl_pairs[o, k, 0]
             if c >= 0:
-                n_added = _add_unsafe(
-                    unsafe, c, ssrl_pairs[o, k, 1], Source.ssrl_rule, added, n_added
-                )
-    if recovery and not constrained:
+                pair = maze.ssrl_pairs[o, k, 1]
+                n_added = _add_unsafe(unsafe, c, pair, Source.ssrl_rule, added, n_added)
+    if method.recovery and not method.constrained:
         return (
             Outcome.collided.value,
             s,

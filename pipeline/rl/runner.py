@@ -230,23 +230,8 @@ class Trial:
             actions=trace.actions[r, :n].copy(),
             rewards=trace.rewards[r, :n].copy(),
             flags=trace.flags[r, :n].copy(),
-            recognitions={
-                "episode": recognitions.episode[r, rec].astype(np.int32),
-                "step": recognitions.step[r, rec].astype(np.int32),
-                "state": recognitions.state[r, rec].astype(np.int32),
-                "action": recognitions.action[r, rec].astype(np.int8),
-                "picture": recognitions.picture[r, rec].astype(np.int16),
-                "predicted": recognitions.predicted[r, rec].astype(np.int8),
-                "true": recognitions.true[r, rec].astype(np.int8),
-                "scores": scores,
-            },
-            unsafe_added={
-                "episode": additions.episode[r, add].astype(np.int32),
-                "step": additions.step[r, add].astype(np.int32),
-                "state": additions.state[r, add].astype(np.int32),
-                "action": additions.action[r, add].astype(np.int8),
-                "source": additions.source[r, add].astype(np.int8),
-            },
+            recognitions={**_sink_columns(recognitions, r, rec), "scores": scores},
+            unsafe_added=_sink_columns(additions, r, add),
             summary={
                 "collisions": results.collisions[r, eps].copy(),
                 "return_": results.returns[r, eps].copy(),
@@ -338,6 +323,18 @@ class Trial:
         placements = [w.placement for w in self.worlds]
         args = (self.layout, self.method, self.seed, self.results, placements, self.kernel_seconds)
         return TrialResult.of(*args)
+
+
+#: The sink's integer width of a logged column (``sink.py``); a column not named here is int8.
+SINK_WIDTHS = {"episode": np.int32, "step": np.int32, "state": np.int32, "picture": np.int16}
+
+
+def _sink_columns(log, r: int, rows: slice) -> dict:
+    """Rows ``rows`` of run ``r``'s ``log`` (``Recognitions``, ``Additions``) as the sink's columns."""
+    names = log._fields[:-1]  # all but ``length``
+    return {
+        name: getattr(log, name)[r, rows].astype(SINK_WIDTHS.get(name, np.int8)) for name in names
+    }
 
 
 def run_trials(

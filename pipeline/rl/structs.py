@@ -179,6 +179,13 @@ class Trace(NamedTuple):
         )
 
 
+def _empty_log(cls, runs: int, capacity: int):
+    """An empty log (:class:`Recognitions`, :class:`Additions`): ``capacity`` rows a run of every
+    field, and ``length`` (runs,), the rows held."""
+    rows = (np.zeros((runs, capacity), np.int64) for _ in cls._fields[:-1])
+    return cls(*rows, np.zeros(runs, np.int64))
+
+
 class Recognitions(NamedTuple):
     """Every picture a run's robot saw, in order: (runs, capacity) int64 each."""
 
@@ -191,11 +198,7 @@ class Recognitions(NamedTuple):
     true: np.ndarray  #: the obstacle's category
     length: np.ndarray  #: (runs,) rows held
 
-    @classmethod
-    def empty(cls, runs: int, capacity: int) -> Recognitions:
-        return cls(
-            *(np.zeros((runs, capacity), np.int64) for _ in range(7)), np.zeros(runs, np.int64)
-        )
+    empty = classmethod(_empty_log)
 
 
 class Additions(NamedTuple):
@@ -208,11 +211,7 @@ class Additions(NamedTuple):
     source: np.ndarray  #: a ``Source`` code
     length: np.ndarray  #: (runs,) rows held
 
-    @classmethod
-    def empty(cls, runs: int, capacity: int) -> Additions:
-        return cls(
-            *(np.zeros((runs, capacity), np.int64) for _ in range(5)), np.zeros(runs, np.int64)
-        )
+    empty = classmethod(_empty_log)
 
 
 class Substitution(NamedTuple):
