@@ -11,6 +11,9 @@ import pytest
 from pipeline.report import repetition as R
 from pipeline.report.experiments import Cell
 
+#: The fixed-accuracy recogniser's ``_target_`` (``conf/recogniser/fixed_accuracy.yaml``).
+FIXED = "pipeline.rl.fixed_accuracy.FixedAccuracyRecogniser"
+
 
 def cell(name, method, maze, per_run, recogniser=None, p=None, experiment="repetition", rows=()):
     episodes = pd.DataFrame(
@@ -20,7 +23,11 @@ def cell(name, method, maze, per_run, recogniser=None, p=None, experiment="repet
         experiment=experiment,
         name=name,
         info={
-            "method": {"name": method, "dynamic_support": method.endswith("dss")},
+            "method": {
+                "name": method,
+                "safety": "fewshot",
+                "dynamic_support": method.endswith("dss"),
+            },
             "maze": maze,
             "substitution": 1,
             "recogniser": {"kind": recogniser} if recogniser else None,
@@ -30,7 +37,10 @@ def cell(name, method, maze, per_run, recogniser=None, p=None, experiment="repet
         episodes=episodes,
         recognitions=pd.DataFrame(),
         substitutions=pd.DataFrame(),
-        config={"seed": 0, "recogniser": {"p": p} if p is not None else {}},
+        config={
+            "seed": 0,
+            "recogniser": {"_target_": FIXED, "p": p} if p is not None else {},
+        },
     )
 
 

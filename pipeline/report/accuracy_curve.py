@@ -238,12 +238,7 @@ def accuracy_curve_kind(rep, exp: Experiment, paper=None) -> None:
         f"the methods without a recogniser as horizontal lines with their intervals; {rn}. "
         f"Data: `tables/{exp.folder}_data.csv`.",
     )
-    data_table(parts).to_csv(
-        rep.out / "tables" / f"{exp.folder}_data.csv",
-        index=False,
-        lineterminator="\n",
-        float_format="%.6g",
-    )
+    rep.data(f"{exp.folder}_data", data_table(parts), float_format="%.6g")
     table = break_even_table(parts)
     if len(table):
         table = table.rename(columns={"method": exp.spec.row_header})

@@ -251,12 +251,7 @@ def generalisation_section(rep, exp: Experiment) -> None:
         + "\n"
     )
     df = data_frame(sizes)
-    df.to_csv(
-        rep.out / "tables" / f"{exp.folder}_data.csv",
-        index=False,
-        lineterminator="\n",
-        float_format="%.6g",
-    )
+    rep.data(f"{exp.folder}_data", df, float_format="%.6g")
     name = f"{exp.folder}.png"
     FB.layout_boxes(
         {
@@ -283,12 +278,7 @@ def generalisation_section(rep, exp: Experiment) -> None:
         f"Data: `tables/{exp.folder}_data.csv`.",
     )
     table, data = claim_rows(sizes)
-    pd.DataFrame(data).to_csv(
-        rep.out / "tables" / f"{exp.folder}_claims.csv",
-        index=False,
-        lineterminator="\n",
-        float_format="%.6g",
-    )
+    rep.data(f"{exp.folder}_claims", pd.DataFrame(data), float_format="%.6g")
     rep.table(
         exp.folder,
         pd.DataFrame(table),

@@ -35,7 +35,7 @@ import pandas as pd
 from pipeline.report.checks import Data, Missing
 from pipeline.report.experiments import Cell, Experiment
 from pipeline.report.figures_beyond import gain_curves
-from pipeline.report.names import recogniser_name
+from pipeline.report.names import recogniser_name, recogniser_of
 from pipeline.world.generate import is_spec, parse_spec
 from pipeline.world.pictures import N_PHYSICAL_OBSTACLES
 
@@ -46,12 +46,11 @@ PAPER_TABLE3 = {"5x5": (8.77, 7.145), "7x7": (18.39, 9.75), "11x11": (48.44, 15.
 
 
 def recogniser_label(cell: Cell) -> str:
-    """The recogniser a cell ran, in words: a network's display name, else ``fixed accuracy p =``."""
-    kind = (cell.info.get("recogniser") or {}).get("kind")
-    if kind:
-        return recogniser_name(kind)
+    """The recogniser a cell ran, in words: its display name, with its accuracy ``p`` where it
+    takes one (``fixed accuracy p = 0.55``)."""
     node = (cell.config or {}).get("recogniser") or {}
-    return f"fixed accuracy p = {node['p']}" if "p" in node else "recogniser without a model"
+    name = recogniser_name(recogniser_of(cell.info, cell.config))
+    return f"{name} p = {node['p']}" if "p" in node else name
 
 
 def layout_rows(exp: Experiment) -> pd.DataFrame:
@@ -202,7 +201,7 @@ def repetition_section(rep, exp: Experiment, experiments: list[Experiment]) -> N
     if df.empty:
         rep.add("No layout of this experiment has both few-shot cells.\n")
         return
-    df.to_csv(rep.out / "tables" / f"{exp.folder}_data.csv", index=False, lineterminator="\n")
+    rep.data(f"{exp.folder}_data", df)
     rows, curves = curve_table(df)
     t3 = table3_arms(experiments)
     beside = {

@@ -220,9 +220,7 @@ def by_maze_kind(rep, exp: Experiment, paper: dict[str, PaperValue]) -> None:
             if maze in with_paper:
                 line[f"{maze} paper"] = row.paper.get(maze, "")
         table.append(line)
-    pd.DataFrame(data).to_csv(
-        rep.out / "tables" / f"{exp.folder}_data.csv", index=False, lineterminator="\n"
-    )
+    rep.data(f"{exp.folder}_data", pd.DataFrame(data))
     rep.table(
         exp.folder,
         pd.DataFrame(table),
