@@ -15,8 +15,8 @@ from fakes import FIG8_WITHOUT_MODELS
 from pipeline.config.compose import load_config
 from pipeline.errors import ConfigError
 from pipeline.report.spec import ReportSpec
-from pipeline.report.stats import mean_band, t_quantile_975
 from pipeline.stages import run_stage
+from pipeline.stats import mean_band, t_quantile_975
 
 #: A new experiment file that holds only cells (no report block).
 CELLS_ONLY = """\

@@ -9,14 +9,14 @@ shield) is a reference line on its maze. Mazes are ordered by their number of ce
 
 * ``figures/<folder>.png`` (:func:`pipeline.report.figures.accuracy_curves`): one panel per maze,
   collisions per run (mean over runs with its 95% percentile-bootstrap interval,
-  :func:`~pipeline.report.stats.describe`) against p, one line per method, the references as
+  :func:`~pipeline.stats.describe`) against p, one line per method, the references as
   horizontal lines with their intervals as bands, and the Relation Network's query accuracy with
   the original support set in the accuracy study (:func:`pipeline.report.accuracy.query_accuracy`,
   read from ``rep.accuracy_dir``) as a vertical line.
 * ``tables/<folder>.md|csv``: per maze, method and reference, the break-even accuracy (the
   smallest p at which the method's mean collisions per run are at or below the reference's) with
   its 95% interval from a bootstrap over run seeds, paired because the cells of an experiment
-  share run seeds (:func:`~pipeline.report.stats.break_even`). Its resolution is the grid of p;
+  share run seeds (:func:`~pipeline.stats.break_even`). Its resolution is the grid of p;
   "≤ 0.2" means at or below the reference already at the smallest p tried, "not reached" at no p.
 * ``tables/<folder>_data.csv``: every point and reference (maze, method, p, runs, mean, s.d.,
   interval).
@@ -33,7 +33,7 @@ from pipeline.report import figures_beyond as FB
 from pipeline.report.accuracy import query_accuracy
 from pipeline.report.experiments import Cell, Experiment
 from pipeline.report.names import method_colour, method_name, recogniser_colour
-from pipeline.report.stats import break_even, describe, fmt
+from pipeline.stats import break_even, describe, fmt
 
 
 @dataclass
@@ -114,7 +114,7 @@ def level_text(value: float, levels: np.ndarray) -> str:
 
 def break_even_table(parts: Split) -> pd.DataFrame:
     """One row per maze, method and reference: the reference's collisions and the break-even
-    accuracy with its 95% interval (:func:`~pipeline.report.stats.break_even`)."""
+    accuracy with its 95% interval (:func:`~pipeline.stats.break_even`)."""
     rows = []
     for curve in parts.curves:
         for (maze, reference), cell in parts.references.items():

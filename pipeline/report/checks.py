@@ -29,7 +29,7 @@ from pipeline.report.experiments import Cell, Experiment
 from pipeline.report.names import method_name, recogniser_of
 from pipeline.report.paper_numbers import paper_for
 from pipeline.report.pooling import same_seeds
-from pipeline.report.stats import (
+from pipeline.stats import (
     bootstrap_p,
     difference_draws,
     holm,
@@ -141,7 +141,7 @@ class Claim:
     def settle(self) -> Claim:
         """Holm's step-down over the checks with bootstrap draws: by p-value, the ``i``-th (from
         0) of ``m`` is judged by its interval at level ``1 - LEVEL / (m - i)``
-        (:func:`~pipeline.report.stats.holm`'s thresholds); after the first undecided one, the
+        (:func:`~pipeline.stats.holm`'s thresholds); after the first undecided one, the
         rest are not resolved."""
         tested = [c for c in self.checks if c.draws is not None]
         going = True

@@ -46,7 +46,7 @@ from pipeline.report.layout_cells import (
     label,
     methods_of,
 )
-from pipeline.report.stats import bootstrap_ci, bootstrap_difference, wilson_ci
+from pipeline.stats import bootstrap_ci, bootstrap_difference, wilson_ci
 
 
 @dataclass(frozen=True)

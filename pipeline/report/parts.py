@@ -16,7 +16,7 @@ from pipeline.report.names import row_styles
 from pipeline.report.paper_numbers import PaperValue
 from pipeline.report.pooling import convergence, describe_runs, pooled
 from pipeline.report.spec import Row
-from pipeline.report.stats import fmt, mean_band
+from pipeline.stats import fmt, mean_band
 
 COLLISIONS = "collisions (mean ± s.d. [95% CI])"
 

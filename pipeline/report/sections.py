@@ -51,7 +51,7 @@ from pipeline.report.pooling import collisions, convergence, describe_runs, pool
 from pipeline.report.repetition import repetition_section
 from pipeline.report.robot import robot_kind
 from pipeline.report.spec import PER_CELL_KINDS
-from pipeline.report.stats import describe, fmt
+from pipeline.stats import describe, fmt
 
 
 def section(rep, exp: Experiment, experiments: list[Experiment] = ()) -> list[str]:
