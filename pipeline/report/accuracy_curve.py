@@ -32,7 +32,13 @@ import pandas as pd
 from pipeline.report import figures_beyond as FB
 from pipeline.report.accuracy import query_accuracy
 from pipeline.report.experiments import Cell, Experiment
-from pipeline.report.names import method_colour, method_name, recogniser_colour
+from pipeline.report.names import (
+    PAPER_RECOGNISER,
+    method_colour,
+    method_name,
+    recogniser_colour,
+    recogniser_name,
+)
 from pipeline.stats import break_even, describe, fmt
 
 
@@ -198,12 +204,13 @@ def panels(parts: Split) -> list[dict]:
 
 
 def marker_text(measured: tuple[int, int] | None) -> str:
-    """What the figure's caption says of the Relation Network's mark (correct, tested pictures)."""
+    """What the figure's caption says of the paper's recogniser's mark (correct, tested pictures)."""
+    name = recogniser_name(PAPER_RECOGNISER)
     if measured is None:
-        return "the Relation Network's accuracy is not marked (no accuracy study)"
+        return f"the {name}'s accuracy is not marked (no accuracy study)"
     correct, tested = measured
     return (
-        f"the dotted vertical line is the Relation Network's query accuracy with the original support set in "
+        f"the dotted vertical line is the {name}'s query accuracy with the original support set in "
         f"the accuracy study ({correct}/{tested} = {100 * correct / tested:.1f}%; its errors fall on particular "
         "pictures and categories, where p draws them independently)"
     )
@@ -228,8 +235,8 @@ def accuracy_curve_kind(rep, exp: Experiment, paper=None) -> None:
         panels(parts),
         rep.out / "figures" / name,
         marker,
-        f"Relation Network ({100 * marker:.1f}%)" if marker is not None else "",
-        recogniser_colour("relation_net"),
+        f"{recogniser_name(PAPER_RECOGNISER)} ({100 * marker:.1f}%)" if marker is not None else "",
+        recogniser_colour(PAPER_RECOGNISER),
     )
     rep.figure(
         f"figures/{name}",

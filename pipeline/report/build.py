@@ -49,7 +49,7 @@ class Inputs:
     profiles: dict[str, dict] = field(default_factory=dict)
     """The profiles' ``trials`` blocks by name (``conf/profile/``): a record's scale."""
     beside: dict[str, tuple[Path, Path]] = field(default_factory=dict)
-    """Other few-shot methods for Tables 1-2: name -> (accuracy study folder, metrics file)."""
+    """Other recognisers for Tables 1-2, by kind: (accuracy study folder, metrics file)."""
     models: dict[str, Path] = field(default_factory=dict)
     """The meta-trained models' metrics files by model name: ``headline.json``'s accuracies."""
 

@@ -26,7 +26,7 @@ import numpy as np
 import pandas as pd
 
 from pipeline.report.experiments import Cell, Experiment
-from pipeline.report.names import method_name, recogniser_of
+from pipeline.report.names import PAPER_RECOGNISER, method_name, recogniser_of
 from pipeline.report.paper_numbers import paper_for
 from pipeline.report.pooling import same_seeds
 from pipeline.stats import (
@@ -185,10 +185,6 @@ class Arm:
     @property
     def name(self) -> str:
         return " / ".join(dict.fromkeys(method_name(c.info["method"]) for c in self.cells))
-
-
-#: The paper's recogniser (section 3.2.1): its claims table comes first.
-PAPER_RECOGNISER = "relation_net"
 
 
 class Data:

@@ -12,10 +12,15 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from pipeline.report.checks import PAPER_RECOGNISER, VERDICTS, Check, Claim, Data
+from pipeline.report.checks import VERDICTS, Check, Claim, Data
 from pipeline.report.claims import accuracy_claims, rl_claims
 from pipeline.report.experiments import Experiment
-from pipeline.report.names import recogniser_group, recogniser_name, recogniser_of
+from pipeline.report.names import (
+    PAPER_RECOGNISER,
+    recogniser_group,
+    recogniser_name,
+    recogniser_of,
+)
 
 #: The recogniser whose verdicts fill the column "with the paper's recognition": the paper's
 #: Tables 1-2 as a recogniser (``conf/recogniser/paper_tables.yaml``).

@@ -105,6 +105,11 @@ def sees_pictures(method: dict) -> bool:
     return safety in Safety.__members__ and bool(reasons_with_pictures(Safety[safety]))
 
 
+#: The paper's recogniser (section 3.2.1), by its config group: its claims table comes first, its
+#: accuracy study fills Tables 1-2, its name labels what the paper's recognition did.
+PAPER_RECOGNISER = "relation_net"
+
+
 @dataclass(frozen=True)
 class RecogniserDeclaration:
     """A recogniser as its config file declares it: ``conf/recogniser/<group>.yaml``, its

@@ -35,7 +35,7 @@ import pandas as pd
 from pipeline.report.checks import Data, Missing
 from pipeline.report.experiments import Cell, Experiment
 from pipeline.report.figures_beyond import gain_curves
-from pipeline.report.names import recogniser_name, recogniser_of
+from pipeline.report.names import PAPER_RECOGNISER, recogniser_name, recogniser_of
 from pipeline.world.generate import is_spec, parse_spec
 from pipeline.world.pictures import N_PHYSICAL_OBSTACLES
 
@@ -205,7 +205,7 @@ def repetition_section(rep, exp: Experiment, experiments: list[Experiment]) -> N
     rows, curves = curve_table(df)
     t3 = table3_arms(experiments)
     beside = {
-        "Table 3, Relation Network (ours)": {
+        f"Table 3, {recogniser_name(PAPER_RECOGNISER)} (ours)": {
             m: (r, (w - d.reindex(w.index)).mean(), 1 - d.mean() / w.mean())
             for m, (r, w, d) in t3.items()
         },
