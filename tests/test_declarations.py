@@ -6,6 +6,7 @@ name. Each failure names what to add."""
 from __future__ import annotations
 
 import inspect
+from types import SimpleNamespace
 
 import pytest
 from omegaconf import OmegaConf
@@ -124,3 +125,21 @@ def test_recognisers_have_distinct_colours_of_their_own():
     assert len(colours) >= 3 and len(set(colours)) == len(colours)
     others = {m.colour for m in METHODS} | {palette.PAPER, *palette.SERIES}
     assert not set(colours) & others
+
+
+def test_recognisers_without_a_recorded_kind_are_named_by_their_config_file():
+    """A recogniser that records no ``kind`` (fixed_accuracy, oracle) is found by its recorded
+    ``_target_``: rows of two such recognisers never share a name."""
+    declared = {d.group: d for d in recogniser_declarations()}
+    cells = [
+        SimpleNamespace(
+            info={"method": recorded("fewshot"), "maze": "5x5"},
+            config={"recogniser": {"_target_": declared[group].target}},
+        )
+        for group in ("fixed_accuracy", "oracle")
+    ]
+    names = row_names([[cell] for cell in cells])
+    assert names == [
+        f"{method_name(recorded('fewshot'))}, {declared[g].display} recogniser"
+        for g in ("fixed_accuracy", "oracle")
+    ]
