@@ -38,7 +38,10 @@ test: $(STAMP)
 test-slow: $(STAMP)
 	$(PYTEST) -m slow
 
+# dvc.yaml's derived lines first (scripts/dvc_deps.py): an experiment file added to
+# conf/experiment/ is a stage of the run with no other edit.
 repro: $(STAMP)
+	$(BIN)/python -m scripts.dvc_deps --write
 	MUJOCO_GL=$${MUJOCO_GL:-egl} PATH=$(abspath $(BIN)):$$PATH $(BIN)/dvc repro
 
 # Lists the benchmarks, then runs one (BENCH=<name>; default robot3d: the robot stage at the paper's

@@ -47,6 +47,9 @@ EXPERIMENT_ITEM = "+experiment=${item}"
 RECORDS_MARK = "# records: every experiment's index (python -m scripts.dvc_deps --write)"
 #: Config groups whose files are dependencies (whole files), not parameters (module docstring).
 STRUCTURE_GROUPS = ("experiment",)
+#: The module that imports every recogniser's ``_target_`` (the report's names and colours come
+#: from the classes): a stage that imports it depends on every recogniser's module.
+EVERY_RECOGNISER = "pipeline.report.names"
 
 
 def relative(path: Path) -> str:
@@ -177,6 +180,10 @@ def compose(stage: str, overrides: list[str]):
     return config, choices
 
 
+def recogniser_names() -> list[str]:
+    return sorted(p.stem for p in (conf_root() / "recogniser").glob("*.yaml"))
+
+
 def experiments() -> list[str]:
     """The experiments of ``conf/experiment/``, in the report's order."""
 
@@ -231,9 +238,11 @@ class Stage:
             choice = "${item}"
         return relative(conf_root() / group / f"{choice}.yaml")
 
-    def recogniser_targets(self) -> set[str]:
+    def recogniser_targets(self, every: bool = False) -> set[str]:
+        """The modules of the recognisers the command chooses (``every``: of all of them)."""
         out = set()
-        for choice in self.groups.get("recogniser", ()):
+        chosen = self.groups.get("recogniser", ())
+        for choice in recogniser_names() if every else chosen:
             node = yaml.safe_load((conf_root() / "recogniser" / f"{choice}.yaml").read_text())
             out.add(module_of(str(node["_target_"])))
         return out
@@ -248,6 +257,8 @@ class Stage:
             *self.recogniser_targets(),
         }
         modules = closure(entries)
+        if EVERY_RECOGNISER in modules:
+            modules = closure(entries | self.recogniser_targets(every=True))
         files = {relative(module_file(m)) for m in modules}
         return folded(files) + sorted(conf_folders_read(modules)) + self.structure_files()
 

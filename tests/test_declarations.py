@@ -6,6 +6,7 @@ name. Each failure names what to add."""
 from __future__ import annotations
 
 import inspect
+from types import SimpleNamespace
 
 import pytest
 from omegaconf import OmegaConf
@@ -120,7 +121,25 @@ def test_every_recogniser_that_records_a_kind_declares_its_display_name(name):
 def test_recognisers_have_distinct_colours_of_their_own():
     """A recogniser is drawn in its declared colour in every figure (Table 2's plot, the accuracy
     curve's mark, the repetition study): no two alike, none a method's, the paper's or a series'."""
-    colours = [colour for _, colour in recogniser_declarations().values()]
+    colours = [d.colour for d in recogniser_declarations() if d.colour]
     assert len(colours) >= 3 and len(set(colours)) == len(colours)
     others = {m.colour for m in METHODS} | {palette.PAPER, *palette.SERIES}
     assert not set(colours) & others
+
+
+def test_recognisers_without_a_recorded_kind_are_named_by_their_config_file():
+    """A recogniser that records no ``kind`` (fixed_accuracy, oracle) is found by its recorded
+    ``_target_``: rows of two such recognisers never share a name."""
+    declared = {d.group: d for d in recogniser_declarations()}
+    cells = [
+        SimpleNamespace(
+            info={"method": recorded("fewshot"), "maze": "5x5"},
+            config={"recogniser": {"_target_": declared[group].target}},
+        )
+        for group in ("fixed_accuracy", "oracle")
+    ]
+    names = row_names([[cell] for cell in cells])
+    assert names == [
+        f"{method_name(recorded('fewshot'))}, {declared[g].display} recogniser"
+        for g in ("fixed_accuracy", "oracle")
+    ]

@@ -14,8 +14,8 @@ from pipeline.records import read_records
 from pipeline.report.accuracy_curve import split
 from pipeline.report.experiments import load_experiment
 from pipeline.report.spec import Group, ReportSpec
-from pipeline.report.stats import break_even
 from pipeline.stages import run_stage
+from pipeline.stats import break_even
 
 LEVELS = [0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0]
 MAZES = ["5x5", "7x7", "11x11"]

@@ -12,7 +12,9 @@ from pipeline.report.checks import from_draws
 from pipeline.report.claims import Check, Claim, accuracy_claims
 from pipeline.report.experiments import ReportInputError
 from pipeline.report.names import method_name, row_names
-from pipeline.report.stats import (
+from pipeline.report.study import Study
+from pipeline.rl.methods import get_method, method_names
+from pipeline.stats import (
     bootstrap_ci,
     bootstrap_difference,
     bootstrap_p,
@@ -22,8 +24,6 @@ from pipeline.report.stats import (
     stratified_means,
     wilson_ci,
 )
-from pipeline.report.study import Study
-from pipeline.rl.methods import get_method, method_names
 
 ACCURACY = Path(__file__).resolve().parents[1] / "datasets" / "accuracy"
 

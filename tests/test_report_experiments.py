@@ -15,8 +15,8 @@ from fakes import FIG8_WITHOUT_MODELS
 from pipeline.config.compose import load_config
 from pipeline.errors import ConfigError
 from pipeline.report.spec import ReportSpec
-from pipeline.report.stats import mean_band, t_quantile_975
 from pipeline.stages import run_stage
+from pipeline.stats import mean_band, t_quantile_975
 
 #: A new experiment file that holds only cells (no report block).
 CELLS_ONLY = """\
@@ -114,7 +114,7 @@ def test_paper_sections_come_from_their_report_blocks(built):
     # they read as the paper's few-shot rows; the smoke pipeline checks their own names
     # (the paper_tables cells tell them apart by recogniser)
     few = ["Few-shot (static support set)", "Few-shot + DSS"]
-    names = ["Q-learning", "Shield", "SSRL", *(f"{n}, recogniser without a model" for n in few)]
+    names = ["Q-learning", "Shield", "SSRL", *(f"{n}, oracle recogniser" for n in few)]
     tables = [f"{n}, paper's Tables 1-2 recogniser" for n in few]
     assert fig8["method"].tolist() == names + names[3:] + tables
     # the paper's numbers for Figure 8 are Table 3's for the same setting (recorded in table3's

@@ -6,7 +6,7 @@ import pytest
 
 from pipeline.report.generalisation import CLAIMS, growth
 from pipeline.report.layout_cells import features, fit, no_line
-from pipeline.report.stats import t_quantile_975
+from pipeline.stats import t_quantile_975
 
 ROWS_5X5 = ["SXX..", "..X..", "X..XX", ".X..X", "..X.G"]  # conf/mazes/5x5.txt
 

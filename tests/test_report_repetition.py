@@ -10,6 +10,10 @@ import pytest
 
 from pipeline.report import repetition as R
 from pipeline.report.experiments import Cell
+from pipeline.report.spec import Group, ReportSpec
+
+#: The fixed-accuracy recogniser's ``_target_`` (``conf/recogniser/fixed_accuracy.yaml``).
+FIXED = "pipeline.rl.fixed_accuracy.FixedAccuracyRecogniser"
 
 
 def cell(name, method, maze, per_run, recogniser=None, p=None, experiment="repetition", rows=()):
@@ -20,7 +24,11 @@ def cell(name, method, maze, per_run, recogniser=None, p=None, experiment="repet
         experiment=experiment,
         name=name,
         info={
-            "method": {"name": method, "dynamic_support": method.endswith("dss")},
+            "method": {
+                "name": method,
+                "safety": "fewshot",
+                "dynamic_support": method.endswith("dss"),
+            },
             "maze": maze,
             "substitution": 1,
             "recogniser": {"kind": recogniser} if recogniser else None,
@@ -30,14 +38,27 @@ def cell(name, method, maze, per_run, recogniser=None, p=None, experiment="repet
         episodes=episodes,
         recognitions=pd.DataFrame(),
         substitutions=pd.DataFrame(),
-        config={"seed": 0, "recogniser": {"p": p} if p is not None else {}},
+        config={
+            "seed": 0,
+            "recogniser": {"_target_": FIXED, "p": p} if p is not None else {},
+        },
     )
 
 
 class Exp:
-    def __init__(self, cells, name="repetition"):
+    def __init__(self, cells, name="repetition", spec=None):
         self.cells = {c.name: c for c in cells}
         self.folder = self.name = name
+        self.spec = spec or ReportSpec()
+
+
+#: The paper's Table 3 few-shot rows, as table3's report block records them.
+TABLE3_PAPER = ReportSpec(
+    groups=[
+        Group("fewshot", paper={"5x5": "8.77", "7x7": "18.39", "11x11": "48.44"}),
+        Group("fewshot_dss", paper={"5x5": "7.145", "7x7": "9.75", "11x11": "15.9"}),
+    ]
+)
 
 
 def repetition_cells(rel_by_r: dict[int, float], recogniser="relation_net", p=None):
@@ -142,7 +163,7 @@ def test_the_section_builds_with_table_3_beside(tmp_path):
                     rows=rows,
                 )
             )
-    table = Exp(t3, "table3")
+    table = Exp(t3, "table3", TABLE3_PAPER)
     R.repetition_section(rep, Exp(cells), [table])
     text = "\n".join(rep.sections)
     assert "**Verdict.**" in text and "repetition accounts for" in text

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.files import write_json_atomic
-from pipeline.report.stats import bootstrap_ci
+from pipeline.stats import bootstrap_ci
 
 #: The keys of every metrics file (the columns of ``dvc metrics show``): mean collisions per run,
 #: its 95% bootstrap interval, the fraction of runs whose greedy path converged.

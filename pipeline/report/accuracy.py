@@ -19,7 +19,7 @@ from matplotlib.ticker import MaxNLocator
 
 from pipeline import palette
 from pipeline.report import figures as F
-from pipeline.report.names import recogniser_colour
+from pipeline.report.names import PAPER_RECOGNISER, recogniser_colour, recogniser_name
 from pipeline.report.recogniser_table import recogniser_row, recogniser_section  # noqa: F401  (re-exported)
 from pipeline.report.study import RESAMPLES, SEED, VARIANTS, Estimate, Study
 
@@ -61,20 +61,17 @@ def intervals_note(study: Study) -> str:
     )
 
 
-#: The paper's recogniser, whose study fills Tables 1 and 2.
-MAIN = "Relation Network"
-
-
 def accuracy_tables(
     rep, accuracy_dir: Path, model_metrics: Path, others: dict[str, tuple[Path, Path]] | None = None
 ) -> None:
-    """The recogniser's validation accuracy and Tables 1-2 of the Relation Network's study
-    (``accuracy_dir``, ``model_metrics``); ``others`` maps another method's name to its study folder
-    and metrics file, shown beside the Relation Network (missing files: said, not shown)."""
-    others = others or {}
+    """The recognisers' validation accuracy and Tables 1-2 of the paper's recogniser's study
+    (``accuracy_dir``, ``model_metrics``); ``others`` maps another recogniser (its kind) to its
+    study folder and metrics file, shown beside it (missing files: said, not shown)."""
+    main = recogniser_name(PAPER_RECOGNISER)
+    others = {recogniser_name(kind): files for kind, files in (others or {}).items()}
     recogniser_section(
         rep,
-        [(MAIN, model_metrics, accuracy_dir), *((n, m, f) for n, (f, m) in others.items())],
+        [(main, model_metrics, accuracy_dir), *((n, m, f) for n, (f, m) in others.items())],
     )
     if not (accuracy_dir / "table2.csv").exists():
         rep.add(f"Accuracy study: no data under `{accuracy_dir}`.\n")
@@ -95,7 +92,7 @@ def accuracy_tables(
             **{n: f"{c}/{t}" for n, c, t in zip(names, b["correct"], b["total"])},
             "overall": f"{100 * b['accuracy']:.1f}%",
         }
-        for name, b in [(MAIN, base), *((n, s.baseline) for n, s in beside.items())]
+        for name, b in [(main, base), *((n, s.baseline) for n, s in beside.items())]
     ]
     paper = (base.get("paper") or {}).get("correct")
     if paper:
@@ -119,13 +116,13 @@ def accuracy_tables(
         rep.table(
             f"table1_{variant}",
             table1(study, variant, beside),
-            f"Table 1, {title}: correct/tested per category ({MAIN}"
+            f"Table 1, {title}: correct/tested per category ({main}"
             + "".join(f"; the {n}'s overall accuracy beside it" for n in beside)
             + f"); {intervals_note(study)}",
         )
     summary = study.summary["table1"]
     means = []
-    for name, s in [(MAIN, study), *beside.items()]:
+    for name, s in [(main, study), *beside.items()]:
         with_same, no_same = s.mean("with_same"), s.mean("no_same")
         means.append(
             f"ours, {name} {percent(with_same.value, with_same)} (no same picture {percent(no_same.value, no_same)})"
@@ -139,7 +136,7 @@ def accuracy_tables(
         "table2",
         table2(study, beside),
         f"Mean accuracy over the {study.pictures} query pictures (ours, "
-        f"{MAIN}{''.join(', ' + n for n in beside)}, and the paper's); "
+        f"{main}{''.join(', ' + n for n in beside)}, and the paper's); "
         f"{intervals_note(study)}",
     )
     table2_figure(rep, study, beside)
@@ -203,13 +200,14 @@ def table2(study: Study, beside: dict[str, Study] | None = None) -> pd.DataFrame
 
 
 def table2_figure(rep, study: Study, beside: dict[str, Study] | None = None) -> None:
+    main = recogniser_name(PAPER_RECOGNISER)
     fig, ax = plt.subplots(figsize=(6.0, 4.2), layout="constrained")
     n = study.table2.index.to_numpy()
     for (variant, column), style, label in zip(
         VARIANTS.items(), ("o-", "o--"), ("ours", "ours, no same picture")
     ):
         for k, (who, s, marker) in enumerate(
-            [(MAIN, study, "o"), *((name, other, "^") for name, other in (beside or {}).items())]
+            [(main, study, "o"), *((name, other, "^") for name, other in (beside or {}).items())]
         ):
             estimates = [s.substitutions(int(i), variant) for i in s.table2.index.to_numpy()]
             values = np.array([100 * e.value for e in estimates])

@@ -9,14 +9,14 @@ shield) is a reference line on its maze. Mazes are ordered by their number of ce
 
 * ``figures/<folder>.png`` (:func:`pipeline.report.figures.accuracy_curves`): one panel per maze,
   collisions per run (mean over runs with its 95% percentile-bootstrap interval,
-  :func:`~pipeline.report.stats.describe`) against p, one line per method, the references as
+  :func:`~pipeline.stats.describe`) against p, one line per method, the references as
   horizontal lines with their intervals as bands, and the Relation Network's query accuracy with
   the original support set in the accuracy study (:func:`pipeline.report.accuracy.query_accuracy`,
   read from ``rep.accuracy_dir``) as a vertical line.
 * ``tables/<folder>.md|csv``: per maze, method and reference, the break-even accuracy (the
   smallest p at which the method's mean collisions per run are at or below the reference's) with
   its 95% interval from a bootstrap over run seeds, paired because the cells of an experiment
-  share run seeds (:func:`~pipeline.report.stats.break_even`). Its resolution is the grid of p;
+  share run seeds (:func:`~pipeline.stats.break_even`). Its resolution is the grid of p;
   "≤ 0.2" means at or below the reference already at the smallest p tried, "not reached" at no p.
 * ``tables/<folder>_data.csv``: every point and reference (maze, method, p, runs, mean, s.d.,
   interval).
@@ -32,8 +32,14 @@ import pandas as pd
 from pipeline.report import figures_beyond as FB
 from pipeline.report.accuracy import query_accuracy
 from pipeline.report.experiments import Cell, Experiment
-from pipeline.report.names import method_colour, method_name, recogniser_colour
-from pipeline.report.stats import break_even, describe, fmt
+from pipeline.report.names import (
+    PAPER_RECOGNISER,
+    method_colour,
+    method_name,
+    recogniser_colour,
+    recogniser_name,
+)
+from pipeline.stats import break_even, describe, fmt
 
 
 @dataclass
@@ -114,7 +120,7 @@ def level_text(value: float, levels: np.ndarray) -> str:
 
 def break_even_table(parts: Split) -> pd.DataFrame:
     """One row per maze, method and reference: the reference's collisions and the break-even
-    accuracy with its 95% interval (:func:`~pipeline.report.stats.break_even`)."""
+    accuracy with its 95% interval (:func:`~pipeline.stats.break_even`)."""
     rows = []
     for curve in parts.curves:
         for (maze, reference), cell in parts.references.items():
@@ -198,12 +204,13 @@ def panels(parts: Split) -> list[dict]:
 
 
 def marker_text(measured: tuple[int, int] | None) -> str:
-    """What the figure's caption says of the Relation Network's mark (correct, tested pictures)."""
+    """What the figure's caption says of the paper's recogniser's mark (correct, tested pictures)."""
+    name = recogniser_name(PAPER_RECOGNISER)
     if measured is None:
-        return "the Relation Network's accuracy is not marked (no accuracy study)"
+        return f"the {name}'s accuracy is not marked (no accuracy study)"
     correct, tested = measured
     return (
-        f"the dotted vertical line is the Relation Network's query accuracy with the original support set in "
+        f"the dotted vertical line is the {name}'s query accuracy with the original support set in "
         f"the accuracy study ({correct}/{tested} = {100 * correct / tested:.1f}%; its errors fall on particular "
         "pictures and categories, where p draws them independently)"
     )
@@ -228,8 +235,8 @@ def accuracy_curve_kind(rep, exp: Experiment, paper=None) -> None:
         panels(parts),
         rep.out / "figures" / name,
         marker,
-        f"Relation Network ({100 * marker:.1f}%)" if marker is not None else "",
-        recogniser_colour("relation_net"),
+        f"{recogniser_name(PAPER_RECOGNISER)} ({100 * marker:.1f}%)" if marker is not None else "",
+        recogniser_colour(PAPER_RECOGNISER),
     )
     rep.figure(
         f"figures/{name}",
@@ -238,12 +245,7 @@ def accuracy_curve_kind(rep, exp: Experiment, paper=None) -> None:
         f"the methods without a recogniser as horizontal lines with their intervals; {rn}. "
         f"Data: `tables/{exp.folder}_data.csv`.",
     )
-    data_table(parts).to_csv(
-        rep.out / "tables" / f"{exp.folder}_data.csv",
-        index=False,
-        lineterminator="\n",
-        float_format="%.6g",
-    )
+    rep.data(f"{exp.folder}_data", data_table(parts), float_format="%.6g")
     table = break_even_table(parts)
     if len(table):
         table = table.rename(columns={"method": exp.spec.row_header})

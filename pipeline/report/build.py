@@ -49,7 +49,7 @@ class Inputs:
     profiles: dict[str, dict] = field(default_factory=dict)
     """The profiles' ``trials`` blocks by name (``conf/profile/``): a record's scale."""
     beside: dict[str, tuple[Path, Path]] = field(default_factory=dict)
-    """Other few-shot methods for Tables 1-2: name -> (accuracy study folder, metrics file)."""
+    """Other recognisers for Tables 1-2, by kind: (accuracy study folder, metrics file)."""
     models: dict[str, Path] = field(default_factory=dict)
     """The meta-trained models' metrics files by model name: ``headline.json``'s accuracies."""
 
@@ -68,8 +68,12 @@ class Report:
     def add(self, text: str) -> None:
         self.sections.append(text.rstrip() + "\n")
 
+    def data(self, name: str, df: pd.DataFrame, **options) -> None:
+        """``tables/<name>.csv``, the data of a table or figure (``options``: ``float_format``)."""
+        df.to_csv(self.out / "tables" / f"{name}.csv", index=False, lineterminator="\n", **options)
+
     def table(self, name: str, df: pd.DataFrame, caption: str) -> None:
-        df.to_csv(self.out / "tables" / f"{name}.csv", index=False, lineterminator="\n")
+        self.data(name, df)
         md = df.to_markdown(index=False)
         (self.out / "tables" / f"{name}.md").write_text(f"{caption}\n\n{md}\n")
         self.add(f"{caption}\n\n{md}\n\n(`tables/{name}.csv`)\n")

@@ -26,10 +26,10 @@ import numpy as np
 import pandas as pd
 
 from pipeline.report.experiments import Cell, Experiment
-from pipeline.report.names import method_name, recogniser_of
+from pipeline.report.names import PAPER_RECOGNISER, method_name, recogniser_of
 from pipeline.report.paper_numbers import paper_for
 from pipeline.report.pooling import same_seeds
-from pipeline.report.stats import (
+from pipeline.stats import (
     bootstrap_p,
     difference_draws,
     holm,
@@ -141,7 +141,7 @@ class Claim:
     def settle(self) -> Claim:
         """Holm's step-down over the checks with bootstrap draws: by p-value, the ``i``-th (from
         0) of ``m`` is judged by its interval at level ``1 - LEVEL / (m - i)``
-        (:func:`~pipeline.report.stats.holm`'s thresholds); after the first undecided one, the
+        (:func:`~pipeline.stats.holm`'s thresholds); after the first undecided one, the
         rest are not resolved."""
         tested = [c for c in self.checks if c.draws is not None]
         going = True
@@ -185,10 +185,6 @@ class Arm:
     @property
     def name(self) -> str:
         return " / ".join(dict.fromkeys(method_name(c.info["method"]) for c in self.cells))
-
-
-#: The paper's recogniser (section 3.2.1): its claims table comes first.
-PAPER_RECOGNISER = "relation_net"
 
 
 class Data:

@@ -6,7 +6,7 @@ accuracy study's data files), each with a 95% interval and a bootstrap p-value:
 
 * differences in collisions per run between cells: bootstrap over run seeds (2000 resamples, seed
   0), paired where the cells share run seeds on one maze, unpaired across mazes, a pooled arm (the
-  four substitution ways) averaged per seed first (:mod:`pipeline.report.stats`);
+  four substitution ways) averaged per seed first (:mod:`pipeline.stats`);
 * shares of converged runs: Wilson score intervals over the runs;
 * accuracies of the accuracy study: bootstrap over its random draws (``draws.csv``,
   :class:`~pipeline.report.study.Study`), paired where the same draws are compared.

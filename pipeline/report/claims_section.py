@@ -12,10 +12,15 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from pipeline.report.checks import PAPER_RECOGNISER, VERDICTS, Check, Claim, Data
+from pipeline.report.checks import VERDICTS, Check, Claim, Data
 from pipeline.report.claims import accuracy_claims, rl_claims
 from pipeline.report.experiments import Experiment
-from pipeline.report.names import recogniser_groups, recogniser_name, recogniser_of
+from pipeline.report.names import (
+    PAPER_RECOGNISER,
+    recogniser_group,
+    recogniser_name,
+    recogniser_of,
+)
 
 #: The recogniser whose verdicts fill the column "with the paper's recognition": the paper's
 #: Tables 1-2 as a recogniser (``conf/recogniser/paper_tables.yaml``).
@@ -31,7 +36,7 @@ def study_recogniser(folder: Path) -> str | None:
     if not path.is_file():
         return None
     target = str(json.loads(path.read_text())["config"]["recogniser"].get("_target_"))
-    return recogniser_groups().get(target, target)
+    return recogniser_group(target)
 
 
 def claims_by_recogniser(
@@ -121,9 +126,7 @@ def claims_section(rep, experiments: list[Experiment], accuracy_dirs: list[Path]
         for i, c in enumerate(claims, 1)
         for k in (c.checks or [Check(c.missing, *[np.nan] * 3, "", "", "")])
     ]
-    pd.DataFrame(rows).to_csv(
-        rep.out / "tables" / "claims.csv", index=False, lineterminator="\n", float_format="%.6g"
-    )
+    rep.data("claims", pd.DataFrame(rows), float_format="%.6g")
     rep.add(f"## Claims of the paper against our data\n\n{RULE}\n")
     for kind, claims in by.items():
         rep.add(recogniser_block(kind, claims, column if kind == main else None, by[main]))

@@ -124,7 +124,7 @@ class Experiment:
             cells = [self.cells[c] for c in row.cells if c in self.cells]
             if cells:
                 out.append((row, cells))
-        names = row_names([[c.info for c in cells] for _, cells in out])
+        names = row_names([cells for _, cells in out])
         return [(replace(row, label=name), cells) for (row, cells), name in zip(out, names)]
 
 

@@ -25,7 +25,7 @@ from matplotlib.ticker import FuncFormatter  # noqa: E402
 
 from pipeline import palette  # noqa: E402
 from pipeline.report.overlap import FigureOverlapWarning, problems  # noqa: E402
-from pipeline.report.stats import describe  # noqa: E402
+from pipeline.stats import describe  # noqa: E402
 from pipeline.world.maze import MOVES  # noqa: E402
 from pipeline.world.pictures import CATEGORIES  # noqa: E402
 

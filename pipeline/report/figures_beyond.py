@@ -14,7 +14,7 @@ from matplotlib.ticker import MaxNLocator
 
 from pipeline import palette
 from pipeline.report.figures import save
-from pipeline.report.names import recogniser_colour
+from pipeline.report.names import PAPER_RECOGNISER, recogniser_colour, recogniser_name
 
 
 def accuracy_curves(
@@ -58,7 +58,7 @@ def accuracy_curves(
                 mec="black",
                 mew=0.5,
                 zorder=5,
-                label=f"{label}, Relation Network",
+                label=f"{label}, {recogniser_name(PAPER_RECOGNISER)}",
             )
         if marker is not None:
             ax.axvline(marker, color=marker_colour, ls=":", lw=1.4, label=marker_label)

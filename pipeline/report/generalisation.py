@@ -46,7 +46,7 @@ from pipeline.report.layout_cells import (
     label,
     methods_of,
 )
-from pipeline.report.stats import bootstrap_ci, bootstrap_difference, wilson_ci
+from pipeline.stats import bootstrap_ci, bootstrap_difference, wilson_ci
 
 
 @dataclass(frozen=True)
@@ -251,12 +251,7 @@ def generalisation_section(rep, exp: Experiment) -> None:
         + "\n"
     )
     df = data_frame(sizes)
-    df.to_csv(
-        rep.out / "tables" / f"{exp.folder}_data.csv",
-        index=False,
-        lineterminator="\n",
-        float_format="%.6g",
-    )
+    rep.data(f"{exp.folder}_data", df, float_format="%.6g")
     name = f"{exp.folder}.png"
     FB.layout_boxes(
         {
@@ -283,12 +278,7 @@ def generalisation_section(rep, exp: Experiment) -> None:
         f"Data: `tables/{exp.folder}_data.csv`.",
     )
     table, data = claim_rows(sizes)
-    pd.DataFrame(data).to_csv(
-        rep.out / "tables" / f"{exp.folder}_claims.csv",
-        index=False,
-        lineterminator="\n",
-        float_format="%.6g",
-    )
+    rep.data(f"{exp.folder}_claims", pd.DataFrame(data), float_format="%.6g")
     rep.table(
         exp.folder,
         pd.DataFrame(table),

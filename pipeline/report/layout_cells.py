@@ -13,7 +13,7 @@ import pandas as pd
 from pipeline.report.checks import Arm, Missing
 from pipeline.report.experiments import Cell, Experiment
 from pipeline.report.names import method_colour, method_name, method_order
-from pipeline.report.stats import t_quantile_975
+from pipeline.stats import t_quantile_975
 from pipeline.world.generate import is_spec, parse_spec
 from pipeline.world.geometry import build_geometry
 from pipeline.world.maze import bfs_distances, parse_layout

@@ -23,7 +23,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from pipeline.report.figures import PLAIN, save, style  # noqa: E402
-from pipeline.report.stats import mean_band  # noqa: E402
+from pipeline.stats import mean_band  # noqa: E402
 
 #: The episodes the left panel shows at the full scale (from the first one drawn).
 EARLY = 10
@@ -45,7 +45,7 @@ def curves(
     first: int = 0,
 ) -> str:
     """One line per label from x = ``first``: the mean over runs (rows of a runs x episodes array;
-    a 1-D array is one run) with its 95% t interval shaded (:func:`~pipeline.report.stats.mean_band`),
+    a 1-D array is one run) with its 95% t interval shaded (:func:`~pipeline.stats.mean_band`),
     clipped to the range of the values. ``styles``: colour, dash and marker by label
     (:func:`pipeline.report.names.row_styles`); the legend is below the axes. Returns what the
     caption must say about the scales ("" for one linear panel)."""

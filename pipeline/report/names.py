@@ -11,6 +11,7 @@ pooled row averages) are left out: the captions say what a row pools.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from functools import cache
 
 from pipeline import palette
@@ -63,14 +64,15 @@ def shade(colour: str, k: int, n: int) -> str:
     return to_hex(rgb)
 
 
-def row_styles(rows: list[list[dict]]) -> list[dict]:
-    """A line colour and style per row (each a list of its cells' ``info``), the same in every
+def row_styles(rows: list[list]) -> list[dict]:
+    """A line colour and style per row (each a list of its cells, :func:`recorded`), the same in every
     figure: a row of one declared method takes the method's colour (:data:`METHODS`); rows that
     share a method take shades of it, a dash and a marker each (:data:`DASHES`, :data:`MARKERS`);
     a row of several or undeclared methods takes grey shades. When every row is of one method
     (Figure 10: the ways of one method), the rows take the palette's distinct series colours
     (:data:`pipeline.palette.SERIES`) instead of shades that would tell them apart poorly."""
-    keys = [" / ".join(sorted({method_name(info["method"]) for info in infos})) for infos in rows]
+    methods = [[recorded(cell)[0]["method"] for cell in cells] for cells in rows]
+    keys = [" / ".join(sorted({method_name(m) for m in row})) for row in methods]
     if len(rows) > 1 and len(set(keys)) == 1:  # one method throughout: its colour tells nothing
         return [
             {
@@ -84,7 +86,7 @@ def row_styles(rows: list[list[dict]]) -> list[dict]:
     for i, key in enumerate(keys):
         peers = [j for j, other in enumerate(keys) if other == key]
         k = peers.index(i)
-        one = rows[i][0]["method"] if " / " not in key else None
+        one = methods[i][0] if " / " not in key else None
         colour = (method_colour(one) if one is not None else None) or "#7f7f7f"
         shared = len(peers) > 1
         out.append(
@@ -103,56 +105,71 @@ def sees_pictures(method: dict) -> bool:
     return safety in Safety.__members__ and bool(reasons_with_pictures(Safety[safety]))
 
 
-@cache
-def recogniser_declarations() -> dict[str, tuple[str, str | None]]:
-    """The recognisers that record a ``kind`` (``describe()`` in the records), by kind: the
-    display name and colour each declares beside its ``kind`` (``display_name``, ``colour``:
-    :class:`pipeline.fewshot.recogniser.SupportSetRecogniser`'s subclasses, and
-    :class:`pipeline.fewshot.paper_tables.PaperTablesRecogniser`, which scores without a network)."""
-    from pipeline.fewshot.paper_tables import PaperTablesRecogniser
-    from pipeline.fewshot.recogniser import SupportSetRecogniser
-
-    found, todo = {}, [SupportSetRecogniser, PaperTablesRecogniser]
-    while todo:
-        cls = todo.pop()
-        todo += cls.__subclasses__()
-        if getattr(cls, "kind", "") and getattr(cls, "display_name", ""):
-            found[cls.kind] = (cls.display_name, getattr(cls, "colour", None))
-    return found
+#: The paper's recogniser (section 3.2.1), by its config group: its claims table comes first, its
+#: accuracy study fills Tables 1-2, its name labels what the paper's recognition did.
+PAPER_RECOGNISER = "relation_net"
 
 
-def recogniser_names() -> dict[str, str]:
-    """Display names of the recognisers that record a ``kind``, by kind."""
-    return {kind: name for kind, (name, _) in recogniser_declarations().items()}
+@dataclass(frozen=True)
+class RecogniserDeclaration:
+    """A recogniser as its config file declares it: ``conf/recogniser/<group>.yaml``, its
+    ``_target_`` and what the class it builds declares: the ``kind`` its records say
+    (``describe()``), its ``display_name`` and ``colour`` (the group's name and no colour when the
+    class declares none)."""
 
-
-def recogniser_name(kind: str) -> str:
-    """A recorded recogniser kind's display name (the kind itself when nothing declares one)."""
-    return recogniser_names().get(kind, kind)
-
-
-def recogniser_colour(name: str) -> str | None:
-    """The colour a recogniser declares, found by its kind or its display name (None when nothing
-    declares one): a recogniser is drawn in one colour in every figure."""
-    for kind, (display, colour) in recogniser_declarations().items():
-        if name in (kind, display):
-            return colour
-    return None
+    group: str
+    target: str
+    kind: str
+    display: str
+    colour: str | None
 
 
 @cache
-def recogniser_groups() -> dict[str, str]:
-    """The recognisers' config groups (``conf/recogniser/<name>.yaml``) by the ``_target_``
-    each builds (the first name, sorted, where two share one)."""
+def recogniser_declarations() -> list[RecogniserDeclaration]:
+    """Every recogniser of ``conf/recogniser/``, from the class its ``_target_`` names (a class, or
+    a class's constructor such as ``RelationRecogniser.from_files``): the one declaration of each."""
+    import pydoc
+
     import yaml
 
     from pipeline.configs import conf_dir
 
-    found: dict[str, str] = {}
+    found = []
     for path in sorted(conf_dir("recogniser").glob("*.yaml")):
-        target = (yaml.safe_load(path.read_text()) or {}).get("_target_")
-        found.setdefault(str(target), path.stem)
+        target = str((yaml.safe_load(path.read_text()) or {}).get("_target_"))
+        built = pydoc.locate(target)
+        cls = getattr(built, "__self__", built)  # ``Class.from_files``: the class
+        kind = getattr(cls, "kind", "") or path.stem
+        display = getattr(cls, "display_name", "") or path.stem
+        colour = getattr(cls, "colour", None)
+        found.append(RecogniserDeclaration(path.stem, target, kind, display, colour))
     return found
+
+
+def recogniser_declaration(name: str) -> RecogniserDeclaration | None:
+    """The declaration a recorded recogniser kind, a config group or a display name names."""
+    return next(
+        (d for d in recogniser_declarations() if name in (d.kind, d.group, d.display)), None
+    )
+
+
+def recogniser_name(name: str) -> str:
+    """A recogniser's display name, found by its kind or group (the name itself when nothing
+    declares one)."""
+    found = recogniser_declaration(name)
+    return found.display if found is not None else name
+
+
+def recogniser_colour(name: str) -> str | None:
+    """The colour a recogniser declares, found by its kind, group or display name (None when
+    nothing declares one): a recogniser is drawn in one colour in every figure."""
+    found = recogniser_declaration(name)
+    return found.colour if found is not None else None
+
+
+def recogniser_group(target: str) -> str:
+    """The config group whose ``_target_`` is ``target`` (``target`` itself when none is)."""
+    return next((d.group for d in recogniser_declarations() if d.target == target), target)
 
 
 def recogniser_of(info: dict, config: dict | None) -> str | None:
@@ -164,38 +181,41 @@ def recogniser_of(info: dict, config: dict | None) -> str | None:
     kind = (info.get("recogniser") or {}).get("kind")
     if kind:
         return kind
-    target = str(((config or {}).get("recogniser") or {}).get("_target_"))
-    return recogniser_groups().get(target, target)
+    return recogniser_group(str(((config or {}).get("recogniser") or {}).get("_target_")))
 
 
-def settings(info: dict) -> dict[str, str]:
-    """A cell's settings as words, by setting (the recorded ``info`` of its records)."""
+def recorded(cell) -> tuple[dict, dict | None]:
+    """A cell's recorded ``info`` and config (:class:`~pipeline.report.experiments.Cell`; a bare
+    ``info`` dict has no config)."""
+    return (cell, None) if isinstance(cell, dict) else (cell.info, cell.config)
+
+
+def settings(info: dict, config: dict | None = None) -> dict[str, str]:
+    """A cell's settings as words, by setting (the recorded ``info`` and config of its records)."""
     method = info["method"]
     out = {"method": method_name(method), "maze": str(info["maze"])}
     if method.get("dynamic_support"):
         out["way"] = f"way {info.get('substitution')}"
-    recogniser = info.get("recogniser") or {}
-    if recogniser:
+    if info.get("recogniser"):
         out["support"] = SUPPORT_NAMES.get(info.get("support"), f"support {info.get('support')}")
-        out["recogniser"] = f"{recogniser_name(recogniser.get('kind'))} recogniser"
-    elif sees_pictures(method):  # oracle, fixed_accuracy: they record no description
-        out["recogniser"] = "recogniser without a model"
+    if (recogniser := recogniser_of(info, config)) is not None:
+        out["recogniser"] = f"{recogniser_name(recogniser)} recogniser"
     for key, value in sorted(method.items()):
         if key != "name":  # shown where it tells rows of one method apart (row_names)
             out[key] = f"{key.replace('_', ' ')} {value}"
     return out
 
 
-def row_names(rows: list[list[dict]]) -> list[str]:
-    """One name per row (each a list of its cells' ``info``): the method name(s), then the settings
+def row_names(rows: list[list]) -> list[str]:
+    """One name per row (each a list of its cells, :func:`recorded`): the method name(s), then the settings
     that are the same for all cells of the row but differ between rows: trial settings (maze, way,
     support set, recogniser) between any rows, method fields (``alpha 0.05``) between rows of one
     method (Q-learning and Shield differ in ``recovery`` by definition)."""
     per_row = []
-    for infos in rows:
+    for cells in rows:
         values: dict[str, set] = {}
-        for info in infos:
-            for key, word in settings(info).items():
+        for cell in cells:
+            for key, word in settings(*recorded(cell)).items():
                 values.setdefault(key, set()).add(word)
         per_row.append(values)
 

@@ -16,7 +16,7 @@ from pipeline.report.names import row_styles
 from pipeline.report.paper_numbers import PaperValue
 from pipeline.report.pooling import convergence, describe_runs, pooled
 from pipeline.report.spec import Row
-from pipeline.report.stats import fmt, mean_band
+from pipeline.stats import fmt, mean_band
 
 COLLISIONS = "collisions (mean ± s.d. [95% CI])"
 
@@ -24,7 +24,7 @@ COLLISIONS = "collisions (mean ± s.d. [95% CI])"
 def styles_of(rows: list[tuple[Row, list[Cell]]]) -> dict[str, dict]:
     """The rows' line colours and styles by label (:func:`~pipeline.report.names.row_styles`):
     the same row looks the same in every figure."""
-    found = row_styles([[c.info for c in cells] for _, cells in rows])
+    found = row_styles([cells for _, cells in rows])
     return {row.label: style for (row, _), style in zip(rows, found)}
 
 
@@ -120,12 +120,8 @@ def write_curves_table(
     each, whose series have distinct colours)."""
     if frames:
         suffix = "" if maze is None else f"_{safe(maze)}"
-        pd.concat(frames, ignore_index=True).to_csv(
-            rep.out / "tables" / f"{exp.folder}_learning_curves{suffix}.csv",
-            index=False,
-            lineterminator="\n",
-            float_format="%.6g",
-        )
+        frame = pd.concat(frames, ignore_index=True)
+        rep.data(f"{exp.folder}_learning_curves{suffix}", frame, float_format="%.6g")
 
 
 def support_part(

@@ -12,7 +12,7 @@ import numpy as np
 from pipeline.report.experiments import Cell
 from pipeline.report.names import settings
 from pipeline.report.spec import Row
-from pipeline.report.stats import describe
+from pipeline.stats import describe
 
 
 def pooled(cells: list[Cell], what) -> np.ndarray:

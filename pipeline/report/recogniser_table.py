@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from pipeline.report.stats import bootstrap_ci, wilson_ci
+from pipeline.stats import bootstrap_ci, wilson_ci
 
 COLUMNS = (
     "recogniser",

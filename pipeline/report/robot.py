@@ -22,8 +22,8 @@ import pandas as pd
 
 from pipeline.report.robot_cells import Pair, check_cell, pairs, read_extra, recogniser, rule
 from pipeline.report.robot_figure import difference_figure
-from pipeline.report.stats import bootstrap_difference, describe, wilson_ci
 from pipeline.rl.rules import Rule
+from pipeline.stats import bootstrap_difference, describe, wilson_ci
 from pipeline.world.pictures import CATEGORIES
 
 BENCHMARK = Path("reports/benchmarks/robot3d.json")

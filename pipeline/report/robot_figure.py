@@ -19,8 +19,8 @@ import numpy as np  # noqa: E402
 
 from pipeline import palette  # noqa: E402
 from pipeline.report.figures import save  # noqa: E402
-from pipeline.report.stats import bootstrap_difference  # noqa: E402
 from pipeline.rl.rules import Rule  # noqa: E402
+from pipeline.stats import bootstrap_difference  # noqa: E402
 
 #: The rules in the order of their colours and markers (palette.SERIES by position), the same in
 #: every report: the decision rules as declared, then the methods that see no pictures.

@@ -51,7 +51,7 @@ from pipeline.report.pooling import collisions, convergence, describe_runs, pool
 from pipeline.report.repetition import repetition_section
 from pipeline.report.robot import robot_kind
 from pipeline.report.spec import PER_CELL_KINDS
-from pipeline.report.stats import describe, fmt
+from pipeline.stats import describe, fmt
 
 
 def section(rep, exp: Experiment, experiments: list[Experiment] = ()) -> list[str]:
@@ -220,9 +220,7 @@ def by_maze_kind(rep, exp: Experiment, paper: dict[str, PaperValue]) -> None:
             if maze in with_paper:
                 line[f"{maze} paper"] = row.paper.get(maze, "")
         table.append(line)
-    pd.DataFrame(data).to_csv(
-        rep.out / "tables" / f"{exp.folder}_data.csv", index=False, lineterminator="\n"
-    )
+    rep.data(f"{exp.folder}_data", pd.DataFrame(data))
     rep.table(
         exp.folder,
         pd.DataFrame(table),

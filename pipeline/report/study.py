@@ -5,7 +5,7 @@ Intervals: the study's random unit is a draw (which query pictures replace which
 ``repeats`` independent draws per substituted category and number of substitutions), and its
 ``draws.csv`` keeps every draw's outcome. An accuracy is a mean over draws, and its 95% interval a
 percentile bootstrap over them (:data:`RESAMPLES` resamples, seeded by :data:`SEED` and the number of
-substitutions), resampling draws within each substituted category (:func:`~pipeline.report.stats.
+substitutions), resampling draws within each substituted category (:func:`~pipeline.stats.
 stratified_means`). The two variants (with and without the substituted pictures) of one number of
 substitutions resample the same draws (their difference is paired); different numbers are
 independent streams. The intervals are over the draws, for the 40 query pictures and the trained
@@ -23,7 +23,7 @@ import numpy as np
 import pandas as pd
 
 from pipeline.report.experiments import ReportInputError
-from pipeline.report.stats import percentile_ci, stratified_means
+from pipeline.stats import percentile_ci, stratified_means
 
 #: ``table2.csv``'s column of each variant of Table 1 (``table1.csv``'s ``variant``).
 VARIANTS = {"with_same": "mean_accuracy", "no_same": "mean_accuracy_no_same"}

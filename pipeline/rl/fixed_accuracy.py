@@ -24,6 +24,8 @@ _ONE_HOT = np.eye(
 class FixedAccuracyRecogniser:
     """``conf/recogniser/fixed_accuracy.yaml``: ``p`` in [0, 1], ``learn`` true/false."""
 
+    display_name = "fixed accuracy"  # its name in the report (pipeline.report.names)
+
     def __init__(
         self,
         p: float = 1.0,

@@ -39,9 +39,7 @@ def run(cfg: ReportConfig, overrides: list[str] = ()) -> Path:
         allow_missing=cfg.allow_missing,
         allow_mixed_scales=cfg.allow_mixed_scales,
         profiles=profile_trials(),
-        beside={
-            "Prototypical Network": (Path(cfg.protonet_accuracy_dir), Path(cfg.protonet_metrics))
-        },
+        beside={"protonet": (Path(cfg.protonet_accuracy_dir), Path(cfg.protonet_metrics))},
         models={"relation_net": Path(cfg.model_metrics), "protonet": Path(cfg.protonet_metrics)},
     )
     try:

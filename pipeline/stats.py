@@ -1,9 +1,10 @@
-"""Summary statistics for the report: mean, standard deviation and a seeded 95% bootstrap interval
-of the mean (tables); per-episode means with a 95% t interval (the bands of learning curves);
-bootstrap intervals of differences between cells (the claims) and of break-even levels
-(:func:`break_even`); Wilson intervals of shares of runs; stratified bootstrap over the accuracy
-study's random draws (Tables 1 and 2: :func:`stratified_means`); bootstrap p-values
-(:func:`bootstrap_p`) and Holm's step-down correction across the checks of a claim (:func:`holm`).
+"""Summary statistics of the report and of the trials' metrics files (:mod:`pipeline.cells.metrics`):
+mean, standard deviation and a seeded 95% bootstrap interval of the mean (tables); per-episode
+means with a 95% t interval (the bands of learning curves); bootstrap intervals of differences
+between cells (the claims) and of break-even levels (:func:`break_even`); Wilson intervals of
+shares of runs; stratified bootstrap over the accuracy study's random draws (Tables 1 and 2:
+:func:`stratified_means`); bootstrap p-values (:func:`bootstrap_p`) and Holm's step-down
+correction across the checks of a claim (:func:`holm`).
 
 The independent unit of a trial is its run seed: the cells of an experiment (and the experiments
 recorded with the same seed and run count) share run ``r``'s obstacle placement and random
