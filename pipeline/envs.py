@@ -33,10 +33,10 @@ from omegaconf import OmegaConf
 
 from pipeline.config.experiment import SUBSTITUTION_WAYS
 from pipeline.config.recognisers import RECOGNISER_DIR, build_recogniser, recogniser_names
-from pipeline.errors import ConfigError
 from pipeline.rl.gym_env import SafeNavigationEnv
 from pipeline.rl.methods import MethodSpec, get_method
 from pipeline.rl.recogniser import Recogniser
+from pipeline.schema import refuse_argument
 from pipeline.threads import TORCH_THREADS_BESIDE_NUMBA, ThreadBudget
 from pipeline.world.maze import Layout
 
@@ -86,9 +86,11 @@ def recogniser_for(
         or not isinstance(substitution, numbers.Integral)
         or substitution not in SUBSTITUTION_WAYS
     ):
-        raise ConfigError(
-            f"substitution={substitution!r}: the substitution way of the dynamic support set must "
-            f"be one of {', '.join(map(str, SUBSTITUTION_WAYS))} (paper section 3.3)"
+        refuse_argument(
+            "substitution",
+            substitution,
+            "the substitution way of the dynamic support set must "
+            f"be one of {', '.join(map(str, SUBSTITUTION_WAYS))} (paper section 3.3)",
         )
     if isinstance(recogniser, str):
         _check_name(recogniser)

@@ -8,7 +8,9 @@ declares its key: the annotation is the type, :func:`setting` adds a range (``ge
 docstring, read by :func:`field_docs`) is its description. From these alone, Hydra's structured
 configs refuse wrong types and unknown keys, :func:`check` refuses values out of range and
 :func:`constraint` and :func:`field_docs` give ``python -m pipeline <stage> --help`` its text.
-This module sits below the science packages, so they declare their fields with it.
+What the fields cannot say (a folder that must exist, two keys that exclude each other) a stage or
+a science module refuses with :func:`refuse`, so every refusal is raised here, in one form naming
+the key. This module sits below the science packages, so they declare their fields with it.
 """
 
 from __future__ import annotations
@@ -22,12 +24,33 @@ import os
 import textwrap
 import types
 import typing
-from collections.abc import Iterable, Mapping
-from typing import Any
+from collections.abc import Iterable, Mapping, Sequence
+from typing import Any, NoReturn
 
 from omegaconf import MISSING
 
 from pipeline.errors import ConfigError
+
+
+def refusal(key: str | Sequence[str], problem: str) -> ConfigError:
+    """The refusal of a config value: ``config key '<key>': <problem>``, or ``config keys
+    'a'/'b': <problem>`` for a problem of several keys together. Every refusal of the package
+    takes this form, whether the schema, a stage or a science module finds the problem."""
+    if isinstance(key, str):
+        return ConfigError(f"config key '{key}': {problem}")
+    return ConfigError(f"config keys {'/'.join(f'{k!r}' for k in key)}: {problem}")
+
+
+def refuse(key: str | Sequence[str], problem: str) -> NoReturn:
+    """Raise :func:`refusal`; called while handling another error, it hides that error, whose
+    point the problem states."""
+    raise refusal(key, problem) from None
+
+
+def refuse_argument(name: str, value: Any, problem: str) -> NoReturn:
+    """Refuse a keyword argument that no config file names (``gymnasium.make(id, name=value)``):
+    :class:`ConfigError` ``<name>=<value>: <problem>``."""
+    raise ConfigError(f"{name}={value!r}: {problem}")
 
 
 def setting(

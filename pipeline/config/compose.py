@@ -184,17 +184,22 @@ def load_config(stage: str, overrides: list[str] = ()) -> Any:
     return typed(compose(stage, list(overrides)))
 
 
+def parsed_overrides(overrides: list[str]) -> list[Any]:
+    """Hydra's parsed ``overrides``; one it cannot parse raises :class:`ConfigError`."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    try:
+        return OverridesParser.create().parse_overrides(list(overrides))
+    except Exception as exc:  # hydra's OverrideParseException
+        raise ConfigError(one_line(exc)) from None
+
+
 def sweep_points(args: list[str]) -> list[list[str]]:
     """Override lists that together try every value of every swept key (``a=1,2 b=x,y`` gives
     ``[a=1 b=x], [a=2 b=x], [a=1 b=y]``): a linear number of checks, not the whole grid."""
-    from hydra.core.override_parser.overrides_parser import OverridesParser
     from hydra.core.override_parser.types import OverrideType
 
-    plain = [a for a in args if not a.startswith("-")]
-    try:
-        parsed = OverridesParser.create().parse_overrides(plain)
-    except Exception as exc:  # hydra's OverrideParseException
-        raise ConfigError(one_line(exc)) from None
+    parsed = parsed_overrides([a for a in args if not a.startswith("-")])
     prefix = {OverrideType.ADD: "+", OverrideType.FORCE_ADD: "++"}
     fixed, swept = [], []
     for o in parsed:

@@ -10,8 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from pipeline.errors import ConfigError
-from pipeline.schema import check, setting
+from pipeline.schema import check, refuse, setting
 
 CHANNELS = 64
 HIDDEN = 8
@@ -127,9 +126,10 @@ class TrainConfig:
     def __post_init__(self) -> None:
         check(self, "train.")
         if self.model == "protonet" and self.relation_padding != 0:
-            raise ConfigError(
-                f"config key 'train.relation_padding': {self.relation_padding} means nothing to the "
-                "Prototypical Network (it has no relation module g_phi); leave it out (0) with train.model=protonet"
+            refuse(
+                "train.relation_padding",
+                f"{self.relation_padding} means nothing to the "
+                "Prototypical Network (it has no relation module g_phi); leave it out (0) with train.model=protonet",
             )
         self.network_config()
 

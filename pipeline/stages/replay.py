@@ -43,8 +43,9 @@ from pathlib import Path
 from urllib.parse import quote
 
 from pipeline.config.schemas import ReplayConfig
-from pipeline.errors import ConfigError, Interrupted
+from pipeline.errors import Interrupted
 from pipeline.files import DiskError
+from pipeline.schema import refuse
 from pipeline.stages import stage_main
 
 #: Seconds to wait for the Rerun server to listen on both ports, and for it to end when stopped.
@@ -67,7 +68,7 @@ WORLDS = {"robot3d": _robot_run}
 def run(cfg: ReplayConfig, overrides: list[str] = ()) -> Path:
     path = Path(cfg.file).resolve()
     if not path.is_file():
-        raise ConfigError(f"config key 'file': no such record file: {path}")
+        refuse("file", f"no such record file: {path}")
     check_display(cfg.viewer)  # refused before any work, as are the web viewer's ports
     web = web_address(cfg) if cfg.viewer == "web" else None
     rrd = write_replay(path, cfg)
@@ -101,27 +102,24 @@ def _write_replay(path: Path, cfg: ReplayConfig) -> Path:
     from pipeline.replay import ReplayError, build_replay, opening_episode, replay_stem
 
     if cfg.whole_run and cfg.episode is not None:
-        raise ConfigError("config key 'episode': whole_run=true replays every episode; give one")
+        refuse("episode", "whole_run=true replays every episode; give one")
     episode = cfg.episode
     if episode is None and not cfg.whole_run:
         try:
             episode, why = opening_episode(path, cfg.run)
         except ReplayError as exc:
-            raise ConfigError(
-                f"config key '{'file' if exc.key == 'file' else 'run'}': {exc}"
-            ) from None
+            refuse("file" if exc.key == "file" else "run", str(exc))
         print(f"episode={episode}: {why}", flush=True)
     out = cfg.out or f"replays/{replay_stem(path, cfg.run, episode)}.rrd"
     out = Path(out).resolve()
     if out.suffix != ".rrd":
-        raise ConfigError(f"config key 'out': must end in .rrd, got {out}")
+        refuse("out", f"must end in .rrd, got {out}")
     try:
         rrd = build_replay(path, cfg.run, episode, out=out, whole_run=cfg.whole_run, worlds=WORLDS)
     except ReplayError as exc:
-        keys = "key 'file'" if exc.key == "file" else "keys 'run'/'episode'"
-        raise ConfigError(f"config {keys}: {exc}") from None
+        refuse("file" if exc.key == "file" else ("run", "episode"), str(exc))
     except DiskError as exc:  # a full or read-only folder: the .rrd is written whole or not at all
-        raise ConfigError(f"config key 'out': {exc}") from None
+        refuse("out", str(exc))
     return Path(rrd)
 
 
@@ -151,9 +149,7 @@ def web_address(cfg: ReplayConfig) -> WebAddress:
     port is a :class:`ConfigError` naming its key, port 0 becomes a free port (the two differ)."""
     ip = bind_address(cfg.bind, cfg.allow_remote)
     if cfg.web_port and cfg.web_port == cfg.grpc_port:
-        raise ConfigError(
-            f"config keys 'web_port'/'grpc_port': both are {cfg.web_port}; give two ports"
-        )
+        refuse(("web_port", "grpc_port"), f"both are {cfg.web_port}; give two ports")
     with (
         _bound(ip, cfg.web_port, "web_port") as web,
         _bound(ip, cfg.grpc_port, "grpc_port") as grpc,
@@ -168,15 +164,14 @@ def bind_address(bind: str, allow_remote: bool) -> ipaddress.IPv4Address | ipadd
     try:
         ip = ipaddress.ip_address("127.0.0.1" if bind == "localhost" else bind)
     except ValueError:
-        raise ConfigError(
-            f"config key 'bind': not an IP address: {bind!r} (127.0.0.1 keeps it local)"
-        ) from None
+        refuse("bind", f"not an IP address: {bind!r} (127.0.0.1 keeps it local)")
     if ip.is_loopback:
         return ip
     if not allow_remote:
-        raise ConfigError(
-            f"config key 'bind': {bind} is reachable from other machines; keep 127.0.0.1, "
-            "or add allow_remote=true to serve the recording to the network"
+        refuse(
+            "bind",
+            f"{bind} is reachable from other machines; keep 127.0.0.1, "
+            "or add allow_remote=true to serve the recording to the network",
         )
     print(
         f"warning: bind={bind}: the viewer and the recording are served to every machine that can reach "
@@ -199,9 +194,7 @@ def _bound(ip, port: int, key: str) -> Iterator[socket.socket]:
             sock.bind((str(ip), port))
         except OSError as exc:
             hint = f" (another viewer? {key}=0 picks a free port)" if port else ""
-            raise ConfigError(
-                f"config key '{key}': cannot listen on {ip} port {port}: {exc.strerror}{hint}"
-            ) from None
+            refuse(key, f"cannot listen on {ip} port {port}: {exc.strerror}{hint}")
         yield sock
 
 
@@ -266,9 +259,9 @@ def _wait_listening(proc: subprocess.Popen, web: WebAddress) -> None:
     deadline = time.monotonic() + START_TIMEOUT
     while not all(_accepts(web.host.strip("[]"), port) for port in (web.grpc_port, web.web_port)):
         if proc.poll() is not None:
-            raise ConfigError(
-                f"config keys 'web_port'/'grpc_port': the Rerun viewer ended at start "
-                f"(status {proc.returncode}; its log is above)"
+            refuse(
+                ("web_port", "grpc_port"),
+                f"the Rerun viewer ended at start (status {proc.returncode}; its log is above)",
             )
         if time.monotonic() > deadline:
             raise SystemExit(
@@ -317,11 +310,12 @@ def check_display(viewer: str) -> None:
     if viewer != "native" or not sys.platform.startswith("linux"):
         return
     if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
-        raise ConfigError(
-            "config key 'viewer': viewer=native needs a display and there is none (DISPLAY and "
+        refuse(
+            "viewer",
+            "viewer=native needs a display and there is none (DISPLAY and "
             "WAYLAND_DISPLAY are unset); use viewer=web to serve the replay to a browser, or "
             "viewer=none to save the .rrd only (then open it with rerun <file>.rrd where there is a "
-            "display)"
+            "display)",
         )
 
 
