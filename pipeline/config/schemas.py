@@ -42,7 +42,8 @@ class ReplayConfig:
     whole_run: bool = MISSING
     """Every episode of the run on one timeline (refused together with ``episode``)."""
     out: str | None = setting(None, path=True)
-    """The ``.rrd`` to write; none: ``replays/<experiment>-<cell>-run<run>-ep<episode>.rrd``."""
+    """The ``.rrd`` to write; none: ``replays/<experiment>-<cell>-run<run>-ep<episode>.rrd`` (``-all.rrd``
+    with ``whole_run``), named from the record file's folders."""
     viewer: str = setting(choices=VIEWERS)
     """Then open the recording: ``none``, ``web`` (serve it to a browser) or ``native`` (needs a display)."""
     bind: str = setting(nonempty=True)

@@ -119,7 +119,8 @@ class TrainConfig:
     channels_last: bool = True
     """Use the channels-last memory format (faster convolutions on the CPU)."""
     max_minutes: float = setting(12.5, gt=0.0)
-    """Wall-clock budget of the training loop; training stops early when it is spent."""
+    """Wall-clock budget of the training loop; training stops early when it is spent (a safety
+    net: a run it cuts depends on the machine's load, and its ``train_info`` says so)."""
     target_accuracy: float = setting(0.75, ge=0.0, le=1.0)
     """Validation accuracy goal; the time when a selection evaluation first reaches it is recorded."""
 
