@@ -32,18 +32,19 @@ from urllib.parse import quote
 from pipeline.errors import Interrupted
 from pipeline.schema import refuse
 
-#: Seconds to wait for the Rerun server to listen on both ports, and for it to end when stopped.
-START_TIMEOUT, STOP_TIMEOUT = 30.0, 5.0
-
 
 @dataclass(frozen=True)
 class WebAddress:
-    """Where the web viewer listens (``bind``) and the address a browser opens (``host``)."""
+    """Where the web viewer listens and the address a browser opens."""
 
     bind: str
+    """The IP address the server listens on (``0.0.0.0``: every interface)."""
     host: str
+    """The host a browser asks for (``127.0.0.1`` for an unspecified ``bind``; IPv6 in brackets)."""
     web_port: int
+    """The viewer's HTTP port."""
     grpc_port: int
+    """The port of the gRPC proxy that serves the recording."""
 
     @property
     def grpc(self) -> str:
@@ -167,6 +168,10 @@ def send_recording(rrd: str | Path, grpc: str) -> None:
     rec.disconnect()
 
 
+#: Seconds to wait for the Rerun server to listen on both ports.
+START_TIMEOUT = 30.0
+
+
 def wait_listening(proc: subprocess.Popen, web: WebAddress) -> None:
     """Return once both ports accept connections; a server that ends first is a port problem."""
     deadline = time.monotonic() + START_TIMEOUT
@@ -189,6 +194,10 @@ def _accepts(host: str, port: int) -> bool:
     except OSError:
         return False
     return True
+
+
+#: Seconds to wait for the Rerun server to end once told to stop.
+STOP_TIMEOUT = 5.0
 
 
 def stop_server(proc: subprocess.Popen) -> None:
