@@ -32,12 +32,12 @@ from typing import Any
 
 from omegaconf import OmegaConf
 
-from pipeline.config.experiment import SUBSTITUTION_WAYS
+from pipeline.config.fields import refuse_argument
 from pipeline.config.recognisers import RECOGNISER_DIR, build_recogniser, recogniser_names
 from pipeline.rl.gym_env import SafeNavigationEnv
 from pipeline.rl.methods import MethodSpec, get_method
 from pipeline.rl.recogniser import Recogniser
-from pipeline.schema import refuse_argument
+from pipeline.schemas.experiment import SUBSTITUTION_WAYS
 from pipeline.threads import TORCH_THREADS_BESIDE_NUMBA, ThreadBudget
 from pipeline.world.maze import Layout
 

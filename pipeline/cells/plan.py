@@ -2,10 +2,10 @@
 command-line overrides that no cell can take (an override is applied or refused, never ignored).
 
 An experiment (``conf/experiment/<name>.yaml``) lists cells, or generates them from layout sets
-(:meth:`~pipeline.config.experiment.Experiment.all_cells`); each cell pins some keys (its method,
+(:meth:`~pipeline.schemas.experiment.Experiment.all_cells`); each cell pins some keys (its method,
 maze, substitution way, support mode, method fields, recogniser arguments or group) and takes the
 rest from the command line and the experiment's globals. Planning works on the stage's config
-dataclasses (:mod:`pipeline.config.trials`, whose experiment schema imports the report's spec).
+dataclasses (:mod:`pipeline.schemas.trials`, whose experiment schema imports the report's spec).
 """
 
 from __future__ import annotations
@@ -18,10 +18,10 @@ from typing import Any
 from omegaconf import OmegaConf
 
 from pipeline.config.compose import CONF_DIR, parsed_overrides
-from pipeline.config.experiment import Experiment
-from pipeline.config.trials import TrialsConfig
+from pipeline.config.fields import check, refuse
 from pipeline.rl.methods import MethodSpec, load_method
-from pipeline.schema import check, refuse
+from pipeline.schemas.experiment import Experiment
+from pipeline.schemas.trials import TrialsConfig
 
 #: Keys a cell may pin; the top level (experiment globals, command line) gives the others. A cell
 #: also pins method fields (``params``) and recogniser arguments (``recogniser``).

@@ -20,8 +20,8 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 from omegaconf import OmegaConf
 
 from pipeline.config.compose import one_line
+from pipeline.config.fields import refuse
 from pipeline.config.recognisers import build_recogniser
-from pipeline.config.trials import TrialsConfig
 from pipeline.errors import Interrupted, UserError
 from pipeline.files import disk_problem, size_text, write_json_atomic
 from pipeline.rl.methods import MethodSpec
@@ -29,7 +29,7 @@ from pipeline.rl.rng import run_seeds
 from pipeline.rl.rules import Rule
 from pipeline.rl.run_world import run_placement
 from pipeline.rl.runner import run_trials
-from pipeline.schema import refuse
+from pipeline.schemas.trials import TrialsConfig
 from pipeline.world.geometry import build_geometry
 from pipeline.world.maze import ACTION_NAMES, MOVES, Layout
 from pipeline.world.pictures import CATEGORIES

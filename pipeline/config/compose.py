@@ -1,8 +1,8 @@
 """A stage's config, composed and checked: ``conf/<stage>.yaml`` with the command line's overrides,
-as the stage's typed schema (:mod:`pipeline.config.schemas`), every range checked.
+as the stage's typed schema (:mod:`pipeline.config.registry`), every range checked.
 
 :func:`load_config` composes with Hydra's compose API, converts the result to the schema's
-dataclasses and checks every range (:func:`pipeline.schema.check`). Whatever is wrong raises
+dataclasses and checks every range (:func:`pipeline.config.fields.check`). Whatever is wrong raises
 :class:`~pipeline.errors.ConfigError` in one line naming the key: a bad override, a deleted or
 emptied key, a key below a null one, a value out of range. A sweep (``a=1,2 b=x,y``) is checked
 point by point (:func:`sweep_points`) before any of its jobs runs. Running a stage on that config
@@ -18,9 +18,9 @@ from typing import Any
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
-from pipeline.configs import conf_dir, hydra_configs
+from pipeline.config.fields import check
+from pipeline.config.folder import conf_dir, hydra_configs
 from pipeline.errors import ConfigError
-from pipeline.schema import check
 
 #: The config folder shipped in the package (``conf``), as a file-system path.
 CONF_DIR = str(conf_dir())
@@ -75,7 +75,7 @@ def compose(config_name: str, overrides: list[str]) -> DictConfig:
     from hydra import compose as hydra_compose
     from hydra.errors import HydraException
 
-    from pipeline.config.schemas import register
+    from pipeline.config.registry import register
 
     refuse_deleted(config_name, overrides)
     register(config_name)
@@ -106,7 +106,7 @@ def override_key(override: str) -> str:
 def refuse_deleted(config_name: str, overrides: list[str]) -> None:
     """``~key`` of a key the stage's schema declares is refused: the key would silently take the
     dataclass's default, or the placeholder ``???`` (``~out`` wrote to a folder named ``???``)."""
-    from pipeline.config.schemas import schema_of
+    from pipeline.config.registry import schema_of
 
     declared = {f.name for f in dataclasses.fields(schema_of(config_name))}
     for override in overrides:

@@ -19,10 +19,10 @@ from typing import Any
 from omegaconf import OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
-from pipeline.configs import conf_dir
+from pipeline.config.fields import refuse
+from pipeline.config.folder import conf_dir
 from pipeline.errors import UserError
 from pipeline.kernels import pin_kernels
-from pipeline.schema import refuse
 
 FILLED_BY_STAGE = ("substitution_way", "carry_over")
 

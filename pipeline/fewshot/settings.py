@@ -2,7 +2,7 @@
 (:class:`ModelConfig` for the Relation Network, with the feature-map sizes it implies;
 :class:`ProtoConfig` for the Prototypical Network), the meta-training hyperparameters
 (:class:`TrainConfig`, whose ``model`` chooses between them) and the accuracy study's
-(:class:`StudyConfig`, :mod:`.accuracy_study`). The stage schemas (``pipeline/config/schemas.py``) type
+(:class:`StudyConfig`, :mod:`.accuracy_study`). The stage schemas (``pipeline/schemas/``) type
 ``conf/meta_train.yaml`` and ``conf/accuracy.yaml`` with them, so checking a config never loads torch.
 """
 
@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from pipeline.schema import check, refuse, setting
+from pipeline.config.fields import check, refuse, setting
 
 CHANNELS = 64
 HIDDEN = 8

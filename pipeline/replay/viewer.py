@@ -29,8 +29,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from urllib.parse import quote
 
+from pipeline.config.fields import refuse
 from pipeline.errors import Interrupted
-from pipeline.schema import refuse
 
 
 @dataclass(frozen=True)

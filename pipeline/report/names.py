@@ -146,7 +146,7 @@ def recogniser_groups() -> dict[str, str]:
     each builds (the first name, sorted, where two share one)."""
     import yaml
 
-    from pipeline.configs import conf_dir
+    from pipeline.config.folder import conf_dir
 
     found: dict[str, str] = {}
     for path in sorted(conf_dir("recogniser").glob("*.yaml")):

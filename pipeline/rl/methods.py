@@ -31,10 +31,10 @@ from typing import Any
 from omegaconf import OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
-from pipeline.configs import conf_dir
+from pipeline.config.fields import check, refuse, setting
+from pipeline.config.folder import conf_dir
 from pipeline.rl.codes import Learner
 from pipeline.rl.rules import METHODS, Method, Safety, reasons_with_pictures
-from pipeline.schema import check, refuse, setting
 
 #: ``conf/method/<name>.yaml``: each file holds only what differs from :class:`MethodSpec`'s defaults.
 METHOD_DIR: Path = conf_dir("method")

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pipeline.config.fewshot import AccuracyConfig
+from pipeline.config.fields import refuse
 from pipeline.config.recognisers import (
     build_recogniser,
     recogniser_arguments,
@@ -36,7 +36,7 @@ from pipeline.fewshot.study_tables import (
 )
 from pipeline.fewshot.views import has_views, views_predictions
 from pipeline.files import write_json_atomic
-from pipeline.schema import refuse
+from pipeline.schemas.fewshot import AccuracyConfig
 from pipeline.stages import stage_main
 from pipeline.threads import torch_budget
 from pipeline.world.pictures import CATEGORIES, N_PICTURES, picture_category

@@ -26,13 +26,13 @@ from pathlib import Path
 import pandas as pd
 import torch
 
-from pipeline.config.fewshot import MetaTrainConfig
+from pipeline.config.fields import refuse
 from pipeline.fewshot.checkpoint import save_checkpoint
 from pipeline.fewshot.data import PictureSet, load_folder, load_split, read_manifest
 from pipeline.fewshot.episodes import require_episodes
 from pipeline.fewshot.training import config_dict, meta_train
 from pipeline.files import write_json_atomic
-from pipeline.schema import refuse
+from pipeline.schemas.fewshot import MetaTrainConfig
 from pipeline.stages import stage_main
 
 #: The keys of the training result that the checkpoint and ``<checkpoint stem>.validation.json``

@@ -22,7 +22,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from pipeline.config.render import RenderConfig
+from pipeline.config.fields import refuse
 from pipeline.files import (
     claim_folder,
     free_space,
@@ -33,7 +33,7 @@ from pipeline.files import (
     write_atomic,
     write_index,
 )
-from pipeline.schema import refuse
+from pipeline.schemas.render import RenderConfig
 from pipeline.stages import stage_main
 from pipeline.world.contact_sheet import contact_sheet, save_png_atomic
 from pipeline.world.obstacle_models import category_index

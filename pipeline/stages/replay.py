@@ -19,9 +19,9 @@ import sys
 import warnings
 from pathlib import Path
 
-from pipeline.config.schemas import ReplayConfig
+from pipeline.config.fields import refuse
 from pipeline.files import DiskError
-from pipeline.schema import refuse
+from pipeline.schemas.replay import ReplayConfig
 from pipeline.stages import stage_main
 
 

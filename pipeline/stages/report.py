@@ -10,10 +10,10 @@ from pathlib import Path
 import yaml
 
 from pipeline.config.compose import CONF_DIR
-from pipeline.config.schemas import ReportConfig
+from pipeline.config.fields import refuse
 from pipeline.report.build import Inputs, build_report
 from pipeline.report.scale import MixedScalesError
-from pipeline.schema import refuse
+from pipeline.schemas.report import ReportConfig
 from pipeline.stages import stage_main
 
 

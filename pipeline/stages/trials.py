@@ -40,7 +40,7 @@ from pipeline.cells.plan import (
 from pipeline.cells.progress import compact, follow, prepare_kernel
 from pipeline.cells.run import CellRun, make_recogniser, pictures_dir, recorded_pictures
 from pipeline.cells.workers import cell_results, worker_pool
-from pipeline.config.trials import TrialsConfig
+from pipeline.config.fields import refusal, refuse
 from pipeline.errors import Interrupted, UserError
 from pipeline.files import (
     OWNER_FILE,
@@ -58,7 +58,7 @@ from pipeline.files import (
     write_json_atomic,
 )
 from pipeline.rl.memory import available_memory, memory_estimate
-from pipeline.schema import refusal, refuse
+from pipeline.schemas.trials import TrialsConfig
 from pipeline.stages import stage_main
 from pipeline.threads import trials_budget
 from pipeline.world.maze import load_layout

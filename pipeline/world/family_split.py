@@ -29,7 +29,7 @@ from __future__ import annotations
 from collections.abc import Iterator
 from itertools import permutations
 
-from pipeline.schema import refuse
+from pipeline.config.fields import refuse
 from pipeline.world.metaset import MAX_TIERS, Family, family_stream
 
 #: The default least distance between a held-out (validation or test) family and every training family.

@@ -1,6 +1,6 @@
-"""The typed schema of the render stage's config (``conf/render.yaml``): the maze
-camera of the query pictures, the catalogue camera of the support set, the rendering quality and
-the meta-training set's scale. Registered with the other stages' schemas (:mod:`.schemas`).
+"""The typed schema of the render stage's config (``conf/render.yaml``): the maze camera of the
+query pictures, the catalogue camera of the support set, the rendering quality and the
+meta-training set's scale (registered: :mod:`pipeline.config.registry`).
 """
 
 from __future__ import annotations
@@ -9,8 +9,8 @@ from dataclasses import dataclass, field
 
 from omegaconf import II, MISSING
 
-from pipeline.config.profile import Profile
-from pipeline.schema import setting
+from pipeline.config.fields import setting
+from pipeline.schemas.profile import Profile
 from pipeline.world.family_split import MAX_DISTANCE
 
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from pipeline.schema import setting
+from pipeline.config.fields import setting
 
 
 @dataclass

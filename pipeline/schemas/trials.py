@@ -1,7 +1,7 @@
 """The trials stage's schema: :class:`TrialsConfig` (``conf/trials.yaml``), typing its
 ``method`` group by :class:`~pipeline.rl.methods.MethodSpec`, ``experiment`` by
-:class:`~pipeline.config.experiment.Experiment` and ``profile`` by
-:class:`~pipeline.config.profile.Profile` (the conventions: ``pipeline/config/schemas.py``).
+:class:`~pipeline.schemas.experiment.Experiment` and ``profile`` by
+:class:`~pipeline.schemas.profile.Profile` (the conventions: ``pipeline/schemas/__init__.py``).
 """
 
 from __future__ import annotations
@@ -11,7 +11,9 @@ from typing import Any, ClassVar
 
 from omegaconf import II, MISSING
 
-from pipeline.config.experiment import (
+from pipeline.config.fields import setting
+from pipeline.rl.methods import MethodSpec
+from pipeline.schemas.experiment import (
     RULES,
     SUBSTITUTION_WAYS,
     SUPPORT_MODES,
@@ -19,9 +21,7 @@ from pipeline.config.experiment import (
     Experiment,
     RobotConfig,
 )
-from pipeline.config.profile import Profile
-from pipeline.rl.methods import MethodSpec
-from pipeline.schema import setting
+from pipeline.schemas.profile import Profile
 
 RECORD_LEVELS = ("steps", "episodes", "none")
 

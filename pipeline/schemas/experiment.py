@@ -1,9 +1,9 @@
 """The typed schema of the ``experiment`` config group (``conf/experiment/<name>.yaml``): its cells,
 the cells it generates over sets of layouts, and how the report presents it.
 
-The trials stage's schema (:class:`pipeline.config.trials.TrialsConfig`) types its ``experiment``
+The trials stage's schema (:class:`pipeline.schemas.trials.TrialsConfig`) types its ``experiment``
 key by :class:`Experiment`; ranges, choices and descriptions are declared on the fields as
-everywhere (:mod:`pipeline.schema`).
+everywhere (:mod:`pipeline.config.fields`).
 """
 
 from __future__ import annotations
@@ -11,9 +11,9 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
+from pipeline.config.fields import refuse, setting
 from pipeline.report.spec import ReportSpec
 from pipeline.robot.limits import CELL_RANGE, DEFAULT_CELL, DEFAULT_TIMESTEP, TIMESTEP_RANGE
-from pipeline.schema import refuse, setting
 
 SUPPORT_MODES = ("restore", "carry")
 #: Where the methods run: the grid world, or the camera robot in MuJoCo (``pipeline/robot``).

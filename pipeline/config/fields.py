@@ -1,7 +1,7 @@
 """The config schema's mechanism: a key's type, range, choices and description, each declared once,
 on its dataclass field.
 
-Every config is a dataclass: a stage's (``pipeline/config/schemas.py``) or a config group's, beside
+Every config is a dataclass: a stage's (``pipeline/schemas/``) or a config group's, beside
 the science it configures (``MethodSpec``, ``TrainConfig``, ``StudyConfig``, ``ReportSpec``). A field
 declares its key: the annotation is the type, :func:`setting` adds a range (``ge``/``gt``/``le``/``lt``),
 ``choices``, ``nonempty`` or ``path`` (a file or folder: a name the file system can hold) as metadata, and the string literal under the field (an attribute
