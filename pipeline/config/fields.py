@@ -32,6 +32,15 @@ from omegaconf import MISSING
 from pipeline.errors import ConfigError
 
 
+def same_key(cls: type, name: str, default: Any = MISSING):
+    """A field that is the key ``name`` of ``cls`` under another name or with another ``default``
+    (a stage key whose default is a profile key): its range, choices and words (:func:`field_docs`)
+    are that key's, declared once."""
+    (source,) = [f for f in dataclasses.fields(cls) if f.name == name]
+    words = {"doc": field_docs(cls).get(name, "")}
+    return dataclasses.field(default=default, metadata={**source.metadata, **words})
+
+
 def refusal(key: str | Sequence[str], problem: str) -> ConfigError:
     """The refusal of a config value: ``config key '<key>': <problem>``, or ``config keys
     'a'/'b': <problem>`` for a problem of several keys together. Every refusal of the package
@@ -206,8 +215,10 @@ def constraint(f: dataclasses.Field) -> str:
 @functools.cache
 def field_docs(cls: type) -> dict[str, str]:
     """Field name -> its description: the string literal right under the field in ``cls``'s source
-    (and its bases'), whitespace folded into one line."""
-    docs: dict[str, str] = {}
+    (and its bases'), whitespace folded into one line; a field made by :func:`same_key`, the words
+    of the key it is."""
+    fields = dataclasses.fields(cls) if dataclasses.is_dataclass(cls) else ()
+    docs = {f.name: f.metadata["doc"] for f in fields if "doc" in f.metadata}
     for klass in reversed(cls.__mro__[:-1]):
         try:
             source = textwrap.dedent(inspect.getsource(klass))
