@@ -56,7 +56,7 @@ class MetaTrainProfile:
     episodes: int = setting(ge=1)
     """Training episodes of the Relation Network."""
     protonet_episodes: int = setting(ge=1)
-    """Training episodes of the Prototypical Network (``model=protonet``): it levels off sooner."""
+    """Training episodes of the Prototypical Network (``model=protonet``)."""
     val_every: int = setting(ge=1)
     """Training episodes between model-selection evaluations."""
     val_episodes: int = setting(ge=1)
