@@ -102,7 +102,7 @@ def experiment_cells(cfg: TrialsConfig, overrides: list[str]) -> dict[str, Trial
     problems = exp.report.problems(declared) if exp.report is not None else []
     if problems:
         key, problem = problems[0]
-        refuse(f"experiment.report.{key}", f"{problem}")
+        refuse(f"experiment.report.{key}", problem)
     return cells
 
 

@@ -18,7 +18,7 @@ from typing import Any
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
-from pipeline.config.fields import check
+from pipeline.config.fields import check, refuse
 from pipeline.config.folder import conf_dir, hydra_configs
 from pipeline.errors import ConfigError
 
@@ -112,9 +112,10 @@ def refuse_deleted(config_name: str, overrides: list[str]) -> None:
     for override in overrides:
         key = override_key(override)
         if override.startswith("~") and key.split(".")[0] in declared:
-            raise ConfigError(
-                f"config key '{key}': cannot be deleted ({override}); every key of the "
-                f"{config_name} config is needed: give it a value instead"
+            refuse(
+                key,
+                f"cannot be deleted ({override}); every key of the "
+                f"{config_name} config is needed: give it a value instead",
             )
 
 
@@ -172,10 +173,11 @@ def refuse_merged_away(cfg: DictConfig, overrides: list[str]) -> None:
             continue
         kept = OmegaConf.select(cfg, key, default=None)
         if isinstance(kept, DictConfig) and len(kept) > 0:
-            raise ConfigError(
-                f"config key '{key}': {{}} does not empty it (a mapping given here is merged into "
+            refuse(
+                key,
+                f"{{}} does not empty it (a mapping given here is merged into "
                 f"the one there, {', '.join(map(str, list(kept)[:3]))}...); name what to keep, or "
-                "edit the file"
+                "edit the file",
             )
 
 

@@ -153,19 +153,17 @@ def check(obj: Any, prefix: str = "") -> None:
             k for k in vars(obj) if k not in known
         )  # added with '+key=' past Hydra's struct mode
         if extra:
-            raise ConfigError(
-                f"config key '{prefix}{extra[0]}': unknown key; known: {', '.join(sorted(known))}"
-            )
+            refuse(f"{prefix}{extra[0]}", f"unknown key; known: {', '.join(sorted(known))}")
         hints = _hints(type(obj))
         for f in dataclasses.fields(obj):
             value = getattr(obj, f.name)
             key = f"{prefix}{f.name}"
             wrong = problem(value, f.metadata) or element_problem(value, hints.get(f.name))
             if wrong:
-                raise ConfigError(f"config key '{key}': {wrong}")
+                refuse(key, wrong)
             check(value, key + ".")
     elif isinstance(obj, float) and not math.isfinite(obj):
-        raise ConfigError(f"config key '{prefix.rstrip('.')}': must be a finite number; got {obj}")
+        refuse(prefix.rstrip("."), f"must be a finite number; got {obj}")
     elif isinstance(obj, dict):
         for k, v in obj.items():
             check(v, f"{prefix}{k}.")
