@@ -21,7 +21,7 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 from hydra import compose, initialize_config_dir  # noqa: E402
 
 from benchmarks._output import write_figures
-from pipeline.configs import conf_dir  # noqa: E402
+from pipeline.config.folder import conf_dir  # noqa: E402
 from pipeline.world.render_plan import PlanConfig, make_plan  # noqa: E402
 from pipeline.world.renderer import SceneRenderer  # noqa: E402
 from pipeline.world.scenes import build_scene  # noqa: E402
@@ -55,7 +55,7 @@ def per_setting(size: int, supersample: int) -> dict:
 
 
 def stage(overrides: list[str]) -> dict:
-    from pipeline.config.schemas import register
+    from pipeline.config.registry import register
     from pipeline.stages.render import run
 
     register("render")  # conf/render.yaml names render_schema

@@ -75,7 +75,7 @@ def served_by_the_stage(file: Path, rrd: Path, seconds: float, settle: float) ->
 
 
 def served_from_the_file(rrd: Path, seconds: float, settle: float) -> dict[str, float]:
-    from pipeline.stages.replay import rerun_command
+    from pipeline.replay.viewer import rerun_command
 
     ports = []
     for _ in range(2):

@@ -23,20 +23,21 @@ as in the stages: run from the project root or pass absolute paths in ``recognis
 
 from __future__ import annotations
 
+import functools
 import importlib.util
 import numbers
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
 from omegaconf import OmegaConf
 
-from pipeline.config.experiment import SUBSTITUTION_WAYS
+from pipeline.config.fields import refuse_argument
 from pipeline.config.recognisers import RECOGNISER_DIR, build_recogniser, recogniser_names
-from pipeline.errors import ConfigError
 from pipeline.rl.gym_env import SafeNavigationEnv
 from pipeline.rl.methods import MethodSpec, get_method
 from pipeline.rl.recogniser import Recogniser
+from pipeline.schemas.experiment import SUBSTITUTION_WAYS
 from pipeline.threads import TORCH_THREADS_BESIDE_NUMBA, ThreadBudget
 from pipeline.world.maze import Layout
 
@@ -86,9 +87,11 @@ def recogniser_for(
         or not isinstance(substitution, numbers.Integral)
         or substitution not in SUBSTITUTION_WAYS
     ):
-        raise ConfigError(
-            f"substitution={substitution!r}: the substitution way of the dynamic support set must "
-            f"be one of {', '.join(map(str, SUBSTITUTION_WAYS))} (paper section 3.3)"
+        refuse_argument(
+            "substitution",
+            substitution,
+            "the substitution way of the dynamic support set must "
+            f"be one of {', '.join(map(str, SUBSTITUTION_WAYS))} (paper section 3.3)",
         )
     if isinstance(recogniser, str):
         _check_name(recogniser)
@@ -103,6 +106,39 @@ def recogniser_for(
     return recogniser
 
 
+def human_rendering(env_class: type, refuse_without_window: Callable[[], None]) -> Callable:
+    """An environment factory that also takes ``render_mode="human"``: ``refuse_without_window()``
+    refuses at once what a window needs and is missing (not at the first ``render()``), then the
+    factory's ``rgb_array`` environment is shown in a window by Gymnasium's ``HumanRendering``.
+    ``gymnasium.make`` reads the render modes from the entry point, so the factory lists
+    ``env_class``'s and ``human``, which then reaches it."""
+
+    def decorate(make: Callable) -> Callable:
+        @functools.wraps(make)
+        def make_with_window(*args, render_mode: str | None = None, **kwargs):
+            if render_mode != "human":
+                return make(*args, render_mode=render_mode, **kwargs)
+            refuse_without_window()
+            from gymnasium.wrappers import HumanRendering
+
+            return HumanRendering(make(*args, render_mode="rgb_array", **kwargs))
+
+        modes = env_class.metadata["render_modes"]
+        make_with_window.metadata = {**env_class.metadata, "render_modes": [*modes, "human"]}
+        return make_with_window
+
+    return decorate
+
+
+def _refuse_human_without_pygame() -> None:
+    if importlib.util.find_spec("pygame") is None:
+        raise ValueError(
+            "render_mode='human' opens a window through pygame, which is not installed "
+            "(pip install pygame); or use render_mode='rgb_array' (frames) or 'ansi' (text)"
+        )
+
+
+@human_rendering(SafeNavigationEnv, _refuse_human_without_pygame)
 def make_env(
     maze: str | Layout | None = None,
     method: str | MethodSpec = "shield",
@@ -123,8 +159,8 @@ def make_env(
     ``substitution=`` does for the trials stage. Each ``reset(seed=...)`` restores its support set.
     ``registered_maze``: the maze of the id (``SafeNav-7x7-v0``); another ``maze`` is refused, so
     an id never names a maze it does not run (``SafeNav-v0`` takes any; ``maze`` defaults to 5x5).
-    ``render_mode="human"`` wraps the ``rgb_array`` environment in Gymnasium's ``HumanRendering``
-    and is refused at once when pygame is not installed."""
+    ``render_mode="human"`` shows the ``rgb_array`` frames in a window (:func:`human_rendering`),
+    refused at once when pygame is not installed."""
     if registered_maze is not None:
         asked = getattr(maze, "name", maze)
         if maze is not None and asked != registered_maze:
@@ -133,26 +169,6 @@ def make_env(
                 f"for another maze use gymnasium.make('SafeNav-v0', maze={asked!r})"
             )
         maze = registered_maze
-    if render_mode == "human":  # checked here, not at the first render()
-        if importlib.util.find_spec("pygame") is None:
-            raise ValueError(
-                "render_mode='human' opens a window through pygame, which is not installed "
-                "(pip install pygame); or use render_mode='rgb_array' (frames) or 'ansi' (text)"
-            )
-        from gymnasium.wrappers import HumanRendering
-
-        return HumanRendering(
-            make_env(
-                maze,
-                method,
-                recogniser,
-                recogniser_options=recogniser_options,
-                substitution=substitution,
-                run=run,
-                render_mode="rgb_array",
-                tile_size=tile_size,
-            )
-        )
     spec = method if isinstance(method, MethodSpec) else get_method(method)
     recogniser = recogniser_for(spec, recogniser, recogniser_options, substitution)
     if recogniser is None and spec.uses_recogniser:
@@ -171,14 +187,6 @@ def make_env(
         render_mode=render_mode,
         tile_size=tile_size,
     )
-
-
-#: ``gymnasium.make`` reads the render modes from the entry point (to add its render wrappers);
-#: ``human`` is listed so that it reaches :func:`make_env`, which checks for pygame at once.
-make_env.metadata = {
-    **SafeNavigationEnv.metadata,
-    "render_modes": [*SafeNavigationEnv.metadata["render_modes"], "human"],
-}
 
 
 class SixValueStep:

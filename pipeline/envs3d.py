@@ -21,70 +21,10 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from pipeline.envs import recogniser_for
+from pipeline.envs import human_rendering, recogniser_for
 from pipeline.rl.methods import MethodSpec, get_method
 from pipeline.robot.env import SafeNavigation3DEnv
 from pipeline.robot.limits import DEFAULT_CELL, DEFAULT_TIMESTEP
-
-
-def make_env3d(
-    maze: str | None = None,
-    method: str | MethodSpec = "shield",
-    recogniser=None,
-    *,
-    recogniser_options: Mapping[str, Any] | None = None,
-    substitution: int = 1,
-    run: int = 0,
-    render_mode: str | None = None,
-    cell: float = DEFAULT_CELL,
-    timestep: float = DEFAULT_TIMESTEP,
-    rule: str = "paper",
-    threshold: float = 0.5,
-    obs_type: str = "state",
-    registered_maze: str | None = None,
-) -> SafeNavigation3DEnv:
-    """The robot environment; ``registered_maze`` (the id's) refuses another ``maze``.
-    ``render_mode="human"`` shows ``rgb_array`` frames in a window (Gymnasium's
-    ``HumanRendering``, which needs pygame and a display): refused at once without them."""
-    if registered_maze is not None:
-        if maze is not None and maze != registered_maze:
-            raise ValueError(
-                f"maze={maze!r}: SafeNav3D-{registered_maze}-v0 is the {registered_maze} maze"
-            )
-        maze = registered_maze
-    if render_mode == "human":
-        _refuse_human_without_a_window()
-        from gymnasium.wrappers import HumanRendering
-
-        return HumanRendering(
-            make_env3d(
-                maze,
-                method,
-                recogniser,
-                recogniser_options=recogniser_options,
-                substitution=substitution,
-                run=run,
-                render_mode="rgb_array",
-                cell=cell,
-                timestep=timestep,
-                rule=rule,
-                threshold=threshold,
-                obs_type=obs_type,
-            )
-        )
-    spec = method if isinstance(method, MethodSpec) else get_method(method)
-    return SafeNavigation3DEnv(  # it asks any recogniser about live pictures (robot.live.live)
-        "5x5" if maze is None else maze,
-        spec,
-        recogniser_for(spec, recogniser, recogniser_options, substitution),
-        run=run,
-        render_mode=render_mode,
-        cell=cell,
-        timestep=timestep,
-        rule=rule,
-        threshold=threshold,
-        obs_type=obs_type,
-    )
 
 
 def _refuse_human_without_a_window() -> None:
@@ -103,8 +43,43 @@ def _refuse_human_without_a_window() -> None:
         )
 
 
-#: ``human`` is listed so that ``gymnasium.make`` hands it to :func:`make_env3d`, which checks it.
-make_env3d.metadata = {
-    **SafeNavigation3DEnv.metadata,
-    "render_modes": [*SafeNavigation3DEnv.metadata["render_modes"], "human"],
-}
+@human_rendering(SafeNavigation3DEnv, _refuse_human_without_a_window)
+def make_env3d(
+    maze: str | None = None,
+    method: str | MethodSpec = "shield",
+    recogniser=None,
+    *,
+    recogniser_options: Mapping[str, Any] | None = None,
+    substitution: int = 1,
+    run: int = 0,
+    render_mode: str | None = None,
+    cell: float = DEFAULT_CELL,
+    timestep: float = DEFAULT_TIMESTEP,
+    rule: str = "paper",
+    threshold: float = 0.5,
+    obs_type: str = "state",
+    registered_maze: str | None = None,
+) -> SafeNavigation3DEnv:
+    """The robot environment; ``registered_maze`` (the id's) refuses another ``maze``.
+    ``render_mode="human"`` shows ``rgb_array`` frames in a window
+    (:func:`pipeline.envs.human_rendering`; it needs pygame and a display): refused at once without
+    them."""
+    if registered_maze is not None:
+        if maze is not None and maze != registered_maze:
+            raise ValueError(
+                f"maze={maze!r}: SafeNav3D-{registered_maze}-v0 is the {registered_maze} maze"
+            )
+        maze = registered_maze
+    spec = method if isinstance(method, MethodSpec) else get_method(method)
+    return SafeNavigation3DEnv(  # it asks any recogniser about live pictures (robot.live.live)
+        "5x5" if maze is None else maze,
+        spec,
+        recogniser_for(spec, recogniser, recogniser_options, substitution),
+        run=run,
+        render_mode=render_mode,
+        cell=cell,
+        timestep=timestep,
+        rule=rule,
+        threshold=threshold,
+        obs_type=obs_type,
+    )

@@ -5,7 +5,7 @@
 
 - **deps (code)**: the import closure of the stage's command, ``python -m pipeline <stage>``:
   ``pipeline/__main__.py``, ``pipeline/stages/<stage>.py``, the schema module the stage composes
-  its config with (``pipeline.config.schemas.SCHEMA_OF``, imported by name) and the module of every
+  its config with (``pipeline.config.registry.SCHEMA_OF``, imported by name) and the module of every
   ``_target_`` its recogniser files name (imported by Hydra), with every module they import
   (the import graph of import-linter's ``grimp``, imports inside functions included, imports for
   type checkers only left out), every package above them (its ``__init__.py`` runs first), and
@@ -58,7 +58,7 @@ def relative(path: Path) -> str:
 
 @cache
 def conf_root() -> Path:
-    from pipeline.configs import conf_dir
+    from pipeline.config.folder import conf_dir
 
     return conf_dir()
 
@@ -164,8 +164,8 @@ def compose(stage: str, overrides: list[str]):
     from hydra import compose as hydra_compose
     from omegaconf import OmegaConf
 
-    from pipeline.config.schemas import register
-    from pipeline.configs import hydra_configs
+    from pipeline.config.folder import hydra_configs
+    from pipeline.config.registry import register
 
     register(stage)
     with hydra_configs():
@@ -248,7 +248,7 @@ class Stage:
         return out
 
     def code(self) -> list[str]:
-        from pipeline.config.schemas import SCHEMA_OF
+        from pipeline.config.registry import SCHEMA_OF
 
         entries = {
             f"{PACKAGE}.__main__",
@@ -273,7 +273,7 @@ class Stage:
 
     def params(self) -> list[tuple[str, list[str]]]:
         """(file, keys) pairs; no keys: the whole file."""
-        from pipeline.config.schemas import schema_of
+        from pipeline.config.registry import schema_of
 
         stage_file = conf_root() / f"{self.stage}.yaml"
         neutral = set(getattr(schema_of(self.stage), "OUTPUT_NEUTRAL", ()))

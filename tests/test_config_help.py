@@ -12,9 +12,9 @@ import typing
 import pytest
 
 from pipeline.config.compose import CONF_DIR
+from pipeline.config.fields import constraint, field_docs, setting
 from pipeline.config.help import StageHelp, describe, nested, stage_help
-from pipeline.config.schemas import schemas
-from pipeline.schema import constraint, field_docs, setting
+from pipeline.config.registry import schemas
 
 SCHEMAS = schemas()  # every stage's schema class
 
@@ -167,7 +167,7 @@ def test_the_trials_help_shows_the_common_keys_in_one_screen():
     """``trials --help``: every group's options on one line each, the keys ``COMMON_KEYS`` declares
     with the first sentence of their words, and the way to the rest; ``--help-all`` is the whole
     schema."""
-    from pipeline.config.trials import TrialsConfig
+    from pipeline.schemas.trials import TrialsConfig
 
     lines = stage_help("trials", CONF_DIR).splitlines()
     assert len(lines) <= 50

@@ -20,7 +20,7 @@ from fakes import FIG8_WITHOUT_MODELS
 from pipeline.cells.plan import experiment_cells
 from pipeline.config.compose import load_config
 from pipeline.config.recognisers import recogniser_names
-from pipeline.config.schemas import schemas
+from pipeline.config.registry import schemas
 from pipeline.errors import ConfigError
 from pipeline.rl.fixed_accuracy import FixedAccuracyRecogniser
 from pipeline.rl.methods import METHOD_DIR, MethodSpec, get_method, method_names
@@ -360,8 +360,8 @@ def test_overrides_that_no_cell_reads_are_refused(args, key, tmp_path):
 def test_a_cell_pins_recogniser_arguments_and_its_records_say_so(tmp_path):
     """``experiment.cells.<name>.recogniser`` ({p: ...}) is applied to that cell only, over the top
     level's recogniser, and the records hold the config that ran."""
-    from pipeline.config.experiment import Cell
     from pipeline.records import read_records
+    from pipeline.schemas.experiment import Cell
     from pipeline.stages.trials import run
 
     args = [
@@ -445,7 +445,7 @@ def test_a_cell_pins_recogniser_arguments_and_its_records_say_so(tmp_path):
     ],
 )
 def test_recogniser_pins_that_cannot_apply_are_refused(cells, args, message):
-    from pipeline.config.experiment import Cell
+    from pipeline.schemas.experiment import Cell
     from pipeline.stages.trials import resolve_cells
 
     args = ["+experiment=fig8", "recogniser=fixed_accuracy", *args, *SMOKE]

@@ -21,7 +21,7 @@ pytestmark = pytest.mark.skipif(
 
 
 def copy_package_and_configs(repo: Path) -> None:
-    """pipeline/ and conf/ into ``repo``: the copy reads its own configs (pipeline/configs.py)."""
+    """pipeline/ and conf/ into ``repo``: the copy reads its own configs (pipeline/config/folder.py)."""
     for folder in ("pipeline", "conf"):
         shutil.copytree(ROOT / folder, repo / folder, ignore=shutil.ignore_patterns("__pycache__"))
 

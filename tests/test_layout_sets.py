@@ -10,8 +10,8 @@ from omegaconf.errors import ConfigKeyError
 
 from pipeline.cells.plan import experiment_cells
 from pipeline.config.compose import load_config
-from pipeline.config.experiment import Cell, Experiment, Layouts, LayoutSet
 from pipeline.errors import ConfigError
+from pipeline.schemas.experiment import Cell, Experiment, Layouts, LayoutSet
 from pipeline.stages import run_stage
 from pipeline.world.layout_sets import GeneratedCell, LayoutSetError, expand, layout_mazes
 from pipeline.world.maze import load_layout

@@ -1,7 +1,7 @@
 """The package carries its configs: the wheel built from this checkout holds every file of the
 top-level ``conf/`` as the package ``pipeline.conf`` (each stage's yaml, the methods, recognisers, experiments, profiles, models, data
 sources and the built-in mazes), and the pipeline installed from it, away from the checkout, finds
-them (Hydra and the code through :func:`pipeline.configs.conf_dir`); a copy of a checkout reads its
+them (Hydra and the code through :func:`pipeline.config.folder.conf_dir`); a copy of a checkout reads its
 own ``conf/``."""
 
 import json
@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 from pipeline.__main__ import available_stages
-from pipeline.configs import conf_dir
+from pipeline.config.folder import conf_dir
 
 ROOT = Path(__file__).resolve().parents[1]
 CONF = ROOT / "conf"
@@ -23,7 +23,7 @@ CONF = ROOT / "conf"
 #: and what it finds in its configs.
 INSTALLED_PROBE = """
 import json, pipeline
-from pipeline.configs import conf_dir
+from pipeline.config.folder import conf_dir
 from pipeline.config.recognisers import recogniser_names
 from pipeline.rl.methods import method_names
 from pipeline.config.compose import load_config
@@ -85,7 +85,7 @@ def test_the_wheel_holds_every_config_file(wheel):
     names = set(zipfile.ZipFile(wheel).namelist())
     packed = {n.removeprefix("pipeline/conf/") for n in names if n.startswith("pipeline/conf/")}
     assert conf_files(CONF) <= packed, sorted(conf_files(CONF) - packed)
-    assert "__init__.py" in packed  # the marker pipeline.configs looks for
+    assert "__init__.py" in packed  # the marker pipeline.config.folder looks for
     for stage in available_stages():
         assert f"{stage}.yaml" in packed, stage
     for group, suffix in (
@@ -141,7 +141,7 @@ def test_the_installed_package_finds_its_configs(wheel, tmp_path):
 def probe_conf_dir(checkout: Path) -> subprocess.CompletedProcess:
     """``conf_dir()`` as the pipeline imported from ``checkout`` (the current folder) finds it."""
     return subprocess.run(
-        [sys.executable, "-c", "from pipeline.configs import conf_dir; print(conf_dir())"],
+        [sys.executable, "-c", "from pipeline.config.folder import conf_dir; print(conf_dir())"],
         capture_output=True,
         text=True,
         cwd=checkout,

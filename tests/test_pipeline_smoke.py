@@ -151,7 +151,7 @@ def protonet_pins(experiment: str, checkpoint, images) -> list[str]:
     smoke checkpoint and pictures."""
     import yaml
 
-    from pipeline.configs import conf_dir
+    from pipeline.config.folder import conf_dir
 
     spec = yaml.safe_load((conf_dir("experiment") / f"{experiment}.yaml").read_text())["experiment"]
     groups = {"experiment.cells": spec.get("cells") or {}}

@@ -604,7 +604,7 @@ def test_web_viewer_refuses_a_busy_port(recorded, tmp_path):
 
 def test_web_viewer_needs_allow_remote_off_the_loopback(recorded, tmp_path, capsys):
     from pipeline.config.compose import load_config
-    from pipeline.stages.replay import web_address
+    from pipeline.replay.viewer import web_address
 
     path, _ = recorded
     res = subprocess.run(
@@ -633,9 +633,8 @@ def test_web_viewer_needs_allow_remote_off_the_loopback(recorded, tmp_path, caps
     assert "allow_remote=true" in res.stderr and not (tmp_path / "r.rrd").exists()
 
     def address(*overrides):
-        return web_address(
-            load_config("replay", [f"file={path}", "web_port=0", "grpc_port=0", *overrides])
-        )
+        cfg = load_config("replay", [f"file={path}", "web_port=0", "grpc_port=0", *overrides])
+        return web_address(cfg.bind, cfg.allow_remote, cfg.web_port, cfg.grpc_port)
 
     web = address(
         "bind=0.0.0.0", "allow_remote=true"

@@ -176,12 +176,12 @@ def test_the_badge_check_finds_the_badge_of_2d_content_in_a_3d_view(chromium, tm
     import rerun as rr
     import rerun.blueprint as rrb
 
-    from pipeline.stages.replay import (
+    from pipeline.replay.viewer import (
         WebAddress,
-        _stop,
-        _wait_listening,
         send_recording,
         server_command,
+        stop_server,
+        wait_listening,
     )
 
     rrd = tmp_path / "badge.rrd"
@@ -196,11 +196,11 @@ def test_the_badge_check_finds_the_badge_of_2d_content_in_a_3d_view(chromium, tm
     web = WebAddress("127.0.0.1", "127.0.0.1", *_free_ports(2))
     server = subprocess.Popen(server_command(web), env={**os.environ, "RUST_LOG": "warn"})
     try:
-        _wait_listening(server, web)
+        wait_listening(server, web)
         send_recording(rrd, web.grpc)
         png = _screenshot_when_shown(chromium, web.url, _rows(rrd), tmp_path, "badge")
     finally:
-        _stop(server)
+        stop_server(server)
     print(f"a recording with the badge in chromium: {png}")
     assert badge_pixels(png) >= BADGE_PIXELS
 

@@ -1,4 +1,4 @@
-"""How the replay stage hands its recording to a viewer (pipeline.stages.replay): ``viewer=native``
+"""How the replay stage hands its recording to a viewer (pipeline.replay.viewer): ``viewer=native``
 refused without a display, before any work; ``viewer=web``'s server started empty and sent the
 recording over gRPC (given the file, rerun 0.41's server keeps a core busy while it runs)."""
 
@@ -18,7 +18,7 @@ from test_replay import _rows
 
 from pipeline.errors import ConfigError
 from pipeline.replay import build_replay
-from pipeline.stages.replay import check_display, rerun_command, send_recording
+from pipeline.replay.viewer import check_display, rerun_command, send_recording
 
 NO_DISPLAY = (
     "error: config key 'viewer': viewer=native needs a display and there is none (DISPLAY and "

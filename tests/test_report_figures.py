@@ -213,8 +213,8 @@ def test_metrics_are_a_file_per_cell_and_per_template_and_size_over_layouts(tmp_
     import json
 
     from pipeline.cells.metrics import KEYS, write_metrics
-    from pipeline.config.experiment import Cell as CellSpec
-    from pipeline.config.experiment import Experiment, Layouts, LayoutSet
+    from pipeline.schemas.experiment import Cell as CellSpec
+    from pipeline.schemas.experiment import Experiment, Layouts, LayoutSet
 
     def summary(runs: list[int]) -> dict:
         return {

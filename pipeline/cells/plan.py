@@ -2,10 +2,10 @@
 command-line overrides that no cell can take (an override is applied or refused, never ignored).
 
 An experiment (``conf/experiment/<name>.yaml``) lists cells, or generates them from layout sets
-(:meth:`~pipeline.config.experiment.Experiment.all_cells`); each cell pins some keys (its method,
+(:meth:`~pipeline.schemas.experiment.Experiment.all_cells`); each cell pins some keys (its method,
 maze, substitution way, support mode, method fields, recogniser arguments or group) and takes the
 rest from the command line and the experiment's globals. Planning works on the stage's config
-dataclasses (:mod:`pipeline.config.trials`, whose experiment schema imports the report's spec).
+dataclasses (:mod:`pipeline.schemas.trials`, whose experiment schema imports the report's spec).
 """
 
 from __future__ import annotations
@@ -15,15 +15,13 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from hydra.core.override_parser.overrides_parser import OverridesParser
 from omegaconf import OmegaConf
 
-from pipeline.config.compose import CONF_DIR, one_line
-from pipeline.config.experiment import Experiment
-from pipeline.config.trials import TrialsConfig
-from pipeline.errors import ConfigError
+from pipeline.config.compose import CONF_DIR, parsed_overrides
+from pipeline.config.fields import check, refuse
 from pipeline.rl.methods import MethodSpec, load_method
-from pipeline.schema import check
+from pipeline.schemas.experiment import Experiment
+from pipeline.schemas.trials import TrialsConfig
 
 #: Keys a cell may pin; the top level (experiment globals, command line) gives the others. A cell
 #: also pins method fields (``params``) and recogniser arguments (``recogniser``).
@@ -32,10 +30,7 @@ CELL_KEYS = ("maze", "substitution", "support", "world", "rule")
 
 def parse_overrides(overrides: list[str]) -> dict[str, Any]:
     """``key -> value`` of the command line's overrides (group choices by group name)."""
-    try:
-        parsed = OverridesParser.create().parse_overrides(list(overrides))
-    except Exception as exc:  # hydra's OverrideParseException; compose has refused these already
-        raise ConfigError(one_line(exc)) from None
+    parsed = parsed_overrides(overrides)  # compose has refused those it cannot parse already
     return {o.key_or_group: (None if o.is_delete() else o.value()) for o in parsed}
 
 
@@ -46,14 +41,15 @@ def experiment_cells(cfg: TrialsConfig, overrides: list[str]) -> dict[str, Trial
     exp: Experiment = cfg.experiment
     declared = exp.all_cells()
     if not declared:
-        raise ConfigError(f"config key 'experiment.cells': experiment {exp.name!r} has no cells")
+        refuse("experiment.cells", f"experiment {exp.name!r} has no cells")
     given = parse_overrides(overrides)
     methods = sorted({c.method for c in declared.values()})
     if "method" in given:
-        raise ConfigError(
-            f"config key 'method': experiment {exp.name} chooses the method of each cell "
+        refuse(
+            "method",
+            f"experiment {exp.name} chooses the method of each cell "
             f"({', '.join(methods)}), so the override cannot apply; override a method field instead (method.alpha=...), "
-            f"or run method={given['method']} without +experiment"
+            f"or run method={given['method']} without +experiment",
         )
     method_over = {
         k.removeprefix("method."): v for k, v in given.items() if k.startswith("method.")
@@ -106,7 +102,7 @@ def experiment_cells(cfg: TrialsConfig, overrides: list[str]) -> dict[str, Trial
     problems = exp.report.problems(declared) if exp.report is not None else []
     if problems:
         key, problem = problems[0]
-        raise ConfigError(f"config key 'experiment.report.{key}': {problem}")
+        refuse(f"experiment.report.{key}", problem)
     return cells
 
 
@@ -131,10 +127,11 @@ def refuse_pinned_overrides(exp, declared, methods, given, method_over) -> None:
         if readers and len(pinned) == len(readers):
             full = key if key in CELL_KEYS else f"method.{key}"
             which = "" if len(readers) == len(declared) else " that reads it"
-            raise ConfigError(
-                f"config key '{full}': every cell of experiment {exp.name}{which} pins it "
+            refuse(
+                full,
+                f"every cell of experiment {exp.name}{which} pins it "
                 f"(experiment.cells.*.{key if key in CELL_KEYS else 'params.' + key}); "
-                "the override cannot apply"
+                "the override cannot apply",
             )
 
 
@@ -144,7 +141,7 @@ def recogniser_group(name: str, key: str) -> dict[str, Any]:
     path = folder / f"{name}.yaml"
     if not path.is_file():
         known = ", ".join(sorted(p.stem for p in folder.glob("*.yaml")))
-        raise ConfigError(f"config key '{key}': no recogniser {name!r} (conf/recogniser/: {known})")
+        refuse(key, f"no recogniser {name!r} (conf/recogniser/: {known})")
     return OmegaConf.to_container(OmegaConf.load(path), resolve=True)
 
 
@@ -158,9 +155,10 @@ def refuse_idle_recogniser_pins(
     for name, cell in declared.items():
         for field_name in ("recogniser", "recogniser_group"):
             if getattr(cell, field_name) and not methods[name].uses_recogniser:
-                raise ConfigError(
-                    f"config key 'experiment.cells.{name}.{field_name}': method {methods[name].name} "
-                    "recognises no pictures, so the recogniser's arguments cannot apply"
+                refuse(
+                    f"experiment.cells.{name}.{field_name}",
+                    f"method {methods[name].name} "
+                    "recognises no pictures, so the recogniser's arguments cannot apply",
                 )
     seeing = [name for name in declared if methods[name].uses_recogniser]
     for key in given:
@@ -170,10 +168,11 @@ def refuse_idle_recogniser_pins(
         if seeing and all(
             declared[n].recogniser_group or (arg and arg in declared[n].recogniser) for n in seeing
         ):
-            raise ConfigError(
-                f"config key '{key}': every cell of experiment {exp.name} with a recogniser pins it "
+            refuse(
+                key,
+                f"every cell of experiment {exp.name} with a recogniser pins it "
                 f"(experiment.cells.*.recogniser.{arg or '<arg>'}) or runs its own "
-                "(experiment.cells.*.recogniser_group); the override cannot apply"
+                "(experiment.cells.*.recogniser_group); the override cannot apply",
             )
 
 
@@ -202,23 +201,18 @@ def refuse_inapplicable(configs: dict[str, TrialsConfig], given: dict[str, Any])
     for key in given:
         head = key.split(".")[0]
         if head == "robot" and not any(c.world == "robot3d" for c in configs.values()):
-            raise ConfigError(
-                f"config key '{key}': read only with world=robot3d; this run has none: "
-                "the override cannot apply"
+            refuse(
+                key, "read only with world=robot3d; this run has none: the override cannot apply"
             )
         if head == "threshold" and not any(c.rule == "open_set" for c in configs.values()):
-            raise ConfigError(
-                f"config key '{key}': read only with rule=open_set; this run has none: "
-                "the override cannot apply"
+            refuse(
+                key, "read only with rule=open_set; this run has none: the override cannot apply"
             )
         if head in ONLY_FOR:
             who, uses = ONLY_FOR[head]
             if not any(uses(c.method) for c in configs.values()):
                 names = ", ".join(sorted({c.method.name for c in configs.values()}))
-                raise ConfigError(
-                    f"config key '{key}': read only by {who}; this run has {names}: "
-                    "the override cannot apply"
-                )
+                refuse(key, f"read only by {who}; this run has {names}: the override cannot apply")
 
 
 def generated_key(exp: Experiment | None, name: str) -> str | None:

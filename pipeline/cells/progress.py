@@ -12,7 +12,7 @@ from collections.abc import Iterable
 from tqdm import tqdm
 
 from pipeline.cells.run import CellRun, CellTime
-from pipeline.config.trials import TrialsConfig
+from pipeline.schemas.trials import TrialsConfig
 
 #: Above this many cells an experiment's progress is a bar (or a line per tenth), not a line per cell.
 COMPACT_AT = 30

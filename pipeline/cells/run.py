@@ -20,15 +20,16 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 from omegaconf import OmegaConf
 
 from pipeline.config.compose import one_line
+from pipeline.config.fields import refuse
 from pipeline.config.recognisers import build_recogniser
-from pipeline.config.trials import TrialsConfig
-from pipeline.errors import ConfigError, Interrupted, UserError
+from pipeline.errors import Interrupted, UserError
 from pipeline.files import disk_problem, size_text, write_json_atomic
 from pipeline.rl.methods import MethodSpec
 from pipeline.rl.rng import run_seeds
 from pipeline.rl.rules import Rule
 from pipeline.rl.run_world import run_placement
 from pipeline.rl.runner import run_trials
+from pipeline.schemas.trials import TrialsConfig
 from pipeline.world.geometry import build_geometry
 from pipeline.world.maze import ACTION_NAMES, MOVES, Layout
 from pipeline.world.pictures import CATEGORIES
@@ -132,15 +133,15 @@ def cell_world(cell: CellRun):
     from pipeline.robot.live_world import RobotSettings, RobotWorld
 
     if cfg.support == "carry":
-        raise ConfigError("config key 'support': world=robot3d runs support=restore only")
+        refuse("support", "world=robot3d runs support=restore only")
     try:
         settings = RobotSettings(cfg.robot.cell, cfg.robot.timestep)
     except ValueError as exc:
-        raise ConfigError(f"config key 'robot': {exc}") from None
+        refuse("robot", str(exc))
     try:
         world = RobotWorld(cell.layout, settings, live_pictures=cell.method.uses_recogniser)
     except ValueError as exc:
-        raise ConfigError(f"config key 'maze': world=robot3d: {exc}") from None
+        refuse("maze", f"world=robot3d: {exc}")
     world.describe()  # the motion table: a cell size it cannot run is refused before any run
     if not world.live_pictures:
         return world, cell.recogniser
@@ -151,13 +152,13 @@ def cell_world(cell: CellRun):
         for r in bar:
             world.run_world(geometry, cfg.seed, r)
     except ValueError as exc:
-        raise ConfigError(f"config key 'runs': world=robot3d: {exc}") from None
+        refuse("runs", f"world=robot3d: {exc}")
     finally:
         bar.close()
     try:
         return world, live(cell.recogniser, world)
     except ValueError as exc:
-        raise ConfigError(f"config key '{cell.recogniser_key}': world=robot3d: {exc}") from None
+        refuse(cell.recogniser_key, f"world=robot3d: {exc}")
 
 
 def pictures_dir(cfg: TrialsConfig) -> str | None:
@@ -167,9 +168,10 @@ def pictures_dir(cfg: TrialsConfig) -> str | None:
     if not cfg.method.uses_recogniser or not (own or cfg.images_dir):
         return None
     if own and cfg.images_dir and Path(own).resolve() != Path(cfg.images_dir).resolve():
-        raise ConfigError(
-            f"config key 'images_dir': the recogniser reads its pictures from recogniser.images_dir="
-            f"{own}, and the records keep those; leave images_dir out"
+        refuse(
+            "images_dir",
+            f"the recogniser reads its pictures from recogniser.images_dir="
+            f"{own}, and the records keep those; leave images_dir out",
         )
     return own or cfg.images_dir
 
@@ -186,7 +188,7 @@ def recorded_pictures(cfg: TrialsConfig) -> tuple[dict[int, bytes], dict[int, li
         return query_pictures(images_dir), support_pictures(images_dir)
     except (UserError, OSError) as exc:  # no manifest, missing or unreadable pictures
         key = "images_dir" if cfg.images_dir else "recogniser.images_dir"
-        raise ConfigError(f"config key '{key}': {one_line(exc)}") from None
+        refuse(key, one_line(exc))
 
 
 #: The pieces of the recorded config (:mod:`pipeline.records.config_text`) of every key but the

@@ -1,8 +1,8 @@
 """A stage's config, composed and checked: ``conf/<stage>.yaml`` with the command line's overrides,
-as the stage's typed schema (:mod:`pipeline.config.schemas`), every range checked.
+as the stage's typed schema (:mod:`pipeline.config.registry`), every range checked.
 
 :func:`load_config` composes with Hydra's compose API, converts the result to the schema's
-dataclasses and checks every range (:func:`pipeline.schema.check`). Whatever is wrong raises
+dataclasses and checks every range (:func:`pipeline.config.fields.check`). Whatever is wrong raises
 :class:`~pipeline.errors.ConfigError` in one line naming the key: a bad override, a deleted or
 emptied key, a key below a null one, a value out of range. A sweep (``a=1,2 b=x,y``) is checked
 point by point (:func:`sweep_points`) before any of its jobs runs. Running a stage on that config
@@ -18,9 +18,9 @@ from typing import Any
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
-from pipeline.configs import conf_dir, hydra_configs
+from pipeline.config.fields import check, refuse
+from pipeline.config.folder import conf_dir, hydra_configs
 from pipeline.errors import ConfigError
-from pipeline.schema import check
 
 #: The config folder shipped in the package (``conf``), as a file-system path.
 CONF_DIR = str(conf_dir())
@@ -75,7 +75,7 @@ def compose(config_name: str, overrides: list[str]) -> DictConfig:
     from hydra import compose as hydra_compose
     from hydra.errors import HydraException
 
-    from pipeline.config.schemas import register
+    from pipeline.config.registry import register
 
     refuse_deleted(config_name, overrides)
     register(config_name)
@@ -106,15 +106,16 @@ def override_key(override: str) -> str:
 def refuse_deleted(config_name: str, overrides: list[str]) -> None:
     """``~key`` of a key the stage's schema declares is refused: the key would silently take the
     dataclass's default, or the placeholder ``???`` (``~out`` wrote to a folder named ``???``)."""
-    from pipeline.config.schemas import schema_of
+    from pipeline.config.registry import schema_of
 
     declared = {f.name for f in dataclasses.fields(schema_of(config_name))}
     for override in overrides:
         key = override_key(override)
         if override.startswith("~") and key.split(".")[0] in declared:
-            raise ConfigError(
-                f"config key '{key}': cannot be deleted ({override}); every key of the "
-                f"{config_name} config is needed: give it a value instead"
+            refuse(
+                key,
+                f"cannot be deleted ({override}); every key of the "
+                f"{config_name} config is needed: give it a value instead",
             )
 
 
@@ -172,10 +173,11 @@ def refuse_merged_away(cfg: DictConfig, overrides: list[str]) -> None:
             continue
         kept = OmegaConf.select(cfg, key, default=None)
         if isinstance(kept, DictConfig) and len(kept) > 0:
-            raise ConfigError(
-                f"config key '{key}': {{}} does not empty it (a mapping given here is merged into "
+            refuse(
+                key,
+                f"{{}} does not empty it (a mapping given here is merged into "
                 f"the one there, {', '.join(map(str, list(kept)[:3]))}...); name what to keep, or "
-                "edit the file"
+                "edit the file",
             )
 
 
@@ -184,17 +186,22 @@ def load_config(stage: str, overrides: list[str] = ()) -> Any:
     return typed(compose(stage, list(overrides)))
 
 
+def parsed_overrides(overrides: list[str]) -> list[Any]:
+    """Hydra's parsed ``overrides``; one it cannot parse raises :class:`ConfigError`."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    try:
+        return OverridesParser.create().parse_overrides(list(overrides))
+    except Exception as exc:  # hydra's OverrideParseException
+        raise ConfigError(one_line(exc)) from None
+
+
 def sweep_points(args: list[str]) -> list[list[str]]:
     """Override lists that together try every value of every swept key (``a=1,2 b=x,y`` gives
     ``[a=1 b=x], [a=2 b=x], [a=1 b=y]``): a linear number of checks, not the whole grid."""
-    from hydra.core.override_parser.overrides_parser import OverridesParser
     from hydra.core.override_parser.types import OverrideType
 
-    plain = [a for a in args if not a.startswith("-")]
-    try:
-        parsed = OverridesParser.create().parse_overrides(plain)
-    except Exception as exc:  # hydra's OverrideParseException
-        raise ConfigError(one_line(exc)) from None
+    parsed = parsed_overrides([a for a in args if not a.startswith("-")])
     prefix = {OverrideType.ADD: "+", OverrideType.FORCE_ADD: "++"}
     fixed, swept = [], []
     for o in parsed:

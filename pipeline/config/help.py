@@ -6,7 +6,7 @@ module's docstring (:func:`describe`), its groups and their default options from
 ``conf/<stage>.yaml``'s defaults list (and the schema's fields named like a folder of ``conf/``,
 such as ``experiment``), each option's summary from its file's leading comment (or, where every
 option shares that comment, from the keys it sets), and each key's type, range or choices and
-description from its dataclass field (:mod:`pipeline.schema`). A key's default is read from the
+description from its dataclass field (:mod:`pipeline.config.fields`). A key's default is read from the
 yaml files the stage composes by default, as plain YAML: no Hydra and no stage module, so the help
 answers at once. Of the profile, only the sections the stage reads (its ``${profile...}`` values)
 are listed.
@@ -28,8 +28,8 @@ from typing import Any
 
 import yaml
 
-from pipeline.configs import conf_dir
-from pipeline.schema import constraint, field_docs
+from pipeline.config.fields import constraint, field_docs
+from pipeline.config.folder import conf_dir
 
 #: The flags that print a stage's help instead of running it.
 HELP_FLAGS = {"-h", "--help"}
@@ -334,7 +334,7 @@ class StageHelp:
 def stage_help(stage: str, conf: str | Path, full: bool = False) -> str:
     """The ``--help`` text of ``stage``, whose configs are in the folder ``conf``: its common keys
     where its schema declares them (``COMMON_KEYS``), else (or ``full``) every key."""
-    from pipeline.config.schemas import schema_of
+    from pipeline.config.registry import schema_of
 
     found = StageHelp(stage, schema_of(stage), Path(conf))
     return found.text() if full or not hasattr(found.schema, "COMMON_KEYS") else found.short_text()

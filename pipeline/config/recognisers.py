@@ -19,8 +19,9 @@ from typing import Any
 from omegaconf import OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
-from pipeline.configs import conf_dir
-from pipeline.errors import ConfigError, UserError
+from pipeline.config.fields import refuse
+from pipeline.config.folder import conf_dir
+from pipeline.errors import UserError
 from pipeline.kernels import pin_kernels
 
 FILLED_BY_STAGE = ("substitution_way", "carry_over")
@@ -71,20 +72,19 @@ def recogniser_target(node: dict, key: str) -> Callable:
     target = node.get("_target_")
     choose = f"choose a recogniser: {key}={'|'.join(recogniser_names())}"
     if not target:
-        raise ConfigError(f"config key '{key}._target_': missing; {choose}")
+        refuse(f"{key}._target_", f"missing; {choose}")
     if str(target) not in declared_targets():
-        raise ConfigError(
-            f"config key '{key}._target_': {str(target)!r} is not a recogniser of "
-            f"conf/recogniser/ (a config may name no other code); {choose}"
+        refuse(
+            f"{key}._target_",
+            f"{str(target)!r} is not a recogniser of "
+            f"conf/recogniser/ (a config may name no other code); {choose}",
         )
     from hydra.utils import get_method  # Hydra (slow to import) only when a recogniser is built
 
     try:
         return get_method(str(target))
     except Exception as exc:  # hydra raises ImportError/ValueError/InstantiationException variants
-        raise ConfigError(
-            f"config key '{key}._target_': cannot import {target!r} ({str(exc).splitlines()[0]})"
-        ) from None
+        refuse(f"{key}._target_", f"cannot import {target!r} ({str(exc).splitlines()[0]})")
 
 
 def recogniser_arguments(node: dict, key: str = "recogniser") -> tuple[Callable, dict[str, Any]]:
@@ -116,10 +116,10 @@ def recogniser_arguments(node: dict, key: str = "recogniser") -> tuple[Callable,
         args = OmegaConf.to_container(merged, resolve=True, throw_on_missing=True)
     except OmegaConfBaseException as exc:
         where = getattr(exc, "full_key", "") or ""
-        raise ConfigError(
-            f"config key '{key}.{where}': {str(exc).splitlines()[0]} "
-            f"(parameters of {node['_target_']}: {', '.join(params)})"
-        ) from None
+        refuse(
+            f"{key}.{where}",
+            f"{str(exc).splitlines()[0]} (parameters of {node['_target_']}: {', '.join(params)})",
+        )
     return target, args
 
 
@@ -131,4 +131,4 @@ def build_recogniser(
     try:
         return target(**args, substitution_way=substitution_way, carry_over=carry_over)
     except (UserError, ValueError, FileNotFoundError) as exc:
-        raise ConfigError(f"config key '{key}': {exc}") from None
+        refuse(key, str(exc))

@@ -2,7 +2,7 @@
 (:class:`ModelConfig` for the Relation Network, with the feature-map sizes it implies;
 :class:`ProtoConfig` for the Prototypical Network), the meta-training hyperparameters
 (:class:`TrainConfig`, whose ``model`` chooses between them) and the accuracy study's
-(:class:`StudyConfig`, :mod:`.accuracy_study`). The stage schemas (``pipeline/config/schemas.py``) type
+(:class:`StudyConfig`, :mod:`.accuracy_study`). The stage schemas (``pipeline/schemas/``) type
 ``conf/meta_train.yaml`` and ``conf/accuracy.yaml`` with them, so checking a config never loads torch.
 """
 
@@ -10,8 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from pipeline.errors import ConfigError
-from pipeline.schema import check, setting
+from pipeline.config.fields import check, refuse, setting
 
 CHANNELS = 64
 HIDDEN = 8
@@ -120,16 +119,18 @@ class TrainConfig:
     channels_last: bool = True
     """Use the channels-last memory format (faster convolutions on the CPU)."""
     max_minutes: float = setting(12.5, gt=0.0)
-    """Wall-clock budget of the training loop; training stops early when it is spent."""
+    """Wall-clock budget of the training loop; training stops early when it is spent (a safety
+    net: a run it cuts depends on the machine's load, and its ``train_info`` says so)."""
     target_accuracy: float = setting(0.75, ge=0.0, le=1.0)
     """Validation accuracy goal; the time when a selection evaluation first reaches it is recorded."""
 
     def __post_init__(self) -> None:
         check(self, "train.")
         if self.model == "protonet" and self.relation_padding != 0:
-            raise ConfigError(
-                f"config key 'train.relation_padding': {self.relation_padding} means nothing to the "
-                "Prototypical Network (it has no relation module g_phi); leave it out (0) with train.model=protonet"
+            refuse(
+                "train.relation_padding",
+                f"{self.relation_padding} means nothing to the "
+                "Prototypical Network (it has no relation module g_phi); leave it out (0) with train.model=protonet",
             )
         self.network_config()
 

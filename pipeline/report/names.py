@@ -132,7 +132,7 @@ def recogniser_declarations() -> list[RecogniserDeclaration]:
 
     import yaml
 
-    from pipeline.configs import conf_dir
+    from pipeline.config.folder import conf_dir
 
     found = []
     for path in sorted(conf_dir("recogniser").glob("*.yaml")):

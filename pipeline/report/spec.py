@@ -10,8 +10,8 @@ numbers and the paper's claim; rows are named from what their cells ran
 built from the records alone.
 
 The schema of the trials stage types ``experiment.report`` by :class:`ReportSpec`, so Hydra refuses
-unknown keys and :func:`pipeline.schema.check` refuses a ``kind`` outside :data:`KINDS` (the
-``choices`` its field declares with :func:`~pipeline.schema.setting`); :meth:`ReportSpec.problems`
+unknown keys and :func:`pipeline.config.fields.check` refuses a ``kind`` outside :data:`KINDS` (the
+``choices`` its field declares with :func:`~pipeline.config.fields.setting`); :meth:`ReportSpec.problems`
 refuses cell names the experiment does not have. Reading a recorded block
 (:meth:`ReportSpec.from_dict`) refuses the same unknown keys and kinds, in the same words.
 """
@@ -22,7 +22,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field, fields
 from typing import Any
 
-from pipeline.schema import problem, setting
+from pipeline.config.fields import problem, setting
 
 #: Section kinds. ``default``: table of collisions + learning curves (+ support-set accuracy).
 #: ``bars``: the same with a bar chart of collisions per run. ``long_term``: the runs are

@@ -31,11 +31,10 @@ from typing import Any
 from omegaconf import OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
-from pipeline.configs import conf_dir
-from pipeline.errors import ConfigError
+from pipeline.config.fields import check, refuse, setting
+from pipeline.config.folder import conf_dir
 from pipeline.rl.codes import Learner
 from pipeline.rl.rules import METHODS, Method, Safety, reasons_with_pictures
-from pipeline.schema import check, setting
 
 #: ``conf/method/<name>.yaml``: each file holds only what differs from :class:`MethodSpec`'s defaults.
 METHOD_DIR: Path = conf_dir("method")
@@ -134,18 +133,14 @@ def load_method(
     type- and range-checked by the schema; errors name ``key``."""
     path = METHOD_DIR / f"{name}.yaml"
     if not path.is_file():
-        raise ConfigError(
-            f"config key '{key}': unknown method {name!r}; expected one of {', '.join(method_names())}"
-        )
+        refuse(key, f"unknown method {name!r}; expected one of {', '.join(method_names())}")
     try:
         node = OmegaConf.merge(OmegaConf.structured(MethodSpec), OmegaConf.load(path))
         for field, value in (overrides or {}).items():
             OmegaConf.update(node, field, value, merge=True)
         spec = OmegaConf.to_object(node)
     except OmegaConfBaseException as exc:
-        raise ConfigError(
-            f"config key '{key}.{getattr(exc, 'full_key', '') or ''}': {str(exc).splitlines()[0]}"
-        ) from None
+        refuse(f"{key}.{getattr(exc, 'full_key', '') or ''}", f"{str(exc).splitlines()[0]}")
     return check_method(spec, key)
 
 

@@ -30,8 +30,8 @@ from typing import Any
 from omegaconf import DictConfig
 
 from pipeline.config.compose import load_config, sweep_points, typed
+from pipeline.config.folder import conf_dir
 from pipeline.config.help import FULL_HELP_FLAG, print_help, wants_help
-from pipeline.configs import conf_dir
 from pipeline.errors import Interrupted, UserError
 
 #: ``run(typed_config, overrides)``: the stage's work; ``overrides`` are the command line's.
@@ -135,7 +135,7 @@ def _hydra_main(config_name: str, run: Runner, args: list[str]) -> None:
     import hydra
     from hydra.core.hydra_config import HydraConfig
 
-    from pipeline.config.schemas import register
+    from pipeline.config.registry import register
 
     register(config_name)
     if any(a in ("-m", "--multirun") for a in args):  # refuse a bad sweep before launching any job

@@ -19,13 +19,12 @@ from pathlib import Path
 
 import numpy as np
 
-from pipeline.config.fewshot import AccuracyConfig
+from pipeline.config.fields import refuse
 from pipeline.config.recognisers import (
     build_recogniser,
     recogniser_arguments,
     recognisers_taking,
 )
-from pipeline.errors import ConfigError
 from pipeline.fewshot.accuracy_study import run_study
 from pipeline.fewshot.colour import colour_test
 from pipeline.fewshot.study_tables import (
@@ -37,6 +36,7 @@ from pipeline.fewshot.study_tables import (
 )
 from pipeline.fewshot.views import has_views, views_predictions
 from pipeline.files import write_json_atomic
+from pipeline.schemas.fewshot import AccuracyConfig
 from pipeline.stages import stage_main
 from pipeline.threads import torch_budget
 from pipeline.world.pictures import CATEGORIES, N_PICTURES, picture_category
@@ -52,10 +52,11 @@ def _hue_turned_predictions(
     target, _ = recogniser_arguments(cfg.recogniser)
     if "query_hue_shift" not in inspect.signature(target).parameters:
         if shifts and any(o.lstrip("+~").startswith("study.hue_shifts") for o in overrides):
-            raise ConfigError(
-                f"config key 'study.hue_shifts': the colour test turns query pictures, and "
+            refuse(
+                "study.hue_shifts",
+                f"the colour test turns query pictures, and "
                 f"{cfg.recogniser['_target_']} reads none; use recogniser="
-                + "|".join(recognisers_taking("query_hue_shift"))
+                + "|".join(recognisers_taking("query_hue_shift")),
             )
         return None
     base = float(cfg.recogniser.get("query_hue_shift", 0.0))

@@ -26,13 +26,13 @@ from pathlib import Path
 import pandas as pd
 import torch
 
-from pipeline.config.fewshot import MetaTrainConfig
-from pipeline.errors import ConfigError
+from pipeline.config.fields import refuse
 from pipeline.fewshot.checkpoint import save_checkpoint
 from pipeline.fewshot.data import PictureSet, load_folder, load_split, read_manifest
 from pipeline.fewshot.episodes import require_episodes
 from pipeline.fewshot.training import config_dict, meta_train
 from pipeline.files import write_json_atomic
+from pipeline.schemas.fewshot import MetaTrainConfig
 from pipeline.stages import stage_main
 
 #: The keys of the training result that the checkpoint and ``<checkpoint stem>.validation.json``
@@ -68,20 +68,22 @@ def _folder_sets(cfg: MetaTrainConfig, given: set[str]) -> tuple[list[PictureSet
     trees."""
     data, size = cfg.data, cfg.train.input_size
     if "images_dir" in given:
-        raise ConfigError(
-            "config key 'images_dir': data=folder reads data.train_dir, data.val_dir and "
-            "data.test_dir, not images_dir; leave it out"
+        refuse(
+            "images_dir",
+            "data=folder reads data.train_dir, data.val_dir and "
+            "data.test_dir, not images_dir; leave it out",
         )
     for key in FOLDER_KEYS:
         if not getattr(data, key):
-            raise ConfigError(
-                f"config key 'data.{key}': data=folder needs it (data.{key}=<folder-per-class tree "
+            refuse(
+                f"data.{key}",
+                f"data=folder needs it (data.{key}=<folder-per-class tree "
                 f"of the {SPLIT_WORDS[key]} classes>"
                 + (
                     "; the quoted accuracy is the test classes', held out from training and selection)"
                     if key == "test_dir"
                     else ")"
-                )
+                ),
             )
     for key in FOLDER_KEYS:  # all checked before any is read
         try:
@@ -89,25 +91,26 @@ def _folder_sets(cfg: MetaTrainConfig, given: set[str]) -> tuple[list[PictureSet
         except (OSError, RuntimeError):  # missing, or a symbolic link loop
             is_dir = False
         if not is_dir:
-            raise ConfigError(
-                f"config key 'data.{key}': {getattr(data, key)} is not a folder (missing, a "
-                "file, or a symbolic link loop)"
+            refuse(
+                f"data.{key}",
+                f"{getattr(data, key)} is not a folder (missing, a file, or a symbolic link loop)",
             )
     for i, key in enumerate(FOLDER_KEYS):
         for earlier in FOLDER_KEYS[:i]:
             if Path(getattr(data, key)).resolve() == Path(getattr(data, earlier)).resolve():
-                raise ConfigError(
-                    f"config key 'data.{key}': it is data.{earlier}; the {SPLIT_WORDS[key]} "
-                    "classes must be held out"
+                refuse(
+                    f"data.{key}",
+                    f"it is data.{earlier}; the {SPLIT_WORDS[key]} classes must be held out",
                 )
     sets = [load_folder(getattr(data, key), size, progress=cfg.progress) for key in FOLDER_KEYS]
     for i, key in enumerate(FOLDER_KEYS):
         for j, earlier in enumerate(FOLDER_KEYS[:i]):
             shared = sorted(set(sets[i].class_names) & set(sets[j].class_names))
             if shared:
-                raise ConfigError(
-                    f"config key 'data.{key}': classes {', '.join(shared[:5])} are in data.{earlier} "
-                    f"too; the {SPLIT_WORDS[key]} classes must be held out"
+                refuse(
+                    f"data.{key}",
+                    f"classes {', '.join(shared[:5])} are in data.{earlier} "
+                    f"too; the {SPLIT_WORDS[key]} classes must be held out",
                 )
     return sets, {key: getattr(data, key) for key in FOLDER_KEYS}
 
@@ -125,9 +128,10 @@ def picture_sets(
     else:
         for key in FOLDER_KEYS:
             if getattr(data, key) is not None:
-                raise ConfigError(
-                    f"config key 'data.{key}': read only with data=folder (this run has data=rendered, "
-                    "the train, val and test splits of images_dir)"
+                refuse(
+                    f"data.{key}",
+                    "read only with data=folder (this run has data=rendered, "
+                    "the train, val and test splits of images_dir)",
                 )
         frame = read_manifest(cfg.images_dir)
         train, val, test = (
@@ -156,9 +160,10 @@ def refuse_idle_keys(cfg: MetaTrainConfig, overrides: list[str]) -> None:
     :class:`~pipeline.fewshot.settings.TrainConfig` itself)."""
     given = {o.lstrip("+~").split("=")[0] for o in overrides}
     if cfg.train.model == "protonet" and "train.relation_padding" in given:
-        raise ConfigError(
-            "config key 'train.relation_padding': the Prototypical Network has no relation module "
-            "g_phi, so the key cannot apply with train.model=protonet; leave it out"
+        refuse(
+            "train.relation_padding",
+            "the Prototypical Network has no relation module "
+            "g_phi, so the key cannot apply with train.model=protonet; leave it out",
         )
 
 

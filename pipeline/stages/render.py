@@ -22,8 +22,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from pipeline.config.render import RenderConfig
-from pipeline.errors import ConfigError
+from pipeline.config.fields import refuse
 from pipeline.files import (
     claim_folder,
     free_space,
@@ -35,6 +34,7 @@ from pipeline.files import (
     write_index,
 )
 from pipeline.manifest import COLUMNS, MANIFEST, SPLITS
+from pipeline.schemas.render import RenderConfig
 from pipeline.stages import stage_main
 from pipeline.world.contact_sheet import contact_sheet, save_png_atomic
 from pipeline.world.obstacle_models import category_index
@@ -61,7 +61,7 @@ PLAN_BYTES = {"object": 16e3, "picture": 2.3e3}
 PLAN_SECONDS = {"object": 0.7e-3, "picture": 0.3e-3}
 RENDERER_SECONDS, DRAW_SECONDS, DRAWN_SIDE = 0.15, 8e-3, 168
 #: The keys that set how many pictures there are.
-SCALE_KEYS = "'n_train_classes'/'n_val_classes'/'n_test_classes'/'per_class'/'size'"
+SCALE_KEYS = ("n_train_classes", "n_val_classes", "n_test_classes", "per_class", "size")
 
 
 def plan_config(cfg: RenderConfig) -> PlanConfig:
@@ -71,26 +71,23 @@ def plan_config(cfg: RenderConfig) -> PlanConfig:
         try:
             category_index(c)
         except ValueError as exc:
-            raise ConfigError(f"config key 'categories': {exc}") from None
+            refuse("categories", str(exc))
     if len(set(cfg.categories)) != len(cfg.categories):
-        raise ConfigError(f"config key 'categories': repeats a category: {cfg.categories}")
+        refuse("categories", f"repeats a category: {cfg.categories}")
     out = Path(cfg.out_dir)
     if not out.resolve().parent.is_dir():
-        raise ConfigError(
-            f"config key 'out_dir': the parent folder of {str(out)!r} does not exist "
-            f"({out.resolve().parent}); create it or choose another out_dir"
+        refuse(
+            "out_dir",
+            f"the parent folder of {str(out)!r} does not exist "
+            f"({out.resolve().parent}); create it or choose another out_dir",
         )
     fig = Path(cfg.figures_dir)
     inside_out = fig.resolve().is_relative_to(out.resolve())
     if cfg.contact_sheets and not inside_out and not fig.resolve().parent.is_dir():
-        raise ConfigError(
-            f"config key 'figures_dir': the parent folder of {str(fig)!r} does not exist"
-        )
+        refuse("figures_dir", f"the parent folder of {str(fig)!r} does not exist")
     for key in ("elevation", "turn"):
         if len(getattr(cfg.catalogue, key)) != 2:
-            raise ConfigError(
-                f"config key 'catalogue.{key}': give [low, high]; got {getattr(cfg.catalogue, key)}"
-            )
+            refuse(f"catalogue.{key}", f"give [low, high]; got {getattr(cfg.catalogue, key)}")
     mz = MazeCamera(**asdict(cfg.maze))
     cc = CatalogueCamera(
         cfg.catalogue.fovy,
@@ -99,9 +96,7 @@ def plan_config(cfg: RenderConfig) -> PlanConfig:
         cfg.catalogue.fill,
     )
     if len(cfg.views_distance) != 2 or not 0 < cfg.views_distance[0] <= cfg.views_distance[1]:
-        raise ConfigError(
-            f"config key 'views_distance': give [low, high] with 0 < low <= high; got {cfg.views_distance}"
-        )
+        refuse("views_distance", f"give [low, high] with 0 < low <= high; got {cfg.views_distance}")
     return PlanConfig(
         cfg.seed,
         tuple(cfg.categories),
@@ -196,17 +191,19 @@ def refuse_what_does_not_fit(cfg: RenderConfig, plan_cfg: PlanConfig) -> None:
     )
     free = free_space(cfg.out_dir)
     if guess["disk"] > free:
-        raise ConfigError(
-            f"config keys {SCALE_KEYS}: {what} take about {size_text(guess['disk'])}; the disk "
+        refuse(
+            SCALE_KEYS,
+            f"{what} take about {size_text(guess['disk'])}; the disk "
             f"of out_dir {cfg.out_dir} has {size_text(free)} free; render fewer classes or "
-            "pictures, or choose another out_dir"
+            "pictures, or choose another out_dir",
         )
     memory = machine_memory()
     if guess["memory"] > 0.8 * memory:
-        raise ConfigError(
-            f"config keys {SCALE_KEYS}: the plan of {what} holds about "
+        refuse(
+            SCALE_KEYS,
+            f"the plan of {what} holds about "
             f"{size_text(guess['memory'])} in memory; this machine has {size_text(memory)}; "
-            "render fewer classes or pictures"
+            "render fewer classes or pictures",
         )
 
 

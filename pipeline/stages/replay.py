@@ -8,47 +8,21 @@ A robot cell (its recorded config says ``world: robot3d``; docs/robot3d.md) repl
 (:func:`pipeline.robot.replay.robot_run`) to the replay (:data:`WORLDS`).
 
 The file may also be given positionally (``python -m pipeline replay <file.mcap> run=3 ...``).
-Logic in :mod:`pipeline.replay`; this is the thin entry point (conf/replay.yaml) and
-starts the viewer.
-
-``viewer=web`` serves the recording with the Rerun CLI of the rerun-sdk wheel and prints the one
-address that opens it (``http://127.0.0.1:<web_port>?url=rerun+http://127.0.0.1:<grpc_port>/proxy``,
-URL-encoded); the bare web port only opens Rerun's welcome page. The server starts empty and this
-command sends it the recording over gRPC (:func:`send_recording`): given the file, rerun 0.41's
-server keeps a core busy for as long as it runs. The viewer lives and dies with the command: Ctrl-C
-or SIGTERM stop it, and so does the command's death on Linux (parent-death signal). Both ports are
-checked before any work (a busy one is a config error naming its key; port 0 picks a free one), and a
-bind address off the loopback needs ``allow_remote=true``.
-
-``viewer=native`` needs a display: without one (no ``DISPLAY`` or ``WAYLAND_DISPLAY`` on Linux) it is
-a config error before any work, naming the alternatives.
+The recording is built by :mod:`pipeline.replay` and shown by its viewer process
+(:mod:`pipeline.replay.viewer`: ``viewer=web`` or ``native``, both checked before any work); this is
+the thin entry point (conf/replay.yaml).
 """
 
 from __future__ import annotations
 
-import ctypes
-import importlib.util
-import ipaddress
-import os
-import signal
-import socket
-import subprocess
 import sys
-import time
 import warnings
-from collections.abc import Iterator
-from contextlib import contextmanager
-from dataclasses import dataclass
 from pathlib import Path
-from urllib.parse import quote
 
-from pipeline.config.schemas import ReplayConfig
-from pipeline.errors import ConfigError, Interrupted
+from pipeline.config.fields import refuse
 from pipeline.files import DiskError
+from pipeline.schemas.replay import ReplayConfig
 from pipeline.stages import stage_main
-
-#: Seconds to wait for the Rerun server to listen on both ports, and for it to end when stopped.
-START_TIMEOUT, STOP_TIMEOUT = 30.0, 5.0
 
 
 def _robot_run(meta, run: int):
@@ -65,11 +39,15 @@ WORLDS = {"robot3d": _robot_run}
 
 
 def run(cfg: ReplayConfig, overrides: list[str] = ()) -> Path:
+    from pipeline.replay.viewer import check_display, open_viewer, serve_web, web_address
+
     path = Path(cfg.file).resolve()
     if not path.is_file():
-        raise ConfigError(f"config key 'file': no such record file: {path}")
+        refuse("file", f"no such record file: {path}")
     check_display(cfg.viewer)  # refused before any work, as are the web viewer's ports
-    web = web_address(cfg) if cfg.viewer == "web" else None
+    web = None
+    if cfg.viewer == "web":
+        web = web_address(cfg.bind, cfg.allow_remote, cfg.web_port, cfg.grpc_port)
     rrd = write_replay(path, cfg)
     print(f"open it with: rerun {rrd}", flush=True)
     if web is not None:
@@ -101,238 +79,25 @@ def _write_replay(path: Path, cfg: ReplayConfig) -> Path:
     from pipeline.replay import ReplayError, build_replay, opening_episode, replay_stem
 
     if cfg.whole_run and cfg.episode is not None:
-        raise ConfigError("config key 'episode': whole_run=true replays every episode; give one")
+        refuse("episode", "whole_run=true replays every episode; give one")
     episode = cfg.episode
     if episode is None and not cfg.whole_run:
         try:
             episode, why = opening_episode(path, cfg.run)
         except ReplayError as exc:
-            raise ConfigError(
-                f"config key '{'file' if exc.key == 'file' else 'run'}': {exc}"
-            ) from None
+            refuse("file" if exc.key == "file" else "run", str(exc))
         print(f"episode={episode}: {why}", flush=True)
     out = cfg.out or f"replays/{replay_stem(path, cfg.run, episode)}.rrd"
     out = Path(out).resolve()
     if out.suffix != ".rrd":
-        raise ConfigError(f"config key 'out': must end in .rrd, got {out}")
+        refuse("out", f"must end in .rrd, got {out}")
     try:
         rrd = build_replay(path, cfg.run, episode, out=out, whole_run=cfg.whole_run, worlds=WORLDS)
     except ReplayError as exc:
-        keys = "key 'file'" if exc.key == "file" else "keys 'run'/'episode'"
-        raise ConfigError(f"config {keys}: {exc}") from None
+        refuse("file" if exc.key == "file" else ("run", "episode"), str(exc))
     except DiskError as exc:  # a full or read-only folder: the .rrd is written whole or not at all
-        raise ConfigError(f"config key 'out': {exc}") from None
+        refuse("out", str(exc))
     return Path(rrd)
-
-
-# ---------------------------------------------------------------- the web viewer
-@dataclass(frozen=True)
-class WebAddress:
-    """Where the web viewer listens (``bind``) and the address a browser opens (``host``)."""
-
-    bind: str
-    host: str
-    web_port: int
-    grpc_port: int
-
-    @property
-    def grpc(self) -> str:
-        """The gRPC proxy that serves the recording."""
-        return f"rerun+http://{self.host}:{self.grpc_port}/proxy"
-
-    @property
-    def url(self) -> str:
-        """The page that opens the recording: the web port, told where the gRPC proxy is."""
-        return f"http://{self.host}:{self.web_port}?url={quote(self.grpc, safe='')}"
-
-
-def web_address(cfg: ReplayConfig) -> WebAddress:
-    """Check ``bind`` and both ports: a non-loopback bind needs ``allow_remote`` (and warns), a busy
-    port is a :class:`ConfigError` naming its key, port 0 becomes a free port (the two differ)."""
-    ip = bind_address(cfg.bind, cfg.allow_remote)
-    if cfg.web_port and cfg.web_port == cfg.grpc_port:
-        raise ConfigError(
-            f"config keys 'web_port'/'grpc_port': both are {cfg.web_port}; give two ports"
-        )
-    with (
-        _bound(ip, cfg.web_port, "web_port") as web,
-        _bound(ip, cfg.grpc_port, "grpc_port") as grpc,
-    ):
-        ports = web.getsockname()[1], grpc.getsockname()[1]
-    host = "127.0.0.1" if ip.is_unspecified else f"[{ip}]" if ip.version == 6 else str(ip)
-    return WebAddress(str(ip), host, *ports)
-
-
-def bind_address(bind: str, allow_remote: bool) -> ipaddress.IPv4Address | ipaddress.IPv6Address:
-    """``bind`` as an IP address; one off the loopback only with ``allow_remote`` (and a warning)."""
-    try:
-        ip = ipaddress.ip_address("127.0.0.1" if bind == "localhost" else bind)
-    except ValueError:
-        raise ConfigError(
-            f"config key 'bind': not an IP address: {bind!r} (127.0.0.1 keeps it local)"
-        ) from None
-    if ip.is_loopback:
-        return ip
-    if not allow_remote:
-        raise ConfigError(
-            f"config key 'bind': {bind} is reachable from other machines; keep 127.0.0.1, "
-            "or add allow_remote=true to serve the recording to the network"
-        )
-    print(
-        f"warning: bind={bind}: the viewer and the recording are served to every machine that can reach "
-        "this one, without authentication (allow_remote=true)",
-        file=sys.stderr,
-        flush=True,
-    )
-    return ip
-
-
-@contextmanager
-def _bound(ip, port: int, key: str) -> Iterator[socket.socket]:
-    """A socket bound to ``(ip, port)`` (with the server's own ``SO_REUSEADDR``): the port is free;
-    port 0 picks one."""
-    with socket.socket(
-        socket.AF_INET6 if ip.version == 6 else socket.AF_INET, socket.SOCK_STREAM
-    ) as sock:
-        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        try:
-            sock.bind((str(ip), port))
-        except OSError as exc:
-            hint = f" (another viewer? {key}=0 picks a free port)" if port else ""
-            raise ConfigError(
-                f"config key '{key}': cannot listen on {ip} port {port}: {exc.strerror}{hint}"
-            ) from None
-        yield sock
-
-
-def server_command(web: WebAddress) -> list[str]:
-    """The Rerun web server at ``web``, started empty (it is sent the recording)."""
-    return rerun_command() + [
-        "--serve-web",
-        "--bind",
-        web.bind,
-        "--web-viewer-port",
-        str(web.web_port),
-        "--port",
-        str(web.grpc_port),
-    ]
-
-
-def serve_web(rrd: str | Path, web: WebAddress) -> None:
-    """Serve ``rrd`` at ``web`` until Ctrl-C, SIGTERM (through the stage's handler) or the server's
-    end; the server never outlives this call. It starts empty and gets the recording over gRPC
-    (:func:`send_recording`), so it sleeps while no viewer asks for anything."""
-    cmd = server_command(web)
-    env = {
-        "RUST_LOG": "warn",
-        **os.environ,
-    }  # Rerun's own log repeats the address without the recording
-    # preexec_fn: this stage starts no threads, so the fork-unsafety it warns of does not apply
-    proc = subprocess.Popen(cmd, env=env, start_new_session=True, preexec_fn=_die_with_parent)  # noqa: PLW1509
-    try:
-        _wait_listening(proc, web)
-        send_recording(rrd, web.grpc)
-        print(f"serving {rrd} at {web.url}  (Ctrl-C to stop)", flush=True)
-        if proc.wait():
-            raise SystemExit(f"error: the Rerun viewer exited with status {proc.returncode}")
-    except KeyboardInterrupt:
-        print(f"viewer stopped; the recording stays at {rrd}", file=sys.stderr, flush=True)
-    except Interrupted as exc:  # SIGTERM (the stage's handler): the same words, exit 143
-        raise Interrupted(exc.code, f"viewer stopped; the recording stays at {rrd}") from None
-    finally:
-        _stop(proc)
-
-
-def send_recording(rrd: str | Path, grpc: str) -> None:
-    """Send the recording and blueprint of ``rrd`` to the Rerun server at ``grpc``, which keeps them
-    for every viewer that connects, under the file's own application and recording ids (a server
-    handed the file instead, ``rerun --serve-web file.rrd``, spins a core in rerun 0.41 for as long
-    as it runs, once the file is read: docs/replay.md)."""
-    import rerun as rr
-    import rerun.chunk
-
-    store = rerun.chunk.RrdReader(rrd).recordings()[0]
-    rec = rr.RecordingStream(
-        store.application_id, recording_id=store.recording_id, send_properties=False
-    )
-    rec.connect_grpc(grpc)
-    rec.log_file_from_path(rrd)
-    rec.flush()  # waits for the file's importer and the network
-    rec.disconnect()
-
-
-def _wait_listening(proc: subprocess.Popen, web: WebAddress) -> None:
-    """Return once both ports accept connections; a server that ends first is a port problem."""
-    deadline = time.monotonic() + START_TIMEOUT
-    while not all(_accepts(web.host.strip("[]"), port) for port in (web.grpc_port, web.web_port)):
-        if proc.poll() is not None:
-            raise ConfigError(
-                f"config keys 'web_port'/'grpc_port': the Rerun viewer ended at start "
-                f"(status {proc.returncode}; its log is above)"
-            )
-        if time.monotonic() > deadline:
-            raise SystemExit(
-                f"error: the Rerun viewer did not listen on {web.host} in {START_TIMEOUT:.0f} s"
-            )
-        time.sleep(0.1)
-
-
-def _accepts(host: str, port: int) -> bool:
-    try:
-        socket.create_connection((host, port), timeout=0.5).close()
-    except OSError:
-        return False
-    return True
-
-
-def _stop(proc: subprocess.Popen) -> None:
-    """End the server's process group: SIGTERM, then SIGKILL after :data:`STOP_TIMEOUT`."""
-    for sig in (signal.SIGTERM, signal.SIGKILL):
-        if proc.poll() is not None:
-            break
-        try:
-            os.killpg(proc.pid, sig)
-            proc.wait(STOP_TIMEOUT)
-        except (ProcessLookupError, subprocess.TimeoutExpired):
-            pass
-
-
-def _die_with_parent() -> None:
-    """In the child (Linux): SIGTERM when the command dies, even by SIGKILL (``prctl(PR_SET_PDEATHSIG)``)."""
-    if sys.platform.startswith("linux"):
-        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGTERM)
-
-
-def rerun_command() -> list[str]:
-    """The Rerun CLI binary of the rerun-sdk wheel (not its Python wrapper, so one process to stop)."""
-    spec = importlib.util.find_spec("rerun_cli")
-    exe = Path(spec.origin).with_name("rerun") if spec and spec.origin else None
-    return [str(exe)] if exe and exe.exists() else [sys.executable, "-m", "rerun_cli"]
-
-
-def check_display(viewer: str) -> None:
-    """``viewer=native`` on Linux without a display (neither ``DISPLAY`` nor ``WAYLAND_DISPLAY``):
-    a :class:`ConfigError` naming the key and the alternatives (the viewer would fail to open a
-    window after the replay's work, while the command exits 0)."""
-    if viewer != "native" or not sys.platform.startswith("linux"):
-        return
-    if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
-        raise ConfigError(
-            "config key 'viewer': viewer=native needs a display and there is none (DISPLAY and "
-            "WAYLAND_DISPLAY are unset); use viewer=web to serve the replay to a browser, or "
-            "viewer=none to save the .rrd only (then open it with rerun <file>.rrd where there is a "
-            "display)"
-        )
-
-
-def open_viewer(rrd: str | Path, viewer: str) -> subprocess.Popen | None:
-    """``"native"``: spawn the desktop viewer (needs a display); ``"none"``: nothing (``"web"``: see
-    :func:`serve_web`)."""
-    if viewer == "native":
-        return subprocess.Popen(rerun_command() + [str(rrd)])
-    if viewer != "none":
-        raise ValueError(f"viewer must be 'none' or 'native' here, got {viewer!r}")
-    return None
 
 
 def main() -> None:

@@ -10,10 +10,10 @@ from pathlib import Path
 import yaml
 
 from pipeline.config.compose import CONF_DIR
-from pipeline.config.schemas import ReportConfig
-from pipeline.errors import ConfigError
+from pipeline.config.fields import refuse
 from pipeline.report.build import Inputs, build_report
 from pipeline.report.scale import MixedScalesError
+from pipeline.schemas.report import ReportConfig
 from pipeline.stages import stage_main
 
 
@@ -28,7 +28,7 @@ def profile_trials() -> dict[str, dict]:
 
 def run(cfg: ReportConfig, overrides: list[str] = ()) -> Path:
     if Path(cfg.out).resolve() == Path.cwd().resolve():
-        raise ConfigError("config key 'out': must not be the working folder (it is rebuilt)")
+        refuse("out", "must not be the working folder (it is rebuilt)")
     inputs = Inputs(
         Path(cfg.runs_dir),
         Path(cfg.accuracy_dir),
@@ -45,13 +45,11 @@ def run(cfg: ReportConfig, overrides: list[str] = ()) -> Path:
     try:
         index = build_report(inputs)
     except MixedScalesError as exc:
-        raise ConfigError(f"config key 'runs_dir': {exc}") from None
+        refuse("runs_dir", str(exc))
     except FileNotFoundError as exc:
-        raise ConfigError(f"config key 'runs_dir': {exc}") from None
+        refuse("runs_dir", str(exc))
     except OSError as exc:
-        raise ConfigError(
-            f"config key 'out': cannot write the report into {cfg.out} ({exc.strerror})"
-        ) from None
+        refuse("out", f"cannot write the report into {cfg.out} ({exc.strerror})")
     return index
 
 

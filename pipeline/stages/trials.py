@@ -40,8 +40,8 @@ from pipeline.cells.plan import (
 from pipeline.cells.progress import compact, follow, prepare_kernel
 from pipeline.cells.run import CellRun, make_recogniser, pictures_dir, recorded_pictures
 from pipeline.cells.workers import cell_results, worker_pool
-from pipeline.config.trials import TrialsConfig
-from pipeline.errors import ConfigError, Interrupted, UserError
+from pipeline.config.fields import refusal, refuse
+from pipeline.errors import Interrupted, UserError
 from pipeline.files import (
     OWNER_FILE,
     DiskError,
@@ -58,6 +58,7 @@ from pipeline.files import (
     write_json_atomic,
 )
 from pipeline.rl.memory import available_memory, memory_estimate
+from pipeline.schemas.trials import TrialsConfig
 from pipeline.stages import stage_main
 from pipeline.threads import trials_budget
 from pipeline.world.maze import load_layout
@@ -85,7 +86,7 @@ def resolve_cells(cfg: TrialsConfig, overrides: list[str]) -> list[CellRun]:
             layout = load_layout(cell.maze)
         except UserError as exc:
             where = generated_key(cfg.experiment, name) if name else None
-            raise ConfigError(f"config key '{where or prefix + 'maze'}': {exc}") from None
+            refuse(where or prefix + "maze", str(exc))
         pins = name and (declared[name].recogniser or declared[name].recogniser_group)
         key = f"{prefix}recogniser" if pins else "recogniser"
         recogniser = make_recogniser(cell, key, built) if in_process else None
@@ -100,9 +101,9 @@ def refuse_what_does_not_fit(cfg: TrialsConfig, cells: list[CellRun]) -> None:
     """More numba threads than the machine has, or cells whose runner arrays would take more than
     80% of the available memory (:mod:`pipeline.rl.memory`), are refused before any trial runs."""
     if cfg.threads > numba.config.NUMBA_NUM_THREADS:
-        raise ConfigError(
-            f"config key 'threads': at most {numba.config.NUMBA_NUM_THREADS} on this machine; "
-            f"got {cfg.threads}"
+        refuse(
+            "threads",
+            f"at most {numba.config.NUMBA_NUM_THREADS} on this machine; got {cfg.threads}",
         )
     need = max(
         memory_estimate(
@@ -112,9 +113,10 @@ def refuse_what_does_not_fit(cfg: TrialsConfig, cells: list[CellRun]) -> None:
     )
     have = available_memory()
     if need > 0.8 * have:
-        raise ConfigError(
-            f"config keys 'runs'/'episodes': {cfg.runs} runs x {cfg.episodes} episodes need about "
-            f"{need / 2**30:,.1f} GiB; this machine has {have / 2**30:,.1f} GiB available"
+        refuse(
+            ("runs", "episodes"),
+            f"{cfg.runs} runs x {cfg.episodes} episodes need about "
+            f"{need / 2**30:,.1f} GiB; this machine has {have / 2**30:,.1f} GiB available",
         )
 
 
@@ -125,9 +127,10 @@ def refuse_overwrite(cfg: TrialsConfig, out: Path) -> None:
     if not held or cfg.overwrite:
         return
     shown = ", ".join(held[:3]) + (", ..." if len(held) > 3 else "")
-    raise ConfigError(
-        f"config key 'out': {out} already holds results ({shown}); give overwrite=true to "
-        "replace them, or choose another out"
+    refuse(
+        "out",
+        f"{out} already holds results ({shown}); give overwrite=true to "
+        "replace them, or choose another out",
     )
 
 
@@ -169,15 +172,13 @@ def failed_run(exc: BaseException, out: Path, staging: Path, cells: int = 1) -> 
     held = "".join(
         f"; {p} (an interrupted run's partial records) holds {size_text(n)}" for p, n in stale
     )
-    return ConfigError(f"config key 'out': {exc}{held}")
+    return refusal("out", f"{exc}{held}")
 
 
 def run(cfg: TrialsConfig, overrides: list[str]) -> dict:
     for key in ("metrics_dir", "index_file"):
         if cfg.experiment is None and getattr(cfg, key):
-            raise ConfigError(
-                f"config key '{key}': only an experiment (+experiment=...) writes one"
-            )
+            refuse(key, "only an experiment (+experiment=...) writes one")
     cells = resolve_cells(cfg, overrides)
     refuse_what_does_not_fit(cfg, cells)
     workers = min(cfg.workers, len(cells))

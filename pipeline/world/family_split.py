@@ -29,7 +29,7 @@ from __future__ import annotations
 from collections.abc import Iterator
 from itertools import permutations
 
-from pipeline.errors import ConfigError
+from pipeline.config.fields import refuse
 from pipeline.world.metaset import MAX_TIERS, Family, family_stream
 
 #: The default least distance between a held-out (validation or test) family and every training family.
@@ -95,10 +95,11 @@ def split_families(
         raise ValueError(f"min_distance must be >= 0, got {min_distance}")
     n_held = n_val + n_test
     if n_held and n_train and not min_distance <= MAX_DISTANCE:
-        raise ConfigError(
-            f"config key 'min_family_distance': no two families are further apart than "
+        refuse(
+            "min_family_distance",
+            f"no two families are further apart than "
             f"{MAX_DISTANCE:g} ({MAX_TIERS} tiers, legs, arms, handle); got {min_distance}: "
-            "lower min_family_distance"
+            "lower min_family_distance",
         )
     stream: Iterator[Family] = family_stream(seed)
     train = [next(stream) for _ in range(n_train)]
@@ -108,11 +109,12 @@ def split_families(
         tries += 1
         misses += 1
         if tries > limit or misses > MAX_MISSES:
-            raise ConfigError(
-                f"config key 'min_family_distance': only {len(held)} of {n_held} held-out "
+            refuse(
+                "min_family_distance",
+                f"only {len(held)} of {n_held} held-out "
                 f"families are at distance >= {min_distance} from the {n_train} training families "
                 f"(none in the last {misses - 1} of {tries - 1} draws); lower "
-                "min_family_distance or the number of classes"
+                "min_family_distance or the number of classes",
             )
         fam = next(stream)
         if far_from_all(fam, train, min_distance):

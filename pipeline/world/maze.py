@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from pipeline.configs import conf_dir
+from pipeline.config.folder import conf_dir
 from pipeline.world import generate
 from pipeline.world.layout import (
     ACTION_NAMES,

@@ -1,8 +1,8 @@
 """Hostile config overrides derived from the schema declarations (docs/reliability.md "Configs").
 
-For every stage (``pipeline.config.schemas.schemas()``) and every key of its schema, nested ones
+For every stage (``pipeline.config.registry.schemas()``) and every key of its schema, nested ones
 included (``train.lr``, ``robot.cell``, ``experiment.layouts.sizes.0.count``...), the cases come
-from the key's declaration (its annotation and its :func:`pipeline.schema.setting` metadata), so a
+from the key's declaration (its annotation and its :func:`pipeline.config.fields.setting` metadata), so a
 key added to a schema gets its cases without an edit here:
 
 - a value of the wrong type: a word for a number, a word that is no truth value for a bool, a list
@@ -74,8 +74,8 @@ from pipeline.config.compose import (
     refuse_merged_away,
     typed,
 )
-from pipeline.config.schemas import schemas
-from pipeline.configs import conf_dir
+from pipeline.config.folder import conf_dir
+from pipeline.config.registry import schemas
 from pipeline.errors import ConfigError, UserError
 
 SCHEMAS = schemas()
@@ -358,8 +358,8 @@ def test_every_declaration_is_reached():
     assert not missing, f"no stage or experiment reaches {missing}; add a base that does"
 
 
-#: The metadata :func:`pipeline.schema.setting` declares, each of which :func:`hostile` derives
-#: cases from.
+#: The metadata :func:`pipeline.config.fields.setting` declares, each of which :func:`hostile` derives
+#: cases from (``doc``, the words :func:`~pipeline.config.fields.same_key` carries over, is none).
 DERIVED_FROM = {"ge", "gt", "le", "lt", "choices", "nonempty", "path"}
 
 
@@ -367,7 +367,8 @@ def test_the_derivation_covers_every_constraint():
     """Each bound, choice, nonempty and path of the declarations gives a case, and a kind of
     constraint the derivation does not know fails here (the derivation itself)."""
     for key in keys():
-        assert set(key.meta) <= DERIVED_FROM, f"{key.path}: derive cases for {set(key.meta)}"
+        kinds = set(key.meta) - {"doc"}
+        assert kinds <= DERIVED_FROM, f"{key.path}: derive cases for {kinds}"
         what = {w for w, _ in hostile(key)}
         assert bool(key.meta.get("path")) == ("a name too long" in what), key.path
         for bound in ("ge", "gt", "le", "lt"):

@@ -70,12 +70,12 @@ def test_the_closure_follows_imports_inside_functions_targets_and_parent_package
 
 
 def test_a_stage_depends_on_its_own_schema_and_not_on_the_others():
-    """Each stage imports only its own config's schema (``pipeline.config.schemas.SCHEMA_OF``):
+    """Each stage imports only its own config's schema (``pipeline.config.registry.SCHEMA_OF``):
     editing the trials' code does not make meta-training (70 minutes) look stale."""
     meta_train = STAGES["meta_train"].code()
-    assert "pipeline/config/fewshot.py" in meta_train
+    assert "pipeline/schemas/fewshot.py" in meta_train
     assert not [d for d in meta_train if d.startswith(("pipeline/rl", "pipeline/world"))]
-    assert "pipeline/config/trials.py" not in STAGES["render"].code()
+    assert "pipeline/schemas/trials.py" not in STAGES["render"].code()
 
 
 def test_params_are_the_composed_files_without_the_output_neutral_keys():

@@ -18,11 +18,11 @@ from entry import ROOT
 import pipeline  # noqa: F401  (registers the SafeNav ids)
 import pipeline.stages.render as render
 from pipeline.config.compose import load_config
-from pipeline.config.schemas import schemas
+from pipeline.config.fields import path_problem
+from pipeline.config.registry import schemas
 from pipeline.errors import ConfigError
 from pipeline.fewshot.data import DataError, read_manifest
 from pipeline.rl.oracle import OracleRecogniser
-from pipeline.schema import path_problem
 from pipeline.world.family_split import MAX_DISTANCE, split_families
 from pipeline.world.render_plan import PlanConfig, make_plan, plan_size
 

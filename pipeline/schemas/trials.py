@@ -1,7 +1,7 @@
 """The trials stage's schema: :class:`TrialsConfig` (``conf/trials.yaml``), typing its
 ``method`` group by :class:`~pipeline.rl.methods.MethodSpec`, ``experiment`` by
-:class:`~pipeline.config.experiment.Experiment` and ``profile`` by
-:class:`~pipeline.config.profile.Profile` (the conventions: ``pipeline/config/schemas.py``).
+:class:`~pipeline.schemas.experiment.Experiment` and ``profile`` by
+:class:`~pipeline.schemas.profile.Profile` (the conventions: ``pipeline/schemas/__init__.py``).
 """
 
 from __future__ import annotations
@@ -9,9 +9,11 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
-from omegaconf import II, MISSING
+from omegaconf import MISSING
 
-from pipeline.config.experiment import (
+from pipeline.config.fields import setting
+from pipeline.rl.methods import MethodSpec
+from pipeline.schemas.experiment import (
     RULES,
     SUBSTITUTION_WAYS,
     SUPPORT_MODES,
@@ -19,9 +21,7 @@ from pipeline.config.experiment import (
     Experiment,
     RobotConfig,
 )
-from pipeline.config.profile import Profile
-from pipeline.rl.methods import MethodSpec
-from pipeline.schema import setting
+from pipeline.schemas.profile import Profile, profile_key
 
 RECORD_LEVELS = ("steps", "episodes", "none")
 
@@ -83,10 +83,8 @@ class TrialsConfig:
     """``restore`` the support set before each run, or ``carry`` it over (long-term autonomy)."""
     images_dir: str | None = setting(None, path=True)
     """Rendered pictures (the render stage's folder) whose query pictures and initial support set the records keep, for recognisers without pictures of their own (oracle, fixed_accuracy); relation_net records those of its ``recogniser.images_dir``."""
-    runs: int = setting(II("profile.trials.runs"), ge=1)
-    """Independent runs (each with its own obstacle assignment and seed)."""
-    episodes: int = setting(II("profile.trials.episodes"), ge=1)
-    """Episodes per run."""
+    runs: int = profile_key("trials", "runs")
+    episodes: int = profile_key("trials", "episodes")
     seed: int = setting(ge=0)
     """Seeds every run: run ``r`` draws its placement, exploration and recogniser from ``(seed, r)``."""
     out: str = setting(nonempty=True, path=True)

@@ -4,9 +4,12 @@ of every stage (``paper``, ``smoke``), which the stages' schemas read through ``
 
 from __future__ import annotations
 
+import typing
 from dataclasses import dataclass, field
 
-from pipeline.schema import setting
+from omegaconf import II
+
+from pipeline.config.fields import same_key, setting
 
 
 @dataclass
@@ -22,9 +25,10 @@ class RenderProfile:
     per_class: int = setting(ge=1)
     """Pictures per meta-training class."""
     views_per_obstacle: int = setting(ge=0)
-    """Pictures per query obstacle in the colour test's larger query-like set (split ``views``)."""
+    """Pictures per query obstacle in the colour test's larger query-like set (split ``views``; 0:
+    none)."""
     workers: int = setting(ge=1)
-    """Render processes."""
+    """Render processes (one renderer each); 1: in this process."""
 
 
 @dataclass
@@ -32,7 +36,7 @@ class TrialsProfile:
     """The trials' scale (the keys ``runs`` and ``episodes`` and the generated layouts read these)."""
 
     runs: int = setting(ge=1)
-    """Independent runs per cell."""
+    """Independent runs per cell (each with its own obstacle assignment and seed)."""
     episodes: int = setting(ge=1)
     """Episodes per run."""
     layouts: int = setting(ge=1)
@@ -52,7 +56,7 @@ class MetaTrainProfile:
     episodes: int = setting(ge=1)
     """Training episodes of the Relation Network."""
     protonet_episodes: int = setting(ge=1)
-    """Training episodes of the Prototypical Network (``model=protonet``): it levels off sooner."""
+    """Training episodes of the Prototypical Network (``model=protonet``)."""
     val_every: int = setting(ge=1)
     """Training episodes between model-selection evaluations."""
     val_episodes: int = setting(ge=1)
@@ -83,3 +87,9 @@ class Profile:
     """Meta-training's scale."""
     accuracy: AccuracyProfile = field(default_factory=AccuracyProfile)
     """The accuracy study's scale."""
+
+
+def profile_key(section: str, name: str):
+    """A stage key whose default is the profile's ``<section>.<name>`` (``runs`` of the trials reads
+    ``profile.trials.runs``): the profile's key declares its range and words."""
+    return same_key(typing.get_type_hints(Profile)[section], name, II(f"profile.{section}.{name}"))

@@ -1,14 +1,16 @@
 """The config schema's mechanism: a key's type, range, choices and description, each declared once,
 on its dataclass field.
 
-Every config is a dataclass: a stage's (``pipeline/config/schemas.py``) or a config group's, beside
+Every config is a dataclass: a stage's (``pipeline/schemas/``) or a config group's, beside
 the science it configures (``MethodSpec``, ``TrainConfig``, ``StudyConfig``, ``ReportSpec``). A field
 declares its key: the annotation is the type, :func:`setting` adds a range (``ge``/``gt``/``le``/``lt``),
 ``choices``, ``nonempty`` or ``path`` (a file or folder: a name the file system can hold) as metadata, and the string literal under the field (an attribute
 docstring, read by :func:`field_docs`) is its description. From these alone, Hydra's structured
 configs refuse wrong types and unknown keys, :func:`check` refuses values out of range and
 :func:`constraint` and :func:`field_docs` give ``python -m pipeline <stage> --help`` its text.
-This module sits below the science packages, so they declare their fields with it.
+What the fields cannot say (a folder that must exist, two keys that exclude each other) a stage or
+a science module refuses with :func:`refuse`, so every refusal is raised here, in one form naming
+the key. This module sits below the science packages, so they declare their fields with it.
 """
 
 from __future__ import annotations
@@ -22,12 +24,42 @@ import os
 import textwrap
 import types
 import typing
-from collections.abc import Iterable, Mapping
-from typing import Any
+from collections.abc import Iterable, Mapping, Sequence
+from typing import Any, NoReturn
 
 from omegaconf import MISSING
 
 from pipeline.errors import ConfigError
+
+
+def same_key(cls: type, name: str, default: Any = MISSING):
+    """A field that is the key ``name`` of ``cls`` under another name or with another ``default``
+    (a stage key whose default is a profile key): its range, choices and words (:func:`field_docs`)
+    are that key's, declared once."""
+    (source,) = [f for f in dataclasses.fields(cls) if f.name == name]
+    words = {"doc": field_docs(cls).get(name, "")}
+    return dataclasses.field(default=default, metadata={**source.metadata, **words})
+
+
+def refusal(key: str | Sequence[str], problem: str) -> ConfigError:
+    """The refusal of a config value: ``config key '<key>': <problem>``, or ``config keys
+    'a'/'b': <problem>`` for a problem of several keys together. Every refusal of the package
+    takes this form, whether the schema, a stage or a science module finds the problem."""
+    if isinstance(key, str):
+        return ConfigError(f"config key '{key}': {problem}")
+    return ConfigError(f"config keys {'/'.join(f'{k!r}' for k in key)}: {problem}")
+
+
+def refuse(key: str | Sequence[str], problem: str) -> NoReturn:
+    """Raise :func:`refusal`; called while handling another error, it hides that error, whose
+    point the problem states."""
+    raise refusal(key, problem) from None
+
+
+def refuse_argument(name: str, value: Any, problem: str) -> NoReturn:
+    """Refuse a keyword argument that no config file names (``gymnasium.make(id, name=value)``):
+    :class:`ConfigError` ``<name>=<value>: <problem>``."""
+    raise ConfigError(f"{name}={value!r}: {problem}")
 
 
 def setting(
@@ -121,19 +153,17 @@ def check(obj: Any, prefix: str = "") -> None:
             k for k in vars(obj) if k not in known
         )  # added with '+key=' past Hydra's struct mode
         if extra:
-            raise ConfigError(
-                f"config key '{prefix}{extra[0]}': unknown key; known: {', '.join(sorted(known))}"
-            )
+            refuse(f"{prefix}{extra[0]}", f"unknown key; known: {', '.join(sorted(known))}")
         hints = _hints(type(obj))
         for f in dataclasses.fields(obj):
             value = getattr(obj, f.name)
             key = f"{prefix}{f.name}"
             wrong = problem(value, f.metadata) or element_problem(value, hints.get(f.name))
             if wrong:
-                raise ConfigError(f"config key '{key}': {wrong}")
+                refuse(key, wrong)
             check(value, key + ".")
     elif isinstance(obj, float) and not math.isfinite(obj):
-        raise ConfigError(f"config key '{prefix.rstrip('.')}': must be a finite number; got {obj}")
+        refuse(prefix.rstrip("."), f"must be a finite number; got {obj}")
     elif isinstance(obj, dict):
         for k, v in obj.items():
             check(v, f"{prefix}{k}.")
@@ -183,8 +213,10 @@ def constraint(f: dataclasses.Field) -> str:
 @functools.cache
 def field_docs(cls: type) -> dict[str, str]:
     """Field name -> its description: the string literal right under the field in ``cls``'s source
-    (and its bases'), whitespace folded into one line."""
-    docs: dict[str, str] = {}
+    (and its bases'), whitespace folded into one line; a field made by :func:`same_key`, the words
+    of the key it is."""
+    fields = dataclasses.fields(cls) if dataclasses.is_dataclass(cls) else ()
+    docs = {f.name: f.metadata["doc"] for f in fields if "doc" in f.metadata}
     for klass in reversed(cls.__mro__[:-1]):
         try:
             source = textwrap.dedent(inspect.getsource(klass))

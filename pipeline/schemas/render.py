@@ -1,16 +1,16 @@
-"""The typed schema of the render stage's config (``conf/render.yaml``): the maze
-camera of the query pictures, the catalogue camera of the support set, the rendering quality and
-the meta-training set's scale. Registered with the other stages' schemas (:mod:`.schemas`).
+"""The typed schema of the render stage's config (``conf/render.yaml``): the maze camera of the
+query pictures, the catalogue camera of the support set, the rendering quality and the
+meta-training set's scale (registered: :mod:`pipeline.config.registry`).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from omegaconf import II, MISSING
+from omegaconf import MISSING
 
-from pipeline.config.profile import Profile
-from pipeline.schema import setting
+from pipeline.config.fields import setting
+from pipeline.schemas.profile import Profile, profile_key
 from pipeline.world.family_split import MAX_DISTANCE
 
 
@@ -74,23 +74,17 @@ class RenderConfig:
     """Picture side in pixels (the paper's 84x84)."""
     seed: int = setting(ge=0)
     """Seeds every scene (classes, instances, views)."""
-    workers: int = setting(II("profile.render.workers"), ge=1)
-    """Render processes (one renderer each); 1: in this process."""
+    workers: int = profile_key("render", "workers")
     categories: list[str] = MISSING
     """The query and support categories, in order."""
-    n_train_classes: int = setting(II("profile.render.n_train_classes"), ge=0)
-    """Meta-training classes."""
-    n_val_classes: int = setting(II("profile.render.n_val_classes"), ge=0)
-    """Held-out validation classes that pick the checkpoint."""
-    n_test_classes: int = setting(II("profile.render.n_test_classes"), ge=0)
-    """Held-out test classes that give the quoted accuracy."""
+    n_train_classes: int = profile_key("render", "n_train_classes")
+    n_val_classes: int = profile_key("render", "n_val_classes")
+    n_test_classes: int = profile_key("render", "n_test_classes")
     min_family_distance: float = setting(ge=0, le=MAX_DISTANCE)
     """Least structural distance of every validation and test family from every training family
     (``pipeline/world/family_split.py``; no two families are further apart than 7)."""
-    per_class: int = setting(II("profile.render.per_class"), ge=1)
-    """Pictures per meta-training class."""
-    views_per_obstacle: int = setting(II("profile.render.views_per_obstacle"), ge=0)
-    """Pictures per query obstacle in the colour test's larger set (split ``views``; 0: none)."""
+    per_class: int = profile_key("render", "per_class")
+    views_per_obstacle: int = profile_key("render", "views_per_obstacle")
     views_distance: list[float] = MISSING
     """The range of camera distances of those pictures, metres [low, high]."""
     views_per_instance: int = setting(ge=1)

@@ -1,9 +1,9 @@
 """The typed schema of the ``experiment`` config group (``conf/experiment/<name>.yaml``): its cells,
 the cells it generates over sets of layouts, and how the report presents it.
 
-The trials stage's schema (:class:`pipeline.config.trials.TrialsConfig`) types its ``experiment``
+The trials stage's schema (:class:`pipeline.schemas.trials.TrialsConfig`) types its ``experiment``
 key by :class:`Experiment`; ranges, choices and descriptions are declared on the fields as
-everywhere (:mod:`pipeline.schema`).
+everywhere (:mod:`pipeline.config.fields`).
 """
 
 from __future__ import annotations
@@ -11,10 +11,9 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
-from pipeline.errors import ConfigError
+from pipeline.config.fields import refuse, setting
 from pipeline.report.spec import ReportSpec
 from pipeline.robot.limits import CELL_RANGE, DEFAULT_CELL, DEFAULT_TIMESTEP, TIMESTEP_RANGE
-from pipeline.schema import setting
 
 SUPPORT_MODES = ("restore", "carry")
 #: Where the methods run: the grid world, or the camera robot in MuJoCo (``pipeline/robot``).
@@ -106,11 +105,12 @@ def refuse_too_many(layouts: Layouts) -> None:
     if n <= MAX_LAYOUT_CELLS:
         return
     i = max(range(len(layouts.sizes)), key=lambda k: layouts.sizes[k].count)
-    raise ConfigError(
-        f"config key 'experiment.layouts.sizes.{i}.count': {layouts.sizes[i].count:,} layouts give "
+    refuse(
+        f"experiment.layouts.sizes.{i}.count",
+        f"{layouts.sizes[i].count:,} layouts give "
         f"{n:,} cells in all ({len(layouts.sizes)} sets x {len(layouts.cells)} templates), at most "
         f"{MAX_LAYOUT_CELLS:,}: planning them alone would take about {n * PLAN_BYTES / 1e9:,.1f} GB "
-        f"and {n * PLAN_SECONDS / 60:,.0f} min"
+        f"and {n * PLAN_SECONDS / 60:,.0f} min",
     )
 
 
@@ -137,31 +137,32 @@ class Experiment:
             return dict(self.cells)
         for name, template in self.layouts.cells.items():
             if template.maze is not None:
-                raise ConfigError(
-                    f"config key 'experiment.layouts.cells.{name}.maze': the layout sets give "
-                    "each generated cell its maze; leave maze out of the template"
+                refuse(
+                    f"experiment.layouts.cells.{name}.maze",
+                    "the layout sets give "
+                    "each generated cell its maze; leave maze out of the template",
                 )
         if not self.layouts.cells:
-            raise ConfigError(
-                "config key 'experiment.layouts.cells': no templates; name at least one "
-                "(e.g. {ssrl: {method: ssrl}})"
+            refuse(
+                "experiment.layouts.cells",
+                "no templates; name at least one (e.g. {ssrl: {method: ssrl}})",
             )
         if not self.layouts.sizes:
-            raise ConfigError(
-                "config key 'experiment.layouts.sizes': no layout sets; give at least one "
-                "(e.g. {size: 5x5, obstacles: 9, count: 100})"
+            refuse(
+                "experiment.layouts.sizes",
+                "no layout sets; give at least one (e.g. {size: 5x5, obstacles: 9, count: 100})",
             )
         refuse_too_many(self.layouts)
         try:
             generated = expand([asdict(s) for s in self.layouts.sizes], list(self.layouts.cells))
         except LayoutSetError as exc:
-            raise ConfigError(f"config key 'experiment.layouts.sizes.{exc.key}': {exc}") from None
+            refuse(f"experiment.layouts.sizes.{exc.key}", str(exc))
         out = dict(self.cells)
         for name, g in generated.items():
             if name in out:
-                raise ConfigError(
-                    f"config key 'experiment.cells.{name}': the layout sets generate a cell of "
-                    "that name; rename it"
+                refuse(
+                    f"experiment.cells.{name}",
+                    "the layout sets generate a cell of that name; rename it",
                 )
             out[name] = replace(self.layouts.cells[g.template], maze=g.maze)
         return out

@@ -1,6 +1,6 @@
 """The schemas of the few-shot stages: :class:`MetaTrainConfig` (``conf/meta_train.yaml``,
 its ``data`` group typed by :class:`DataConfig`) and :class:`AccuracyConfig`
-(``conf/accuracy.yaml``); the conventions: ``pipeline/config/schemas.py``.
+(``conf/accuracy.yaml``); the conventions: ``pipeline/schemas/__init__.py``.
 """
 
 from __future__ import annotations
@@ -10,9 +10,9 @@ from typing import Any
 
 from omegaconf import MISSING
 
-from pipeline.config.profile import Profile
+from pipeline.config.fields import setting
 from pipeline.fewshot.settings import StudyConfig, TrainConfig
-from pipeline.schema import setting
+from pipeline.schemas.profile import Profile
 
 DATA_SOURCES = ("rendered", "folder")
 
