@@ -114,9 +114,11 @@ def write_atomic(path: str | Path, data: bytes | str, *, fsync: bool = True) -> 
     return Path(path)
 
 
-def write_json_atomic(path: str | Path, data: Any, *, sort_keys: bool = False) -> Path:
-    """JSON (indent 2, final newline) written atomically."""
-    return write_atomic(path, json.dumps(data, indent=2, sort_keys=sort_keys) + "\n")
+def write_json_atomic(
+    path: str | Path, data: Any, *, sort_keys: bool = False, fsync: bool = True
+) -> Path:
+    """JSON (indent 2, final newline) written atomically (``fsync``: as :func:`atomic_output`)."""
+    return write_atomic(path, json.dumps(data, indent=2, sort_keys=sort_keys) + "\n", fsync=fsync)
 
 
 # ------------------------------------------------------------------ owners: locks, work folders
@@ -310,7 +312,12 @@ def remove_abandoned(parent: str | Path, prefix: str) -> list[Path]:
 
 def swap_in(staging: Path, target: Path) -> None:
     """Move every entry of ``staging`` into ``target``, replacing entries of the same name, then
-    remove ``staging``. A folder being replaced is moved aside first and deleted last."""
+    remove ``staging``. A folder being replaced is moved aside first and deleted last.
+
+    What ``staging`` holds is flushed to the disk first (one ``sync`` for all its files, so the
+    files written into it need not each be: ``fsync=False`` of :func:`atomic_output` and of the
+    record writer), so a crash of the machine never leaves a renamed but empty result."""
+    os.sync()
     aside = []
     for entry in sorted(staging.iterdir()):
         if entry.name.startswith(".old-") or entry.name == OWNER_FILE:

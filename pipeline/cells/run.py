@@ -254,6 +254,7 @@ def open_records(cell: CellRun, folder: Path, world=None, recogniser=None):
         support_pictures=cell.support,
         flush_every=cfg.flush_every,
         steps=cfg.record == "steps",
+        fsync=False,  # the folder is a staging folder, synced once before it is swapped in
     )
 
 
@@ -342,7 +343,7 @@ def run_cell(cell: CellRun, folder: Path, progress: bool | None = None) -> tuple
         if writer is not None:
             writer.close()
         # no wall-clock figures: same seed, same bytes
-        write_json_atomic(folder / "summary.json", summary)
+        write_json_atomic(folder / "summary.json", summary, fsync=False)  # synced with staging
     except OSError as exc:
         raise disk_problem(exc, folder, _space_needed(cell, folder, writer)) or exc from None
     return summary, CellTime(seconds, result.kernel_seconds)

@@ -115,6 +115,8 @@ class RecordWriter:
     pass with episodes not yet in a closed chunk, they are written after the last one as a
     provisional chunk that the next chunk overwrites: a killed run keeps them, and a finished file
     has the same bytes. An error on the thread is raised by the next call, naming the file.
+    ``fsync=False``: ``close`` leaves flushing the finished file to the disk to the caller (the
+    trials stage writes into a staging folder that :func:`pipeline.files.swap_in` syncs at once).
     """
 
     def __init__(
@@ -129,12 +131,14 @@ class RecordWriter:
         flush_every: int = 100,
         flush_seconds: float = 2.0,
         steps: bool = True,
+        fsync: bool = True,
     ):
         self.path = Path(path)
         if self.path.suffix != ".mcap":
             raise ValueError(f"record file name must end in .mcap, got {self.path}")
         self.partial_path = self.path.with_name(self.path.name + ".partial")
         self.records_steps, self.flush_every, self.flush_seconds = steps, flush_every, flush_seconds
+        self.fsync = fsync
         self.n_episodes = self.n_substitutions = self._since_flush = 0
         self._next_episode: dict[int, int] = {}  # run -> first episode not yet recorded
         self._subs: dict[int, list[tuple]] = {}  # run -> substitutions waiting for their batch
@@ -236,7 +240,8 @@ class RecordWriter:
                 self._mcap.finish()
                 self._file.truncate()  # a provisional chunk past the end
                 self._file.flush()
-                os.fsync(self._file.fileno())
+                if self.fsync:
+                    os.fsync(self._file.fileno())
             finally:
                 self._file.close()
             if self.complete:
