@@ -135,6 +135,22 @@ def test_same_data_gives_the_same_bytes(tmp_path):
     assert (tmp_path / "a.mcap").read_bytes() == (tmp_path / "b.mcap").read_bytes()
 
 
+def test_fsync_false_leaves_the_flush_to_the_caller_and_the_same_bytes(tmp_path, monkeypatch):
+    """The trials stage writes records into a staging folder that ``swap_in`` syncs once: its
+    writers skip the per-file ``fsync``, and the file is the same bytes either way."""
+    import os
+
+    synced = []
+    real_fsync = os.fsync
+    monkeypatch.setattr(os, "fsync", lambda fd: synced.append(fd) or real_fsync(fd))
+    write_synthetic(tmp_path / "synced.mcap", runs=2, episodes_per_run=5)
+    assert synced
+    synced.clear()
+    write_synthetic(tmp_path / "unsynced.mcap", runs=2, episodes_per_run=5, fsync=False)
+    assert synced == []
+    assert (tmp_path / "synced.mcap").read_bytes() == (tmp_path / "unsynced.mcap").read_bytes()
+
+
 def test_pictures_are_stored_once_per_file(tmp_path):
     from mcap.reader import make_reader
 

@@ -205,6 +205,19 @@ def test_a_claimed_work_folder_is_this_process_and_its_owner_file_stays_behind(t
     assert sorted(p.name for p in tmp_path.iterdir()) == ["summary.json"]
 
 
+def test_swap_in_syncs_the_staging_folder_before_it_renames_anything(tmp_path, monkeypatch):
+    """Files written into a staging folder without their own fsync (the trials stage's records
+    and summaries) are on the disk before they are renamed into place: no empty result after a
+    crash of the machine."""
+    staging = claim_folder(work_folder(tmp_path, ".staging"))
+    (staging / "summary.json").write_text("{}")
+    seen = []
+    monkeypatch.setattr(os, "sync", lambda: seen.append(sorted(p.name for p in tmp_path.iterdir())))
+    swap_in(staging, tmp_path)
+    assert seen == [[staging.name]]  # synced once, while everything was still in staging
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["summary.json"]
+
+
 def digest(folder: Path) -> dict:
     return {
         str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest()
