@@ -44,14 +44,17 @@ def _code_bytes(values, out):
 
 @nb.njit(cache=True, nogil=True)
 def _small_rewards(rewards, out):
-    """Fill ``out`` with the rewards as int8 while each is a whole number in -64..63; return
-    whether all were."""
+    """Fill ``out`` with the rewards as int8 and return whether each is a whole number in
+    -64..63 (NaN is not). No early exit and no branch: one loop the compiler vectorises (an early
+    exit cost ten times as much); ``out`` means nothing when the answer is False."""
+    fits = True
     for i in range(rewards.shape[0]):
         r = rewards[i]
-        if not (-64.0 <= r <= 63.0 and np.float64(np.int64(r)) == r):  # NaN fails too
-            return False
-        out[i] = np.int8(np.int64(r))
-    return True
+        in_range = -64.0 <= r <= 63.0  # False for NaN
+        whole = np.int64(r if in_range else 0.0)  # converting only what fits: never undefined
+        fits &= in_range & (np.float64(whole) == r)
+        out[i] = np.int8(whole)
+    return fits
 
 
 def scan_steps(
