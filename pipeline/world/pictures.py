@@ -49,5 +49,5 @@ def picture_category(pid: int) -> int:
 
 def face_seen(side: int, orientation: int) -> int:
     """Face shown on world side ``side`` (0 N, 1 E, 2 S, 3 W) by an obstacle turned ``orientation``
-    quarter turns clockwise."""
+    quarter turns clockwise; on arrays (numpy), elementwise."""
     return (side - orientation) % N_FACES

@@ -41,7 +41,7 @@ class Placement:
                 "instance": int(p % INSTANCES_PER_CATEGORY),
                 "orientation": int(r),
             }
-            for cell, p, r in zip(obstacle_cells, self.physical, self.orientation)
+            for cell, p, r in zip(obstacle_cells, self.physical.tolist(), self.orientation.tolist())
         ]
 
 
@@ -63,9 +63,6 @@ def picture_table(geometry: Geometry, placement: Placement) -> np.ndarray:
     table = np.full(geometry.obstacle.shape, -1, dtype=np.int16)
     s, a = np.nonzero(geometry.obstacle >= 0)
     o = geometry.obstacle[s, a]
-    faces = np.array(
-        [face_seen(int(d), int(r)) for d, r in zip(geometry.side[s, a], placement.orientation[o])],
-        dtype=np.int16,
-    )
+    faces = face_seen(geometry.side[s, a].astype(np.int16), placement.orientation[o])
     table[s, a] = placement.physical[o].astype(np.int16) * N_FACES + faces
     return table
