@@ -31,6 +31,7 @@ spec and the reason.
 
 from __future__ import annotations
 
+import functools
 import re
 from dataclasses import dataclass
 
@@ -205,6 +206,7 @@ def generate(spec: LayoutSpec) -> Layout:
     return parse_layout(text, source=spec.name)
 
 
+@functools.lru_cache(maxsize=4096)  # a study's methods share each layout: generated once
 def generate_layout(text: str) -> Layout:
     """The layout a ``random:...`` maze name asks for; :class:`MazeError` if it cannot be made."""
     return generate(parse_spec(text))
