@@ -221,7 +221,7 @@ def table2_figure(rep, study: Study, beside: dict[str, Study] | None = None) -> 
                 yerr=err,
                 fmt=marker + style[1:],
                 capsize=3,
-                color=recogniser_colour(who) or palette.SERIES[k % len(palette.SERIES)],
+                color=recogniser_colour(who) or palette.series(k),
                 label=f"{name} (95% CI)",
             )
         paper = study.table2.get("paper_" + column)
@@ -237,7 +237,7 @@ def table2_figure(rep, study: Study, beside: dict[str, Study] | None = None) -> 
     ax.set_xlabel("substitution number")
     ax.set_ylabel("mean accuracy (%)")
     ax.xaxis.set_major_locator(MaxNLocator(integer=True))
-    fig.legend(fontsize=8, loc="outside lower center", ncols=2, frameon=False)
+    F.figure_legend(fig, *ax.get_legend_handles_labels(), 2)
     ax.set_title("Table 2 as a plot", fontsize=10)
     F.save(fig, rep.out / "figures" / "table2_accuracy.png")
     rep.figure(

@@ -13,7 +13,7 @@ from matplotlib import pyplot as plt
 from matplotlib.ticker import MaxNLocator
 
 from pipeline import palette
-from pipeline.report.figures import save
+from pipeline.report.figures import BELOW, HUNG_BELOW, figure_legend, save
 from pipeline.report.names import PAPER_RECOGNISER, recogniser_colour, recogniser_name
 
 
@@ -22,7 +22,7 @@ def accuracy_curves(
     path: Path,
     marker: float | None = None,
     marker_label: str = "",
-    marker_colour: str = palette.SERIES[0],
+    marker_colour: str = palette.series(0),
 ):
     """One panel per maze: collisions per run against the recognition accuracy ``p``. Each panel:
     ``title``; ``curves`` (label -> ``(p, mean, ci_low, ci_high)`` arrays: a line with its band);
@@ -32,12 +32,10 @@ def accuracy_curves(
     others take the cycle's by position). ``marker``: a dotted vertical line at that accuracy, named
     ``marker_label``, in ``marker_colour`` (the recogniser's declared colour)."""
     fig, axes = plt.subplots(1, len(panels), figsize=(4.3 * len(panels), 3.8), squeeze=False)
-    colours = palette.SERIES
     for ax, panel in zip(axes[0], panels):
         given = panel.get("colours", {})
         colour = {
-            label: given.get(label) or colours[i % len(colours)]
-            for i, label in enumerate(panel["curves"])
+            label: given.get(label) or palette.series(i) for i, label in enumerate(panel["curves"])
         }
         for label, (x, mean, lo, hi) in panel["curves"].items():
             ax.plot(x, mean, "o-", color=colour[label], label=label, ms=3, lw=1.2)
@@ -54,7 +52,7 @@ def accuracy_curves(
                 fmt="*",
                 ms=11,
                 capsize=3,
-                color=colour.get(label, palette.SERIES[0]),
+                color=colour.get(label, palette.series(0)),
                 mec="black",
                 mew=0.5,
                 zorder=5,
@@ -75,15 +73,7 @@ def accuracy_curves(
                 if label not in legend
             }
         )
-    fig.legend(
-        legend.values(),
-        legend.keys(),
-        fontsize=8,
-        loc="upper center",
-        bbox_to_anchor=(0.5, 0.0),
-        ncol=min(len(legend), 5),
-        frameon=False,
-    )
+    figure_legend(fig, legend.values(), legend.keys(), min(len(legend), 5), HUNG_BELOW)
     return save(fig, path)
 
 
@@ -113,7 +103,7 @@ def layout_boxes(
             patch_artist=True,
         )
         for k, (box, label) in enumerate(zip(drawn["boxes"], labels)):
-            colour = (colours or {}).get(label) or palette.SERIES[k % len(palette.SERIES)]
+            colour = (colours or {}).get(label) or palette.series(k)
             box.set(facecolor=colour, alpha=0.35, edgecolor=colour)
         ax.set_yscale("log")
         ax.set_xticks(range(1, len(labels) + 1), [textwrap.fill(k, 13) for k in labels], fontsize=7)
@@ -148,7 +138,7 @@ def feature_scatter(df, features: dict[str, str], path: Path, fit, colours: dict
         for j, (feature, xlabel) in enumerate(varied.items()):
             ax = axes[i][j]
             for k, method in enumerate(dict.fromkeys(on["method"])):
-                colour = colours.get(method) or palette.SERIES[k % len(palette.SERIES)]
+                colour = colours.get(method) or palette.series(k)
                 m = on[on["method"] == method]
                 x, y = m[feature].to_numpy(float), m["collisions_mean"].to_numpy(float)
                 ax.scatter(
@@ -166,15 +156,7 @@ def feature_scatter(df, features: dict[str, str], path: Path, fit, colours: dict
             if j == 0:
                 ax.set_ylabel("mean collisions per run (log)")
     handles, labels = axes[0][0].get_legend_handles_labels()
-    fig.legend(
-        handles,
-        labels,
-        fontsize=8,
-        markerscale=3,
-        loc="outside lower center",
-        ncols=4,
-        frameon=False,
-    )
+    figure_legend(fig, handles, labels, 4, BELOW, markerscale=3)
     return save(fig, path)
 
 
@@ -190,7 +172,7 @@ def gain_curves(curves: dict[str, dict], beside: dict[str, dict], path: Path):
     ):
         for i, (label, c) in enumerate(curves.items()):
             mean, lo, hi = c[key]
-            colour = recogniser_colour(label) or palette.SERIES[(i + 1) % len(palette.SERIES)]
+            colour = recogniser_colour(label) or palette.series(i + 1)
             ax.plot(c["r"], mean, "o-", color=colour, label=label, ms=4, lw=1.4)
             ax.fill_between(c["r"], lo, hi, color=colour, alpha=0.2, lw=0)
         for j, (label, points) in enumerate(beside.items()):
@@ -214,15 +196,7 @@ def gain_curves(curves: dict[str, dict], beside: dict[str, dict], path: Path):
         ax.grid(alpha=0.3)
     axes[1].yaxis.set_major_formatter(lambda v, _: f"{100 * v:.0f}%")
     handles, labels = axes[0].get_legend_handles_labels()
-    fig.legend(
-        handles,
-        labels,
-        fontsize=8,
-        loc="upper center",
-        bbox_to_anchor=(0.5, 0.0),
-        ncol=min(len(labels), 3),
-        frameon=False,
-    )
+    figure_legend(fig, handles, labels, min(len(labels), 3), HUNG_BELOW)
     fig.suptitle(
         "The DSS gain against obstacle repetition (11x11) and Table 3's mazes", fontsize=10
     )

@@ -16,14 +16,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from pipeline.report.figures import PLAIN, save, style  # noqa: E402
-from pipeline.stats import mean_band  # noqa: E402
+from pipeline.report.figures import PLAIN, figure_legend, save, style
+from pipeline.stats import mean_band
 
 #: The episodes the left panel shows at the full scale (from the first one drawn).
 EARLY = 10
@@ -95,7 +92,7 @@ def curves(
     if two_scales:
         fig.suptitle(title, fontsize=10)
     handles, labels = axes[0][0].get_legend_handles_labels()
-    fig.legend(handles, labels, fontsize=8, loc="outside lower center", ncols=2, frameon=False)
+    figure_legend(fig, handles, labels, 2)
     save(fig, path)
     return "; ".join(notes)
 

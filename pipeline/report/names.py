@@ -76,7 +76,7 @@ def row_styles(rows: list[list]) -> list[dict]:
     if len(rows) > 1 and len(set(keys)) == 1:  # one method throughout: its colour tells nothing
         return [
             {
-                "color": palette.SERIES[k % len(palette.SERIES)],
+                "color": palette.series(k),
                 "ls": DASHES[k % len(DASHES)],
                 "marker": MARKERS[k % len(MARKERS)],
             }

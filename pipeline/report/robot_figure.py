@@ -11,16 +11,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from pipeline import palette  # noqa: E402
-from pipeline.report.figures import save  # noqa: E402
-from pipeline.rl.rules import Rule  # noqa: E402
-from pipeline.stats import bootstrap_difference  # noqa: E402
+from pipeline import palette
+from pipeline.report.figures import figure_legend, save
+from pipeline.rl.rules import Rule
+from pipeline.stats import bootstrap_difference
 
 #: The rules in the order of their colours and markers (palette.SERIES by position), the same in
 #: every report: the decision rules as declared, then the methods that see no pictures.
@@ -36,13 +33,12 @@ def difference_figure(rows: list[tuple[str, str, np.ndarray, np.ndarray]], path:
     for y, (_, rule, robot, grid) in enumerate(rows):
         estimate, lo, hi = bootstrap_difference(robot, grid, paired=True)
         k = RULES.index(rule)
-        colour = palette.SERIES[k % len(palette.SERIES)]
         ax.errorbar(
             [estimate],
             [y],
             xerr=[[estimate - lo], [hi - estimate]],
             fmt=MARKERS[k % len(MARKERS)],
-            color=colour,
+            color=palette.series(k),
             capsize=3,
             ms=6,
             label=rule,
@@ -54,13 +50,5 @@ def difference_figure(rows: list[tuple[str, str, np.ndarray, np.ndarray]], path:
     ax.set_title("The camera robot against the grid, by decision rule", fontsize=10)
     handles, labels = ax.get_legend_handles_labels()
     unique = dict(zip(labels, handles))
-    fig.legend(
-        unique.values(),
-        unique.keys(),
-        title="decision rule",
-        fontsize=8,
-        loc="outside lower center",
-        ncols=len(unique),
-        frameon=False,
-    )
+    figure_legend(fig, unique.values(), unique.keys(), len(unique), title="decision rule")
     return save(fig, path)
