@@ -5,21 +5,10 @@ few-shot reasoning to pay off?).
 What each cell is comes from its records: a cell with a recogniser (its records hold the support
 set's query accuracy) is a point of the curve of its method on its maze, at the ``p`` of the
 recogniser it ran with (the recorded config's ``recogniser.p``); a cell without one (SSRL, the
-shield) is a reference line on its maze. Mazes are ordered by their number of cells.
-
-* ``figures/<folder>.png`` (:func:`pipeline.report.figures.accuracy_curves`): one panel per maze,
-  collisions per run (mean over runs with its 95% percentile-bootstrap interval,
-  :func:`~pipeline.stats.describe`) against p, one line per method, the references as
-  horizontal lines with their intervals as bands, and the Relation Network's query accuracy with
-  the original support set in the accuracy study (:func:`pipeline.report.accuracy.query_accuracy`,
-  read from ``rep.accuracy_dir``) as a vertical line.
-* ``tables/<folder>.md|csv``: per maze, method and reference, the break-even accuracy (the
-  smallest p at which the method's mean collisions per run are at or below the reference's) with
-  its 95% interval from a bootstrap over run seeds, paired because the cells of an experiment
-  share run seeds (:func:`~pipeline.stats.break_even`). Its resolution is the grid of p;
-  "≤ 0.2" means at or below the reference already at the smallest p tried, "not reached" at no p.
-* ``tables/<folder>_data.csv``: every point and reference (maze, method, p, runs, mean, s.d.,
-  interval).
+shield) is a reference line on its maze. Mazes are ordered by their number of cells. The section:
+a figure of the curves (a panel per maze, the Relation Network's measured accuracy as a vertical
+line), the break-even accuracies (:func:`~pipeline.stats.break_even`, paired over the run seeds
+the cells share) and every point's data.
 """
 
 from __future__ import annotations

@@ -1,17 +1,11 @@
-"""Build ``reports/`` from the recorded data alone (paper Tables 1-3, Figures 7-10).
+"""Build ``reports/`` from the recorded data alone (paper Tables 1-3, Figures 7-10): the records
+of the experiments (a section each, :mod:`pipeline.report.sections`), the accuracy studies, the
+models' metrics and the render stage's contact sheets.
 
-Inputs: the MCAP records of the experiments (``<runs_dir>/<experiment>/<cell>/records.mcap``, each
-embedding its experiment's ``report:`` block: :mod:`pipeline.report.sections`), the accuracy
-study's data files and the validation metrics of the model, the render stage's contact sheets.
-Every folder of ``runs_dir`` with records is a section, ordered by its block's ``order``;
-experiment files (``conf/experiment/*.yaml``) without records are listed as not in the report.
-
-Outputs: ``index.md``, ``headline.json`` (the numbers DVC shows: :mod:`pipeline.report.headline`),
-``tables/*.md|csv``, ``figures/*.png`` (these four are replaced on every build; the rest of the
-folder, e.g. ``benchmarks/``, is left alone). Deleting them and building again gives the same
-bytes. On a terminal, a progress bar on stderr counts the parts (reading the
-records, the accuracy section, one per experiment, the contact sheets) and names the one being
-built; elsewhere (a pipe, a log) stderr holds only errors, in one line.
+Outputs: ``index.md``, ``headline.json`` (:mod:`pipeline.report.headline`), ``tables/*.md|csv``,
+``figures/*.png``, swapped in whole (docs/reliability.md, "The report"); the rest of the folder, e.g.
+``benchmarks/``, is left alone. The same records give the same bytes. On a terminal a progress bar
+names the part being built; elsewhere a line per part says how far the build is.
 """
 
 from __future__ import annotations

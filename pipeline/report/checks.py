@@ -5,17 +5,8 @@ The numbers come from the recorded cells of one recogniser, selected by what the
 (2000 resamples, seed 0), paired where the cells share run seeds on one maze (unpaired across
 mazes: run ``r`` of one maze shares nothing meaningful with run ``r`` of another), a pooled arm
 (the four substitution ways) averaged per seed first; shares of converged runs have Wilson score
-intervals.
-
-Verdict rule (Holm 1979 across the checks of a claim, family level 5%): the checks with bootstrap
-draws are sorted by their p-value (of zero; of the margin for "comparable"); the ``i``-th smallest
-of a claim's ``m`` (from 0) is judged by its percentile interval at level ``1 - 0.05 / (m - i)``,
-and once one is undecided the rest are too. A judged ``>`` check **holds** when that interval lies
-above zero and **does not hold** when below; a "comparable" check holds when it lies within the
-margin and does not hold when outside; otherwise it is **not resolved**. A check of a share of
-runs ("all", "none") is an observation, decided as observed. A claim holds when all its checks
-hold, does not hold when one does not, and is not resolved otherwise. With one check, the rule is
-the plain one on the 95% interval shown."""
+intervals. The verdict rule (Holm 1979 across the checks of a claim) is :meth:`Claim.settle`; the
+report states it in words (:data:`pipeline.report.claims_section.RULE`)."""
 
 from __future__ import annotations
 

@@ -1,20 +1,8 @@
 """The paper's qualitative claims, each checked against our data with one recogniser's cells (the
-report's claims section: :mod:`pipeline.report.claims_section`).
-
-Each claim quotes the paper and is checked by one or more numbers computed from the records (or the
-accuracy study's data files), each with a 95% interval and a bootstrap p-value:
-
-* differences in collisions per run between cells: bootstrap over run seeds (2000 resamples, seed
-  0), paired where the cells share run seeds on one maze, unpaired across mazes, a pooled arm (the
-  four substitution ways) averaged per seed first (:mod:`pipeline.stats`);
-* shares of converged runs: Wilson score intervals over the runs;
-* accuracies of the accuracy study: bootstrap over its random draws (``draws.csv``,
-  :class:`~pipeline.report.study.Study`), paired where the same draws are compared.
-
-The verdict rule (Holm's correction across the checks of a claim) is
-:mod:`pipeline.report.checks`'. The claims name the experiments by their recorded names
-(``fig8``...) and select cells by what they ran (method, maze, way, support set, recogniser); a
-claim whose records are missing is "not checked".
+report's claims section: :mod:`pipeline.report.claims_section`) by numbers from the records
+(:mod:`pipeline.report.checks`) or the accuracy study's draws (:class:`~pipeline.report.study.Study`).
+The claims name the experiments by their recorded names (``fig8``...) and select cells by what they
+ran (method, maze, way, support set, recogniser); a claim whose records are missing is "not checked".
 """
 
 from __future__ import annotations

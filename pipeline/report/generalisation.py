@@ -4,25 +4,11 @@ hold beyond its three mazes? (``conf/experiment/generalisation.yaml``, issue 14.
 The experiment runs every method on many generated layouts of each of the paper's sizes
 (``experiment.layouts``: :mod:`pipeline.world.layout_sets`). The records say what each cell ran:
 its maze is the layout's spec (``random:7x7:16:3:unique``), which gives the size, and its records
-keep the layout's rows, from which the layout features are computed. Per size:
-
-* ``figures/<folder>.png``: the distribution over layouts of mean collisions per run, one box per
-  method (log scale).
-* ``tables/<folder>.md|csv``: for each claim, the fraction of layouts where it **holds** (every
-  check on the claimed side by the verdict rule of :mod:`pipeline.report.checks`, Holm's correction
-  within the claim, bootstrap over the layout's run seeds, paired), where it **does not hold** and
-  where the claimed order holds for the means alone, each with a 95% Wilson interval over layouts
-  (the layouts are independent draws of the generator). Table 3's order is
-  :func:`pipeline.report.checks.order_checks`.
-* ``tables/<folder>_dss_gain.md|csv``: the gain of the dynamic support set (few-shot without minus
-  with it) per size, mean over layouts with a 95% bootstrap interval over layouts, and whether it
-  grows with the size (difference of the sizes' mean gains, bootstrap over layouts, unpaired: the
-  sizes' layouts are unrelated). A between-size claim has no per-layout fraction.
-* ``figures/<folder>_features.png`` and ``tables/<folder>_features.md|csv``: mean collisions per
-  run against three layout features (:func:`features`), one least-squares line per method, its
-  slope with a 95% t interval; a feature constant over a size's layouts (the shortest path of every
-  ``unique`` layout is monotone: ``W+H-2`` moves) has no line.
-* ``tables/<folder>_data.csv``: one row per cell: size, layout, method, collisions, features.
+keep the layout's rows, from which the layout features are computed
+(:mod:`pipeline.report.layout_cells`). Per size: collisions over layouts per method; for each claim
+the fraction of layouts where it holds by the claims section's verdict rule (the layouts are
+independent draws of the generator: Wilson intervals); the DSS gain and whether it grows with the
+size (a between-size claim, so no per-layout fraction); collisions against layout features.
 """
 
 from __future__ import annotations

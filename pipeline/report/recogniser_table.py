@@ -1,19 +1,7 @@
-"""The report's recogniser section: how well each few-shot recogniser sees (test accuracy quoted,
-validation beside it) and whether it relies on colour.
-
-* Test: 5-way 5-shot accuracy over 600 episodes of the *test families*, held out from training
-  and from checkpoint selection and structurally apart from every training family
-  (``pipeline/world/family_split.py``), from ``metrics_file`` (``accuracy``, ``ci_lower``,
-  ``ci_upper``: the 95% interval of the mean over episodes). This is the figure to quote.
-* Validation: the same on fresh episodes of the validation families, which chose the checkpoint
-  (so it is optimistic), from the accuracy study's copy of the checkpoint's scores
-  (``summary.json``'s ``checkpoint_metrics``; the same figures as
-  ``<checkpoint stem>.validation.json``).
-* Query pictures: the paper's 40 against the original support set (Wilson 95% interval); the
-  larger ``views`` set: the same ten obstacles from 400 viewpoints (:mod:`pipeline.fewshot.views`).
-* Colour test (:mod:`pipeline.fewshot.colour`): every picture's hue turned by each of the study's
-  shifts; the accuracy over pictures x shifts and the drop from the original colours, paired per
-  picture, each with a bootstrap 95% interval over the pictures.
+"""The report's recogniser section: how well each few-shot recogniser sees (the test families'
+accuracy quoted, the validation families' beside it, docs/fewshot.md) and whether it relies on
+colour (:mod:`pipeline.fewshot.colour`). The test figures come from the model's metrics file, the
+rest from its accuracy study's ``summary.json``; the tables' captions say how each is measured.
 """
 
 from __future__ import annotations

@@ -1,31 +1,11 @@
-"""One report section per recorded experiment, as its ``report:`` block says
-(:class:`~pipeline.report.spec.ReportSpec`; ``docs/extending.md`` "Adding an experiment").
-
-Kinds: ``default`` (a table of collisions per run with 95% bootstrap intervals, learning curves with
-95% bands, the support set's query accuracy), ``bars`` (the same with a bar chart), ``long_term``
-(the runs are consecutive experiments of one robot), ``by_maze`` (one row per group of cells,
-one column per maze, ours beside the paper's) and ``accuracy_curve`` (collisions against a
-controlled recogniser's accuracy: :mod:`pipeline.report.accuracy_curve`) and ``generalisation``
-(the paper's claims over generated layouts: :mod:`pipeline.report.generalisation`). A ``path`` block adds
-a section with the learned path before the experiment's own. Tables and figures are named after
-the experiment's folder: ``tables/<folder>.md|csv``, ``figures/<folder>_collisions.png``,
-``<folder>_learning_curves.png`` (its data ``tables/<folder>_learning_curves.csv``, long format:
-``series`` (the row's name; with `` (<maze>)`` in ``by_maze``), ``key``, ``colour`` (the
-row's, :func:`~pipeline.report.names.row_styles`), ``maze``, ``episode``, ``mean``, ``ci_low``,
-``ci_high``; dvc.yaml's plots draw each series in its colour; ``by_maze`` also writes the rows of
-each maze to ``tables/<folder>_learning_curves_<maze>.csv``, a plot each), ``<folder>_support_accuracy.png``,
-``<folder>_long_term.png``, ``<folder>_path.png``; ``by_maze`` adds ``_<maze>`` to the figures and
-writes ``tables/<folder>_data.csv``.
-
-Rows are named from their cells (:mod:`pipeline.report.names`). A row that pools cells (Table 3's
-four substitution ways) counts each run seed once in its intervals: the cells share run seeds, so
-its per-episode curve averages the cells per seed and its CI resamples seeds. Where another
-section prints the paper's number for the same setting (Table 3's 5x5 column for Figures 8-10),
-the tables and bar charts show it beside ours (:mod:`pipeline.report.paper_numbers`); the parts of
-a section are in :mod:`pipeline.report.parts`, the pooling of cells in :mod:`pipeline.report.pooling`.
-
-``rep`` is the report being written (:class:`pipeline.report.build.Report`): ``add``, ``table``,
-``figure``, ``out`` and ``accuracy_dir``.
+"""One report section per recorded experiment, of the kind its ``report:`` block names
+(:class:`~pipeline.report.spec.ReportSpec`; the kinds: docs/extending.md). A ``path`` block adds a
+section with the learned path before the experiment's own. Tables and figures are named after the
+experiment's folder (``tables/<folder>.md|csv``, ``figures/<folder>_collisions.png``...; ``by_maze``
+adds ``_<maze>`` to the figures). The parts of a section are in :mod:`pipeline.report.parts`, the
+pooling of cells in :mod:`pipeline.report.pooling`, the paper's numbers beside ours in
+:mod:`pipeline.report.paper_numbers`. ``rep`` is the report being written
+(:class:`pipeline.report.build.Report`).
 """
 
 from __future__ import annotations
