@@ -29,7 +29,7 @@ FEW_SHOT_ROWS = [
 def section(folder, out):
     """The robot section of the experiment recorded in ``folder``, written to ``out``."""
     rep = Report(out)
-    robot_kind(rep, load_experiment(folder), {})
+    robot_kind(rep, load_experiment(folder), [])
     return rep
 
 

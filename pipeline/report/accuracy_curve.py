@@ -123,9 +123,7 @@ def break_even_table(parts: Split) -> pd.DataFrame:
                     "maze": maze,
                     "method": curve.label,
                     "against": reference,
-                    "reference collisions (mean ± s.d. [95% CI])": fmt(
-                        describe(cell.collisions_per_run())
-                    ),
+                    "reference collisions (mean ± s.d. [95% CI])": fmt(described(cell)),
                     "break-even p": level_text(point, curve.levels),
                     "95% CI": f"[{level_text(low, curve.levels)}, {level_text(high, curve.levels)}]",
                 }
@@ -134,61 +132,57 @@ def break_even_table(parts: Split) -> pd.DataFrame:
 
 
 def data_table(parts: Split) -> pd.DataFrame:
-    """Every point of every curve and every reference, with the statistics the figure shows."""
-    rows = [
-        {
-            "maze": c.maze,
-            "method": c.label,
-            "p": p,
-            "cell": cell.name,
-            **describe(cell.collisions_per_run()),
-        }
-        for c in parts.curves
-        for p, cell in zip(c.levels, c.cells)
+    """Every point of every curve and every reference (p: NaN), with the statistics the figure
+    shows."""
+    points = [
+        (c.maze, c.label, p, cell) for c in parts.curves for p, cell in zip(c.levels, c.cells)
     ]
-    rows += [
-        {
-            "maze": maze,
-            "method": label,
-            "p": np.nan,
-            "cell": cell.name,
-            **describe(cell.collisions_per_run()),
-        }
-        for (maze, label), cell in parts.references.items()
-    ]
-    return pd.DataFrame(rows)
+    points += [(maze, label, np.nan, cell) for (maze, label), cell in parts.references.items()]
+    return pd.DataFrame(
+        [
+            {"maze": maze, "method": label, "p": p, "cell": cell.name, **described(cell)}
+            for maze, label, p, cell in points
+        ]
+    )
+
+
+def described(cell: Cell) -> dict:
+    """:func:`~pipeline.stats.describe` of the cell's collisions per run."""
+    return describe(cell.collisions_per_run())
+
+
+#: What a panel draws of a point: the mean and its 95% interval.
+BAND = ("mean", "ci_low", "ci_high")
+
+
+def band(cells: list[Cell]) -> tuple[np.ndarray, ...]:
+    """:data:`BAND` of each cell's collisions per run, as arrays in the order of ``cells``."""
+    found = [described(cell) for cell in cells]
+    return tuple(np.array([d[k] for d in found]) for k in BAND)
 
 
 def panels(parts: Split) -> list[dict]:
     """The figure's panels (:func:`pipeline.report.figures.accuracy_curves`), one per maze."""
     out = []
     for maze in parts.mazes:
-        curves = {}
-        for c in parts.curves:
-            if c.maze == maze:
-                ds = [describe(cell.collisions_per_run()) for cell in c.cells]
-                curves[c.label] = (
-                    c.levels,
-                    *(np.array([d[k] for d in ds]) for k in ("mean", "ci_low", "ci_high")),
-                )
-        references = {
-            label: tuple(
-                describe(cell.collisions_per_run())[k] for k in ("mean", "ci_low", "ci_high")
-            )
-            for (m, label), cell in parts.references.items()
-            if m == maze
-        }
-        colours = {
-            c.label: colour
-            for c in parts.curves
-            if c.maze == maze and (colour := method_colour(c.cells[0].info["method"]))
-        }
-        colours |= {
-            label: colour
-            for (m, label), cell in parts.references.items()
-            if m == maze and (colour := method_colour(cell.info["method"]))
-        }
-        out.append({"title": maze, "curves": curves, "references": references, "colours": colours})
+        curves = [c for c in parts.curves if c.maze == maze]
+        references = {label: cell for (m, label), cell in parts.references.items() if m == maze}
+        shown = [(c.label, c.cells[0]) for c in curves] + list(references.items())
+        out.append(
+            {
+                "title": maze,
+                "curves": {c.label: (c.levels, *band(c.cells)) for c in curves},
+                "references": {
+                    label: tuple(map(described(cell).get, BAND))
+                    for label, cell in references.items()
+                },
+                "colours": {
+                    label: colour
+                    for label, cell in shown
+                    if (colour := method_colour(cell.info["method"]))
+                },
+            }
+        )
     return out
 
 
@@ -205,8 +199,9 @@ def marker_text(measured: tuple[int, int] | None) -> str:
     )
 
 
-def accuracy_curve_kind(rep, exp: Experiment, paper=None) -> None:
-    """The section (module docstring); ``paper`` is unused: the paper has no such experiment."""
+def accuracy_curve_kind(rep, exp: Experiment, experiments: list[Experiment]) -> None:
+    """The section (module docstring); the other ``experiments`` are not used: the paper has no
+    such experiment."""
     parts = split(exp)
     runs = sorted({len(c.runs()) for c in exp.cells.values()})
     measured = query_accuracy(rep.accuracy_dir) if rep.accuracy_dir is not None else None

@@ -11,7 +11,6 @@ report states it in words (:data:`pipeline.report.claims_section.RULE`)."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from itertools import pairwise
 
 import numpy as np
 import pandas as pd
@@ -298,20 +297,6 @@ def converged(what: str, cells: list[Cell], expect: str) -> Check:
         f"{len(runs)} runs",
         recognised=recognised(cells),
     )
-
-
-#: Table 3's rows, most collisions first: the order its numbers show on every maze.
-TABLE3_ORDER = ("sarsa", "constrained", "fewshot", "fewshot_dss")
-
-
-def order_checks(data: Data, arm_of, order=TABLE3_ORDER, where: str = "") -> list[Check]:
-    """Each method of ``order`` collides more than the next one: ``arm_of(method)`` gives its
-    :class:`Arm` (``where``, e.g. ``, 7x7``, ends each check's name)."""
-    arms = [arm_of(method) for method in order]
-    return [
-        fewer(data, f"{more.name} − {less.name}{where}", more, less)
-        for more, less in pairwise(arms)
-    ]
 
 
 def checked(source: str, says: str, make, how: str = "", quoted: bool = True) -> Claim:

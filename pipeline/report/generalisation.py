@@ -13,13 +13,18 @@ size (a between-size claim, so no per-layout fraction); collisions against layou
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 import pandas as pd
 
 from pipeline.report import figures_beyond as FB
-from pipeline.report.checks import Claim, Data, checked, fewer, order_checks
+from pipeline.report.checks import Claim, Data, checked
+from pipeline.report.claims import (
+    DSS_REDUCES,
+    FEWER_THAN_CONSTRAINED,
+    FIGURE_8,
+    TABLE3_ORDER,
+    Fewer,
+)
 from pipeline.report.experiments import Experiment
 from pipeline.report.layout_cells import (
     FEATURES,
@@ -34,74 +39,26 @@ from pipeline.report.layout_cells import (
 )
 from pipeline.stats import bootstrap_ci, bootstrap_difference, wilson_ci
 
-
-@dataclass(frozen=True)
-class LayoutClaim:
-    """A claim checked on each layout: ``make(data, arm)`` gives its checks, where ``arm(method)``
-    is the layout's :class:`~pipeline.report.checks.Arm` of a method."""
-
-    source: str
-    says: str
-    make: object
-    quoted: bool = True
-
-
-def pairs(*more_less: tuple[str, str]):
-    """Checks that the first method of each pair collides more than the second."""
-
-    def make(data: Data, arm) -> list:
-        return [fewer(data, f"{a} − {b}", arm(a), arm(b)) for a, b in more_less]
-
-    return make
-
-
-#: The paper's claims that one layout can check (claims.py words them the same way).
+#: The paper's claims that one layout can check (:mod:`pipeline.report.claims` words the ones it
+#: checks on every maze of Table 3 for a layout of one).
 CLAIMS = (
-    LayoutClaim(
-        "Figure 8",
-        "algorithms with the safety guarantee can significantly reduce the number of collisions "
-        "than the algorithm without a safety guarantee",
-        pairs(("qlearning", "shield"), ("qlearning", "ssrl"), ("qlearning", "fewshot")),
-    ),
-    LayoutClaim(
-        "Figure 8",
-        "SSRL and few-shot reasoning (without a dynamic support set) [...] both of them have a "
-        "better performance in safety exploration than Q-learning with shield",
-        pairs(("shield", "ssrl"), ("shield", "fewshot")),
-    ),
-    LayoutClaim(
-        "Figure 8",
-        "the performance of SSRL is slightly better than few-shot reasoning",
-        pairs(("fewshot", "ssrl")),
-    ),
-    LayoutClaim(
+    *FIGURE_8,
+    Fewer(
         "Figure 8",
         "few-shot reasoning with the dynamic support set collides less than SSRL",
-        pairs(("ssrl", "fewshot_dss")),
+        (("ssrl", "fewshot_dss"),),
         quoted=False,
     ),
-    LayoutClaim(
-        "Table 3", "Sarsa has more collisions than Q-learning", pairs(("sarsa", "qlearning"))
-    ),
-    LayoutClaim(
-        "Table 3",
-        "our method, no matter with or without the dynamic support set, has fewer collisions "
-        "than constrained RL methods",
-        pairs(("constrained", "fewshot"), ("constrained", "fewshot_dss")),
-    ),
-    LayoutClaim(
+    Fewer("Table 3", "Sarsa has more collisions than Q-learning", (("sarsa", "qlearning"),)),
+    FEWER_THAN_CONSTRAINED,
+    Fewer(
         "Table 3",
         "collisions fall in the order of its rows: Sarsa, constrained RL, our method without, "
         "with the dynamic support set",
-        lambda data, arm: order_checks(data, arm),
+        TABLE3_ORDER,
         quoted=False,
     ),
-    LayoutClaim(
-        "Table 3",
-        "the dynamic support set reduces collisions",
-        pairs(("fewshot", "fewshot_dss")),
-        quoted=False,
-    ),
+    Fewer("Table 3", "the dynamic support set reduces collisions", DSS_REDUCES, quoted=False),
 )
 
 
@@ -126,7 +83,7 @@ def claim_rows(sizes: dict[str, list[LayoutCells]]) -> tuple[list[dict], list[di
                 c: Claim = checked(
                     claim.source,
                     claim.says,
-                    lambda claim=claim, lay=lay: claim.make(NO_PAPER, lay.arm),
+                    lambda claim=claim, lay=lay: claim.checks(NO_PAPER, lay.arm),
                     quoted=claim.quoted,
                 )
                 if c.verdict == "not checked":
@@ -219,8 +176,8 @@ def growth(per_size: dict[str, np.ndarray]) -> list[dict]:
     return out
 
 
-def generalisation_section(rep, exp: Experiment) -> None:
-    """The section (module docstring)."""
+def generalisation_section(rep, exp: Experiment, experiments: list[Experiment]) -> None:
+    """The section (module docstring); the other ``experiments`` are not used."""
     sizes, notes = by_size(exp)
     if not sizes:
         rep.add("No cell of this experiment is on a generated layout.\n")

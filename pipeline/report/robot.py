@@ -222,9 +222,11 @@ def figure(rep, exp, found: list[Pair], several: bool) -> None:
     )
 
 
-def robot_kind(rep, exp, paper) -> None:
-    """The section: the statement on the range sensor, a table per decision rule, the methods
-    that see no pictures, recognition accuracy per category, the real-time factor."""
+def robot_kind(rep, exp, experiments) -> None:
+    """The section: the statement on the range sensor (:func:`range_statement`), the paired
+    differences as a figure, a table per decision rule, the methods that see no pictures,
+    recognition accuracy per category, the real-time factor (when the benchmark holds it); the
+    other ``experiments`` are not used."""
     cells = list(exp.cells.values())
     extras = {cell.name: read_extra(cell) for cell in cells}
     for cell in cells:
