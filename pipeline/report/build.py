@@ -21,6 +21,7 @@ import pandas as pd
 from tqdm import tqdm
 
 from pipeline.files import claim_folder, remove_abandoned, swap_in, work_folder, write_json_atomic
+from pipeline.report.accuracy import accuracy_tables
 from pipeline.report.claims_section import claims_section
 from pipeline.report.experiments import ReportInputError, load_all
 from pipeline.report.headline import headline
@@ -35,9 +36,7 @@ class Inputs:
     model_metrics: Path
     contact_dir: Path
     out: Path
-    experiments_dir: Path | None = (
-        None  # the experiment files (conf/experiment/): which are missing
-    )
+    experiments_dir: Path | None = None  # conf/experiment/: which experiments have no records
     allow_missing: bool = False  # build without missing experiments/cells, saying so at the top
     allow_mixed_scales: bool = False  # build from records of different profiles, named at the top
     profiles: dict[str, dict] = field(default_factory=dict)
@@ -79,17 +78,6 @@ class Report:
         path = self.out / "index.md"
         path.write_text("\n".join(self.sections))
         return path
-
-
-def accuracy_section(
-    rep: Report,
-    accuracy_dir: Path,
-    model_metrics: Path,
-    beside: dict[str, tuple[Path, Path]] | None = None,
-) -> None:
-    from pipeline.report.accuracy import accuracy_tables
-
-    accuracy_tables(rep, accuracy_dir, model_metrics, beside)
 
 
 #: What each of the render stage's contact sheets shows (its row labels included), by file stem.
@@ -244,7 +232,7 @@ def _build_parts(inputs: Inputs, parts: Parts) -> Path:
     claims = claims_section(rep, experiments, studies)
     write_json_atomic(inputs.out / "headline.json", headline(claims, inputs.models, experiments))
     parts.building("accuracy")
-    accuracy_section(rep, inputs.accuracy_dir, inputs.model_metrics, inputs.beside)
+    accuracy_tables(rep, inputs.accuracy_dir, inputs.model_metrics, inputs.beside)
     parts.finished()
     not_shown = []
     for exp in experiments:
