@@ -74,7 +74,7 @@ def split(exp: Experiment) -> Split:
     )
     for cell in shown:
         key = (cell.maze, method_name(cell.info["method"]))
-        if cell.start_accuracy() is None:
+        if not cell.recognises:
             slot, at = references, key
         elif (p := recogniser_p(cell)) is None:
             notes.append(

@@ -1,6 +1,8 @@
 """Figures of the studies beyond the paper: collisions against recognition accuracy
-(:func:`accuracy_curves`), and collisions over generated layouts (:func:`layout_boxes`,
-:func:`feature_scatter`). Colours and the overlap check as in :mod:`pipeline.report.figures`.
+(:func:`accuracy_curves`), collisions over generated layouts (:func:`layout_boxes`,
+:func:`feature_scatter`), the DSS gain against obstacle repetition (:func:`gain_curves`) and the
+camera robot against the grid (:func:`difference_figure`). Colours and the overlap check as in
+:mod:`pipeline.report.figures`.
 """
 
 from __future__ import annotations
@@ -15,6 +17,8 @@ from matplotlib.ticker import MaxNLocator
 from pipeline import palette
 from pipeline.report.figures import BELOW, HUNG_BELOW, figure_legend, save
 from pipeline.report.names import PAPER_RECOGNISER, recogniser_colour, recogniser_name
+from pipeline.rl.rules import Rule
+from pipeline.stats import bootstrap_difference
 
 
 def accuracy_curves(
@@ -200,4 +204,39 @@ def gain_curves(curves: dict[str, dict], beside: dict[str, dict], path: Path):
     fig.suptitle(
         "The DSS gain against obstacle repetition (11x11) and Table 3's mazes", fontsize=10
     )
+    return save(fig, path)
+
+
+#: The rules in the order of their colours and markers (palette.SERIES by position), the same in
+#: every report: the decision rules as declared, then the methods that see no pictures.
+RULES = (*(r.name for r in Rule), "no pictures")
+MARKERS = ("o", "s", "D", "^")
+
+
+def difference_figure(rows: list[tuple[str, str, np.ndarray, np.ndarray]], path: Path) -> Path:
+    """``rows``: (cell label, rule name of :data:`RULES`, robot's collisions per run, grid's, paired
+    by run), in the tables' order. Draws each row's paired difference with its interval, top to
+    bottom, in the legend the rules that occur."""
+    fig, ax = plt.subplots(figsize=(7.6, 1.2 + 0.32 * len(rows)), layout="constrained")
+    for y, (_, rule, robot, grid) in enumerate(rows):
+        estimate, lo, hi = bootstrap_difference(robot, grid, paired=True)
+        k = RULES.index(rule)
+        ax.errorbar(
+            [estimate],
+            [y],
+            xerr=[[estimate - lo], [hi - estimate]],
+            fmt=MARKERS[k % len(MARKERS)],
+            color=palette.series(k),
+            capsize=3,
+            ms=6,
+            label=rule,
+        )
+    ax.axvline(0, color=palette.GRID, lw=1, zorder=0)
+    ax.set_yticks(range(len(rows)), [label for label, _, _, _ in rows], fontsize=8)
+    ax.set_ylim(len(rows) - 0.5, -0.5)
+    ax.set_xlabel("collisions per run, robot minus grid (paired by run; 95% bootstrap CI)")
+    ax.set_title("The camera robot against the grid, by decision rule", fontsize=10)
+    handles, labels = ax.get_legend_handles_labels()
+    unique = dict(zip(labels, handles))
+    figure_legend(fig, unique.values(), unique.keys(), len(unique), title="decision rule")
     return save(fig, path)

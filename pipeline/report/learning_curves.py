@@ -57,26 +57,17 @@ def curves(
         squeeze=False,
         layout="constrained",
     )
-    for i, (label, (mean, lo, hi)) in enumerate(bands.items()):
-        draw(
-            axes[0][0],
-            np.arange(mean.size) + first,
-            mean,
-            lo,
-            hi,
-            label,
-            style(styles, label, i),
-            i,
-        )
+    for i, (label, b) in enumerate(bands.items()):
+        draw(axes[0][0], np.arange(b[0].size) + first, b, label, style(styles, label, i), i)
     notes = []
     if two_scales:
         later = {
             label: band(window_means(np.atleast_2d(values)[:, EARLY:]))
             for label, values in series.items()
         }
-        for i, (label, (mean, lo, hi)) in enumerate(later.items()):
-            x = np.arange(mean.size) + first + EARLY
-            draw(axes[0][1], x, mean, lo, hi, label, style(styles, label, i), i)
+        for i, (label, b) in enumerate(later.items()):
+            x = np.arange(b[0].size) + first + EARLY
+            draw(axes[0][1], x, b, label, style(styles, label, i), i)
         notes.append(split_scales(axes[0][0], axes[0][1], later, first, length, xlabel, ylabel))
     else:
         ax = axes[0][0]
@@ -127,8 +118,10 @@ def early_dwarfs_late(bands: dict) -> bool:
     return early > 4 and late < early / 4
 
 
-def draw(ax, x, mean, lo, hi, label: str, s: dict, i: int) -> None:
-    """A row's mean as a line (its marker every few points, spread out on a log axis) and its band."""
+def draw(ax, x, row_band: tuple, label: str, s: dict, i: int) -> None:
+    """A row's mean as a line (its marker every few points, spread out on a log axis) and its band
+    (``row_band``: :func:`band`)."""
+    mean, lo, hi = row_band
     marks = np.unique(np.geomspace(1, max(mean.size, 1), 14).astype(int)) - 1
     ax.plot(
         x,

@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from pipeline.report.figures_beyond import difference_figure
 from pipeline.report.robot_cells import Pair, check_cell, pairs, read_extra, recogniser, rule
-from pipeline.report.robot_figure import difference_figure
 from pipeline.rl.rules import Rule
 from pipeline.stats import bootstrap_difference, describe, wilson_ci
 from pipeline.world.pictures import CATEGORIES

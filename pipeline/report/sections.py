@@ -95,7 +95,7 @@ def default_kind(rep, exp: Experiment, experiments: list[Experiment], bars: bool
             + ".",
         )
     if exp.spec.curves is not False:
-        curves_part(rep, exp, rows)
+        write_curves_table(rep, exp, curves_part(rep, exp, rows))
     if exp.spec.support_accuracy is not False:
         support_part(rep, exp, rows)
 
@@ -134,7 +134,7 @@ def long_term_kind(rep, exp: Experiment, experiments: list[Experiment]) -> None:
         "bootstrap CI" + ("; the paper's number as a black dash" if paper else "") + ".",
     )
     if exp.spec.curves is not False:
-        curves_part(rep, exp, rows)
+        write_curves_table(rep, exp, curves_part(rep, exp, rows))
     if exp.spec.support_accuracy is not False:
         ends = {
             row.label: a[:, -1]
@@ -208,8 +208,7 @@ def by_maze_kind(rep, exp: Experiment, experiments: list[Experiment]) -> None:
     }
     curves = []
     for maze in mazes if exp.spec.curves is not False else []:
-        here: list = []
-        curves_part(rep, exp, on_maze[maze], maze, table=here)
+        here = curves_part(rep, exp, on_maze[maze], maze)
         write_curves_table(rep, exp, here, maze)  # the DVC plot of this maze
         curves += here
     write_curves_table(rep, exp, curves)
