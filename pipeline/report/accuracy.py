@@ -20,7 +20,7 @@ from matplotlib.ticker import MaxNLocator
 from pipeline import palette
 from pipeline.report import figures as F
 from pipeline.report.names import PAPER_RECOGNISER, recogniser_colour, recogniser_name
-from pipeline.report.recogniser_table import recogniser_row, recogniser_section  # noqa: F401  (re-exported)
+from pipeline.report.recogniser_table import recogniser_section
 from pipeline.report.study import RESAMPLES, SEED, VARIANTS, Estimate, Study
 
 #: Table 2's columns (the accuracy study's ``table2.csv``) as the report prints them.

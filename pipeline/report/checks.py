@@ -77,11 +77,7 @@ class Check:
         )
 
     def text(self) -> str:
-        scale, digits = (
-            (100, 1)
-            if self.unit.startswith("percentage") or self.unit.startswith("share")
-            else (1, 2)
-        )
+        scale, digits = (100, 1) if self.unit.startswith(("percentage", "share")) else (1, 2)
         numbers = f"{scale * self.estimate:.{digits}f} [{scale * self.low:.{digits}f}, {scale * self.high:.{digits}f}]"
         paper = f"; paper: {self.paper}" if self.paper else ""
         margin = f"; comparable within ±{self.margin:.2f}" if self.expect == "≈" else ""

@@ -163,16 +163,9 @@ def recogniser_block(kind: str, claims: list[Claim], column: dict | None, first:
     left = [i for i in range(1, len(claims) + 1) if i not in shown]
     plain = [i for i in left if not first[i - 1].recognised]
     run = [i for i in left if i not in plain]
-    note = "; ".join(
-        part
-        for part in (
-            f"Not run with the {name}: claims {', '.join(map(str, run))}" if run else "",
-            f"claims {', '.join(map(str, plain))} involve no recogniser (the first table)"
-            if plain
-            else "",
-        )
-        if part
-    )
+    notes = [f"Not run with the {name}: claims {', '.join(map(str, run))}"] if run else []
+    if plain:
+        notes.append(f"claims {', '.join(map(str, plain))} involve no recogniser (the first table)")
     details = "\n\n".join(
         f"{i}. **{c.source}: {c.verdict}.** {c.text()}\n"
         + (
@@ -182,5 +175,5 @@ def recogniser_block(kind: str, claims: list[Claim], column: dict | None, first:
         )
         for i, c in ((i, claims[i - 1]) for i in shown)
     )
-    note = f"{note}.\n\n" if note else ""
+    note = f"{'; '.join(notes)}.\n\n" if notes else ""
     return f"{title}\n\n{counts or 'no claims'}.\n\n{table.to_markdown(index=False)}\n\n{note}{details}\n"

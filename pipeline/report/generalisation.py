@@ -93,11 +93,8 @@ def claim_rows(sizes: dict[str, list[LayoutCells]]) -> tuple[list[dict], list[di
             n = len(verdicts)
             if not n:
                 continue
-            holds, fails, ordered = (
-                verdicts.count("holds"),
-                verdicts.count("does not hold"),
-                sum(means_ok),
-            )
+            holds, fails = verdicts.count("holds"), verdicts.count("does not hold")
+            ordered = sum(means_ok)
             text = c.text()
             table.append(
                 {

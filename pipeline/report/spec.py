@@ -131,21 +131,17 @@ class ReportSpec:
         for name in self.headline:
             need("headline", name)
         if self.kind in PER_CELL_KINDS:
+            kind = f"the {self.kind} kind"
             if self.groups:
                 out.append(
-                    (
-                        "groups",
-                        f"the {self.kind} kind pools no cells (one point per cell); "
-                        "give cells or nothing",
-                    )
+                    ("groups", f"{kind} pools no cells (one point per cell); give cells or nothing")
                 )
+            drawn = [
+                key for key in ("curves", "support_accuracy") if getattr(self, key) is not None
+            ]
             out += [
-                (
-                    key,
-                    f"the {self.kind} kind draws no learning curves or support-set accuracy over the run",
-                )
-                for key in ("curves", "support_accuracy")
-                if getattr(self, key) is not None
+                (key, f"{kind} draws no learning curves or support-set accuracy over the run")
+                for key in drawn
             ]
         seen = set()
         for i, group in enumerate(self.groups):
