@@ -70,13 +70,8 @@ def accuracy_curves(
     axes[0][0].set_ylabel("collisions per run (mean, 95% CI)")
     legend = {}
     for ax in axes[0]:  # one legend below the panels, each label once
-        legend.update(
-            {
-                label: handle
-                for handle, label in zip(*ax.get_legend_handles_labels())
-                if label not in legend
-            }
-        )
+        for handle, label in zip(*ax.get_legend_handles_labels()):
+            legend.setdefault(label, handle)
     figure_legend(fig, legend.values(), legend.keys(), min(len(legend), 5), HUNG_BELOW)
     return save(fig, path)
 
