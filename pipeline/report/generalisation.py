@@ -72,6 +72,14 @@ def share(k: int, n: int) -> str:
     return f"{k}/{n} = {100 * k / n:.0f}% [{100 * low:.0f}, {100 * high:.0f}]" if n else ""
 
 
+#: What is counted over a size's layouts for each claim: the table's column, the CSV's outcome.
+OUTCOMES = (
+    ("holds", "holds"),
+    ("does not hold", "does_not_hold"),
+    ("means in the claimed order", "means_ordered"),
+)
+
+
 def claim_rows(sizes: dict[str, list[LayoutCells]]) -> tuple[list[dict], list[dict]]:
     """Per size and claim: the layouts where it holds, does not hold, and where the means are in
     the claimed order (table rows and their CSV form)."""
@@ -93,21 +101,13 @@ def claim_rows(sizes: dict[str, list[LayoutCells]]) -> tuple[list[dict], list[di
             n = len(verdicts)
             if not n:
                 continue
-            holds, fails = verdicts.count("holds"), verdicts.count("does not hold")
-            ordered = sum(means_ok)
+            counts = (verdicts.count("holds"), verdicts.count("does not hold"), sum(means_ok))
             text = c.text()
             table.append(
-                {
-                    "size": size,
-                    "where": claim.source,
-                    "the paper": text,
-                    "layouts": n,
-                    "holds": share(holds, n),
-                    "does not hold": share(fails, n),
-                    "means in the claimed order": share(ordered, n),
-                }
+                {"size": size, "where": claim.source, "the paper": text, "layouts": n}
+                | {column: share(k, n) for (column, _), k in zip(OUTCOMES, counts)}
             )
-            for what, k in (("holds", holds), ("does_not_hold", fails), ("means_ordered", ordered)):
+            for (_, what), k in zip(OUTCOMES, counts):
                 low, high = wilson_ci(k / n, n)
                 data.append(
                     {
