@@ -9,7 +9,6 @@ Intervals: :mod:`pipeline.report.study` (bootstrap over the study's random draws
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import matplotlib.pyplot as plt
@@ -21,7 +20,7 @@ from pipeline import palette
 from pipeline.report import figures as F
 from pipeline.report.names import PAPER_RECOGNISER, recogniser_colour, recogniser_name
 from pipeline.report.recogniser_table import recogniser_section
-from pipeline.report.study import RESAMPLES, SEED, VARIANTS, Estimate, Study
+from pipeline.report.study import RESAMPLES, SEED, VARIANTS, Estimate, Study, read_summary
 
 #: Table 2's columns (the accuracy study's ``table2.csv``) as the report prints them.
 TABLE2_HEADERS = {
@@ -36,11 +35,10 @@ TABLE2_HEADERS = {
 def query_accuracy(accuracy_dir: Path) -> tuple[int, int] | None:
     """Correct and tested query pictures of the Relation Network with the original support set
     (the accuracy study's ``summary.json``, Table 1's first row); None without the study."""
-    path = accuracy_dir / "summary.json"
-    if not path.is_file():
+    summary = read_summary(accuracy_dir)
+    if summary is None:
         return None
-    baseline = json.loads(path.read_text())["baseline"]
-    return int(sum(baseline["correct"])), int(sum(baseline["total"]))
+    return int(sum(summary["baseline"]["correct"])), int(sum(summary["baseline"]["total"]))
 
 
 def percent(value, estimate: Estimate | None = None) -> str:

@@ -6,7 +6,6 @@ paper's recognition" (the verdicts on the cells of :data:`PAPER_RECOGNITION`).""
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
@@ -21,6 +20,7 @@ from pipeline.report.names import (
     recogniser_name,
     recogniser_of,
 )
+from pipeline.report.study import read_summary
 
 #: The recogniser whose verdicts fill the column "with the paper's recognition": the paper's
 #: Tables 1-2 as a recogniser (``conf/recogniser/paper_tables.yaml``).
@@ -32,11 +32,10 @@ CLAIM_EXPERIMENTS = ("fig8", "fig9", "fig10", "table3")
 
 def study_recogniser(folder: Path) -> str | None:
     """The recogniser of an accuracy study (its ``summary.json``'s config), None without one."""
-    path = folder / "summary.json"
-    if not path.is_file():
+    summary = read_summary(folder)
+    if summary is None:
         return None
-    target = str(json.loads(path.read_text())["config"]["recogniser"].get("_target_"))
-    return recogniser_group(target)
+    return recogniser_group(str(summary["config"]["recogniser"].get("_target_")))
 
 
 def claims_by_recogniser(

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from pipeline.report.study import read_summary
 from pipeline.stats import bootstrap_ci, wilson_ci
 
 COLUMNS = (
@@ -32,11 +33,6 @@ def _interval(lo: float, hi: float) -> str:
     return f"[{100 * lo:.1f}, {100 * hi:.1f}]"
 
 
-def _summary(accuracy_dir: Path) -> dict | None:
-    path = accuracy_dir / "summary.json"
-    return json.loads(path.read_text()) if path.is_file() else None
-
-
 def recogniser_row(name: str, metrics: Path, accuracy_dir: Path) -> dict:
     """One row of the recogniser table (module docstring); a missing file is named in its cell."""
     row = dict.fromkeys(COLUMNS, "")
@@ -46,7 +42,7 @@ def recogniser_row(name: str, metrics: Path, accuracy_dir: Path) -> dict:
         row["test [95%]"] = f"{100 * m['accuracy']:.2f}% {_interval(m['ci_lower'], m['ci_upper'])}"
     else:
         row["test [95%]"] = f"no metrics file `{metrics}`"
-    summary = _summary(accuracy_dir)
+    summary = read_summary(accuracy_dir)
     if summary is None:
         row["query pictures [95%]"] = f"no study `{accuracy_dir / 'summary.json'}`"
         return row
@@ -80,7 +76,7 @@ def _share(correct: int, total: int) -> str:
 
 def colour_rows(name: str, accuracy_dir: Path) -> list[dict]:
     """The colour test's rows of one recogniser: one per picture set the study measured."""
-    summary = _summary(accuracy_dir) or {}
+    summary = read_summary(accuracy_dir) or {}
     rows = []
     for key, words in COLOUR_SETS.items():
         colour = summary.get(key)
