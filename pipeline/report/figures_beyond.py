@@ -16,7 +16,7 @@ from matplotlib.ticker import MaxNLocator
 
 from pipeline import palette
 from pipeline.report.figures import BELOW, HUNG_BELOW, figure_legend, save
-from pipeline.report.names import PAPER_RECOGNISER, recogniser_colour, recogniser_name
+from pipeline.report.names import recogniser_colour
 from pipeline.rl.rules import Rule
 from pipeline.stats import bootstrap_difference
 
@@ -31,37 +31,20 @@ def accuracy_curves(
     """One panel per maze: collisions per run against the recognition accuracy ``p``. Each panel:
     ``title``; ``curves`` (label -> ``(p, mean, ci_low, ci_high)`` arrays: a line with its band);
     ``references`` (label -> ``(mean, ci_low, ci_high)``: a horizontal line with its band);
-    ``measured`` (curve label -> ``(x, mean, ci_low, ci_high)``: a star with its interval, in the
-    colour of that curve); ``colours`` (curve label -> colour: the methods' declared colours;
-    others take the cycle's by position). ``marker``: a dotted vertical line at that accuracy, named
+    ``colours`` (label -> colour: the methods' declared colours; curves without one take the
+    cycle's by position). ``marker``: a dotted vertical line at that accuracy, named
     ``marker_label``, in ``marker_colour`` (the recogniser's declared colour)."""
     fig, axes = plt.subplots(1, len(panels), figsize=(4.3 * len(panels), 3.8), squeeze=False)
     for ax, panel in zip(axes[0], panels):
         given = panel.get("colours", {})
-        colour = {
-            label: given.get(label) or palette.series(i) for i, label in enumerate(panel["curves"])
-        }
-        for label, (x, mean, lo, hi) in panel["curves"].items():
-            ax.plot(x, mean, "o-", color=colour[label], label=label, ms=3, lw=1.2)
-            ax.fill_between(x, lo, hi, color=colour[label], alpha=0.2, lw=0)
+        for i, (label, (x, mean, lo, hi)) in enumerate(panel["curves"].items()):
+            colour = given.get(label) or palette.series(i)
+            ax.plot(x, mean, "o-", color=colour, label=label, ms=3, lw=1.2)
+            ax.fill_between(x, lo, hi, color=colour, alpha=0.2, lw=0)
         for j, (label, (mean, lo, hi)) in enumerate(panel["references"].items()):
             colour = given.get(label, "black")  # the method's colour, as everywhere
             ax.axhline(mean, color=colour, ls=("--", "-.", ":")[j % 3], lw=1.2, label=label)
             ax.axhspan(lo, hi, color=colour, alpha=0.1, lw=0)
-        for label, (x, mean, lo, hi) in panel.get("measured", {}).items():
-            ax.errorbar(
-                [x],
-                [mean],
-                yerr=[[mean - lo], [hi - mean]],
-                fmt="*",
-                ms=11,
-                capsize=3,
-                color=colour.get(label, palette.series(0)),
-                mec="black",
-                mew=0.5,
-                zorder=5,
-                label=f"{label}, {recogniser_name(PAPER_RECOGNISER)}",
-            )
         if marker is not None:
             ax.axvline(marker, color=marker_colour, ls=":", lw=1.4, label=marker_label)
         ax.set_ylim(bottom=0)
