@@ -28,6 +28,11 @@ PAPER = "#000000"  # the paper's numbers beside ours
 SERIES = ("#4D4D4D", "#B8860B", "#6B6ECF", "#3CB371", "#CD5C5C", "#20B2AA", "#000080", "#FF1493")
 
 
+def series(k: int) -> str:
+    """The ``k``-th colour of :data:`SERIES`, from the first again after the last."""
+    return SERIES[k % len(SERIES)]
+
+
 def category(c: int) -> str:
     """The colour of category ``c`` (:data:`OTHER_CATEGORY` beyond the declared ones)."""
     return CATEGORY[c] if 0 <= c < len(CATEGORY) else OTHER_CATEGORY

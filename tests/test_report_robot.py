@@ -29,7 +29,7 @@ FEW_SHOT_ROWS = [
 def section(folder, out):
     """The robot section of the experiment recorded in ``folder``, written to ``out``."""
     rep = Report(out)
-    robot_kind(rep, load_experiment(folder), {})
+    robot_kind(rep, load_experiment(folder), [])
     return rep
 
 
@@ -82,7 +82,7 @@ def test_one_table_per_decision_rule(recorded):
 def test_a_figure_shows_the_robot_against_the_grid_per_rule(recorded, monkeypatch):
     """One row per robot cell: the three rules' few-shot rows and the methods that see no pictures,
     each in its rule's colour, in the tables' order."""
-    from pipeline.report import robot, robot_figure
+    from pipeline.report import figures_beyond, robot
 
     folder, out, _ = recorded
     assert (out / "figures" / "robot3d_robot_minus_grid.png").stat().st_size > 0
@@ -92,7 +92,7 @@ def test_a_figure_shows_the_robot_against_the_grid_per_rule(recorded, monkeypatc
     (rows,) = drawn
     few = [
         (f"{method}, {maze}", rule)
-        for rule in robot_figure.RULES[:3]
+        for rule in figures_beyond.RULES[:3]
         for method, maze in FEW_SHOT_ROWS
     ]
     assert sorted((label, rule) for label, rule, _, _ in rows if rule != "no pictures") == sorted(

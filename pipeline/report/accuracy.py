@@ -9,7 +9,6 @@ Intervals: :mod:`pipeline.report.study` (bootstrap over the study's random draws
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import matplotlib.pyplot as plt
@@ -20,8 +19,8 @@ from matplotlib.ticker import MaxNLocator
 from pipeline import palette
 from pipeline.report import figures as F
 from pipeline.report.names import PAPER_RECOGNISER, recogniser_colour, recogniser_name
-from pipeline.report.recogniser_table import recogniser_row, recogniser_section  # noqa: F401  (re-exported)
-from pipeline.report.study import RESAMPLES, SEED, VARIANTS, Estimate, Study
+from pipeline.report.recogniser_table import recogniser_section
+from pipeline.report.study import RESAMPLES, SEED, VARIANTS, Estimate, Study, read_summary
 
 #: Table 2's columns (the accuracy study's ``table2.csv``) as the report prints them.
 TABLE2_HEADERS = {
@@ -36,11 +35,10 @@ TABLE2_HEADERS = {
 def query_accuracy(accuracy_dir: Path) -> tuple[int, int] | None:
     """Correct and tested query pictures of the Relation Network with the original support set
     (the accuracy study's ``summary.json``, Table 1's first row); None without the study."""
-    path = accuracy_dir / "summary.json"
-    if not path.is_file():
+    summary = read_summary(accuracy_dir)
+    if summary is None:
         return None
-    baseline = json.loads(path.read_text())["baseline"]
-    return int(sum(baseline["correct"])), int(sum(baseline["total"]))
+    return int(sum(summary["baseline"]["correct"])), int(sum(summary["baseline"]["total"]))
 
 
 def percent(value, estimate: Estimate | None = None) -> str:
@@ -76,23 +74,23 @@ def accuracy_tables(
     if not (accuracy_dir / "table2.csv").exists():
         rep.add(f"Accuracy study: no data under `{accuracy_dir}`.\n")
         return
-    study = Study(accuracy_dir)
-    beside = {}
+    studies = {main: Study(accuracy_dir)}  # the paper's recogniser's first, the others beside it
     for name, (folder, _) in others.items():
         if (folder / "table2.csv").exists():
-            beside[name] = Study(folder)
+            studies[name] = Study(folder)
         else:
             rep.add(
                 f"{name}: no accuracy study under `{folder}` (its trained model and `accuracy` run), not shown.\n"
             )
+    study, beside = studies[main], list(studies)[1:]
     names, base = study.names, study.baseline
     rows = [
         {
             "": f"ours, {name}",
-            **{n: f"{c}/{t}" for n, c, t in zip(names, b["correct"], b["total"])},
-            "overall": f"{100 * b['accuracy']:.1f}%",
+            **{n: f"{c}/{t}" for n, c, t in zip(names, s.baseline["correct"], s.baseline["total"])},
+            "overall": f"{100 * s.baseline['accuracy']:.1f}%",
         }
-        for name, b in [(main, base), *((n, s.baseline) for n, s in beside.items())]
+        for name, s in studies.items()
     ]
     paper = (base.get("paper") or {}).get("correct")
     if paper:
@@ -115,18 +113,16 @@ def accuracy_tables(
     ):
         rep.table(
             f"table1_{variant}",
-            table1(study, variant, beside),
+            table1(studies, variant),
             f"Table 1, {title}: correct/tested per category ({main}"
             + "".join(f"; the {n}'s overall accuracy beside it" for n in beside)
             + f"); {intervals_note(study)}",
         )
     summary = study.summary["table1"]
-    means = []
-    for name, s in [(main, study), *beside.items()]:
-        with_same, no_same = s.mean("with_same"), s.mean("no_same")
-        means.append(
-            f"ours, {name} {percent(with_same.value, with_same)} (no same picture {percent(no_same.value, no_same)})"
-        )
+    means = [
+        f"ours, {name} {shown(s.mean('with_same'))} (no same picture {shown(s.mean('no_same'))})"
+        for name, s in studies.items()
+    ]
     rep.add(
         f"Mean accuracy after one substitution: {'; '.join(means)}; paper {percent(summary['paper_mean'])} "
         f"({percent(summary['paper_mean_no_same'])}); [95% CI] over the draws of the {len(names)} categories.\n"
@@ -134,18 +130,23 @@ def accuracy_tables(
     rep.add("## Table 2: accuracy against the number of substitutions\n")
     rep.table(
         "table2",
-        table2(study, beside),
+        table2(studies),
         f"Mean accuracy over the {study.pictures} query pictures (ours, "
-        f"{main}{''.join(', ' + n for n in beside)}, and the paper's); "
-        f"{intervals_note(study)}",
+        f"{', '.join(studies)}, and the paper's); {intervals_note(study)}",
     )
-    table2_figure(rep, study, beside)
+    table2_figure(rep, studies)
 
 
-def table1(study: Study, variant: str, beside: dict[str, Study] | None = None) -> pd.DataFrame:
-    """Table 1 (one substitution) as correct/tested per substituted and tested category, ours
-    (with each row's accuracy and interval) beside the paper's; each study of ``beside`` adds its
-    row's overall accuracy."""
+def shown(estimate: Estimate) -> str:
+    """:func:`percent` of an estimate, with its interval."""
+    return percent(estimate.value, estimate)
+
+
+def table1(studies: dict[str, Study], variant: str) -> pd.DataFrame:
+    """Table 1 (one substitution) as correct/tested per substituted and tested category of the
+    first study (with each row's accuracy and interval) beside the paper's; each other study adds
+    its row's overall accuracy."""
+    study, *_ = studies.values()
     names = study.names
     out = []
     for s in range(len(names)):
@@ -157,11 +158,8 @@ def table1(study: Study, variant: str, beside: dict[str, Study] | None = None) -
                 for t, c, n in zip(d["tested_category"], d["correct"], d["total"])
             },
         }
-        row = study.row(variant, s)
-        line["overall, ours [95% CI]"] = percent(row.value, row)
-        for name, other in (beside or {}).items():
-            r = other.row(variant, s)
-            line[f"overall, {name} [95% CI]"] = percent(r.value, r)
+        for name, other in zip(("ours", *list(studies)[1:]), studies.values()):
+            line[f"overall, {name} [95% CI]"] = shown(other.row(variant, s))
         if d["paper_correct"].notna().all():
             line.update(
                 {
@@ -176,7 +174,10 @@ def table1(study: Study, variant: str, beside: dict[str, Study] | None = None) -
     return pd.DataFrame(out)
 
 
-def table2(study: Study, beside: dict[str, Study] | None = None) -> pd.DataFrame:
+def table2(studies: dict[str, Study]) -> pd.DataFrame:
+    """Table 2: the first study's accuracies (the data file's, with their intervals) beside the
+    paper's, then each other study's."""
+    study, *_ = studies.values()
     show = study.table2.reset_index()
     for variant, column in VARIANTS.items():
         show[column] = [
@@ -185,43 +186,36 @@ def table2(study: Study, beside: dict[str, Study] | None = None) -> pd.DataFrame
         ]
         show["paper_" + column] = show["paper_" + column].map(percent)
     show = show.rename(columns=TABLE2_HEADERS)
-    for name, other in (beside or {}).items():
+    for name, other in list(studies.items())[1:]:
         for variant, column in VARIANTS.items():
-            label = TABLE2_HEADERS[column].replace("ours", name)
-            show[label] = [
-                percent(
-                    other.substitutions(int(n), variant).value, other.substitutions(int(n), variant)
-                )
-                if n in other.table2.index
-                else ""
+            show[TABLE2_HEADERS[column].replace("ours", name)] = [
+                shown(other.substitutions(int(n), variant)) if n in other.table2.index else ""
                 for n in show["substitutions"]
             ]
     return show
 
 
-def table2_figure(rep, study: Study, beside: dict[str, Study] | None = None) -> None:
-    main = recogniser_name(PAPER_RECOGNISER)
+def table2_figure(rep, studies: dict[str, Study]) -> None:
+    study, *_ = studies.values()
     fig, ax = plt.subplots(figsize=(6.0, 4.2), layout="constrained")
     n = study.table2.index.to_numpy()
     for (variant, column), style, label in zip(
         VARIANTS.items(), ("o-", "o--"), ("ours", "ours, no same picture")
     ):
-        for k, (who, s, marker) in enumerate(
-            [(main, study, "o"), *((name, other, "^") for name, other in (beside or {}).items())]
-        ):
+        for k, (who, s) in enumerate(studies.items()):
             estimates = [s.substitutions(int(i), variant) for i in s.table2.index.to_numpy()]
             values = np.array([100 * e.value for e in estimates])
             err = np.array(
                 [[100 * (e.value - e.ci()[0]), 100 * (e.ci()[1] - e.value)] for e in estimates]
             ).T
-            name = label if not beside else label.replace("ours", f"ours, {who}")
+            name = label if len(studies) == 1 else label.replace("ours", f"ours, {who}")
             ax.errorbar(
                 s.table2.index.to_numpy(),
                 values,
                 yerr=err,
-                fmt=marker + style[1:],
+                fmt=("o" if k == 0 else "^") + style[1:],
                 capsize=3,
-                color=recogniser_colour(who) or palette.SERIES[k % len(palette.SERIES)],
+                color=recogniser_colour(who) or palette.series(k),
                 label=f"{name} (95% CI)",
             )
         paper = study.table2.get("paper_" + column)
@@ -237,7 +231,7 @@ def table2_figure(rep, study: Study, beside: dict[str, Study] | None = None) -> 
     ax.set_xlabel("substitution number")
     ax.set_ylabel("mean accuracy (%)")
     ax.xaxis.set_major_locator(MaxNLocator(integer=True))
-    fig.legend(fontsize=8, loc="outside lower center", ncols=2, frameon=False)
+    F.figure_legend(fig, *ax.get_legend_handles_labels(), 2)
     ax.set_title("Table 2 as a plot", fontsize=10)
     F.save(fig, rep.out / "figures" / "table2_accuracy.png")
     rep.figure(

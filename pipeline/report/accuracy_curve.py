@@ -5,21 +5,10 @@ few-shot reasoning to pay off?).
 What each cell is comes from its records: a cell with a recogniser (its records hold the support
 set's query accuracy) is a point of the curve of its method on its maze, at the ``p`` of the
 recogniser it ran with (the recorded config's ``recogniser.p``); a cell without one (SSRL, the
-shield) is a reference line on its maze. Mazes are ordered by their number of cells.
-
-* ``figures/<folder>.png`` (:func:`pipeline.report.figures.accuracy_curves`): one panel per maze,
-  collisions per run (mean over runs with its 95% percentile-bootstrap interval,
-  :func:`~pipeline.stats.describe`) against p, one line per method, the references as
-  horizontal lines with their intervals as bands, and the Relation Network's query accuracy with
-  the original support set in the accuracy study (:func:`pipeline.report.accuracy.query_accuracy`,
-  read from ``rep.accuracy_dir``) as a vertical line.
-* ``tables/<folder>.md|csv``: per maze, method and reference, the break-even accuracy (the
-  smallest p at which the method's mean collisions per run are at or below the reference's) with
-  its 95% interval from a bootstrap over run seeds, paired because the cells of an experiment
-  share run seeds (:func:`~pipeline.stats.break_even`). Its resolution is the grid of p;
-  "≤ 0.2" means at or below the reference already at the smallest p tried, "not reached" at no p.
-* ``tables/<folder>_data.csv``: every point and reference (maze, method, p, runs, mean, s.d.,
-  interval).
+shield) is a reference line on its maze. Mazes are ordered by their number of cells. The section:
+a figure of the curves (a panel per maze, the Relation Network's measured accuracy as a vertical
+line), the break-even accuracies (:func:`~pipeline.stats.break_even`, paired over the run seeds
+the cells share) and every point's data.
 """
 
 from __future__ import annotations
@@ -85,7 +74,7 @@ def split(exp: Experiment) -> Split:
     )
     for cell in shown:
         key = (cell.maze, method_name(cell.info["method"]))
-        if cell.start_accuracy() is None:
+        if not cell.recognises:
             slot, at = references, key
         elif (p := recogniser_p(cell)) is None:
             notes.append(
@@ -134,9 +123,7 @@ def break_even_table(parts: Split) -> pd.DataFrame:
                     "maze": maze,
                     "method": curve.label,
                     "against": reference,
-                    "reference collisions (mean ± s.d. [95% CI])": fmt(
-                        describe(cell.collisions_per_run())
-                    ),
+                    "reference collisions (mean ± s.d. [95% CI])": fmt(described(cell)),
                     "break-even p": level_text(point, curve.levels),
                     "95% CI": f"[{level_text(low, curve.levels)}, {level_text(high, curve.levels)}]",
                 }
@@ -145,61 +132,57 @@ def break_even_table(parts: Split) -> pd.DataFrame:
 
 
 def data_table(parts: Split) -> pd.DataFrame:
-    """Every point of every curve and every reference, with the statistics the figure shows."""
-    rows = [
-        {
-            "maze": c.maze,
-            "method": c.label,
-            "p": p,
-            "cell": cell.name,
-            **describe(cell.collisions_per_run()),
-        }
-        for c in parts.curves
-        for p, cell in zip(c.levels, c.cells)
+    """Every point of every curve and every reference (p: NaN), with the statistics the figure
+    shows."""
+    points = [
+        (c.maze, c.label, p, cell) for c in parts.curves for p, cell in zip(c.levels, c.cells)
     ]
-    rows += [
-        {
-            "maze": maze,
-            "method": label,
-            "p": np.nan,
-            "cell": cell.name,
-            **describe(cell.collisions_per_run()),
-        }
-        for (maze, label), cell in parts.references.items()
-    ]
-    return pd.DataFrame(rows)
+    points += [(maze, label, np.nan, cell) for (maze, label), cell in parts.references.items()]
+    return pd.DataFrame(
+        [
+            {"maze": maze, "method": label, "p": p, "cell": cell.name, **described(cell)}
+            for maze, label, p, cell in points
+        ]
+    )
+
+
+def described(cell: Cell) -> dict:
+    """:func:`~pipeline.stats.describe` of the cell's collisions per run."""
+    return describe(cell.collisions_per_run())
+
+
+#: What a panel draws of a point: the mean and its 95% interval.
+BAND = ("mean", "ci_low", "ci_high")
+
+
+def band(cells: list[Cell]) -> tuple[np.ndarray, ...]:
+    """:data:`BAND` of each cell's collisions per run, as arrays in the order of ``cells``."""
+    found = [described(cell) for cell in cells]
+    return tuple(np.array([d[k] for d in found]) for k in BAND)
 
 
 def panels(parts: Split) -> list[dict]:
     """The figure's panels (:func:`pipeline.report.figures.accuracy_curves`), one per maze."""
     out = []
     for maze in parts.mazes:
-        curves = {}
-        for c in parts.curves:
-            if c.maze == maze:
-                ds = [describe(cell.collisions_per_run()) for cell in c.cells]
-                curves[c.label] = (
-                    c.levels,
-                    *(np.array([d[k] for d in ds]) for k in ("mean", "ci_low", "ci_high")),
-                )
-        references = {
-            label: tuple(
-                describe(cell.collisions_per_run())[k] for k in ("mean", "ci_low", "ci_high")
-            )
-            for (m, label), cell in parts.references.items()
-            if m == maze
-        }
-        colours = {
-            c.label: colour
-            for c in parts.curves
-            if c.maze == maze and (colour := method_colour(c.cells[0].info["method"]))
-        }
-        colours |= {
-            label: colour
-            for (m, label), cell in parts.references.items()
-            if m == maze and (colour := method_colour(cell.info["method"]))
-        }
-        out.append({"title": maze, "curves": curves, "references": references, "colours": colours})
+        curves = [c for c in parts.curves if c.maze == maze]
+        references = {label: cell for (m, label), cell in parts.references.items() if m == maze}
+        shown = [(c.label, c.cells[0]) for c in curves] + list(references.items())
+        out.append(
+            {
+                "title": maze,
+                "curves": {c.label: (c.levels, *band(c.cells)) for c in curves},
+                "references": {
+                    label: tuple(map(described(cell).get, BAND))
+                    for label, cell in references.items()
+                },
+                "colours": {
+                    label: colour
+                    for label, cell in shown
+                    if (colour := method_colour(cell.info["method"]))
+                },
+            }
+        )
     return out
 
 
@@ -216,8 +199,9 @@ def marker_text(measured: tuple[int, int] | None) -> str:
     )
 
 
-def accuracy_curve_kind(rep, exp: Experiment, paper=None) -> None:
-    """The section (module docstring); ``paper`` is unused: the paper has no such experiment."""
+def accuracy_curve_kind(rep, exp: Experiment, experiments: list[Experiment]) -> None:
+    """The section (module docstring); the other ``experiments`` are not used: the paper has no
+    such experiment."""
     parts = split(exp)
     runs = sorted({len(c.runs()) for c in exp.cells.values()})
     measured = query_accuracy(rep.accuracy_dir) if rep.accuracy_dir is not None else None

@@ -1,17 +1,11 @@
-"""Build ``reports/`` from the recorded data alone (paper Tables 1-3, Figures 7-10).
+"""Build ``reports/`` from the recorded data alone (paper Tables 1-3, Figures 7-10): the records
+of the experiments (a section each, :mod:`pipeline.report.sections`), the accuracy studies, the
+models' metrics and the render stage's contact sheets.
 
-Inputs: the MCAP records of the experiments (``<runs_dir>/<experiment>/<cell>/records.mcap``, each
-embedding its experiment's ``report:`` block: :mod:`pipeline.report.sections`), the accuracy
-study's data files and the validation metrics of the model, the render stage's contact sheets.
-Every folder of ``runs_dir`` with records is a section, ordered by its block's ``order``;
-experiment files (``conf/experiment/*.yaml``) without records are listed as not in the report.
-
-Outputs: ``index.md``, ``headline.json`` (the numbers DVC shows: :mod:`pipeline.report.headline`),
-``tables/*.md|csv``, ``figures/*.png`` (these four are replaced on every build; the rest of the
-folder, e.g. ``benchmarks/``, is left alone). Deleting them and building again gives the same
-bytes. On a terminal, a progress bar on stderr counts the parts (reading the
-records, the accuracy section, one per experiment, the contact sheets) and names the one being
-built; elsewhere (a pipe, a log) stderr holds only errors, in one line.
+Outputs: ``index.md``, ``headline.json`` (:mod:`pipeline.report.headline`), ``tables/*.md|csv``,
+``figures/*.png``, swapped in whole (docs/reliability.md, "The report"); the rest of the folder, e.g.
+``benchmarks/``, is left alone. The same records give the same bytes. On a terminal a progress bar
+names the part being built; elsewhere a line per part says how far the build is.
 """
 
 from __future__ import annotations
@@ -27,6 +21,7 @@ import pandas as pd
 from tqdm import tqdm
 
 from pipeline.files import claim_folder, remove_abandoned, swap_in, work_folder, write_json_atomic
+from pipeline.report.accuracy import accuracy_tables
 from pipeline.report.claims_section import claims_section
 from pipeline.report.experiments import ReportInputError, load_all
 from pipeline.report.headline import headline
@@ -41,9 +36,7 @@ class Inputs:
     model_metrics: Path
     contact_dir: Path
     out: Path
-    experiments_dir: Path | None = (
-        None  # the experiment files (conf/experiment/): which are missing
-    )
+    experiments_dir: Path | None = None  # conf/experiment/: which experiments have no records
     allow_missing: bool = False  # build without missing experiments/cells, saying so at the top
     allow_mixed_scales: bool = False  # build from records of different profiles, named at the top
     profiles: dict[str, dict] = field(default_factory=dict)
@@ -85,17 +78,6 @@ class Report:
         path = self.out / "index.md"
         path.write_text("\n".join(self.sections))
         return path
-
-
-def accuracy_section(
-    rep: Report,
-    accuracy_dir: Path,
-    model_metrics: Path,
-    beside: dict[str, tuple[Path, Path]] | None = None,
-) -> None:
-    from pipeline.report.accuracy import accuracy_tables
-
-    accuracy_tables(rep, accuracy_dir, model_metrics, beside)
 
 
 #: What each of the render stage's contact sheets shows (its row labels included), by file stem.
@@ -250,7 +232,7 @@ def _build_parts(inputs: Inputs, parts: Parts) -> Path:
     claims = claims_section(rep, experiments, studies)
     write_json_atomic(inputs.out / "headline.json", headline(claims, inputs.models, experiments))
     parts.building("accuracy")
-    accuracy_section(rep, inputs.accuracy_dir, inputs.model_metrics, inputs.beside)
+    accuracy_tables(rep, inputs.accuracy_dir, inputs.model_metrics, inputs.beside)
     parts.finished()
     not_shown = []
     for exp in experiments:

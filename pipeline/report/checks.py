@@ -5,22 +5,12 @@ The numbers come from the recorded cells of one recogniser, selected by what the
 (2000 resamples, seed 0), paired where the cells share run seeds on one maze (unpaired across
 mazes: run ``r`` of one maze shares nothing meaningful with run ``r`` of another), a pooled arm
 (the four substitution ways) averaged per seed first; shares of converged runs have Wilson score
-intervals.
-
-Verdict rule (Holm 1979 across the checks of a claim, family level 5%): the checks with bootstrap
-draws are sorted by their p-value (of zero; of the margin for "comparable"); the ``i``-th smallest
-of a claim's ``m`` (from 0) is judged by its percentile interval at level ``1 - 0.05 / (m - i)``,
-and once one is undecided the rest are too. A judged ``>`` check **holds** when that interval lies
-above zero and **does not hold** when below; a "comparable" check holds when it lies within the
-margin and does not hold when outside; otherwise it is **not resolved**. A check of a share of
-runs ("all", "none") is an observation, decided as observed. A claim holds when all its checks
-hold, does not hold when one does not, and is not resolved otherwise. With one check, the rule is
-the plain one on the 95% interval shown."""
+intervals. The verdict rule (Holm 1979 across the checks of a claim) is :meth:`Claim.settle`; the
+report states it in words (:data:`pipeline.report.claims_section.RULE`)."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from itertools import pairwise
 
 import numpy as np
 import pandas as pd
@@ -87,11 +77,7 @@ class Check:
         )
 
     def text(self) -> str:
-        scale, digits = (
-            (100, 1)
-            if self.unit.startswith("percentage") or self.unit.startswith("share")
-            else (1, 2)
-        )
+        scale, digits = (100, 1) if self.unit.startswith(("percentage", "share")) else (1, 2)
         numbers = f"{scale * self.estimate:.{digits}f} [{scale * self.low:.{digits}f}, {scale * self.high:.{digits}f}]"
         paper = f"; paper: {self.paper}" if self.paper else ""
         margin = f"; comparable within ±{self.margin:.2f}" if self.expect == "≈" else ""
@@ -307,20 +293,6 @@ def converged(what: str, cells: list[Cell], expect: str) -> Check:
         f"{len(runs)} runs",
         recognised=recognised(cells),
     )
-
-
-#: Table 3's rows, most collisions first: the order its numbers show on every maze.
-TABLE3_ORDER = ("sarsa", "constrained", "fewshot", "fewshot_dss")
-
-
-def order_checks(data: Data, arm_of, order=TABLE3_ORDER, where: str = "") -> list[Check]:
-    """Each method of ``order`` collides more than the next one: ``arm_of(method)`` gives its
-    :class:`Arm` (``where``, e.g. ``, 7x7``, ends each check's name)."""
-    arms = [arm_of(method) for method in order]
-    return [
-        fewer(data, f"{more.name} − {less.name}{where}", more, less)
-        for more, less in pairwise(arms)
-    ]
 
 
 def checked(source: str, says: str, make, how: str = "", quoted: bool = True) -> Claim:

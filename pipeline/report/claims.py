@@ -1,45 +1,75 @@
 """The paper's qualitative claims, each checked against our data with one recogniser's cells (the
-report's claims section: :mod:`pipeline.report.claims_section`).
-
-Each claim quotes the paper and is checked by one or more numbers computed from the records (or the
-accuracy study's data files), each with a 95% interval and a bootstrap p-value:
-
-* differences in collisions per run between cells: bootstrap over run seeds (2000 resamples, seed
-  0), paired where the cells share run seeds on one maze, unpaired across mazes, a pooled arm (the
-  four substitution ways) averaged per seed first (:mod:`pipeline.stats`);
-* shares of converged runs: Wilson score intervals over the runs;
-* accuracies of the accuracy study: bootstrap over its random draws (``draws.csv``,
-  :class:`~pipeline.report.study.Study`), paired where the same draws are compared.
-
-The verdict rule (Holm's correction across the checks of a claim) is
-:mod:`pipeline.report.checks`'. The claims name the experiments by their recorded names
-(``fig8``...) and select cells by what they ran (method, maze, way, support set, recogniser); a
-claim whose records are missing is "not checked".
+report's claims section: :mod:`pipeline.report.claims_section`) by numbers from the records
+(:mod:`pipeline.report.checks`) or the accuracy study's draws (:class:`~pipeline.report.study.Study`).
+The claims name the experiments by their recorded names (``fig8``...) and select cells by what they
+ran (method, maze, way, support set, recogniser); a claim whose records are missing is "not checked".
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from itertools import combinations, pairwise
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from pipeline.report.checks import (
-    Arm,
-    Check,
-    Claim,
-    Data,
-    checked,
-    converged,
-    fewer,
-    from_draws,
-    order_checks,
-)
+from pipeline.report.checks import Arm, Check, Claim, Data, checked, converged, fewer, from_draws
 from pipeline.report.names import method_name
 from pipeline.report.study import Estimate, Study
 
 __all__ = ["Check", "Claim", "accuracy_claims", "rl_claims"]
+
+
+@dataclass(frozen=True)
+class Fewer:
+    """A claim that in each of ``pairs`` of methods (config names) the first collides more than
+    the second: checked on any arms of the methods, those of Figure 8, of one maze of Table 3 or of
+    one generated layout (:mod:`pipeline.report.generalisation`)."""
+
+    source: str
+    says: str
+    pairs: tuple[tuple[str, str], ...]
+    quoted: bool = True
+
+    def checks(self, data: Data, arm, where: str = "") -> list[Check]:
+        """A check per pair on the arms ``arm(method)`` gives (``where``, e.g. ``, 7x7``, ends each
+        check's name)."""
+        arms = [(arm(more), arm(less)) for more, less in self.pairs]
+        return [fewer(data, f"{a.name} − {b.name}{where}", a, b) for a, b in arms]
+
+
+#: Figure 8's claims that compare methods.
+FIGURE_8 = (
+    Fewer(
+        "Figure 8",
+        "algorithms with the safety guarantee can significantly reduce the number of collisions "
+        "than the algorithm without a safety guarantee",
+        (("qlearning", "shield"), ("qlearning", "ssrl"), ("qlearning", "fewshot")),
+    ),
+    Fewer(
+        "Figure 8",
+        "SSRL and few-shot reasoning (without a dynamic support set) [...] both of them have a "
+        "better performance in safety exploration than Q-learning with shield",
+        (("shield", "ssrl"), ("shield", "fewshot")),
+    ),
+    Fewer(
+        "Figure 8",
+        "the performance of SSRL is slightly better than few-shot reasoning",
+        (("fewshot", "ssrl"),),
+    ),
+)
+#: Table 3's claim against constrained RL.
+FEWER_THAN_CONSTRAINED = Fewer(
+    "Table 3",
+    "our method, no matter with or without the dynamic support set, has fewer collisions than "
+    "constrained RL methods",
+    (("constrained", "fewshot"), ("constrained", "fewshot_dss")),
+)
+#: Table 3's rows, most collisions first: the order its numbers show on every maze.
+TABLE3_ORDER = tuple(pairwise(("sarsa", "constrained", "fewshot", "fewshot_dss")))
+#: The dynamic support set's gain, as Table 3 shows it.
+DSS_REDUCES = (("fewshot", "fewshot_dss"),)
 
 
 def rl_claims(data: Data) -> list[Claim]:
@@ -55,15 +85,17 @@ def rl_claims(data: Data) -> list[Claim]:
     def way(w: int) -> Arm:
         return data.arm("fig9", "fewshot_dss", ways=[w])
 
-    def pair(more: Arm, less: Arm, maze: str = "") -> Check:
-        return fewer(data, f"{more.name} − {less.name}{', ' + maze if maze else ''}", more, less)
+    def pair(more: Arm, less: Arm, maze: str) -> Check:
+        return fewer(data, f"{more.name} − {less.name}, {maze}", more, less)
 
-    def table3_order() -> list[Check]:
-        return [
-            c
-            for m in mazes
-            for c in order_checks(data, lambda method, m=m: t3(method, m), where=f", {m}")
-        ]
+    def on_fig8(claim: Fewer) -> Claim:
+        return checked(claim.source, claim.says, lambda: claim.checks(data, fig8))
+
+    def on_every_maze(claim: Fewer) -> Claim:
+        def make() -> list[Check]:
+            return [c for m in mazes for c in claim.checks(data, lambda k, m=m: t3(k, m), f", {m}")]
+
+        return checked(claim.source, claim.says, make, quoted=claim.quoted)
 
     def gains() -> list[Check]:
         arms = {m: (t3("fewshot", m), t3("fewshot_dss", m)) for m in mazes}
@@ -90,21 +122,18 @@ def rl_claims(data: Data) -> list[Claim]:
         bioequivalence studies, 80-125%, taken as ±20%)."""
         ways = {w: way(w) for w in (1, 2, 3, 4)}
         margin = 0.2 * float(np.mean([arm.values.mean() for arm in ways.values()]))
-        checks = []
-        for a, b in combinations(ways, 2):
-            checks.append(
-                fewer(data, f"way {a} − way {b}", ways[a], ways[b], expect="≈", margin=margin)
-            )
-        return checks
+        return [
+            fewer(data, f"way {a} − way {b}", ways[a], ways[b], expect="≈", margin=margin)
+            for a, b in combinations(ways, 2)
+        ]
 
     def long_term() -> list[Check]:
         restore = data.arm("fig10", "fewshot_dss", support="restore", first=1)
         carry = data.arm("fig10", "fewshot_dss", support="carry", first=1)
         return [fewer(data, "restored − carried over", restore, carry)]
 
-    fewshot = ("fewshot", "fewshot_dss")
-    claims = [
-        (
+    return [
+        checked(
             "Figure 7",
             "all the RL methods for comparison are able to find it [the optimal path] within 500 episodes",
             lambda: [
@@ -113,103 +142,65 @@ def rl_claims(data: Data) -> list[Claim]:
             ],
             "every run of Figure 8's methods converges: its greedy path is optimal from some episode on",
         ),
-        (
-            "Figure 8",
-            (
-                "algorithms with the safety guarantee can significantly reduce the number of collisions than "
-                "the algorithm without a safety guarantee"
-            ),
-            lambda: [pair(fig8("qlearning"), fig8(m)) for m in ("shield", "ssrl", "fewshot")],
-            "",
-        ),
-        (
-            "Figure 8",
-            (
-                "SSRL and few-shot reasoning (without a dynamic support set) [...] both of them have a better "
-                "performance in safety exploration than Q-learning with shield"
-            ),
-            lambda: [pair(fig8("shield"), fig8(m)) for m in ("ssrl", "fewshot")],
-            "",
-        ),
-        (
-            "Figure 8",
-            "the performance of SSRL is slightly better than few-shot reasoning",
-            lambda: [pair(fig8("fewshot"), fig8("ssrl"))],
-            "",
-        ),
-        (
+        *(on_fig8(claim) for claim in FIGURE_8),
+        checked(
             "Figure 9",
             "all the different substitution ways are comparable",
             comparable,
             "every difference between two ways within ±20% of the ways' mean collisions",
         ),
-        (
+        checked(
             "Figure 9",
-            (
-                "[all the different substitution ways] can further reduce the collision number than few-shot "
-                "reasoning with no substitution"
-            ),
+            "[all the different substitution ways] can further reduce the collision number than "
+            "few-shot reasoning with no substitution",
             lambda: [pair(fig8("fewshot"), way(w), f"way {w}") for w in (1, 2, 3, 4)],
-            "",
         ),
-        (
+        checked(
             "Figure 10",
-            (
-                "the collision number can be reduced to a very low level if we do not restore the support set "
-                "to the original set in the following experiments"
-            ),
+            "the collision number can be reduced to a very low level if we do not restore the "
+            "support set to the original set in the following experiments",
             long_term,
             "collisions per experiment after the first, restoring against carrying the support set over",
         ),
-        (
+        checked(
             "Table 3",
             "in our 5 * 5 maze experiment, Sarsa has more collisions than Q-learning",
             lambda: [pair(t3("sarsa", "5x5"), fig8("qlearning"), "5x5")],
             "against Figure 8's Q-learning (Table 3 has no Q-learning row)",
         ),
-        (
+        checked(
             "Table 3",
             "[Sarsa] can be found as not converged within 500 episodes in 7 * 7 and 11 * 11 environments",
             lambda: [
                 converged(f"Sarsa, {m}: converged runs", data.cells("table3", "sarsa", m), "none")
                 for m in ("7x7", "11x11")
             ],
-            "",
         ),
-        (
-            "Table 3",
-            (
-                "our method, no matter with or without the dynamic support set, has fewer collisions than "
-                "constrained RL methods"
-            ),
-            lambda: [pair(t3("constrained", m), t3(f, m), m) for m in mazes for f in fewshot],
-            "",
+        on_every_maze(FEWER_THAN_CONSTRAINED),
+        on_every_maze(  # what Table 3 shows without the paper saying it in words
+            Fewer(
+                "Table 3",
+                "collisions fall in the order of its rows on every maze: Sarsa, constrained RL, "
+                "our method without, with the dynamic support set",
+                TABLE3_ORDER,
+                quoted=False,
+            )
         ),
-    ]
-    readings = [  # what Table 3 shows without the paper saying it in words
-        (
-            "Table 3",
-            (
-                "collisions fall in the order of its rows on every maze: Sarsa, constrained RL, our method "
-                "without, with the dynamic support set"
-            ),
-            table3_order,
-            "",
+        on_every_maze(
+            Fewer(
+                "Table 3",
+                "the dynamic support set reduces collisions on every maze",
+                DSS_REDUCES,
+                quoted=False,
+            )
         ),
-        (
-            "Table 3",
-            "the dynamic support set reduces collisions on every maze",
-            lambda: [pair(t3("fewshot", m), t3("fewshot_dss", m), m) for m in mazes],
-            "",
-        ),
-        (
+        checked(
             "Table 3",
             "the gain of the dynamic support set (collisions without minus with it) grows with the maze",
             gains,
-            "",
+            quoted=False,
         ),
     ]
-    return [checked(*c) for c in claims] + [checked(*c, quoted=False) for c in readings]
 
 
 def accuracy_claims(accuracy_dir: Path | None) -> list[Claim]:

@@ -6,7 +6,6 @@ paper's recognition" (the verdicts on the cells of :data:`PAPER_RECOGNITION`).""
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
@@ -21,6 +20,7 @@ from pipeline.report.names import (
     recogniser_name,
     recogniser_of,
 )
+from pipeline.report.study import read_summary
 
 #: The recogniser whose verdicts fill the column "with the paper's recognition": the paper's
 #: Tables 1-2 as a recogniser (``conf/recogniser/paper_tables.yaml``).
@@ -32,11 +32,10 @@ CLAIM_EXPERIMENTS = ("fig8", "fig9", "fig10", "table3")
 
 def study_recogniser(folder: Path) -> str | None:
     """The recogniser of an accuracy study (its ``summary.json``'s config), None without one."""
-    path = folder / "summary.json"
-    if not path.is_file():
+    summary = read_summary(folder)
+    if summary is None:
         return None
-    target = str(json.loads(path.read_text())["config"]["recogniser"].get("_target_"))
-    return recogniser_group(target)
+    return recogniser_group(str(summary["config"]["recogniser"].get("_target_")))
 
 
 def claims_by_recogniser(
@@ -163,16 +162,9 @@ def recogniser_block(kind: str, claims: list[Claim], column: dict | None, first:
     left = [i for i in range(1, len(claims) + 1) if i not in shown]
     plain = [i for i in left if not first[i - 1].recognised]
     run = [i for i in left if i not in plain]
-    note = "; ".join(
-        part
-        for part in (
-            f"Not run with the {name}: claims {', '.join(map(str, run))}" if run else "",
-            f"claims {', '.join(map(str, plain))} involve no recogniser (the first table)"
-            if plain
-            else "",
-        )
-        if part
-    )
+    notes = [f"Not run with the {name}: claims {', '.join(map(str, run))}"] if run else []
+    if plain:
+        notes.append(f"claims {', '.join(map(str, plain))} involve no recogniser (the first table)")
     details = "\n\n".join(
         f"{i}. **{c.source}: {c.verdict}.** {c.text()}\n"
         + (
@@ -182,5 +174,5 @@ def recogniser_block(kind: str, claims: list[Claim], column: dict | None, first:
         )
         for i, c in ((i, claims[i - 1]) for i in shown)
     )
-    note = f"{note}.\n\n" if note else ""
+    note = f"{'; '.join(notes)}.\n\n" if notes else ""
     return f"{title}\n\n{counts or 'no claims'}.\n\n{table.to_markdown(index=False)}\n\n{note}{details}\n"

@@ -64,12 +64,18 @@ class Cell:
         wide = wide.reindex(columns=range(int(self.episodes["episode"].max()) + 1))
         return wide.to_numpy(dtype=float)
 
+    @property
+    def recognises(self) -> bool:
+        """Whether the cell ran a recogniser (its substitutions hold the support set's accuracy)."""
+        subs = self.substitutions
+        return subs is not None and len(subs) > 0 and "support_accuracy" in subs
+
     def support_accuracy(self) -> np.ndarray | None:
         """(runs, episodes): query accuracy of each run's support set at the end of each episode
         (the initial set's until the first substitution); None without a recogniser."""
-        subs = self.substitutions
-        if subs is None or not len(subs) or "support_accuracy" not in subs:
+        if not self.recognises:
             return None
+        subs = self.substitutions
         runs = sorted(self.episodes["run"].unique())
         n_ep = int(self.episodes["episode"].max()) + 1
         out = np.full((len(runs), n_ep), np.nan)
@@ -81,9 +87,9 @@ class Cell:
 
     def start_accuracy(self) -> float | None:
         """Mean over runs of the initial support set's query accuracy (None without a recogniser)."""
-        subs = self.substitutions
-        if subs is None or not len(subs) or "support_accuracy" not in subs:
+        if not self.recognises:
             return None
+        subs = self.substitutions
         return float(subs.loc[subs["picture"] < 0, "support_accuracy"].mean())
 
     def converged_episode(self) -> list[int | None]:

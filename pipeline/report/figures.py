@@ -16,18 +16,18 @@ from collections import Counter
 from pathlib import Path
 
 import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.patches import Ellipse, Patch, Rectangle
+from matplotlib.ticker import FuncFormatter
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.patches import Ellipse, Patch, Rectangle  # noqa: E402
-from matplotlib.ticker import FuncFormatter  # noqa: E402
+from pipeline import palette
+from pipeline.report.overlap import FigureOverlapWarning, problems
+from pipeline.stats import describe
+from pipeline.world.maze import MOVES
+from pipeline.world.pictures import CATEGORIES
 
-from pipeline import palette  # noqa: E402
-from pipeline.report.overlap import FigureOverlapWarning, problems  # noqa: E402
-from pipeline.stats import describe  # noqa: E402
-from pipeline.world.maze import MOVES  # noqa: E402
-from pipeline.world.pictures import CATEGORIES  # noqa: E402
+matplotlib.use("Agg")  # every module that draws saves through this one: files only, no window
 
 PLAIN = FuncFormatter(lambda v, _: f"{v:g}")
 
@@ -44,12 +44,25 @@ def save(fig, path: Path) -> Path:
     return path
 
 
+#: Where :func:`figure_legend` puts a legend: below the axes of a constrained layout, or (a figure
+#: without one) hung from the figure's bottom edge.
+BELOW = {"loc": "outside lower center"}
+HUNG_BELOW = {"loc": "upper center", "bbox_to_anchor": (0.5, 0.0)}
+
+
+def figure_legend(fig, handles, labels, ncols: int, placement=BELOW, **options) -> None:
+    """One frameless legend for the whole figure, below its axes unless ``placement`` says
+    otherwise (``options``: ``fontsize``, 8 unless given, and any other of ``Figure.legend``'s)."""
+    options.setdefault("fontsize", 8)
+    fig.legend(handles, labels, **placement, ncols=ncols, frameon=False, **options)
+
+
 def style(styles: dict | None, label: str, i: int) -> dict:
     """The colour, line style and marker of ``label`` (``styles``: by label), else the i-th series
     colour, solid, no marker."""
     given = (styles or {}).get(label) or {}
     return {
-        "color": given.get("color") or palette.SERIES[i % len(palette.SERIES)],
+        "color": given.get("color") or palette.series(i),
         "ls": given.get("ls", "-"),
         "marker": given.get("marker"),
     }
@@ -138,14 +151,9 @@ def bars(labels, samples, title, ylabel, path: Path, paper=None, styles=None) ->
     bottom.set_ylabel(ylabel)
     axes[0, 0].set_title(title, fontsize=10)
     note = break_axis(axes[0, 0], bottom, samples, high, paper) if high else ""
-    if drawn:
-        fig.legend(
-            drawn.values(),
-            drawn.keys(),
-            fontsize=7,
-            loc="outside upper right",
-            ncols=2,
-            frameon=False,
+    if drawn:  # the paper's marks, named above the axes
+        figure_legend(
+            fig, drawn.values(), drawn.keys(), 2, {"loc": "outside upper right"}, fontsize=7
         )
     save(fig, path)
     return note
@@ -209,14 +217,7 @@ def long_term(series: dict[str, np.ndarray], title: str, path: Path, paper=None,
     ax2.set_xlim(-0.6, len(series) - 0.4 + (0.5 if drawn else 0))
     ax2.set_title("mean, 95% CI", fontsize=9)
     handles, names = ax1.get_legend_handles_labels()
-    fig.legend(
-        [*handles, *drawn.values()],
-        [*names, *drawn.keys()],
-        fontsize=8,
-        loc="outside lower center",
-        ncols=3,
-        frameon=False,
-    )
+    figure_legend(fig, [*handles, *drawn.values()], [*names, *drawn.keys()], 3)
     fig.suptitle(title, fontsize=10)
     return save(fig, path)
 

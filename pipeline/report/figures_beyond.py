@@ -1,6 +1,8 @@
 """Figures of the studies beyond the paper: collisions against recognition accuracy
-(:func:`accuracy_curves`), and collisions over generated layouts (:func:`layout_boxes`,
-:func:`feature_scatter`). Colours and the overlap check as in :mod:`pipeline.report.figures`.
+(:func:`accuracy_curves`), collisions over generated layouts (:func:`layout_boxes`,
+:func:`feature_scatter`), the DSS gain against obstacle repetition (:func:`gain_curves`) and the
+camera robot against the grid (:func:`difference_figure`). Colours and the overlap check as in
+:mod:`pipeline.report.figures`.
 """
 
 from __future__ import annotations
@@ -13,8 +15,10 @@ from matplotlib import pyplot as plt
 from matplotlib.ticker import MaxNLocator
 
 from pipeline import palette
-from pipeline.report.figures import save
-from pipeline.report.names import PAPER_RECOGNISER, recogniser_colour, recogniser_name
+from pipeline.report.figures import BELOW, HUNG_BELOW, figure_legend, save
+from pipeline.report.names import recogniser_colour
+from pipeline.rl.rules import Rule
+from pipeline.stats import bootstrap_difference
 
 
 def accuracy_curves(
@@ -22,44 +26,25 @@ def accuracy_curves(
     path: Path,
     marker: float | None = None,
     marker_label: str = "",
-    marker_colour: str = palette.SERIES[0],
+    marker_colour: str = palette.series(0),
 ):
     """One panel per maze: collisions per run against the recognition accuracy ``p``. Each panel:
     ``title``; ``curves`` (label -> ``(p, mean, ci_low, ci_high)`` arrays: a line with its band);
     ``references`` (label -> ``(mean, ci_low, ci_high)``: a horizontal line with its band);
-    ``measured`` (curve label -> ``(x, mean, ci_low, ci_high)``: a star with its interval, in the
-    colour of that curve); ``colours`` (curve label -> colour: the methods' declared colours;
-    others take the cycle's by position). ``marker``: a dotted vertical line at that accuracy, named
+    ``colours`` (label -> colour: the methods' declared colours; curves without one take the
+    cycle's by position). ``marker``: a dotted vertical line at that accuracy, named
     ``marker_label``, in ``marker_colour`` (the recogniser's declared colour)."""
     fig, axes = plt.subplots(1, len(panels), figsize=(4.3 * len(panels), 3.8), squeeze=False)
-    colours = palette.SERIES
     for ax, panel in zip(axes[0], panels):
         given = panel.get("colours", {})
-        colour = {
-            label: given.get(label) or colours[i % len(colours)]
-            for i, label in enumerate(panel["curves"])
-        }
-        for label, (x, mean, lo, hi) in panel["curves"].items():
-            ax.plot(x, mean, "o-", color=colour[label], label=label, ms=3, lw=1.2)
-            ax.fill_between(x, lo, hi, color=colour[label], alpha=0.2, lw=0)
+        for i, (label, (x, mean, lo, hi)) in enumerate(panel["curves"].items()):
+            colour = given.get(label) or palette.series(i)
+            ax.plot(x, mean, "o-", color=colour, label=label, ms=3, lw=1.2)
+            ax.fill_between(x, lo, hi, color=colour, alpha=0.2, lw=0)
         for j, (label, (mean, lo, hi)) in enumerate(panel["references"].items()):
             colour = given.get(label, "black")  # the method's colour, as everywhere
             ax.axhline(mean, color=colour, ls=("--", "-.", ":")[j % 3], lw=1.2, label=label)
             ax.axhspan(lo, hi, color=colour, alpha=0.1, lw=0)
-        for label, (x, mean, lo, hi) in panel.get("measured", {}).items():
-            ax.errorbar(
-                [x],
-                [mean],
-                yerr=[[mean - lo], [hi - mean]],
-                fmt="*",
-                ms=11,
-                capsize=3,
-                color=colour.get(label, palette.SERIES[0]),
-                mec="black",
-                mew=0.5,
-                zorder=5,
-                label=f"{label}, {recogniser_name(PAPER_RECOGNISER)}",
-            )
         if marker is not None:
             ax.axvline(marker, color=marker_colour, ls=":", lw=1.4, label=marker_label)
         ax.set_ylim(bottom=0)
@@ -68,22 +53,9 @@ def accuracy_curves(
     axes[0][0].set_ylabel("collisions per run (mean, 95% CI)")
     legend = {}
     for ax in axes[0]:  # one legend below the panels, each label once
-        legend.update(
-            {
-                label: handle
-                for handle, label in zip(*ax.get_legend_handles_labels())
-                if label not in legend
-            }
-        )
-    fig.legend(
-        legend.values(),
-        legend.keys(),
-        fontsize=8,
-        loc="upper center",
-        bbox_to_anchor=(0.5, 0.0),
-        ncol=min(len(legend), 5),
-        frameon=False,
-    )
+        for handle, label in zip(*ax.get_legend_handles_labels()):
+            legend.setdefault(label, handle)
+    figure_legend(fig, legend.values(), legend.keys(), min(len(legend), 5), HUNG_BELOW)
     return save(fig, path)
 
 
@@ -113,7 +85,7 @@ def layout_boxes(
             patch_artist=True,
         )
         for k, (box, label) in enumerate(zip(drawn["boxes"], labels)):
-            colour = (colours or {}).get(label) or palette.SERIES[k % len(palette.SERIES)]
+            colour = (colours or {}).get(label) or palette.series(k)
             box.set(facecolor=colour, alpha=0.35, edgecolor=colour)
         ax.set_yscale("log")
         ax.set_xticks(range(1, len(labels) + 1), [textwrap.fill(k, 13) for k in labels], fontsize=7)
@@ -148,7 +120,7 @@ def feature_scatter(df, features: dict[str, str], path: Path, fit, colours: dict
         for j, (feature, xlabel) in enumerate(varied.items()):
             ax = axes[i][j]
             for k, method in enumerate(dict.fromkeys(on["method"])):
-                colour = colours.get(method) or palette.SERIES[k % len(palette.SERIES)]
+                colour = colours.get(method) or palette.series(k)
                 m = on[on["method"] == method]
                 x, y = m[feature].to_numpy(float), m["collisions_mean"].to_numpy(float)
                 ax.scatter(
@@ -166,15 +138,7 @@ def feature_scatter(df, features: dict[str, str], path: Path, fit, colours: dict
             if j == 0:
                 ax.set_ylabel("mean collisions per run (log)")
     handles, labels = axes[0][0].get_legend_handles_labels()
-    fig.legend(
-        handles,
-        labels,
-        fontsize=8,
-        markerscale=3,
-        loc="outside lower center",
-        ncols=4,
-        frameon=False,
-    )
+    figure_legend(fig, handles, labels, 4, BELOW, markerscale=3)
     return save(fig, path)
 
 
@@ -190,7 +154,7 @@ def gain_curves(curves: dict[str, dict], beside: dict[str, dict], path: Path):
     ):
         for i, (label, c) in enumerate(curves.items()):
             mean, lo, hi = c[key]
-            colour = recogniser_colour(label) or palette.SERIES[(i + 1) % len(palette.SERIES)]
+            colour = recogniser_colour(label) or palette.series(i + 1)
             ax.plot(c["r"], mean, "o-", color=colour, label=label, ms=4, lw=1.4)
             ax.fill_between(c["r"], lo, hi, color=colour, alpha=0.2, lw=0)
         for j, (label, points) in enumerate(beside.items()):
@@ -214,16 +178,43 @@ def gain_curves(curves: dict[str, dict], beside: dict[str, dict], path: Path):
         ax.grid(alpha=0.3)
     axes[1].yaxis.set_major_formatter(lambda v, _: f"{100 * v:.0f}%")
     handles, labels = axes[0].get_legend_handles_labels()
-    fig.legend(
-        handles,
-        labels,
-        fontsize=8,
-        loc="upper center",
-        bbox_to_anchor=(0.5, 0.0),
-        ncol=min(len(labels), 3),
-        frameon=False,
-    )
+    figure_legend(fig, handles, labels, min(len(labels), 3), HUNG_BELOW)
     fig.suptitle(
         "The DSS gain against obstacle repetition (11x11) and Table 3's mazes", fontsize=10
     )
+    return save(fig, path)
+
+
+#: The rules in the order of their colours and markers (palette.SERIES by position), the same in
+#: every report: the decision rules as declared, then the methods that see no pictures.
+RULES = (*(r.name for r in Rule), "no pictures")
+MARKERS = ("o", "s", "D", "^")
+
+
+def difference_figure(rows: list[tuple[str, str, np.ndarray, np.ndarray]], path: Path) -> Path:
+    """``rows``: (cell label, rule name of :data:`RULES`, robot's collisions per run, grid's, paired
+    by run), in the tables' order. Draws each row's paired difference with its interval, top to
+    bottom, in the legend the rules that occur."""
+    fig, ax = plt.subplots(figsize=(7.6, 1.2 + 0.32 * len(rows)), layout="constrained")
+    for y, (_, rule, robot, grid) in enumerate(rows):
+        estimate, lo, hi = bootstrap_difference(robot, grid, paired=True)
+        k = RULES.index(rule)
+        ax.errorbar(
+            [estimate],
+            [y],
+            xerr=[[estimate - lo], [hi - estimate]],
+            fmt=MARKERS[k % len(MARKERS)],
+            color=palette.series(k),
+            capsize=3,
+            ms=6,
+            label=rule,
+        )
+    ax.axvline(0, color=palette.GRID, lw=1, zorder=0)
+    ax.set_yticks(range(len(rows)), [label for label, _, _, _ in rows], fontsize=8)
+    ax.set_ylim(len(rows) - 0.5, -0.5)
+    ax.set_xlabel("collisions per run, robot minus grid (paired by run; 95% bootstrap CI)")
+    ax.set_title("The camera robot against the grid, by decision rule", fontsize=10)
+    handles, labels = ax.get_legend_handles_labels()
+    unique = dict(zip(labels, handles))
+    figure_legend(fig, unique.values(), unique.keys(), len(unique), title="decision rule")
     return save(fig, path)

@@ -4,36 +4,27 @@ hold beyond its three mazes? (``conf/experiment/generalisation.yaml``, issue 14.
 The experiment runs every method on many generated layouts of each of the paper's sizes
 (``experiment.layouts``: :mod:`pipeline.world.layout_sets`). The records say what each cell ran:
 its maze is the layout's spec (``random:7x7:16:3:unique``), which gives the size, and its records
-keep the layout's rows, from which the layout features are computed. Per size:
-
-* ``figures/<folder>.png``: the distribution over layouts of mean collisions per run, one box per
-  method (log scale).
-* ``tables/<folder>.md|csv``: for each claim, the fraction of layouts where it **holds** (every
-  check on the claimed side by the verdict rule of :mod:`pipeline.report.checks`, Holm's correction
-  within the claim, bootstrap over the layout's run seeds, paired), where it **does not hold** and
-  where the claimed order holds for the means alone, each with a 95% Wilson interval over layouts
-  (the layouts are independent draws of the generator). Table 3's order is
-  :func:`pipeline.report.checks.order_checks`.
-* ``tables/<folder>_dss_gain.md|csv``: the gain of the dynamic support set (few-shot without minus
-  with it) per size, mean over layouts with a 95% bootstrap interval over layouts, and whether it
-  grows with the size (difference of the sizes' mean gains, bootstrap over layouts, unpaired: the
-  sizes' layouts are unrelated). A between-size claim has no per-layout fraction.
-* ``figures/<folder>_features.png`` and ``tables/<folder>_features.md|csv``: mean collisions per
-  run against three layout features (:func:`features`), one least-squares line per method, its
-  slope with a 95% t interval; a feature constant over a size's layouts (the shortest path of every
-  ``unique`` layout is monotone: ``W+H-2`` moves) has no line.
-* ``tables/<folder>_data.csv``: one row per cell: size, layout, method, collisions, features.
+keep the layout's rows, from which the layout features are computed
+(:mod:`pipeline.report.layout_cells`). Per size: collisions over layouts per method; for each claim
+the fraction of layouts where it holds by the claims section's verdict rule (the layouts are
+independent draws of the generator: Wilson intervals); the DSS gain and whether it grows with the
+size (a between-size claim, so no per-layout fraction); collisions against layout features.
 """
 
 from __future__ import annotations
-
-from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
 
 from pipeline.report import figures_beyond as FB
-from pipeline.report.checks import Claim, Data, checked, fewer, order_checks
+from pipeline.report.checks import Claim, Data, checked
+from pipeline.report.claims import (
+    DSS_REDUCES,
+    FEWER_THAN_CONSTRAINED,
+    FIGURE_8,
+    TABLE3_ORDER,
+    Fewer,
+)
 from pipeline.report.experiments import Experiment
 from pipeline.report.layout_cells import (
     FEATURES,
@@ -48,74 +39,26 @@ from pipeline.report.layout_cells import (
 )
 from pipeline.stats import bootstrap_ci, bootstrap_difference, wilson_ci
 
-
-@dataclass(frozen=True)
-class LayoutClaim:
-    """A claim checked on each layout: ``make(data, arm)`` gives its checks, where ``arm(method)``
-    is the layout's :class:`~pipeline.report.checks.Arm` of a method."""
-
-    source: str
-    says: str
-    make: object
-    quoted: bool = True
-
-
-def pairs(*more_less: tuple[str, str]):
-    """Checks that the first method of each pair collides more than the second."""
-
-    def make(data: Data, arm) -> list:
-        return [fewer(data, f"{a} − {b}", arm(a), arm(b)) for a, b in more_less]
-
-    return make
-
-
-#: The paper's claims that one layout can check (claims.py words them the same way).
+#: The paper's claims that one layout can check (:mod:`pipeline.report.claims` words the ones it
+#: checks on every maze of Table 3 for a layout of one).
 CLAIMS = (
-    LayoutClaim(
-        "Figure 8",
-        "algorithms with the safety guarantee can significantly reduce the number of collisions "
-        "than the algorithm without a safety guarantee",
-        pairs(("qlearning", "shield"), ("qlearning", "ssrl"), ("qlearning", "fewshot")),
-    ),
-    LayoutClaim(
-        "Figure 8",
-        "SSRL and few-shot reasoning (without a dynamic support set) [...] both of them have a "
-        "better performance in safety exploration than Q-learning with shield",
-        pairs(("shield", "ssrl"), ("shield", "fewshot")),
-    ),
-    LayoutClaim(
-        "Figure 8",
-        "the performance of SSRL is slightly better than few-shot reasoning",
-        pairs(("fewshot", "ssrl")),
-    ),
-    LayoutClaim(
+    *FIGURE_8,
+    Fewer(
         "Figure 8",
         "few-shot reasoning with the dynamic support set collides less than SSRL",
-        pairs(("ssrl", "fewshot_dss")),
+        (("ssrl", "fewshot_dss"),),
         quoted=False,
     ),
-    LayoutClaim(
-        "Table 3", "Sarsa has more collisions than Q-learning", pairs(("sarsa", "qlearning"))
-    ),
-    LayoutClaim(
-        "Table 3",
-        "our method, no matter with or without the dynamic support set, has fewer collisions "
-        "than constrained RL methods",
-        pairs(("constrained", "fewshot"), ("constrained", "fewshot_dss")),
-    ),
-    LayoutClaim(
+    Fewer("Table 3", "Sarsa has more collisions than Q-learning", (("sarsa", "qlearning"),)),
+    FEWER_THAN_CONSTRAINED,
+    Fewer(
         "Table 3",
         "collisions fall in the order of its rows: Sarsa, constrained RL, our method without, "
         "with the dynamic support set",
-        lambda data, arm: order_checks(data, arm),
+        TABLE3_ORDER,
         quoted=False,
     ),
-    LayoutClaim(
-        "Table 3",
-        "the dynamic support set reduces collisions",
-        pairs(("fewshot", "fewshot_dss")),
-        quoted=False,
-    ),
+    Fewer("Table 3", "the dynamic support set reduces collisions", DSS_REDUCES, quoted=False),
 )
 
 
@@ -129,6 +72,14 @@ def share(k: int, n: int) -> str:
     return f"{k}/{n} = {100 * k / n:.0f}% [{100 * low:.0f}, {100 * high:.0f}]" if n else ""
 
 
+#: What is counted over a size's layouts for each claim: the table's column, the CSV's outcome.
+OUTCOMES = (
+    ("holds", "holds"),
+    ("does not hold", "does_not_hold"),
+    ("means in the claimed order", "means_ordered"),
+)
+
+
 def claim_rows(sizes: dict[str, list[LayoutCells]]) -> tuple[list[dict], list[dict]]:
     """Per size and claim: the layouts where it holds, does not hold, and where the means are in
     the claimed order (table rows and their CSV form)."""
@@ -140,7 +91,7 @@ def claim_rows(sizes: dict[str, list[LayoutCells]]) -> tuple[list[dict], list[di
                 c: Claim = checked(
                     claim.source,
                     claim.says,
-                    lambda claim=claim, lay=lay: claim.make(NO_PAPER, lay.arm),
+                    lambda claim=claim, lay=lay: claim.checks(NO_PAPER, lay.arm),
                     quoted=claim.quoted,
                 )
                 if c.verdict == "not checked":
@@ -150,24 +101,13 @@ def claim_rows(sizes: dict[str, list[LayoutCells]]) -> tuple[list[dict], list[di
             n = len(verdicts)
             if not n:
                 continue
-            holds, fails, ordered = (
-                verdicts.count("holds"),
-                verdicts.count("does not hold"),
-                sum(means_ok),
-            )
+            counts = (verdicts.count("holds"), verdicts.count("does not hold"), sum(means_ok))
             text = c.text()
             table.append(
-                {
-                    "size": size,
-                    "where": claim.source,
-                    "the paper": text,
-                    "layouts": n,
-                    "holds": share(holds, n),
-                    "does not hold": share(fails, n),
-                    "means in the claimed order": share(ordered, n),
-                }
+                {"size": size, "where": claim.source, "the paper": text, "layouts": n}
+                | {column: share(k, n) for (column, _), k in zip(OUTCOMES, counts)}
             )
-            for what, k in (("holds", holds), ("does_not_hold", fails), ("means_ordered", ordered)):
+            for (_, what), k in zip(OUTCOMES, counts):
                 low, high = wilson_ci(k / n, n)
                 data.append(
                     {
@@ -233,8 +173,8 @@ def growth(per_size: dict[str, np.ndarray]) -> list[dict]:
     return out
 
 
-def generalisation_section(rep, exp: Experiment) -> None:
-    """The section (module docstring)."""
+def generalisation_section(rep, exp: Experiment, experiments: list[Experiment]) -> None:
+    """The section (module docstring); the other ``experiments`` are not used."""
     sizes, notes = by_size(exp)
     if not sizes:
         rep.add("No cell of this experiment is on a generated layout.\n")

@@ -10,9 +10,7 @@ experiments fits one screen. Its keys (DVC joins nested keys with dots):
 - ``<experiment>.<cell>``: the mean collisions per run of each cell the experiment's
   ``report.headline`` names (:class:`pipeline.report.spec.ReportSpec`), in that order.
 
-The detail stays one command away and is not declared: ``dvc metrics show datasets/metrics/fig8``
-(a row per cell: mean collisions with its 95% interval, the converged fraction) and ``dvc metrics
-show datasets/models`` (each model's accuracy with its interval).
+The detail is not declared: ``dvc metrics show datasets/metrics/<experiment>`` (docs/dvc.md).
 """
 
 from __future__ import annotations

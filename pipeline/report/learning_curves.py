@@ -16,14 +16,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from pipeline.report.figures import PLAIN, save, style  # noqa: E402
-from pipeline.stats import mean_band  # noqa: E402
+from pipeline.report.figures import PLAIN, figure_legend, save, style
+from pipeline.stats import mean_band
 
 #: The episodes the left panel shows at the full scale (from the first one drawn).
 EARLY = 10
@@ -60,26 +57,17 @@ def curves(
         squeeze=False,
         layout="constrained",
     )
-    for i, (label, (mean, lo, hi)) in enumerate(bands.items()):
-        draw(
-            axes[0][0],
-            np.arange(mean.size) + first,
-            mean,
-            lo,
-            hi,
-            label,
-            style(styles, label, i),
-            i,
-        )
+    for i, (label, b) in enumerate(bands.items()):
+        draw(axes[0][0], np.arange(b[0].size) + first, b, label, style(styles, label, i), i)
     notes = []
     if two_scales:
         later = {
             label: band(window_means(np.atleast_2d(values)[:, EARLY:]))
             for label, values in series.items()
         }
-        for i, (label, (mean, lo, hi)) in enumerate(later.items()):
-            x = np.arange(mean.size) + first + EARLY
-            draw(axes[0][1], x, mean, lo, hi, label, style(styles, label, i), i)
+        for i, (label, b) in enumerate(later.items()):
+            x = np.arange(b[0].size) + first + EARLY
+            draw(axes[0][1], x, b, label, style(styles, label, i), i)
         notes.append(split_scales(axes[0][0], axes[0][1], later, first, length, xlabel, ylabel))
     else:
         ax = axes[0][0]
@@ -95,7 +83,7 @@ def curves(
     if two_scales:
         fig.suptitle(title, fontsize=10)
     handles, labels = axes[0][0].get_legend_handles_labels()
-    fig.legend(handles, labels, fontsize=8, loc="outside lower center", ncols=2, frameon=False)
+    figure_legend(fig, handles, labels, 2)
     save(fig, path)
     return "; ".join(notes)
 
@@ -130,8 +118,10 @@ def early_dwarfs_late(bands: dict) -> bool:
     return early > 4 and late < early / 4
 
 
-def draw(ax, x, mean, lo, hi, label: str, s: dict, i: int) -> None:
-    """A row's mean as a line (its marker every few points, spread out on a log axis) and its band."""
+def draw(ax, x, row_band: tuple, label: str, s: dict, i: int) -> None:
+    """A row's mean as a line (its marker every few points, spread out on a log axis) and its band
+    (``row_band``: :func:`band`)."""
+    mean, lo, hi = row_band
     marks = np.unique(np.geomspace(1, max(mean.size, 1), 14).astype(int)) - 1
     ax.plot(
         x,

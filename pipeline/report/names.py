@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from functools import cache
 
 from pipeline import palette
+from pipeline.config.recognisers import declared_targets, recogniser_target
 from pipeline.rl.methods import declaration
 from pipeline.rl.rules import METHODS, Safety, reasons_with_pictures
 
@@ -76,7 +77,7 @@ def row_styles(rows: list[list]) -> list[dict]:
     if len(rows) > 1 and len(set(keys)) == 1:  # one method throughout: its colour tells nothing
         return [
             {
-                "color": palette.SERIES[k % len(palette.SERIES)],
+                "color": palette.series(k),
                 "ls": DASHES[k % len(DASHES)],
                 "marker": MARKERS[k % len(MARKERS)],
             }
@@ -126,23 +127,18 @@ class RecogniserDeclaration:
 
 @cache
 def recogniser_declarations() -> list[RecogniserDeclaration]:
-    """Every recogniser of ``conf/recogniser/``, from the class its ``_target_`` names (a class, or
-    a class's constructor such as ``RelationRecogniser.from_files``): the one declaration of each."""
-    import pydoc
-
-    import yaml
-
-    from pipeline.config.folder import conf_dir
-
+    """Every recogniser of ``conf/recogniser/`` (:func:`~pipeline.config.recognisers.
+    declared_targets`), from the class its ``_target_`` names (a class, or a class's constructor
+    such as ``RelationRecogniser.from_files``): the one declaration of each."""
     found = []
-    for path in sorted(conf_dir("recogniser").glob("*.yaml")):
-        target = str((yaml.safe_load(path.read_text()) or {}).get("_target_"))
-        built = pydoc.locate(target)
+    for target, group in sorted(declared_targets().items(), key=lambda item: item[1]):
+        built = recogniser_target({"_target_": target}, f"recogniser {group}")
         cls = getattr(built, "__self__", built)  # ``Class.from_files``: the class
-        kind = getattr(cls, "kind", "") or path.stem
-        display = getattr(cls, "display_name", "") or path.stem
-        colour = getattr(cls, "colour", None)
-        found.append(RecogniserDeclaration(path.stem, target, kind, display, colour))
+        kind = getattr(cls, "kind", "") or group
+        display = getattr(cls, "display_name", "") or group
+        found.append(
+            RecogniserDeclaration(group, target, kind, display, getattr(cls, "colour", None))
+        )
     return found
 
 

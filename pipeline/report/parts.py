@@ -33,6 +33,11 @@ def safe(name: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", name)
 
 
+def file_name(exp: Experiment, part: str, maze: str | None) -> str:
+    """``<folder>_<part>``, and ``_<maze>`` for one maze of several."""
+    return f"{exp.folder}_{part}{'' if maze is None else '_' + safe(maze)}"
+
+
 def collision_row(
     exp: Experiment, row: Row, cells: list[Cell], paper: dict[str, PaperValue]
 ) -> dict:
@@ -51,22 +56,16 @@ def collision_row(
 
 
 def curves_part(
-    rep,
-    exp: Experiment,
-    rows: list[tuple[Row, list[Cell]]],
-    maze: str | None = None,
-    table: dict | None = None,
-) -> None:
+    rep, exp: Experiment, rows: list[tuple[Row, list[Cell]]], maze: str | None = None
+) -> list[pd.DataFrame]:
     """Learning curves of ``rows``: collisions per episode, mean over run seeds with a 95% band;
-    their data go to ``table`` (a list of frames) when given, else to
-    ``tables/<folder>_learning_curves.csv``."""
+    returns their data (:func:`write_curves_table`)."""
     series = [
         (row, a) for row, cells in rows if (a := pooled(cells, Cell.collisions_by_episode)).size
     ]
     if not series:
-        return
-    own = table is None
-    table = [] if own else table
+        return []
+    table = []
     styles = styles_of(rows)
     mazes = {row.label: " / ".join(sorted({c.maze for c in cells})) for row, cells in rows}
     for row, a in series:
@@ -90,16 +89,14 @@ def curves_part(
                 }
             )
         )
-    if own:
-        write_curves_table(rep, exp, table)
     where = "" if maze is None else f", {maze}"
-    name = f"{exp.folder}_learning_curves{'' if maze is None else '_' + safe(maze)}.png"
+    name = file_name(exp, "learning_curves", maze) + ".png"
     n_runs = sorted({a.shape[0] for _, a in series})
     scales = LC.curves(
         {row.label: a for row, a in series},
         f"Collisions per episode{where}: mean over runs, 95% band",
         rep.out / "figures" / name,
-        styles=styles_of(rows),
+        styles=styles,
     )
     pooled_rows = (
         " (a row that pools cells: their mean per seed)" if any(len(c) > 1 for _, c in rows) else ""
@@ -111,17 +108,17 @@ def curves_part(
         f"{'/'.join(map(str, n_runs))} run seeds{pooled_rows} with its 95% t interval shaded"
         f"{scales}; data: `tables/{exp.folder}_learning_curves.csv`.",
     )
+    return table
 
 
 def write_curves_table(
     rep, exp: Experiment, frames: list[pd.DataFrame], maze: str | None = None
 ) -> None:
     """``tables/<folder>_learning_curves.csv`` (``_<maze>`` for one maze of several: a DVC plot
-    each, whose series have distinct colours)."""
+    each, whose series have distinct colours); long format, a row per series and episode."""
     if frames:
-        suffix = "" if maze is None else f"_{safe(maze)}"
         frame = pd.concat(frames, ignore_index=True)
-        rep.data(f"{exp.folder}_learning_curves{suffix}", frame, float_format="%.6g")
+        rep.data(file_name(exp, "learning_curves", maze), frame, float_format="%.6g")
 
 
 def support_part(
@@ -133,7 +130,7 @@ def support_part(
     if not series:
         return
     where = "" if maze is None else f", {maze}"
-    name = f"{exp.folder}_support_accuracy{'' if maze is None else '_' + safe(maze)}.png"
+    name = file_name(exp, "support_accuracy", maze) + ".png"
     title = f"Query accuracy of the run's support set over the run{where}"
     scales = LC.curves(
         series,

@@ -1,19 +1,7 @@
-"""The report's recogniser section: how well each few-shot recogniser sees (test accuracy quoted,
-validation beside it) and whether it relies on colour.
-
-* Test: 5-way 5-shot accuracy over 600 episodes of the *test families*, held out from training
-  and from checkpoint selection and structurally apart from every training family
-  (``pipeline/world/family_split.py``), from ``metrics_file`` (``accuracy``, ``ci_lower``,
-  ``ci_upper``: the 95% interval of the mean over episodes). This is the figure to quote.
-* Validation: the same on fresh episodes of the validation families, which chose the checkpoint
-  (so it is optimistic), from the accuracy study's copy of the checkpoint's scores
-  (``summary.json``'s ``checkpoint_metrics``; the same figures as
-  ``<checkpoint stem>.validation.json``).
-* Query pictures: the paper's 40 against the original support set (Wilson 95% interval); the
-  larger ``views`` set: the same ten obstacles from 400 viewpoints (:mod:`pipeline.fewshot.views`).
-* Colour test (:mod:`pipeline.fewshot.colour`): every picture's hue turned by each of the study's
-  shifts; the accuracy over pictures x shifts and the drop from the original colours, paired per
-  picture, each with a bootstrap 95% interval over the pictures.
+"""The report's recogniser section: how well each few-shot recogniser sees (the test families'
+accuracy quoted, the validation families' beside it, docs/fewshot.md) and whether it relies on
+colour (:mod:`pipeline.fewshot.colour`). The test figures come from the model's metrics file, the
+rest from its accuracy study's ``summary.json``; the tables' captions say how each is measured.
 """
 
 from __future__ import annotations
@@ -24,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from pipeline.report.study import read_summary
 from pipeline.stats import bootstrap_ci, wilson_ci
 
 COLUMNS = (
@@ -44,11 +33,6 @@ def _interval(lo: float, hi: float) -> str:
     return f"[{100 * lo:.1f}, {100 * hi:.1f}]"
 
 
-def _summary(accuracy_dir: Path) -> dict | None:
-    path = accuracy_dir / "summary.json"
-    return json.loads(path.read_text()) if path.is_file() else None
-
-
 def recogniser_row(name: str, metrics: Path, accuracy_dir: Path) -> dict:
     """One row of the recogniser table (module docstring); a missing file is named in its cell."""
     row = dict.fromkeys(COLUMNS, "")
@@ -58,7 +42,7 @@ def recogniser_row(name: str, metrics: Path, accuracy_dir: Path) -> dict:
         row["test [95%]"] = f"{100 * m['accuracy']:.2f}% {_interval(m['ci_lower'], m['ci_upper'])}"
     else:
         row["test [95%]"] = f"no metrics file `{metrics}`"
-    summary = _summary(accuracy_dir)
+    summary = read_summary(accuracy_dir)
     if summary is None:
         row["query pictures [95%]"] = f"no study `{accuracy_dir / 'summary.json'}`"
         return row
@@ -92,7 +76,7 @@ def _share(correct: int, total: int) -> str:
 
 def colour_rows(name: str, accuracy_dir: Path) -> list[dict]:
     """The colour test's rows of one recogniser: one per picture set the study measured."""
-    summary = _summary(accuracy_dir) or {}
+    summary = read_summary(accuracy_dir) or {}
     rows = []
     for key, words in COLOUR_SETS.items():
         colour = summary.get(key)

@@ -10,21 +10,11 @@ layout. A recogniser that learns only the substituted picture itself (``fixed_ac
 from repetition alone; a network gains also from what a new support picture teaches it about
 the other pictures of its category.
 
-* ``tables/<folder>.md|csv``: per recogniser and r, the DSS gain (mean collisions per run without
-  minus with the DSS, paired on each layout's run seeds, averaged over layouts) and the relative
-  gain (gain / collisions without the DSS, the ratio of the means over layouts), each with a 95%
-  bootstrap interval over layouts (2000 resamples, seed 0).
-* ``figures/<folder>.png``: both against r, with Table 3's (ours, Relation Network; and the
-  paper's) at each maze's own r (9, 16, 49 obstacles: r = 0.9, 1.6, 4.9).
-* ``tables/<folder>_verdict.md|csv``: how much of Table 3's growth of the relative gain from the
-  5x5 to the 11x11 repetition accounts for: the Relation Network's relative gain at one size
-  (11x11), read off the curve at the two mazes' r (linear between measured r; below the smallest
-  measured r its value), its difference divided by Table 3's difference (ours); 95% interval from
-  resampling layouts and Table 3's run seeds together. The same with absolute gains beside it.
-* ``tables/<folder>_data.csv``: one row per layout and recogniser.
-
-The relative gain is the scale of the verdict: the absolute gain also grows with how many
-obstacles the robot meets, which changes with the maze for reasons other than repetition.
+The section: the DSS gain and the relative gain (gain / collisions without the DSS) against r per
+recogniser, beside Table 3's at each maze's own r (9, 16, 49 obstacles: r = 0.9, 1.6, 4.9), and the
+verdict: how much of Table 3's growth of the relative gain from the 5x5 to the 11x11 repetition
+accounts for (:func:`verdict`). The relative gain is its scale: the absolute gain also grows with
+how many obstacles the robot meets, which changes with the maze for reasons other than repetition.
 """
 
 from __future__ import annotations

@@ -3,13 +3,9 @@ docs/robot3d.md): the methods with the camera robot in MuJoCo beside the grid, t
 
 Each robot cell is paired with its grid twin by run (:mod:`pipeline.report.robot_cells`); the
 robot's moves have the grid's outcomes, so the two differ only in their pictures (live, not
-pre-rendered). The section: what recognition adds over the range sensor, at what cost in false
-stops (:func:`range_statement`); the paired differences as a figure
-(:mod:`pipeline.report.robot_figure`); one table per decision rule
-(:class:`pipeline.rl.rules.Rule`: the paper's is Algorithm 1, section 3.2.2; ``open_set`` and
-``range`` are ours), the robot beside the grid under one rule only; the methods that see no
-pictures; recognition accuracy per category; the real-time factor, when the benchmark holds it.
-Only records are read (.importlinter).
+pre-rendered). One table per decision rule (:class:`pipeline.rl.rules.Rule`: the paper's is
+Algorithm 1, section 3.2.2; ``open_set`` and ``range`` are ours): the robot is set beside the grid
+under one rule only.
 """
 
 from __future__ import annotations
@@ -20,8 +16,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from pipeline.report.figures_beyond import difference_figure
 from pipeline.report.robot_cells import Pair, check_cell, pairs, read_extra, recogniser, rule
-from pipeline.report.robot_figure import difference_figure
 from pipeline.rl.rules import Rule
 from pipeline.stats import bootstrap_difference, describe, wilson_ci
 from pipeline.world.pictures import CATEGORIES
@@ -226,9 +222,11 @@ def figure(rep, exp, found: list[Pair], several: bool) -> None:
     )
 
 
-def robot_kind(rep, exp, paper) -> None:
-    """The section: the statement on the range sensor, a table per decision rule, the methods
-    that see no pictures, recognition accuracy per category, the real-time factor."""
+def robot_kind(rep, exp, experiments) -> None:
+    """The section: the statement on the range sensor (:func:`range_statement`), the paired
+    differences as a figure, a table per decision rule, the methods that see no pictures,
+    recognition accuracy per category, the real-time factor (when the benchmark holds it); the
+    other ``experiments`` are not used."""
     cells = list(exp.cells.values())
     extras = {cell.name: read_extra(cell) for cell in cells}
     for cell in cells:

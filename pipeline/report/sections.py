@@ -1,34 +1,16 @@
-"""One report section per recorded experiment, as its ``report:`` block says
-(:class:`~pipeline.report.spec.ReportSpec`; ``docs/extending.md`` "Adding an experiment").
-
-Kinds: ``default`` (a table of collisions per run with 95% bootstrap intervals, learning curves with
-95% bands, the support set's query accuracy), ``bars`` (the same with a bar chart), ``long_term``
-(the runs are consecutive experiments of one robot), ``by_maze`` (one row per group of cells,
-one column per maze, ours beside the paper's) and ``accuracy_curve`` (collisions against a
-controlled recogniser's accuracy: :mod:`pipeline.report.accuracy_curve`) and ``generalisation``
-(the paper's claims over generated layouts: :mod:`pipeline.report.generalisation`). A ``path`` block adds
-a section with the learned path before the experiment's own. Tables and figures are named after
-the experiment's folder: ``tables/<folder>.md|csv``, ``figures/<folder>_collisions.png``,
-``<folder>_learning_curves.png`` (its data ``tables/<folder>_learning_curves.csv``, long format:
-``series`` (the row's name; with `` (<maze>)`` in ``by_maze``), ``key``, ``colour`` (the
-row's, :func:`~pipeline.report.names.row_styles`), ``maze``, ``episode``, ``mean``, ``ci_low``,
-``ci_high``; dvc.yaml's plots draw each series in its colour; ``by_maze`` also writes the rows of
-each maze to ``tables/<folder>_learning_curves_<maze>.csv``, a plot each), ``<folder>_support_accuracy.png``,
-``<folder>_long_term.png``, ``<folder>_path.png``; ``by_maze`` adds ``_<maze>`` to the figures and
-writes ``tables/<folder>_data.csv``.
-
-Rows are named from their cells (:mod:`pipeline.report.names`). A row that pools cells (Table 3's
-four substitution ways) counts each run seed once in its intervals: the cells share run seeds, so
-its per-episode curve averages the cells per seed and its CI resamples seeds. Where another
-section prints the paper's number for the same setting (Table 3's 5x5 column for Figures 8-10),
-the tables and bar charts show it beside ours (:mod:`pipeline.report.paper_numbers`); the parts of
-a section are in :mod:`pipeline.report.parts`, the pooling of cells in :mod:`pipeline.report.pooling`.
-
-``rep`` is the report being written (:class:`pipeline.report.build.Report`): ``add``, ``table``,
-``figure``, ``out`` and ``accuracy_dir``.
+"""One report section per recorded experiment, of the kind its ``report:`` block names
+(:class:`~pipeline.report.spec.ReportSpec`; the kinds: docs/extending.md). A ``path`` block adds a
+section with the learned path before the experiment's own. Tables and figures are named after the
+experiment's folder (``tables/<folder>.md|csv``, ``figures/<folder>_collisions.png``...; ``by_maze``
+adds ``_<maze>`` to the figures). The parts of a section are in :mod:`pipeline.report.parts`, the
+pooling of cells in :mod:`pipeline.report.pooling`, the paper's numbers beside ours in
+:mod:`pipeline.report.paper_numbers`. ``rep`` is the report being written
+(:class:`pipeline.report.build.Report`).
 """
 
 from __future__ import annotations
+
+from functools import partial
 
 import pandas as pd
 
@@ -38,7 +20,7 @@ from pipeline.report import learning_curves as LC
 from pipeline.report.accuracy_curve import accuracy_curve_kind
 from pipeline.report.experiments import Cell, Experiment
 from pipeline.report.generalisation import generalisation_section
-from pipeline.report.paper_numbers import PaperValue, paper_values
+from pipeline.report.paper_numbers import paper_values
 from pipeline.report.parts import (
     COLLISIONS,
     collision_row,
@@ -50,7 +32,6 @@ from pipeline.report.parts import (
 from pipeline.report.pooling import collisions, convergence, describe_runs, pool_note, pooled
 from pipeline.report.repetition import repetition_section
 from pipeline.report.robot import robot_kind
-from pipeline.report.spec import PER_CELL_KINDS
 from pipeline.stats import describe, fmt
 
 
@@ -71,11 +52,7 @@ def section(rep, exp: Experiment, experiments: list[Experiment] = ()) -> list[st
     for note in exp.notes:
         text += f"\n{note}\n"
     rep.add(text)
-    per_cell = exp.spec.kind in PER_CELL_KINDS  # no rows to put the paper's numbers beside
-    if exp.spec.kind == "repetition":  # set beside Table 3's records
-        repetition_section(rep, exp, list(experiments))
-    else:
-        KINDS[exp.spec.kind](rep, exp, {} if per_cell else paper_values(exp, experiments))
+    KINDS[exp.spec.kind](rep, exp, list(experiments))
     return missing
 
 
@@ -86,8 +63,11 @@ PAPER_NOTE = (
 )
 
 
-def default_kind(rep, exp: Experiment, paper: dict[str, PaperValue], bars: bool = False) -> None:
-    rows = exp.rows()
+def default_kind(rep, exp: Experiment, experiments: list[Experiment], bars: bool = False) -> None:
+    """A table of collisions per run (``bars``: and a bar chart of them), learning curves, the
+    support set's accuracy over the run; the paper's numbers beside ours where another section
+    gives them (``experiments``: every section)."""
+    rows, paper = exp.rows(), paper_values(exp, experiments)
     rep.table(
         exp.folder,
         pd.DataFrame([collision_row(exp, r, cells, paper) for r, cells in rows]),
@@ -115,18 +95,14 @@ def default_kind(rep, exp: Experiment, paper: dict[str, PaperValue], bars: bool 
             + ".",
         )
     if exp.spec.curves is not False:
-        curves_part(rep, exp, rows)
+        write_curves_table(rep, exp, curves_part(rep, exp, rows))
     if exp.spec.support_accuracy is not False:
         support_part(rep, exp, rows)
 
 
-def bars_kind(rep, exp: Experiment, paper: dict[str, PaperValue]) -> None:
-    default_kind(rep, exp, paper, bars=True)
-
-
-def long_term_kind(rep, exp: Experiment, paper: dict[str, PaperValue]) -> None:
+def long_term_kind(rep, exp: Experiment, experiments: list[Experiment]) -> None:
     """The runs of each row are consecutive experiments of one robot (``support=carry``)."""
-    rows = exp.rows()
+    rows, paper = exp.rows(), paper_values(exp, experiments)
     values = [(row, collisions(cells)) for row, cells in rows]
     table = [
         {
@@ -158,7 +134,7 @@ def long_term_kind(rep, exp: Experiment, paper: dict[str, PaperValue]) -> None:
         "bootstrap CI" + ("; the paper's number as a black dash" if paper else "") + ".",
     )
     if exp.spec.curves is not False:
-        curves_part(rep, exp, rows)
+        write_curves_table(rep, exp, curves_part(rep, exp, rows))
     if exp.spec.support_accuracy is not False:
         ends = {
             row.label: a[:, -1]
@@ -183,9 +159,9 @@ def long_term_kind(rep, exp: Experiment, paper: dict[str, PaperValue]) -> None:
             )
 
 
-def by_maze_kind(rep, exp: Experiment, paper: dict[str, PaperValue]) -> None:
+def by_maze_kind(rep, exp: Experiment, experiments: list[Experiment]) -> None:
     """One row per group, one column per maze (in the order the groups name their cells): ours
-    (the group's cells on that maze pooled) and the paper's."""
+    (the group's cells on that maze pooled) and the paper's (the group's own ``paper``)."""
     rows = exp.rows()
     mazes = list(dict.fromkeys(c.maze for _, cells in rows for c in cells))
     with_paper = {m for m in mazes if any(m in r.paper for r, _ in rows)}
@@ -226,34 +202,30 @@ def by_maze_kind(rep, exp: Experiment, paper: dict[str, PaperValue]) -> None:
         pd.DataFrame(table),
         "Mean ± s.d. [95% bootstrap CI] of collisions per run." + pool_note(rows, per_maze=True),
     )
+    on_maze = {
+        maze: [(row, on) for row, cells in rows if (on := [c for c in cells if c.maze == maze])]
+        for maze in mazes
+    }
     curves = []
-    for maze in mazes:
-        on_maze = [(row, [c for c in cells if c.maze == maze]) for row, cells in rows]
-        on_maze = [(row, cells) for row, cells in on_maze if cells]
-        if exp.spec.curves is not False:
-            here: list = []
-            curves_part(rep, exp, on_maze, maze, table=here)
-            write_curves_table(rep, exp, here, maze)  # the DVC plot of this maze
-            curves += here
+    for maze in mazes if exp.spec.curves is not False else []:
+        here = curves_part(rep, exp, on_maze[maze], maze)
+        write_curves_table(rep, exp, here, maze)  # the DVC plot of this maze
+        curves += here
     write_curves_table(rep, exp, curves)
-    if exp.spec.support_accuracy is not False:
-        for maze in mazes:
-            on_maze = [(row, [c for c in cells if c.maze == maze]) for row, cells in rows]
-            support_part(rep, exp, [(row, cells) for row, cells in on_maze if cells], maze)
+    for maze in mazes if exp.spec.support_accuracy is not False else []:
+        support_part(rep, exp, on_maze[maze], maze)
 
 
-def generalisation_kind(rep, exp: Experiment, paper: dict[str, PaperValue]) -> None:
-    """:mod:`pipeline.report.generalisation`."""
-    generalisation_section(rep, exp)
-
-
+#: Each kind's section, called with the report, the experiment and every experiment of the report
+#: (the paper's numbers of one may belong to another).
 KINDS = {
     "default": default_kind,
-    "bars": bars_kind,
+    "bars": partial(default_kind, bars=True),
     "long_term": long_term_kind,
     "by_maze": by_maze_kind,
     "accuracy_curve": accuracy_curve_kind,
-    "generalisation": generalisation_kind,
+    "generalisation": generalisation_section,
+    "repetition": repetition_section,
     "robot": robot_kind,
 }
 

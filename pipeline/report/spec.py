@@ -1,19 +1,11 @@
-"""How the report presents one experiment: the ``report:`` block of ``conf/experiment/<name>.yaml``.
+"""How the report presents one experiment: the optional ``report:`` block of
+``conf/experiment/<name>.yaml`` (docs/extending.md, "How the report presents it"), which the trials
+stage embeds in every record file, so a report is built from the records alone.
 
-The block is optional. Without it an experiment gets the default section: a table of collisions
-per run (mean ± s.d. [95% bootstrap CI]) with one row per cell, learning curves with a 95% band and,
-for cells with a recogniser, the query accuracy of the support set over the run. With it the file
-says which kind of section, the order of the rows, which cells pool into one row, the paper's
-numbers and the paper's claim; rows are named from what their cells ran
-(:mod:`pipeline.report.names`). The trials stage embeds the block in every record file
-(``experiment.report`` of the recorded config), and the report reads it from there, so a report is
-built from the records alone.
-
-The schema of the trials stage types ``experiment.report`` by :class:`ReportSpec`, so Hydra refuses
-unknown keys and :func:`pipeline.config.fields.check` refuses a ``kind`` outside :data:`KINDS` (the
-``choices`` its field declares with :func:`~pipeline.config.fields.setting`); :meth:`ReportSpec.problems`
-refuses cell names the experiment does not have. Reading a recorded block
-(:meth:`ReportSpec.from_dict`) refuses the same unknown keys and kinds, in the same words.
+The trials stage's schema types the block by :class:`ReportSpec` (Hydra refuses unknown keys, the
+field's ``choices`` a kind outside :data:`KINDS`); :meth:`ReportSpec.problems` refuses cell names the
+experiment does not have. Reading a recorded block (:meth:`ReportSpec.from_dict`) refuses the same
+unknown keys and kinds, in the same words.
 """
 
 from __future__ import annotations
@@ -24,17 +16,7 @@ from typing import Any
 
 from pipeline.config.fields import problem, setting
 
-#: Section kinds. ``default``: table of collisions + learning curves (+ support-set accuracy).
-#: ``bars``: the same with a bar chart of collisions per run. ``long_term``: the runs are
-#: consecutive experiments of one robot (collisions of each, the support set's accuracy at the end
-#: of each). ``by_maze``: one row per group, one column per maze (ours and the paper's).
-#: ``accuracy_curve``: collisions against the recognition accuracy ``p`` of the cells' recogniser,
-#: per maze, the cells without a recogniser as reference lines, and the break-even accuracies.
-#: ``generalisation``: cells over generated layouts (``experiment.layouts``): per size, collisions
-#: over layouts per method, the fraction of layouts where each of the paper's claims holds, and
-#: collisions against layout features (:mod:`pipeline.report.generalisation`). ``repetition``:
-#: cells over generated layouts of one size whose sets differ in obstacles: the DSS gain against
-#: how often each obstacle repeats, beside Table 3's (:mod:`pipeline.report.repetition`).
+#: Section kinds (docs/extending.md's table; each is a function of :mod:`pipeline.report.sections`).
 KINDS = (
     "default",
     "bars",
@@ -149,21 +131,17 @@ class ReportSpec:
         for name in self.headline:
             need("headline", name)
         if self.kind in PER_CELL_KINDS:
+            kind = f"the {self.kind} kind"
             if self.groups:
                 out.append(
-                    (
-                        "groups",
-                        f"the {self.kind} kind pools no cells (one point per cell); "
-                        "give cells or nothing",
-                    )
+                    ("groups", f"{kind} pools no cells (one point per cell); give cells or nothing")
                 )
+            drawn = [
+                key for key in ("curves", "support_accuracy") if getattr(self, key) is not None
+            ]
             out += [
-                (
-                    key,
-                    f"the {self.kind} kind draws no learning curves or support-set accuracy over the run",
-                )
-                for key in ("curves", "support_accuracy")
-                if getattr(self, key) is not None
+                (key, f"{kind} draws no learning curves or support-set accuracy over the run")
+                for key in drawn
             ]
         seen = set()
         for i, group in enumerate(self.groups):

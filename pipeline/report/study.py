@@ -52,6 +52,12 @@ class Estimate:
         return Estimate(self.value - other.value, np.asarray(mine - theirs, dtype=float))
 
 
+def read_summary(accuracy_dir: Path) -> dict | None:
+    """The accuracy study's ``summary.json`` (None without the study)."""
+    path = accuracy_dir / "summary.json"
+    return json.loads(path.read_text()) if path.is_file() else None
+
+
 class Study:
     """The accuracy study's data files and each accuracy's bootstrap over its draws."""
 

@@ -11,7 +11,7 @@ from entry import cli
 from fakes import FIG8_WITHOUT_MODELS
 
 from faults._checks import FAST, digest, one_line_error
-from pipeline.report.accuracy import recogniser_row
+from pipeline.report.recogniser_table import recogniser_row
 
 ROOT = Path(__file__).resolve().parents[2]
 
