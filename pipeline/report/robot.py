@@ -10,9 +10,6 @@ under one rule only.
 
 from __future__ import annotations
 
-import json
-from pathlib import Path
-
 import numpy as np
 import pandas as pd
 
@@ -21,8 +18,6 @@ from pipeline.report.robot_cells import Pair, check_cell, pairs, read_extra, rec
 from pipeline.rl.rules import Rule
 from pipeline.stats import bootstrap_difference, describe, wilson_ci
 from pipeline.world.pictures import CATEGORIES
-
-BENCHMARK = Path("reports/benchmarks/robot3d.json")
 
 #: Each decision rule in words (captions); ``{threshold}``: the cells' recorded threshold.
 RULE_WORDS = {
@@ -185,22 +180,6 @@ ACCURACY_CAPTION = (
 )
 
 
-def benchmark_line() -> str | None:
-    """The real-time factor and physics rates from the benchmark file, when it holds them."""
-    try:
-        bench = json.loads(BENCHMARK.read_text())
-        rtf = bench["few_shot_oracle_5x5"]["real_time_factor"]
-        steps, pictures = (
-            bench["physics"][k] for k in ("physics_steps_per_s_controlled", "pictures_per_s")
-        )
-    except (OSError, ValueError, KeyError, TypeError):  # no file, or not the figures read here
-        return None
-    return (
-        f"Real-time factor (benchmark `{BENCHMARK}`): {rtf} simulated seconds per wall-clock "
-        f"second; {steps} physics steps/s under the controller, {pictures} live pictures/s.\n"
-    )
-
-
 def figure(rep, exp, found: list[Pair], several: bool) -> None:
     """The paired differences, robot minus grid, one row per robot cell, coloured by rule."""
     rows = [
@@ -257,5 +236,3 @@ def robot_kind(rep, exp, experiments) -> None:
             )
     if few:
         rep.table(f"{exp.folder}_recognition", accuracy_table(few), ACCURACY_CAPTION)
-    if line := benchmark_line():
-        rep.add(line)
