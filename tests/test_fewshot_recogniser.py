@@ -130,3 +130,21 @@ def test_a_recogniser_that_does_not_score_cannot_be_built():
 
     with pytest.raises(TypeError, match="abstract method.*forward"):
         NoForward(None, torch.zeros(0), np.zeros(0), torch.zeros(0))
+
+
+def test_recognisers_of_one_checkpoint_share_its_network_until_the_file_changes(tmp_path):
+    """Table 3's five recognisers (a substitution way each) load the checkpoint once, so the
+    pictures are embedded once; a checkpoint file written again is loaded again."""
+    import os
+
+    from fakes import untrained_network
+
+    ckpt, _ = untrained_network(tmp_path)
+    first, other_way = (
+        RelationRecogniser.from_files(ckpt, tmp_path / "images", substitution_way=w) for w in (1, 3)
+    )
+    assert first.network is other_way.network
+    ckpt, _ = untrained_network(tmp_path)  # the same file written again
+    os.utime(ckpt, ns=(1, 1))  # a modification time no first write has: surely another file
+    again = RelationRecogniser.from_files(ckpt, tmp_path / "images", substitution_way=1)
+    assert again.network is not first.network

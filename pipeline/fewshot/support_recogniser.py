@@ -16,6 +16,7 @@ from __future__ import annotations
 import abc
 import hashlib
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import torch
@@ -142,7 +143,7 @@ class SupportSetRecogniser(abc.ABC):
             raise ValueError(
                 f"query_hue_shift must be a finite number of degrees, got {query_hue_shift!r}"
             )
-        network, payload = load_checkpoint(checkpoint, expected, kind=cls.kind)
+        network, payload = _loaded(checkpoint, expected, cls.kind)
         size = network.config.input_size
         frame = read_manifest(images_dir)
         query = load_split(images_dir, "query", size, frame)
@@ -319,6 +320,30 @@ def _resized(image: np.ndarray, size: int) -> np.ndarray:
     if im.size != (size, size):
         im = im.resize((size, size), Image.Resampling.BILINEAR)
     return np.asarray(im)
+
+
+#: Networks already loaded in this process, by checkpoint file (its path, size, modification time
+#: and inode) and expected shape: the recognisers of one study (Table 3's five, a substitution way
+#: each) share one network, so their pictures are embedded once (:func:`_embedded`). A recogniser
+#: only evaluates its network (eval mode, no gradients), never changes it.
+_NETWORKS: dict[tuple, tuple[object, dict]] = {}
+MAX_NETWORKS = 8  # the oldest goes first
+
+
+def _loaded(checkpoint, expected, kind: str) -> tuple[object, dict]:
+    """:func:`load_checkpoint`, once per checkpoint file as it is on disk (a file replaced or
+    rewritten is loaded again; one that cannot be read is refused by ``load_checkpoint``)."""
+    try:
+        path = Path(checkpoint).resolve()
+        st = path.stat()
+    except (OSError, RuntimeError):  # missing, a loop of links: load_checkpoint says which
+        return load_checkpoint(checkpoint, expected, kind=kind)
+    key = (str(path), st.st_size, st.st_mtime_ns, st.st_ino, kind, repr(expected))
+    if key not in _NETWORKS:
+        if len(_NETWORKS) >= MAX_NETWORKS:
+            del _NETWORKS[next(iter(_NETWORKS))]
+        _NETWORKS[key] = load_checkpoint(checkpoint, expected, kind=kind)
+    return _NETWORKS[key]
 
 
 #: Embeddings of picture batches already embedded, by (network, the batch's bytes): the robot's
