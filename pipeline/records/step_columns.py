@@ -45,8 +45,8 @@ def _code_bytes(values, out):
 @nb.njit(cache=True, nogil=True)
 def _small_rewards(rewards, out):
     """Fill ``out`` with the rewards as int8 and return whether each is a whole number in
-    -64..63 (NaN is not). No early exit and no branch: one loop the compiler vectorises (an early
-    exit cost ten times as much); ``out`` means nothing when the answer is False."""
+    -64..63 (NaN is not). No early exit and no branch: one loop the compiler vectorises (with an
+    early exit it cost 3.6 times as much a step); ``out`` means nothing when the answer is False."""
     fits = True
     for i in range(rewards.shape[0]):
         r = rewards[i]
