@@ -29,3 +29,18 @@ def cli(*args, cwd=ROOT) -> subprocess.CompletedProcess:
         os.chdir(here)
         sys.argv = argv
     return subprocess.CompletedProcess(list(args), code, out.getvalue(), err.getvalue())
+
+
+def package_copy(folder: Path) -> Path:
+    """A copy of ``pipeline/`` and its config folder in ``folder`` (what a test that adds a
+    method, a recogniser or an experiment edits); returns the copy's config folder."""
+    import shutil
+
+    from pipeline.config.compose import CONF_DIR
+
+    ignore = shutil.ignore_patterns("__pycache__", "*.nbi", "*.nbc")
+    shutil.copytree(ROOT / "pipeline", folder / "pipeline", ignore=ignore)
+    conf = Path(CONF_DIR)
+    if not conf.is_relative_to(ROOT / "pipeline"):  # configs beside the package, not inside it
+        shutil.copytree(conf, folder / conf.relative_to(ROOT), ignore=ignore)
+    return folder / conf.relative_to(ROOT)

@@ -8,7 +8,6 @@ from __future__ import annotations
 import json
 import os
 import re
-import shutil
 import subprocess
 import sys
 import textwrap
@@ -16,8 +15,8 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
+from entry import package_copy
 
-from pipeline.config.compose import CONF_DIR
 from pipeline.rl.methods import METHOD_DIR
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -60,11 +59,7 @@ run_stage("report", ["runs_dir=runs", "out=report", "allow_missing=true", "accur
 @pytest.mark.slow  # a copy of the package run in a child process; fast: tests/test_declarations.py
 def test_a_new_safety_method_needs_its_rule_its_declaration_and_its_yaml(tmp_path):
     copy = tmp_path / "repo"
-    ignore = shutil.ignore_patterns("__pycache__", "*.nbi", "*.nbc")
-    shutil.copytree(ROOT / "pipeline", copy / "pipeline", ignore=ignore)
-    conf = Path(CONF_DIR)
-    if not conf.is_relative_to(ROOT / "pipeline"):  # configs beside the package, not inside it
-        shutil.copytree(conf, copy / conf.relative_to(ROOT), ignore=ignore)
+    conf = package_copy(copy)
     rules = copy / "pipeline" / "rl" / "rules.py"
     # 1. the rule: a member of Safety (a collision adds (s, a), as every rule but none's)
     add_safety_member(rules, "mine = 9  #: a test rule: a collision adds (s, a)")
@@ -74,7 +69,7 @@ def test_a_new_safety_method_needs_its_rule_its_declaration_and_its_yaml(tmp_pat
         "name: mine\nsafety: mine\nrecovery: true\n"
     )
     # experiments that run it beside Q-learning: listed cells, and cells over generated layouts
-    experiments = copy / conf.relative_to(ROOT) / "experiment"
+    experiments = conf / "experiment"
     (experiments / "mine.yaml").write_text(
         textwrap.dedent(
             """\

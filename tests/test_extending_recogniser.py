@@ -6,19 +6,15 @@ names each recogniser's rows by its declared ``display_name``, never another rec
 from __future__ import annotations
 
 import os
-import shutil
 import subprocess
 import sys
 import textwrap
-from pathlib import Path
 
 import pandas as pd
 import pytest
+from entry import package_copy
 
-from pipeline.config.compose import CONF_DIR
 from pipeline.rl.methods import declaration, get_method
-
-ROOT = Path(__file__).resolve().parents[1]
 
 TOY = '''\
 from pipeline.rl.fixed_accuracy import FixedAccuracyRecogniser
@@ -59,12 +55,7 @@ run_stage("report", ["runs_dir=runs", "out=report", "allow_missing=true", "accur
 @pytest.mark.slow  # a copy of the package run in a child process
 def test_a_new_recogniser_is_two_files_and_a_new_experiment_one(tmp_path):
     copy = tmp_path / "repo"
-    ignore = shutil.ignore_patterns("__pycache__", "*.nbi", "*.nbc")
-    shutil.copytree(ROOT / "pipeline", copy / "pipeline", ignore=ignore)
-    conf = Path(CONF_DIR)
-    if not conf.is_relative_to(ROOT / "pipeline"):  # configs beside the package, not inside it
-        shutil.copytree(conf, copy / conf.relative_to(ROOT), ignore=ignore)
-    conf = copy / conf.relative_to(ROOT)
+    conf = package_copy(copy)
     # the recogniser: its module and its yaml
     (copy / "pipeline" / "rl" / "toy.py").write_text(TOY)
     (conf / "recogniser" / "toy.yaml").write_text(
