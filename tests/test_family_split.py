@@ -118,8 +118,8 @@ def test_contact_sheet_rows_say_what_they_show(tmp_path):
     _, rows = query_batch(PlanConfig())
     labels = [label for label, files in query_rows(rows, tmp_path)]
     assert labels[:2] == [
-        "chair as it stands in the maze: seen from north, east, south, west",
-        "chair turned 45 degrees: seen from north, east, south, west",
+        "chair object 1: seen from north, east, south, west",
+        "chair object 2: seen from north, east, south, west",
     ]
     assert len(labels) == 10 and all(len(f) == 4 for _, f in query_rows(rows, tmp_path))
     assert views_rows(rows, tmp_path, 8) == []  # no views rows: no sheet

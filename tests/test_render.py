@@ -16,7 +16,7 @@ from pipeline.files import write_atomic
 from pipeline.manifest import COLUMNS, SPLITS
 from pipeline.world.camera import side_azimuth
 from pipeline.world.metaset import build_meta_instance, make_families
-from pipeline.world.obstacle_models import build_obstacle, category_index
+from pipeline.world.obstacle_models import build_obstacle, category_index, obstacle_instance
 from pipeline.world.pictures import CATEGORIES, N_PICTURES, picture_id
 from pipeline.world.render_plan import PlanConfig, make_plan
 from pipeline.world.render_runner import Drawing, render_batch
@@ -89,7 +89,7 @@ def test_counts_columns_and_query_faces(rendered):
         c, i, f = int(r["category"]), int(r["instance"]), int(r["face"])
         assert int(r["picture_id"]) == picture_id(c, i, f)
         assert r["class_name"] == CATEGORIES[c]
-        assert float(r["orientation_deg"]) == (0.0 if i == 0 else 45.0)
+        assert float(r["orientation_deg"]) == 0.0  # two objects, neither turned
     assert {(int(r["category"]), int(r["instance"]), int(r["face"])) for r in by["query"]} == {
         (c, i, f) for c in range(5) for i in range(2) for f in range(4)
     }
@@ -97,7 +97,7 @@ def test_counts_columns_and_query_faces(rendered):
         assert all(int(r["picture_id"]) == -1 and int(r["face"]) == -1 for r in by[s])
     assert {
         (int(r["category"]), int(r["instance"]), float(r["orientation_deg"])) for r in by["views"]
-    } == {(c, i, 45.0 * i) for c in range(5) for i in range(2)}
+    } == {(c, i, 0.0) for c in range(5) for i in range(2)}
     for name in (
         "contact_query",
         "contact_support",
@@ -188,6 +188,48 @@ def test_family_instances_vary_in_colour_parts_and_proportions():
         for k in range(200)
     ]
     assert np.histogram(hues, bins=6, range=(0, 1))[0].min() >= 15  # any hue, about evenly
+
+
+def _turn_invariant_shape(obj) -> list:
+    """What turning an object about its vertical axis leaves alone: each part's kind, its size
+    in its own frame, its height, and a mesh's vertex count and radius."""
+    return sorted(
+        (
+            p.kind,
+            tuple(round(float(x), 4) for x in p.size),
+            round(float(p.pos[2]), 4),
+            0 if p.mesh is None else len(p.mesh.vertices),
+            0.0 if p.mesh is None else round(p.mesh.radius(), 4),
+        )
+        for p in obj.parts
+    )
+
+
+def test_the_two_obstacles_of_a_category_are_two_objects_not_one_turned():
+    """DESIGN.md: two distinct objects per category (another chair, not the same chair turned).
+    A turn about the vertical axis keeps every part's size and height; the two instances differ
+    in them, and each is its category's own build, the same on every call."""
+    for c in CATEGORIES:
+        first, second = (obstacle_instance(c, i, seed=0) for i in (0, 1))
+        assert first.name == second.name == c
+        assert _turn_invariant_shape(first) != _turn_invariant_shape(second), c
+        assert first.palette != second.palette, c
+        again = obstacle_instance(c, 1, seed=0)
+        assert _turn_invariant_shape(again) == _turn_invariant_shape(second)
+
+
+def test_query_pictures_show_each_category_as_two_objects():
+    """The query batch builds the ten obstacles from ``obstacle_instance`` (instances 0 and 1),
+    photographs them unturned, and its pictures of instance 1 show the second object."""
+    from pipeline.world.render_plan import query_batch
+
+    batch, rows = query_batch(PlanConfig())
+    assert len(batch.objects) == 10
+    for k, obj in enumerate(batch.objects):
+        category, instance = divmod(k, 2)
+        want = obstacle_instance(category, instance, seed=0)
+        assert _turn_invariant_shape(obj) == _turn_invariant_shape(want)
+    assert {shot.yaw_deg for shot in batch.shots} == {0.0}
 
 
 def test_obstacle_instances_vary():

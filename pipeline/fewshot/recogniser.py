@@ -61,13 +61,15 @@ class RelationRecogniser(SupportSetRecogniser):
         input_size: int | None = None,
         relation_padding: int | None = None,
         query_hue_shift: float = 0.0,
+        learn_from: str = "all",
         *,
         substitution_way: int = 1,
         carry_over: bool = False,
     ) -> RelationRecogniser:
         """Load a trained Relation Network checkpoint and the pictures of ``images_dir`` (see
         :meth:`SupportSetRecogniser._load`). ``input_size`` and ``relation_padding``, when
-        given, are the model shape the config expects; ``query_hue_shift`` turns the query pictures' hue."""
+        given, are the model shape the config expects; ``query_hue_shift`` turns the query pictures' hue;
+        ``learn_from`` which substituted pictures a query sees (:mod:`.learn_from`)."""
         shape = None
         if input_size is not None or relation_padding is not None:
             shape = ModelConfig(
@@ -75,7 +77,13 @@ class RelationRecogniser(SupportSetRecogniser):
                 relation_padding if relation_padding is not None else 0,
             )
         return cls._load(
-            checkpoint, images_dir, shape, query_hue_shift, substitution_way, carry_over
+            checkpoint,
+            images_dir,
+            shape,
+            query_hue_shift,
+            substitution_way,
+            carry_over,
+            learn_from,
         )
 
     def prepare(self, query_features, support_features):
@@ -109,16 +117,24 @@ class ProtoRecogniser(SupportSetRecogniser):
         images_dir: str | Path,
         input_size: int | None = None,
         query_hue_shift: float = 0.0,
+        learn_from: str = "all",
         *,
         substitution_way: int = 1,
         carry_over: bool = False,
     ) -> ProtoRecogniser:
         """Load a trained Prototypical Network checkpoint and the pictures of ``images_dir`` (see
         :meth:`SupportSetRecogniser._load`). ``input_size``, when given, is the input side
-        the config expects; ``query_hue_shift`` turns the query pictures' hue."""
+        the config expects; ``query_hue_shift`` turns the query pictures' hue; ``learn_from`` which
+        substituted pictures a query sees (:mod:`.learn_from`)."""
         shape = ProtoConfig(input_size) if input_size is not None else None
         return cls._load(
-            checkpoint, images_dir, shape, query_hue_shift, substitution_way, carry_over
+            checkpoint,
+            images_dir,
+            shape,
+            query_hue_shift,
+            substitution_way,
+            carry_over,
+            learn_from,
         )
 
     def prepare(self, query_features, support_features):

@@ -9,6 +9,9 @@ hooks, as easyfsl's ``FewShotClassifier`` asks for ``process_support_set`` and `
 Each run owns its support set. ``start_run`` restores the original support set, or, with
 ``carry_over=True`` (long-term autonomy, paper Figure 10), keeps the run's current one and only reseeds
 its substitution stream.
+
+``learn_from`` (:mod:`.learn_from`) limits which substituted pictures a query picture's
+recognition sees; ``all``, the default, is the paper's dynamic support set.
 """
 
 from __future__ import annotations
@@ -27,6 +30,7 @@ from pipeline.kernels import kernel_path
 from .checkpoint import file_sha256, load_checkpoint
 from .colour import hue_rotate
 from .data import DataError, PictureSet, load_split, read_manifest, to_tensor
+from .learn_from import learning_groups, query_objects, table_by_group
 from .model import RelationNetwork
 from .protonet import PrototypicalNetwork
 from .score_cache import source_key, store_for
@@ -56,6 +60,7 @@ class SupportSetRecogniser(abc.ABC):
     ``query_images``: (P, 3, H, W) normalised, row ``p`` = query picture id ``p``;
     ``query_categories``: (P,) true categories; ``support_images``: (C*K, 3, H, W), class ``c`` in
     rows ``c*K .. c*K+K-1`` (position order). ``substitution_way``: 0 static, 1-4 as in section 3.3.
+    ``learn_from`` and ``query_objects`` (each picture's obstacle): :mod:`.learn_from`.
     """
 
     kind = ""
@@ -76,6 +81,8 @@ class SupportSetRecogniser(abc.ABC):
         k_shot: int = 5,
         substitution_way: int = 1,
         carry_over: bool = False,
+        learn_from: str = "all",
+        query_objects: np.ndarray | None = None,
     ) -> None:
         if len(support_images) != n_way * k_shot:
             raise ValueError(
@@ -87,6 +94,8 @@ class SupportSetRecogniser(abc.ABC):
         if cats.min() < 0 or cats.max() >= n_way:
             raise ValueError(f"query categories must lie in 0..{n_way - 1}")
         SupportSet(n_way, k_shot, substitution_way, 0)  # validates the way
+        self.learn_from = learn_from
+        self._groups = learning_groups(learn_from, cats, query_objects)
         self.network = network.eval()
         self._support_images = support_images
         self.n_way, self.k_shot = n_way, k_shot
@@ -113,8 +122,10 @@ class SupportSetRecogniser(abc.ABC):
                 f"{type(self).__qualname__}:{self.kind}", network, query_images, support_images
             )
         )
-        template = SupportSet(n_way, k_shot, 0, 0).members
-        self._original_table = np.stack([self._column(members) for members in template], axis=1)
+        self._original_members = SupportSet(n_way, k_shot, 0, 0).members
+        self._original_table = np.stack(
+            [self._column(members) for members in self._original_members], axis=1
+        )
 
     # -- the two hooks a recogniser implements -------------------------------------------------
     @abc.abstractmethod
@@ -133,7 +144,16 @@ class SupportSetRecogniser(abc.ABC):
 
     # -- construction from files -------------------------------------------------------------
     @classmethod
-    def _load(cls, checkpoint, images_dir, expected, query_hue_shift, substitution_way, carry_over):
+    def _load(
+        cls,
+        checkpoint,
+        images_dir,
+        expected,
+        query_hue_shift,
+        substitution_way,
+        carry_over,
+        learn_from="all",
+    ):
         """Load a ``cls.kind`` checkpoint and the query/support pictures of ``images_dir``'s
         manifest, resized to the checkpoint's input size and normalised with its statistics.
         ``expected``, when given, is the model shape the config expects: a checkpoint of another
@@ -160,6 +180,8 @@ class SupportSetRecogniser(abc.ABC):
             k_shot=k_shot,
             substitution_way=substitution_way,
             carry_over=carry_over,
+            learn_from=learn_from,
+            query_objects=query_objects(frame),
         )
         recogniser.class_names = support.class_names
         recogniser.checkpoint = {
@@ -188,6 +210,8 @@ class SupportSetRecogniser(abc.ABC):
         }
         if getattr(self, "query_hue_shift", 0.0):
             out["query_hue_shift"] = self.query_hue_shift
+        if self.learn_from != "all":
+            out["learn_from"] = self.learn_from
         return out
 
     @staticmethod
@@ -275,6 +299,11 @@ class SupportSetRecogniser(abc.ABC):
             raise ValueError(
                 "other pictures need a recogniser loaded from a checkpoint (from_files)"
             )
+        if self.learn_from != "all":
+            raise ValueError(
+                f"learn_from={self.learn_from!r} groups the query pictures by their ids; other "
+                "pictures (the robot's) have none: use learn_from=all"
+            )
         size = self.network.config.input_size
         resized = np.stack([_resized(im, size) for im in images]) if len(images) else images
         norm = self.checkpoint["normalisation"]
@@ -309,6 +338,13 @@ class SupportSetRecogniser(abc.ABC):
 
     def _table(self, run: int) -> np.ndarray:
         state = self._run(run)
+        if self._groups is not None:
+            if not state.valid.all():
+                state.table = table_by_group(
+                    self._column, state.support.members, self._original_members, self._groups
+                )
+                state.valid[:] = True
+            return state.table
         for c in np.flatnonzero(~state.valid):
             state.table[:, c] = self._column(state.support.members[c])
             state.valid[c] = True

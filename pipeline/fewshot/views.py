@@ -3,7 +3,7 @@
 The paper's 40 query pictures (two instances x four sides x five categories) stay the query set of
 every experiment; they are too few for the colour test (:mod:`.colour`): a drop of 4 points has a
 95% interval of about +-8.5 points over 40 pictures. The render stage's ``views`` split shows the
-same ten obstacles (each category's instance 0, as it stands and turned 45 degrees) in the maze,
+same ten obstacles (each category's two objects, instances 0 and 1) in the maze,
 ``views_per_obstacle`` pictures each from random sides and distances (``render_plan.views_batch``):
 400 pictures at the paper's scale. A few-shot recogniser classifies each against the *original*
 support set (no substitution, ``substitution_way`` 0), as rendered and with each hue shift;

@@ -82,8 +82,8 @@ class Report:
 
 #: What each of the render stage's contact sheets shows (its row labels included), by file stem.
 SHEETS = {
-    "contact_query": "The 40 query pictures the robot takes in the maze: two rows per category, the "
-    "obstacle as it stands and then turned 45 degrees, each seen from the north, east, south and "
+    "contact_query": "The 40 query pictures the robot takes in the maze: two rows per category, its "
+    "two objects (two different chairs, kettles, ...), each seen from the north, east, south and "
     "west (left to right).",
     "contact_support": "The support set: five catalogue photographs per category, each of another "
     "instance than the obstacle in the maze, a row per category.",

@@ -133,8 +133,9 @@ class RobotSim:
     def occupied(self, action: int, scan: np.ndarray | None = None) -> bool:
         """Whether the range sensor finds something in the neighbouring cell toward ``action``
         (a move that stays on the grid): the ray nearest that direction reads less than one cell.
-        An obstacle's box always reaches in front of its cell's centre; a box two cells away,
-        even turned 45 degrees, never comes nearer than 1.36 cells; walls lie only off the grid."""
+        An obstacle's box always reaches in front of its cell's centre; a box two cells away never
+        comes nearer than 1.55 cells (its half-width is capped at 0.45 of a cell); walls lie only
+        off the grid."""
         r = self.scan() if scan is None else scan
         yaw = self.pose()[2]
         rel = np.array([wrap(HEADINGS[action] - yaw - a) for a in ray_angles()])

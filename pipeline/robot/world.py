@@ -6,11 +6,11 @@
   ``y = ((H - 1) / 2 - row) * cell`` (north is +y, as the query pictures' sides).
 * Floor: the maze scene's tiles; border walls: boxes around the grid (collision geometry).
 * Obstacles: on every obstacle cell, the physical obstacle the placement gives (category,
-  instance), built from the same seed as its query pictures (``render.yaml``'s ``seed``, geometric
-  instance 0), painted with its palette and turned as the query pictures assume: instance 1 is
-  instance 0 turned 45 degrees clockwise, and the cell's orientation adds quarter turns clockwise
-  (``pictures.face_seen``). Collision geometry: a box around the unturned object's footprint (its
-  geoms' bounding boxes, capped at ``0.45 * cell``), turned with it, from the floor to its top.
+  instance), the very object of its query pictures (``obstacle_models.obstacle_instance`` with
+  ``render.yaml``'s ``seed``: two distinct objects per category), painted with its palette and
+  turned by the cell's orientation in quarter turns clockwise (``pictures.face_seen``). Collision
+  geometry: a box around the unturned object's footprint (its geoms' bounding boxes, capped at
+  ``0.45 * cell``), turned with it, from the floor to its top.
 
 The default cell is 1.0 m: the query pictures were rendered for a 1 m cell (``render.yaml``
 ``maze.cell``; the camera one cell away), and the obstacles' display scale fits it; the Burger
@@ -27,7 +27,7 @@ import numpy as np
 from pipeline.robot.limits import DEFAULT_CELL, DEFAULT_TIMESTEP, check_settings
 from pipeline.robot.model import add_robot
 from pipeline.world.layout import Layout
-from pipeline.world.obstacle_models import build_obstacle, obstacle_seed
+from pipeline.world.obstacle_models import obstacle_instance
 from pipeline.world.pictures import INSTANCES_PER_CATEGORY
 from pipeline.world.placement import Placement
 from pipeline.world.renderer_env import mujoco
@@ -80,18 +80,19 @@ class WorldMap:
 
 
 @lru_cache(maxsize=32)
-def obstacle_model(category: int, seed: int = 0) -> ObjectModel:
-    """Geometric instance 0 of ``category``: the object of its query pictures (render_plan.query_batch)."""
-    return build_obstacle(category, np.random.default_rng(obstacle_seed(seed, category, 0)))
+def obstacle_model(category: int, instance: int, seed: int = 0) -> ObjectModel:
+    """Physical obstacle ``instance`` of ``category``: the object of its query pictures
+    (render_plan.query_batch)."""
+    return obstacle_instance(category, instance, seed)
 
 
 @lru_cache(maxsize=32)
-def footprint(category: int, seed: int = 0) -> tuple[float, float, float]:
+def footprint(category: int, instance: int, seed: int = 0) -> tuple[float, float, float]:
     """``(half_x, half_y, top)`` of the unturned object: the union of its geoms' bounding boxes."""
     spec = mujoco.MjSpec()
     _add_materials(spec)
     body = spec.worldbody.add_body(name="o")
-    obj = obstacle_model(category, seed)
+    obj = obstacle_model(category, instance, seed)
     for j, part in enumerate(obj.parts):
         _add_part(spec, body, part, f"g{j}", f"m{j}")
     model = spec.compile()
@@ -106,10 +107,10 @@ def footprint(category: int, seed: int = 0) -> tuple[float, float, float]:
     return float(max(-lo[0], hi[0])), float(max(-lo[1], hi[1])), float(hi[2])
 
 
-def obstacle_yaw(instance: int, orientation: int) -> float:
-    """Degrees (counter-clockwise) of an obstacle: 45 clockwise for instance 1, plus quarter turns
-    clockwise for the cell's orientation (``pictures.face_seen``)."""
-    return float(-45.0 * instance - 90.0 * orientation)
+def obstacle_yaw(orientation: int) -> float:
+    """Degrees (counter-clockwise) of an obstacle: the cell's orientation in quarter turns
+    clockwise (``pictures.face_seen``)."""
+    return float(-90.0 * orientation)
 
 
 def build_world(
@@ -164,13 +165,13 @@ def build_world(
         body = wb.add_body(
             name=f"obstacle{o}",
             pos=[float(x), float(y), 0.0],
-            quat=list(yaw_quat(obstacle_yaw(instance, int(placement.orientation[o])))),
+            quat=list(yaw_quat(obstacle_yaw(int(placement.orientation[o])))),
         )
-        obj = obstacle_model(category, render_seed)
+        obj = obstacle_model(category, instance, render_seed)
         for j, part in enumerate(obj.parts):
             _add_part(spec, body, part, f"obstacle{o}_g{j}", f"obstacle{o}_m{j}")
             body.geoms[-1].rgba = [*obj.palette[part.slot], 1.0]
-        fx, fy, top = footprint(category, render_seed)
+        fx, fy, top = footprint(category, instance, render_seed)
         cap = FOOTPRINT_CAP * cell
         box = body.add_geom(
             name=f"obstacle{o}_box",

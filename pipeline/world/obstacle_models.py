@@ -1,5 +1,5 @@
 """Procedural obstacles of the five query categories (paper section 4.1, Figure 6): category ids,
-one seed per instance, the toy world's display scale, and :func:`build_obstacle`. Each category is
+one seed per instance, the toy world's display scale, :func:`build_obstacle` and every instance by its id (:func:`obstacle_instance`). Each category is
 a seeded family of objects (``obstacle_families.py``) coloured from ``obstacle_palette.py``.
 """
 
@@ -12,7 +12,14 @@ from pipeline.world.obstacle_palette import hsv
 from pipeline.world.pictures import CATEGORIES
 from pipeline.world.shapes import ObjectModel
 
-__all__ = ["DISPLAY_SCALE", "build_obstacle", "category_index", "hsv", "obstacle_seed"]
+__all__ = [
+    "DISPLAY_SCALE",
+    "build_obstacle",
+    "category_index",
+    "hsv",
+    "obstacle_seed",
+    "obstacle_instance",
+]
 
 
 def category_index(category: str | int) -> int:
@@ -42,3 +49,13 @@ def build_obstacle(category: str | int, rng: np.random.Generator) -> ObjectModel
     """A random instance of ``category`` (name or id), at display scale."""
     name = CATEGORIES[category_index(category)]
     return BUILDERS[name](rng).scaled(DISPLAY_SCALE[name])
+
+
+def obstacle_instance(category: str | int, instance: int, seed: int) -> ObjectModel:
+    """Geometric instance ``instance`` of ``category``, the same object everywhere it appears.
+    Instances 0 and 1 are the category's two physical obstacles (query pictures, views, the
+    robot's maze), 2, 3, ... the support set's catalogue objects. Every instance is its own draw
+    of the category's family (proportions, part styles, colours), so the maze holds two different
+    objects per category, as the paper's photographed obstacles are (DESIGN.md), not one turned."""
+    rng = np.random.default_rng(obstacle_seed(seed, category_index(category), instance))
+    return build_obstacle(category, rng)

@@ -1,8 +1,8 @@
 """Obstacle categories, faces and picture ids: the vocabulary shared by the world, the renderer,
 the recogniser and the records (paper section 4.1, Figure 6).
 
-The query set holds 5 categories x 2 instances x 4 faces = 40 pictures. Instance 1 is instance 0
-turned 45 degrees clockwise. A face is named in the obstacle's own frame (0 = its front/"north",
+The query set holds 5 categories x 2 instances x 4 faces = 40 pictures. The two instances of a
+category are two different objects of it (``obstacle_models.obstacle_instance``). A face is named in the obstacle's own frame (0 = its front/"north",
 then clockwise: 1 east, 2 south, 3 west). An obstacle standing in the maze with orientation
 ``r`` (a quarter-turn count, clockwise) shows to a robot on its world side ``d`` the face
 ``(d - r) mod 4``.

@@ -1,9 +1,9 @@
 """What to render: batches of pictures (one scene, one renderer each) and their manifest rows.
 
-* query (paper section 4.1, Figure 6 middle): for each category, geometric instance 0 stands in
-  the maze; instance 0 is photographed unturned and instance 1 is the same object turned 45
-  degrees clockwise; each from world sides N, E, S, W (faces 0..3) by the robot's camera at a
-  fixed distance and height. 5 x 2 x 4 = 40 pictures, ids from ``pictures.picture_id``.
+* query (paper section 4.1, Figure 6 middle): for each category, geometric instances 0 and 1,
+  two distinct objects of the category (``obstacle_models.obstacle_instance``), stand in the maze;
+  each is photographed from world sides N, E, S, W (faces 0..3) by the robot's camera at a fixed
+  distance and height. 5 x 2 x 4 = 40 pictures, ids from ``pictures.picture_id``.
 * support (Figure 6 right): per category ``support_per_category`` OTHER geometric instances
   (instance ids 2, 3, ...), one catalogue picture each: studio backdrop, bright light, raised
   camera, a three-quarter front view, object framed to fill the picture.
@@ -12,8 +12,7 @@
   (``family_split.py``); ``per_class`` pictures per class from
   ``ceil(per_class / views_per_instance)`` instances, random view, light, background and a
   little per-picture colour jitter.
-* views: the ten query obstacles (each category's instance 0, unturned and turned 45 degrees) in
-  the maze, ``views_per_obstacle`` pictures each by the robot's camera (at its height) from a
+* views: the ten query obstacles (each category's instances 0 and 1) in the maze, ``views_per_obstacle`` pictures each by the robot's camera (at its height) from a
   random side and a random distance in ``views_distance``: a larger query-like set for the
   colour test (``pipeline/fewshot/colour.py``); never a support or query picture.
 
@@ -32,14 +31,17 @@ from pipeline.manifest import SPLITS, Row
 from pipeline.world.camera import CameraPose, framing_distance, robot_camera
 from pipeline.world.family_split import MIN_DISTANCE, split_families
 from pipeline.world.metaset import Family, build_meta_instance, jitter_palette
-from pipeline.world.obstacle_models import build_obstacle, category_index, hsv, obstacle_seed
+from pipeline.world.obstacle_models import (
+    category_index,
+    hsv,
+    obstacle_instance,
+)
 from pipeline.world.pictures import CATEGORIES, INSTANCES_PER_CATEGORY, N_FACES, picture_id
 from pipeline.world.renderer import Background, Lighting, Shot
 from pipeline.world.scenes import BACKGROUND_MATERIALS
 from pipeline.world.shapes import ObjectModel
 
 META_SPLITS = ("train", "val", "test")  # the meta-training families' splits
-QUERY_ORIENTATIONS_DEG = (0.0, 45.0)  # instance 1 = instance 0 turned 45 degrees clockwise
 
 
 @dataclass(frozen=True)
@@ -91,31 +93,27 @@ def _rng(*key: int) -> np.random.Generator:
     return np.random.default_rng(np.random.SeedSequence([int(k) for k in key]))
 
 
-def _query_obstacles(cfg: PlanConfig, name: str) -> tuple[Batch, list[tuple[int, int, int, float]]]:
-    """A maze batch of the ten query obstacles (each category's instance 0) and, for each, its
-    object in the batch, category, instance (0 unturned, 1 turned) and turn in degrees."""
+def _obstacle_instances(cfg: PlanConfig, name: str) -> tuple[Batch, list[tuple[int, int, int]]]:
+    """A maze batch of the ten query obstacles (instances 0 and 1 of each category, two distinct
+    objects) and, for each, its object in the batch, its category and its instance."""
     cats = [category_index(c) for c in cfg.categories]
-    objs = [build_obstacle(c, np.random.default_rng(obstacle_seed(cfg.seed, c, 0))) for c in cats]
-    obstacles = [
-        (k, c, inst, QUERY_ORIENTATIONS_DEG[inst])
-        for k, c in enumerate(cats)
-        for inst in range(INSTANCES_PER_CATEGORY)
-    ]
-    return Batch(name, "maze", objs), obstacles
+    obstacles = [(c, inst) for c in cats for inst in range(INSTANCES_PER_CATEGORY)]
+    objs = [obstacle_instance(c, inst, cfg.seed) for c, inst in obstacles]
+    return Batch(name, "maze", objs), [(k, c, inst) for k, (c, inst) in enumerate(obstacles)]
 
 
 def query_batch(cfg: PlanConfig) -> tuple[Batch, list[dict]]:
-    (batch, obstacles), rows, mz = _query_obstacles(cfg, "query"), [], cfg.maze
-    for k, c, inst, orient in obstacles:
+    (batch, obstacles), rows, mz = _obstacle_instances(cfg, "query"), [], cfg.maze
+    for k, c, inst in obstacles:
         for face in range(N_FACES):
             cam = robot_camera(
                 face, mz.camera_distance, mz.camera_height, mz.target_height, mz.fovy
             )
             pid = picture_id(c, inst, face)
             f = f"query/{CATEGORIES[c]}/q{pid:02d}_i{inst}_f{face}.png"
-            batch.shots.append(Shot(k, -orient, batch.objects[k].palette, cam))
+            batch.shots.append(Shot(k, 0.0, batch.objects[k].palette, cam))
             batch.files.append(f)
-            rows.append(Row("query", c, CATEGORIES[c], inst, face, orient, pid, f)._asdict())
+            rows.append(Row("query", c, CATEGORIES[c], inst, face, 0.0, pid, f)._asdict())
     return batch, rows
 
 
@@ -126,7 +124,7 @@ def support_batch(cfg: PlanConfig) -> tuple[Batch, list[dict]]:
     for c in cats:
         for j in range(cfg.support_per_category):
             inst = INSTANCES_PER_CATEGORY + j  # never a query instance
-            obj = build_obstacle(c, np.random.default_rng(obstacle_seed(cfg.seed, c, inst)))
+            obj = obstacle_instance(c, inst, cfg.seed)
             batch.objects.append(obj)
             r = _rng(cfg.seed, 4, c, inst)
             turn = float(r.uniform(*cc.turn)) * (1 if r.random() < 0.5 else -1)
@@ -161,8 +159,8 @@ def support_batch(cfg: PlanConfig) -> tuple[Batch, list[dict]]:
 def views_batch(cfg: PlanConfig) -> tuple[Batch, list[dict]]:
     """The colour test's larger query-like set (module docstring): ``views_per_obstacle`` maze
     pictures of each of the ten query obstacles, from random sides and distances."""
-    (batch, obstacles), rows, mz = _query_obstacles(cfg, "views"), [], cfg.maze
-    for k, c, inst, orient in obstacles:
+    (batch, obstacles), rows, mz = _obstacle_instances(cfg, "views"), [], cfg.maze
+    for k, c, inst in obstacles:
         for j in range(cfg.views_per_obstacle):
             r = _rng(cfg.seed, 7, c, inst, j)
             distance = float(r.uniform(*cfg.views_distance))
@@ -176,9 +174,9 @@ def views_batch(cfg: PlanConfig) -> tuple[Batch, list[dict]]:
                 mz.fovy,
             )
             f = f"views/{CATEGORIES[c]}/v_i{inst}_{j:03d}.png"
-            batch.shots.append(Shot(k, -orient, batch.objects[k].palette, cam))
+            batch.shots.append(Shot(k, 0.0, batch.objects[k].palette, cam))
             batch.files.append(f)
-            rows.append(Row("views", c, CATEGORIES[c], inst, -1, orient, -1, f)._asdict())
+            rows.append(Row("views", c, CATEGORIES[c], inst, -1, 0.0, -1, f)._asdict())
     return batch, rows
 
 

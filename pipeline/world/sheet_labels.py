@@ -40,12 +40,12 @@ def family_words(name: str) -> str:
 
 
 def query_rows(rows: list[dict], out: Path) -> list[tuple[str, list[Path]]]:
-    """Two rows per category: the obstacle as it stands, then turned 45 degrees, each seen from
-    north, east, south and west (the query pictures, render_plan.query_batch)."""
+    """Two rows per category: its two objects side by side, each seen from north, east, south and
+    west (the query pictures, render_plan.query_batch)."""
     q = [r for r in rows if r["split"] == "query"]
     sheet = []
     for c in sorted({r["category"] for r in q}):
-        for inst, how in ((0, "as it stands in the maze"), (1, "turned 45 degrees")):
+        for inst, how in ((0, "object 1"), (1, "object 2")):
             rs = sorted(
                 (r for r in q if r["category"] == c and r["instance"] == inst),
                 key=lambda r: r["face"],
@@ -90,7 +90,7 @@ def views_rows(rows: list[dict], out: Path, per_row: int) -> list[tuple[str, lis
     v = [r for r in rows if r["split"] == "views"]
     sheet = []
     for c in sorted({r["category"] for r in v}):
-        for inst, how in ((0, "as it stands"), (1, "turned 45 degrees")):
+        for inst, how in ((0, "object 1"), (1, "object 2")):
             rs = [r for r in v if r["category"] == c and r["instance"] == inst]
             if rs:
                 label = (
