@@ -170,3 +170,46 @@ def test_the_section_builds_with_table_3_beside(tmp_path):
     assert (tmp_path / "figures" / "repetition.png").stat().st_size > 1000
     verdict = pd.read_csv(tmp_path / "tables" / "repetition_verdict.csv")
     assert verdict["scale"].tolist() == ["relative gain", "absolute gain (collisions per run)"]
+
+
+def source_cells(per_setting: list[float], r: int = 1, layouts: int = 2) -> list[Cell]:
+    """The five settings of the split (repetition_sources.SETTINGS) on ``layouts`` layouts, the
+    Relation Network's cells, collisions per run ``per_setting`` in SETTINGS order (every run)."""
+    from pipeline.report.repetition_sources import SETTINGS
+
+    out = []
+    for k in range(layouts):
+        maze = f"random:11x11:{10 * r}:{1000 * r + k}"
+        for (method, learn_from), per_run in zip(SETTINGS, per_setting):
+            c = cell(f"{method}_{learn_from}_{k}", method, maze, [per_run] * 4, "relation_net")
+            if learn_from != "all":
+                c.config["recogniser"] = {"learn_from": learn_from}
+            out.append(c)
+    return out
+
+
+def test_the_gain_splits_by_source_in_steps_that_sum_to_it():
+    """Without the DSS 10 collisions; seeing the same picture 8; its obstacle 7; its category 5.5;
+    everything 5: the whole gain 5 splits 2 + 1 + 1.5 + 0.5. The learn_from cells stay out of the
+    section's other rows."""
+    from pipeline.report.repetition_sources import source_rows, split_table
+
+    exp = Exp(source_cells([10, 8, 7, 5.5, 5]))
+    df = source_rows(exp, R.recogniser_label)
+    assert len(df) == 2 and set(df["r"]) == {1.0}
+    assert df[["same face", "other faces of the obstacle"]].iloc[0].tolist() == [2, 1]
+    assert df["the category's other obstacle"].iloc[0] == 1.5
+    assert df["other categories"].iloc[0] == 0.5 and df["whole gain"].iloc[0] == 5
+    rows, numbers = split_table(df, resamples=50, seed=0)
+    assert rows[0]["whole DSS gain [95% CI]"] == "5.00 [5.00, 5.00]"
+    assert rows[0]["same face [95% CI]"] == "2.00 [2.00, 2.00] (40%)"
+    assert numbers[("Relation Network", 1.0, "the category's other obstacle")] == (1.5, 1.5, 1.5)
+    plain = R.layout_rows(exp)
+    assert plain["gain"].tolist() == [5, 5]  # without vs the full DSS only
+
+
+def test_a_layout_missing_a_setting_gives_no_split_row():
+    from pipeline.report.repetition_sources import source_rows
+
+    cells = [c for c in source_cells([10, 8, 7, 5.5, 5]) if not c.name.endswith("same_object_1")]
+    assert len(source_rows(Exp(cells), R.recogniser_label)) == 1

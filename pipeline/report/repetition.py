@@ -26,6 +26,7 @@ from pipeline.report.checks import Data, Missing
 from pipeline.report.experiments import Cell, Experiment
 from pipeline.report.figures_beyond import gain_curves
 from pipeline.report.names import PAPER_RECOGNISER, recogniser_name, recogniser_of
+from pipeline.report.repetition_sources import learn_from, sources_section
 from pipeline.world.generate import is_spec, parse_spec
 from pipeline.world.pictures import N_PHYSICAL_OBSTACLES
 
@@ -53,10 +54,12 @@ def recogniser_label(cell: Cell) -> str:
 
 def layout_rows(exp: Experiment) -> pd.DataFrame:
     """One row per (layout, recogniser) with both methods: r, the layout, mean collisions per run
-    without and with the DSS, and their paired per-run difference's mean (the layout's gain)."""
+    without and with the DSS, and their paired per-run difference's mean (the layout's gain).
+    Cells whose recogniser sees only some substituted pictures (``learn_from``) are the split's
+    (:mod:`.repetition_sources`), not these rows'."""
     found: dict[tuple[str, str], dict[str, Cell]] = {}
     for cell in exp.cells.values():
-        if is_spec(cell.maze):
+        if is_spec(cell.maze) and learn_from(cell) == "all":
             found.setdefault((cell.maze, recogniser_label(cell)), {})[cell.method] = cell
     rows = []
     for (maze, label), cells in found.items():
@@ -232,6 +235,7 @@ def repetition_section(rep, exp: Experiment, experiments: list[Experiment]) -> N
         "The DSS gain against r (mean collisions per run over layouts; the gain paired on each layout's "
         "run seeds), with 95% bootstrap intervals over layouts (2000 resamples, seed 0).",
     )
+    sources_section(rep, exp, recogniser_label, RESAMPLES, SEED)
     label = recogniser_name(PAPER_RECOGNISER)
     if label not in curves or not {"5x5", "11x11"} <= set(t3):
         rep.add(f"No verdict: it needs the {label}'s cells here and Table 3's 5x5 and 11x11.\n")
