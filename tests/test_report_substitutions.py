@@ -16,21 +16,23 @@ from pipeline.report.substitutions import (
     count_summary,
     substitution_counts,
     substitution_table,
+    support_differs,
 )
 from pipeline.rl.methods import get_method
 from pipeline.stats import holm, holm_adjusted
 
 RUNS = 20
+COLUMNS = ["run", "episode", "step", "picture", "category", "position"]
 TARGET = "pipeline.fewshot.recogniser.RelationRecogniser.from_files"
 
 
 def substitutions(counts: np.ndarray) -> pd.DataFrame:
     """A records' substitution frame with ``counts[r, c]`` substitutions of category ``c`` in run
     ``r``, after each run's starting row of -1s."""
-    rows = [(r, 0, -1, -1, -1) for r in range(len(counts))]
+    rows = [(r, 0, 0, -1, -1, -1) for r in range(len(counts))]
     for r, c in zip(*np.nonzero(counts)):
-        rows += [(r, e, 8 * c + e % 8, c, e % 5) for e in range(counts[r, c])]
-    return pd.DataFrame(rows, columns=["run", "episode", "picture", "category", "position"])
+        rows += [(r, e, c, 8 * c + e % 8, c, e % 5) for e in range(counts[r, c])]
+    return pd.DataFrame(rows, columns=COLUMNS)
 
 
 def cell(name, method, mean, recogniser=None, way=1, counts=None, experiment="fig9"):
@@ -95,6 +97,24 @@ def test_substitutions_are_counted_per_run_and_category():
     table = substitution_table(recorded())
     assert len(table) == 8 and set(table["way"]) == {1, 2, 3, 4}
     assert (table["max"] == 4).all() and (table["past_k"] == 0).all()
+    assert (table["support_differs"] == 0).all()  # the same substitutions at the same positions
+
+
+def test_support_sets_compared_as_the_recogniser_reads_them():
+    def frame(positions, pictures=(1, 2)):
+        rows = [(0, 0, 0, -1, -1, -1)] + [
+            (0, e + 1, 3, pic, 0, pos) for e, (pic, pos) in enumerate(zip(pictures, positions))
+        ]
+        return pd.DataFrame(rows, columns=COLUMNS)
+
+    way1, way3, way2 = frame([0, 1]), frame([3, 0]), frame([4, 4])  # way 2 re-hits position 4
+    assert support_differs(way1, way3, [0], "positions").tolist() == [True]
+    assert support_differs(way1, way3, [0], "substituted").tolist() == [False]
+    assert support_differs(way1, way2, [0], "substituted").tolist() == [True]
+    assert support_differs(way1, frame([0, 1], (1, 3)), [0, 1], "substituted").tolist() == [
+        True,  # another picture came in
+        False,  # run 1: no substitutions in either
+    ]
 
 
 def test_ways_that_no_run_lets_differ_are_not_testable():
@@ -180,4 +200,6 @@ def test_the_section_shows_counts_and_holm_across_claims(tmp_path):
         "mean",
         "max",
         "past_k",
+        "compared_with_way",
+        "support_differs",
     ]

@@ -117,9 +117,10 @@ def check_picture(categories: np.ndarray, picture_id: int, category: int) -> Non
 
 
 #: What of the support set a recogniser's predictions read (its class's ``reads_support``): the
-#: shot at every position (``positions``, assumed of a recogniser that declares nothing), or only
-#: which substituted pictures each category holds, however placed (``substituted``).
-SUPPORT_READS = ("positions", "substituted")
+#: shot at every position (``positions``, assumed of a recogniser that declares nothing), only
+#: which substituted pictures each category holds, however placed (``substituted``), or nothing a
+#: way changes (``nothing``: a recogniser without support positions, whatever the way).
+SUPPORT_READS = ("positions", "substituted", "nothing")
 
 
 def ways_agree_until(a: int, b: int, k_shot: int, reads: str = "positions") -> int | None:
@@ -134,7 +135,8 @@ def ways_agree_until(a: int, b: int, k_shot: int, reads: str = "positions") -> i
     oldest substituted picture once all K originals are out, so they always hold the same
     pictures; ways 1 and 3 differ in which picture leaves only from a category's K+1-th
     substitution; way 2 may replace a substituted picture from a category's second substitution
-    on; way 0 (static) differs from any other way at the first."""
+    on; way 0 (static) differs from any other way at the first. A recogniser that reads
+    ``nothing`` of the positions cannot tell ways 1-4 apart."""
     if reads not in SUPPORT_READS:
         raise ValueError(f"reads must be one of {SUPPORT_READS}, got {reads!r}")
     for way in (a, b):
@@ -145,6 +147,8 @@ def ways_agree_until(a: int, b: int, k_shot: int, reads: str = "positions") -> i
         return None
     if 0 in pair:
         return 0
+    if reads == "nothing":
+        return None
     if pair == {3, 4}:
         return k_shot
     if reads == "positions":

@@ -16,6 +16,7 @@ from pipeline.fewshot.support_set import ways_agree_until
 from pipeline.report.experiments import Cell, Experiment
 from pipeline.report.names import (
     PAPER_RECOGNISER,
+    recogniser_declarations,
     recogniser_name,
     recogniser_of,
     recogniser_reads,
@@ -43,6 +44,32 @@ def count_summary(counts: np.ndarray, k_shot: int = K_SHOT) -> dict:
     }
 
 
+def support_states(substitutions: pd.DataFrame, reads: str) -> dict[int, list[tuple]]:
+    """Per run, its support set after each substitution as a recogniser that ``reads`` it sees it
+    (:data:`~pipeline.fewshot.support_set.SUPPORT_READS`): the picture at every substituted
+    (category, position), or only the substituted pictures each category holds."""
+    real = substitutions[substitutions["picture"] >= 0]
+    real = real.sort_values(["run", "episode", "step"], kind="stable")
+    out = {}
+    for run, g in real.groupby("run"):
+        held, states = {}, []
+        for c, pos, picture in zip(g["category"], g["position"], g["picture"]):
+            held[int(c), int(pos)] = int(picture)
+            if reads == "positions":
+                states.append(tuple(sorted(held.items())))
+            else:
+                states.append(tuple(sorted((c, p) for (c, _), p in held.items())))
+        out[int(run)] = states
+    return out
+
+
+def support_differs(a: pd.DataFrame, b: pd.DataFrame, runs, reads: str) -> np.ndarray:
+    """Per run of ``runs``: whether the support sets the substitutions ``a`` and ``b`` (of two
+    cells, e.g. two ways) built came to differ, as a recogniser that ``reads`` them sees them."""
+    first, second = support_states(a, reads), support_states(b, reads)
+    return np.array([first.get(r, []) != second.get(r, []) for r in runs], dtype=bool)
+
+
 def cell_counts(cell: Cell) -> np.ndarray | None:
     """The cell's :func:`substitution_counts`; None where its records hold no substitution rows
     (nothing tells how its support set changed)."""
@@ -61,11 +88,12 @@ def cannot_differ(cells: list[Cell], a: int, b: int, recogniser: str | None) -> 
     agree = ways_agree_until(a, b, K_SHOT, reads)
     what = f"the static support set and way {b}" if a == 0 else f"ways {a} and {b}"
     name = recogniser_name(recogniser) if recogniser else "a recogniser"
-    held = (
-        "place the same pictures at the same positions"
-        if reads == "positions"
-        else f"hold the same substituted pictures in each category (all the {name} reads of it)"
-    )
+    held = {
+        "positions": "place the same pictures at the same positions",
+        "substituted": f"hold the same substituted pictures in each category (all the {name} "
+        "reads of it)",
+        "nothing": f"change nothing the {name} reads (it has no support positions)",
+    }[reads]
     if agree is None:
         return f"{what} always {held}"
     counts = [cell_counts(c) for c in cells]
@@ -94,18 +122,30 @@ def way_cells(experiments: list[Experiment]) -> list[Cell]:
 
 def substitution_table(experiments: list[Experiment]) -> pd.DataFrame:
     """One row per cell of :func:`way_cells` with records of substitutions: its experiment, maze,
-    recogniser, way and :func:`count_summary`."""
-    rows = []
+    recogniser, way, :func:`count_summary` and the share of runs whose support set came to differ
+    from that of the lowest way of its experiment, maze and recogniser (:func:`support_differs`)."""
+    groups: dict[tuple, list[Cell]] = {}
     for cell in way_cells(experiments):
-        counts = cell_counts(cell)
-        if counts is not None:
+        if cell_counts(cell) is not None:
+            key = (cell.experiment, cell.maze, recogniser_of(cell.info, cell.config))
+            groups.setdefault(key, []).append(cell)
+    rows = []
+    for (experiment, maze, recogniser), cells in groups.items():
+        cells = sorted(cells, key=lambda c: int(c.info.get("substitution")))
+        reads = recogniser_reads(recogniser) if recogniser else "positions"
+        for cell in cells:
+            differs = support_differs(
+                cell.substitutions, cells[0].substitutions, cell.runs(), reads
+            )
             rows.append(
                 {
-                    "experiment": cell.experiment,
-                    "maze": cell.maze,
-                    "recogniser": recogniser_of(cell.info, cell.config),
+                    "experiment": experiment,
+                    "maze": maze,
+                    "recogniser": recogniser,
                     "way": int(cell.info.get("substitution")),
-                    **count_summary(counts),
+                    **count_summary(cell_counts(cell)),
+                    "compared_with_way": int(cells[0].info.get("substitution")),
+                    "support_differs": float(differs.mean()),
                 }
             )
     return pd.DataFrame(rows)
@@ -117,6 +157,10 @@ def substitution_part(rep, experiments: list[Experiment]) -> None:
     table = substitution_table(experiments)
     if table.empty:
         return
+    readers = {
+        reads: ", ".join(d.display for d in recogniser_declarations() if d.reads == reads) or "none"
+        for reads in ("substituted", "nothing")
+    }
     rep.data("substitutions", table, float_format="%.6g")
     wide = []
     table = table.assign(
@@ -136,6 +180,9 @@ def substitution_part(rep, experiments: list[Experiment]) -> None:
                 f"runs with a category past K = {K_SHOT}": " / ".join(
                     f"{100 * s:.0f}%" for s in g["past_k"]
                 ),
+                "runs whose support set differs from the first way's": " / ".join(
+                    f"{100 * s:.0f}%" for s in g["support_differs"]
+                ),
             }
         )
     rep.add(
@@ -143,15 +190,19 @@ def substitution_part(rep, experiments: list[Experiment]) -> None:
         f"category's K = {K_SHOT} shots (section 3.3). Ways 3 and 4 choose the same positions from "
         "the same random stream until a category's first round of K is over, so they can give "
         f"different outcomes only in a run where some category takes more than {K_SHOT} "
-        "substitutions (from its 6th on). A recogniser that reads only which substituted pictures "
-        "a category holds (the paper's Tables 1-2 as a recogniser) cannot tell ways 1 and 4 apart "
-        "at all (both replace the oldest substituted picture once the originals are out), ways 1 "
-        "and 3 only past K substitutions, and way 2 from a category's 2nd. A check comparing ways "
+        f"substitutions (from its 6th on). A recogniser that reads only which substituted pictures "
+        f"a category holds ({readers['substituted']}) cannot tell ways 1 and 4 apart at all (both "
+        "replace the oldest substituted picture once the originals are out), ways 1 and 3 only "
+        "past K substitutions, and way 2 from the others from a category's 2nd on; a recogniser "
+        f"without support positions ({readers['nothing']}) none of the ways; any other is taken "
+        "to read the shot at every position. A check comparing ways "
         "that no recorded run lets differ is **not testable with this recogniser**, says why, and "
         "leaves the claim's other checks to decide it (it has no place in Holm's correction); a "
         "claim with only such checks is not testable. Substitutions a category takes in a run "
         "(mean over categories and runs, the largest, and the share of runs where some category "
-        "takes more than K), ways in the order given; data: `tables/substitutions.csv`.\n\n"
+        "takes more than K), and the share of runs whose support set came to differ from the "
+        "first way's (as the recogniser reads it: the picture at every position, or the "
+        "substituted pictures held), ways in the order given; data: `tables/substitutions.csv`.\n\n"
         + pd.DataFrame(wide).to_markdown(index=False)
         + "\n"
     )
