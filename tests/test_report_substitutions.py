@@ -111,6 +111,7 @@ def test_support_sets_compared_as_the_recogniser_reads_them():
     assert support_differs(way1, way3, [0], "positions").tolist() == [True]
     assert support_differs(way1, way3, [0], "substituted").tolist() == [False]
     assert support_differs(way1, way2, [0], "substituted").tolist() == [True]
+    assert support_differs(way1, way2, [0], "nothing").tolist() == [False]
     assert support_differs(way1, frame([0, 1], (1, 3)), [0, 1], "substituted").tolist() == [
         True,  # another picture came in
         False,  # run 1: no substitutions in either

@@ -47,7 +47,10 @@ def count_summary(counts: np.ndarray, k_shot: int = K_SHOT) -> dict:
 def support_states(substitutions: pd.DataFrame, reads: str) -> dict[int, list[tuple]]:
     """Per run, its support set after each substitution as a recogniser that ``reads`` it sees it
     (:data:`~pipeline.fewshot.support_set.SUPPORT_READS`): the picture at every substituted
-    (category, position), or only the substituted pictures each category holds."""
+    (category, position), only the substituted pictures each category holds, or none at all
+    (``nothing``: no way changes what such a recogniser sees)."""
+    if reads == "nothing":
+        return {}
     real = substitutions[substitutions["picture"] >= 0]
     real = real.sort_values(["run", "episode", "step"], kind="stable")
     out = {}
