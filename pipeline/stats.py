@@ -4,7 +4,7 @@ means with a 95% t interval (the bands of learning curves); bootstrap intervals 
 between cells (the claims) and of break-even levels (:func:`break_even`); Wilson intervals of
 shares of runs; stratified bootstrap over the accuracy study's random draws (Tables 1 and 2:
 :func:`stratified_means`); bootstrap p-values (:func:`bootstrap_p`) and Holm's step-down
-correction across the checks of a claim (:func:`holm`).
+correction across the checks of a claim (:func:`holm`) and across the claims (:func:`holm_adjusted`).
 
 The independent unit of a trial is its run seed: the cells of an experiment (and the experiments
 recorded with the same seed and run count) share run ``r``'s obstacle placement and random
@@ -75,6 +75,18 @@ def holm(pvalues, level: float = 0.05) -> tuple[list[float], list[bool]]:
         going = going and bool(p[k] <= thresholds[k])
         rejected[k] = going
     return thresholds, rejected
+
+
+def holm_adjusted(pvalues) -> list[float]:
+    """Holm's adjusted p-values (Holm 1979; Wright 1992): sorted, the ``i``-th smallest (from 0) of
+    ``m`` becomes ``max_{j <= i} min(1, (m - j) p_(j))``, so a test is rejected by :func:`holm` at
+    ``level`` exactly when its adjusted p-value is at most ``level``. In the given order."""
+    p = np.asarray(pvalues, dtype=float)
+    out, running = [0.0] * p.size, 0.0
+    for i, k in enumerate(np.argsort(p, kind="stable")):
+        running = max(running, min(1.0, float((p.size - i) * p[k])))
+        out[k] = running
+    return out
 
 
 def cluster_means(values, clusters) -> np.ndarray:

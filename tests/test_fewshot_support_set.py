@@ -1,10 +1,18 @@
 """The four substitution ways of the dynamic support set (paper section 3.3, Figure 5), pinned for
 one seed, and their defining properties for many seeds."""
 
+from itertools import combinations
+
 import numpy as np
 import pytest
 
-from pipeline.fewshot.support_set import PositionChooser, SupportSet, original_member
+from pipeline.fewshot.support_set import (
+    SUPPORT_READS,
+    PositionChooser,
+    SupportSet,
+    original_member,
+    ways_agree_until,
+)
 
 
 def _sequence(way, seed=7, n=15):
@@ -57,3 +65,45 @@ def test_static_support_set_and_bad_input():
         SupportSet(5, 5, 5, seed=0)
     with pytest.raises(ValueError, match="category 7"):
         SupportSet(5, 5, 1, seed=0).substitute(7, 0)
+
+
+def _seen(members: np.ndarray, reads: str) -> list:
+    """What a recogniser that ``reads`` the support set sees of it."""
+    if reads == "positions":
+        return members.tolist()
+    return [sorted(row[row >= 0].tolist()) for row in members]
+
+
+@pytest.mark.parametrize("reads", [r for r in SUPPORT_READS if r != "nothing"])
+def test_ways_agree_until_the_declared_count(reads):
+    """Over seeded random runs (categories and pictures of each collision), two ways give the same
+    support set (as ``reads`` sees it) while no category has taken more than
+    ``ways_agree_until`` substitutions, and they do differ past it where it is exact."""
+    rng = np.random.default_rng(3)
+    first_difference = {}  # (a, b) -> fewest substitutions of a category when they first differed
+    for _ in range(400):
+        seed = int(rng.integers(2**31))
+        sets = {w: SupportSet(5, 5, w, seed) for w in range(5)}
+        counts = np.zeros(5, int)
+        for _ in range(int(rng.integers(1, 16))):
+            category, picture = int(rng.integers(5)), int(rng.integers(6))
+            counts[category] += 1
+            for s in sets.values():
+                s.substitute(category, 5 * picture + category)
+            for a, b in combinations(range(5), 2):
+                if _seen(sets[a].members, reads) != _seen(sets[b].members, reads):
+                    first_difference.setdefault((a, b), 99)
+                    first_difference[(a, b)] = min(first_difference[(a, b)], counts.max() - 1)
+    for a, b in combinations(range(5), 2):
+        agree = ways_agree_until(a, b, 5, reads)
+        seen = first_difference.get((a, b))
+        if agree is None:
+            assert seen is None, (a, b)
+        else:
+            assert seen is not None and seen >= agree, (a, b, seen, agree)
+    exact = {(3, 4): 5} | ({(1, 3): 5, (1, 2): 1} if reads == "substituted" else {(1, 3): 0})
+    assert {k: first_difference[k] for k in exact} == exact
+    assert ways_agree_until(2, 2, 5) is None
+    assert [ways_agree_until(a, 4, 5, "nothing") for a in (0, 1, 2, 3)] == [0, None, None, None]
+    with pytest.raises(ValueError, match="reads"):
+        ways_agree_until(1, 2, 5, "pixels")

@@ -78,6 +78,11 @@ class PaperTablesRecogniser:
     """The report's name for it (``pipeline.report.names``); never recorded."""
     colour = "#8c564b"
     """Its colour in the report's figures; never recorded."""
+    reads_support = "substituted"
+    """What of the support set its predictions read (:data:`~.support_set.SUPPORT_READS`): which
+    substituted pictures each category holds and how many, never their positions or the original
+    shots (:meth:`probabilities`); the report's claims derive from it where the four ways cannot
+    differ (:func:`~.support_set.ways_agree_until`)."""
 
     def __init__(self, substitution_way: int = 0, carry_over: bool = False):
         SupportSet(N_WAY, K_SHOT, substitution_way, 0)  # validates the way

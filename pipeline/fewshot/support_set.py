@@ -114,3 +114,45 @@ def check_picture(categories: np.ndarray, picture_id: int, category: int) -> Non
         raise ValueError(
             f"picture {picture_id} shows category {categories[picture_id]}, not {category}"
         )
+
+
+#: What of the support set a recogniser's predictions read (its class's ``reads_support``): the
+#: shot at every position (``positions``, assumed of a recogniser that declares nothing), only
+#: which substituted pictures each category holds, however placed (``substituted``), or nothing a
+#: way changes (``nothing``: a recogniser without support positions, whatever the way).
+SUPPORT_READS = ("positions", "substituted", "nothing")
+
+
+def ways_agree_until(a: int, b: int, k_shot: int, reads: str = "positions") -> int | None:
+    """How many substitutions every category of a run can take with ways ``a`` and ``b`` still
+    giving the same support set, as a recogniser that ``reads`` it sees it (section 3.3, Figure 5):
+    in a run where no category takes more, the two ways cannot change anything; None: never can.
+
+    Ways 3 and 4 draw the same positions from the same stream until a category's first round of
+    K substitutions is over (way 4 then repeats that round's order, way 3 draws a new one): they
+    agree up to K substitutions a category. Read by position, any other pair may differ from the
+    first substitution on. Read by members, positions do not matter: ways 1 and 4 replace the
+    oldest substituted picture once all K originals are out, so they always hold the same
+    pictures; ways 1 and 3 differ in which picture leaves only from a category's K+1-th
+    substitution; way 2 may replace a substituted picture from a category's second substitution
+    on; way 0 (static) differs from any other way at the first. A recogniser that reads
+    ``nothing`` of the positions cannot tell ways 1-4 apart."""
+    if reads not in SUPPORT_READS:
+        raise ValueError(f"reads must be one of {SUPPORT_READS}, got {reads!r}")
+    for way in (a, b):
+        if way not in WAYS:
+            raise ValueError(f"substitution way must be one of {WAYS}, got {way}")
+    pair = frozenset((a, b))
+    if a == b:
+        return None
+    if 0 in pair:
+        return 0
+    if reads == "nothing":
+        return None
+    if pair == {3, 4}:
+        return k_shot
+    if reads == "positions":
+        return 0
+    if 2 in pair:
+        return 1
+    return None if pair == {1, 4} else k_shot

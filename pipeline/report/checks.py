@@ -23,11 +23,15 @@ from pipeline.stats import (
     bootstrap_p,
     difference_draws,
     holm,
+    holm_adjusted,
     percentile_ci,
     wilson_ci,
 )
 
-VERDICTS = ("holds", "does not hold", "not resolved", "not checked")
+#: A check or claim of two substitution ways that cannot differ in any recorded run
+#: (:func:`pipeline.report.substitutions.cannot_differ`).
+NOT_TESTABLE = "not testable with this recogniser"
+VERDICTS = ("holds", "does not hold", "not resolved", NOT_TESTABLE, "not checked")
 
 
 #: The family-wise level of a claim's checks (Holm's correction).
@@ -55,6 +59,7 @@ class Check:
     threshold: float = LEVEL
     stopped: bool = False  # Holm's step-down stopped before this check
     recognised: bool = True  # whether a recogniser ran in its cells
+    untestable: str = ""  # why the records cannot tell it (its sides cannot differ)
 
     def judge(self, low: float, high: float) -> str:
         """The verdict of an interval ``[low, high]``."""
@@ -66,6 +71,8 @@ class Check:
 
     @property
     def verdict(self) -> str:
+        if self.untestable:
+            return NOT_TESTABLE
         if self.expect in (">", "≈"):
             if self.draws is None:
                 return self.judge(self.low, self.high)
@@ -81,6 +88,8 @@ class Check:
         numbers = f"{scale * self.estimate:.{digits}f} [{scale * self.low:.{digits}f}, {scale * self.high:.{digits}f}]"
         paper = f"; paper: {self.paper}" if self.paper else ""
         margin = f"; comparable within ±{self.margin:.2f}" if self.expect == "≈" else ""
+        if self.untestable:
+            return f"{self.what}: {numbers} {self.unit}: {self.verdict}: {self.untestable}"
         holm_ = (
             ""
             if self.p is None
@@ -128,8 +137,8 @@ class Claim:
         """Holm's step-down over the checks with bootstrap draws: by p-value, the ``i``-th (from
         0) of ``m`` is judged by its interval at level ``1 - LEVEL / (m - i)``
         (:func:`~pipeline.stats.holm`'s thresholds); after the first undecided one, the
-        rest are not resolved."""
-        tested = [c for c in self.checks if c.draws is not None]
+        rest are not resolved. Checks that are not testable take no part."""
+        tested = [c for c in self.checks if c.draws is not None and not c.untestable]
         going = True
         for check, threshold in zip(tested, holm([c.p for c in tested], LEVEL)[0]):
             check.threshold, check.stopped = threshold, False
@@ -139,18 +148,51 @@ class Claim:
         return self
 
     @property
+    def p(self) -> float | None:
+        """The p-value that decides the claim (None: no testable check has one): its checks'
+        Holm-adjusted p-values (:func:`~pipeline.stats.holm_adjusted`, the smallest family level at
+        which :meth:`settle` decides each), the smallest of those that do not hold where one does
+        not, else the largest (every check must hold)."""
+        tested = [c for c in self.settle().checks if c.p is not None and not c.untestable]
+        if not tested:
+            return None
+        adjusted = holm_adjusted([c.p for c in tested])
+        failing = [a for a, c in zip(adjusted, tested) if c.verdict == "does not hold"]
+        return min(failing) if failing else max(adjusted)
+
+    @property
     def recognised(self) -> bool:
         """Whether a recogniser ran in its cells (a claim not checked: assumed so)."""
         return not self.checks or any(c.recognised for c in self.checks)
 
     @property
     def verdict(self) -> str:
-        verdicts = [c.verdict for c in self.settle().checks]
-        if self.missing or not verdicts:
+        """Holds when all its testable checks hold, does not hold when one does not; not testable
+        when none of its checks is."""
+        every = [c.verdict for c in self.settle().checks]
+        verdicts = [v for v in every if v != NOT_TESTABLE]
+        if self.missing or not every:
             return "not checked"
+        if not verdicts:
+            return NOT_TESTABLE
         if "does not hold" in verdicts:
             return "does not hold"
         return "holds" if all(v == "holds" for v in verdicts) else "not resolved"
+
+
+def across_claims(claims: list[Claim], level: float = LEVEL) -> list[str]:
+    """Each claim's verdict with Holm's correction across ``claims`` (the family: those with a
+    deciding p-value, :attr:`Claim.p`): in the order of those p-values, the ``i``-th (from 0) of
+    ``m`` keeps its verdict when its p-value is at most ``level / (m - i)`` and every earlier one's
+    was, else is not resolved. Claims outside the family (not checked, not testable, decided by
+    observations) keep theirs."""
+    family = [k for k, c in enumerate(claims) if c.p is not None]
+    kept = holm([claims[k].p for k in family], level)[1]
+    out = [c.verdict for c in claims]
+    for k, ok in zip(family, kept):
+        if not ok:
+            out[k] = "not resolved"
+    return out
 
 
 # ------------------------------------------------------------------------------------ records

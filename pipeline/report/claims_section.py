@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from pipeline.report.checks import VERDICTS, Check, Claim, Data
+from pipeline.report.checks import NOT_TESTABLE, VERDICTS, Check, Claim, Data, across_claims
 from pipeline.report.claims import accuracy_claims, rl_claims
 from pipeline.report.experiments import Experiment
 from pipeline.report.names import (
@@ -21,6 +21,7 @@ from pipeline.report.names import (
     recogniser_of,
 )
 from pipeline.report.study import read_summary
+from pipeline.report.substitutions import substitution_part
 
 #: The recogniser whose verdicts fill the column "with the paper's recognition": the paper's
 #: Tables 1-2 as a recogniser (``conf/recogniser/paper_tables.yaml``).
@@ -60,11 +61,53 @@ def claims_by_recogniser(
     }
 
 
+def verdict_words(claim: Claim, verdict: str | None = None) -> str:
+    """The claim's verdict (or ``verdict``), and how many of its checks are not testable where
+    some, not all, are."""
+    verdict = verdict or claim.verdict
+    n = sum(c.verdict == NOT_TESTABLE for c in claim.checks)
+    if n and verdict != NOT_TESTABLE:
+        return f"{verdict} ({n} of {len(claim.checks)} checks not testable)"
+    return verdict
+
+
 def with_recogniser(claim: Claim, theirs: Claim | None) -> str:
     """The verdict of ``claim`` with another recogniser's cells: "not run" without them."""
     if not claim.recognised:
         return "no recogniser in it"
-    return "not run" if theirs is None or theirs.verdict == "not checked" else theirs.verdict
+    if theirs is None or theirs.verdict == "not checked":
+        return "not run"
+    return verdict_words(theirs)
+
+
+def shown_claims(claims: list[Claim], first: bool) -> list[int]:
+    """The claims (numbered from 1) of a recogniser's table: all in the first table, elsewhere
+    those its cells take part in."""
+    return [
+        i for i, c in enumerate(claims, 1) if first or (c.verdict != "not checked" and c.recognised)
+    ]
+
+
+def family_verdicts(claims: list[Claim], first: bool) -> dict[int, str]:
+    """The verdicts of a recogniser's table with Holm's correction across its claims
+    (:func:`~pipeline.report.checks.across_claims`; the family: the claims it shows)."""
+    shown = shown_claims(claims, first)
+    return dict(zip(shown, across_claims([claims[i - 1] for i in shown])))
+
+
+#: How the claims' column with Holm across claims is decided (after :data:`RULE`).
+ACROSS = (
+    "**With Holm's correction across claims.** The column *with Holm across claims* decides the "
+    "claims of a table as one family: every claim of the table whose verdict rests on bootstrap "
+    "p-values (not the claims decided by observed shares of converged runs, not checked or not "
+    "testable, which keep their verdict). A claim's p-value is the largest of its checks' "
+    "Holm-adjusted p-values (the smallest level at which the rule above decides all of them; where "
+    "a check does not hold, the smallest adjusted p-value of such a check), and the claims are "
+    "taken in the order of these p-values: the i-th of the table's M claims (i from 0) keeps its "
+    "verdict when its p-value is at most 0.05 / (M − i) and every earlier one did, and is not "
+    "resolved otherwise. The bootstrap's 2000 resamples give no p-value below 2 / 2001 ≈ 0.001, so "
+    "a claim of many checks can be left unresolved by this correction alone."
+)
 
 
 RULE = (
@@ -102,6 +145,7 @@ def claims_section(rep, experiments: list[Experiment], accuracy_dirs: list[Path]
     column = {
         i: with_recogniser(c, theirs[i - 1] if theirs else None) for i, c in enumerate(by[main], 1)
     }
+    across = {kind: family_verdicts(claims, kind == main) for kind, claims in by.items()}
     rows = [
         {
             "recogniser": kind,
@@ -115,10 +159,12 @@ def claims_section(rep, experiments: list[Experiment], accuracy_dirs: list[Path]
             "unit": k.unit,
             "interval over": k.basis,
             "p": k.p,
-            "holm threshold": k.threshold if k.p is not None else None,
+            "holm threshold": k.threshold if k.p is not None and not k.untestable else None,
             "paper": k.paper,
             "check verdict": k.verdict,
             "claim verdict": c.verdict,
+            "claim p": c.p,
+            "claim verdict, Holm across claims": across[kind].get(i, ""),
             "with the paper's recognition": column[i] if kind == main else "",
         }
         for kind, claims in by.items()
@@ -126,29 +172,31 @@ def claims_section(rep, experiments: list[Experiment], accuracy_dirs: list[Path]
         for k in (c.checks or [Check(c.missing, *[np.nan] * 3, "", "", "")])
     ]
     rep.data("claims", pd.DataFrame(rows), float_format="%.6g")
-    rep.add(f"## Claims of the paper against our data\n\n{RULE}\n")
+    rep.add(f"## Claims of the paper against our data\n\n{RULE}\n\n{ACROSS}\n")
+    substitution_part(rep, experiments)
     for kind, claims in by.items():
-        rep.add(recogniser_block(kind, claims, column if kind == main else None, by[main]))
+        rep.add(
+            recogniser_block(kind, claims, column if kind == main else None, by[main], across[kind])
+        )
     return by
 
 
-def recogniser_block(kind: str, claims: list[Claim], column: dict | None, first: list) -> str:
+def recogniser_block(
+    kind: str, claims: list[Claim], column: dict | None, first: list, across: dict[int, str]
+) -> str:
     """One recogniser's claims table and checks; beside the first table, only the claims its
-    cells take part in."""
+    cells take part in; ``across``: their verdicts with Holm across claims."""
     name = recogniser_name(kind)
     name = name if name != kind else f"`{kind}` recogniser"
-    shown = [
-        i
-        for i, c in enumerate(claims, 1)
-        if column is not None or (c.verdict != "not checked" and c.recognised)
-    ]
+    shown = shown_claims(claims, column is not None)
     table = pd.DataFrame(
         [
             {
                 "#": i,
                 "where": claims[i - 1].source,
                 "the paper": claims[i - 1].text(),
-                "in our data": claims[i - 1].verdict,
+                "in our data": verdict_words(claims[i - 1]),
+                "with Holm across claims": verdict_words(claims[i - 1], across[i]),
                 **({"with the paper's recognition": column[i]} if column else {}),
             }
             for i in shown

@@ -116,13 +116,15 @@ class RecogniserDeclaration:
     """A recogniser as its config file declares it: ``conf/recogniser/<group>.yaml``, its
     ``_target_`` and what the class it builds declares: the ``kind`` its records say
     (``describe()``), its ``display_name`` and ``colour`` (the group's name and no colour when the
-    class declares none)."""
+    class declares none) and what of the support set it ``reads_support``
+    (:data:`~pipeline.fewshot.support_set.SUPPORT_READS`, ``positions`` when it declares nothing)."""
 
     group: str
     target: str
     kind: str
     display: str
     colour: str | None
+    reads: str = "positions"
 
 
 @cache
@@ -137,7 +139,14 @@ def recogniser_declarations() -> list[RecogniserDeclaration]:
         kind = getattr(cls, "kind", "") or group
         display = getattr(cls, "display_name", "") or group
         found.append(
-            RecogniserDeclaration(group, target, kind, display, getattr(cls, "colour", None))
+            RecogniserDeclaration(
+                group,
+                target,
+                kind,
+                display,
+                getattr(cls, "colour", None),
+                getattr(cls, "reads_support", "positions"),
+            )
         )
     return found
 
@@ -161,6 +170,13 @@ def recogniser_colour(name: str) -> str | None:
     nothing declares one): a recogniser is drawn in one colour in every figure."""
     found = recogniser_declaration(name)
     return found.colour if found is not None else None
+
+
+def recogniser_reads(name: str) -> str:
+    """What of the support set a recogniser reads, found by its kind or group (``positions``, the
+    safe assumption, when nothing declares it)."""
+    found = recogniser_declaration(name)
+    return found.reads if found is not None else "positions"
 
 
 def recogniser_group(target: str) -> str:

@@ -25,6 +25,7 @@ class FixedAccuracyRecogniser:
     """``conf/recogniser/fixed_accuracy.yaml``: ``p`` in [0, 1], ``learn`` true/false."""
 
     display_name = "fixed accuracy"  # its name in the report (pipeline.report.names)
+    reads_support = "nothing"  # no support positions: the substitution way changes nothing
 
     def __init__(
         self,

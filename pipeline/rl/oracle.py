@@ -15,6 +15,8 @@ class OracleRecogniser:
     """``conf/recogniser/oracle.yaml``. The trial stage passes ``substitution_way`` and
     ``carry_over`` to every recogniser; an oracle has no support set to change."""
 
+    reads_support = "nothing"  # the report's claims: no substitution way can change it
+
     def __init__(self, substitution_way: int = 0, carry_over: bool = False):
         self.substitution_way = substitution_way
         self.carry_over = carry_over
