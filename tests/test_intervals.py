@@ -84,7 +84,8 @@ def test_family_level_interval_is_wider_where_families_differ():
     total = spread["correct"].sum() / spread["tested"].sum()
     assert found["accuracy"] == total and found["episodes"] == 300 and found["families"] == 20
     assert found["per_family"]["3"] == pytest.approx(
-        spread["correct"][spread["family"] == 3].sum() / spread["tested"][spread["family"] == 3].sum()
+        spread["correct"][spread["family"] == 3].sum()
+        / spread["tested"][spread["family"] == 3].sum()
     )
     episode_width = np.diff(found["episode_ci"])[0]
     family_width = np.diff(found["family_ci"])[0]
@@ -118,7 +119,9 @@ def test_episode_outcomes_agree_with_the_training_evaluation():
         out = episode_outcomes(network, features, labels, episodes, batch=4)
         per_episode = np.bincount(out["episode"], weights=out["correct"]) / 20
         assert per_episode == pytest.approx(evaluate(network, features, episodes), abs=1e-12)
-        assert out["family"].tolist() == [int(labels[e.support[w, 0]]) for e in episodes for w in range(5)]
+        assert out["family"].tolist() == [
+            int(labels[e.support[w, 0]]) for e in episodes for w in range(5)
+        ]
         assert (out["tested"] == 4).all()
 
 

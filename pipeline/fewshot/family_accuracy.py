@@ -160,24 +160,31 @@ def family_study(
 ) -> tuple[pd.DataFrame, dict]:
     """Every episode's outcomes (:data:`OUTCOME_COLUMNS`) and, per split of :data:`SPLITS` that
     ``images_dir`` holds, :func:`family_intervals` and its ``family_names``, with the episode shape
-    and the bootstrap's settings. ``checkpoint`` is the loaded checkpoint's ``config`` and ``normalisation``.
-    Split ``i``'s episodes come from ``sample_episodes([seed, i], ...)`` (other episodes than
-    meta-training's evaluation); the bootstrap is seeded by ``[seed, i]`` too."""
+    and the bootstrap's settings. ``checkpoint`` holds the loaded checkpoint's ``config`` and
+    ``normalisation``. Split ``s``'s episodes come from ``sample_episodes([seed, i], ...)`` with
+    ``i = SPLITS.index(s)`` (other episodes than meta-training's evaluation), and its bootstrap is
+    seeded by ``[seed, i]`` too."""
     shape = episode_shape(checkpoint.get("config") or {})
     norm = checkpoint["normalisation"]
     frames, out = [], {}
-    for i, (split, pictures) in enumerate(_split_sets(images_dir, network.config.input_size).items()):
+    for split, pictures in _split_sets(images_dir, network.config.input_size).items():
+        stream = [seed, SPLITS.index(split)]
         by_class = pictures.by_class()
         need = shape.k_shot + shape.eval_queries
         where = f"the {split} families of {images_dir}"
         require_episodes(by_class, pictures.class_names, shape.n_way, need, where)
         drawn = sample_episodes(
-            [seed, SPLITS.index(split)], episodes, by_class, shape.n_way, shape.k_shot, shape.eval_queries
+            stream,
+            episodes,
+            by_class,
+            shape.n_way,
+            shape.k_shot,
+            shape.eval_queries,
         )
         images = to_tensor(pictures.images, norm["mean"], norm["std"])
         features = embed_all(network, images, shape.channels_last)
         outcomes = episode_outcomes(network, features, pictures.labels, drawn)
-        summary = family_intervals(outcomes, resamples=resamples, seed=[seed, SPLITS.index(split)])
+        summary = family_intervals(outcomes, resamples=resamples, seed=stream)
         out[split] = {**summary, "family_names": list(pictures.class_names)}
         frames.append(pd.DataFrame({"split": split, **outcomes}))
     if not out:
