@@ -52,6 +52,9 @@ SPLITS = ("val", "test")
 OUTCOME_COLUMNS = ("split", "episode", "family", "tested", "correct")
 #: Bootstrap resamples of :func:`family_intervals`.
 RESAMPLES = 2000
+#: Embedding values of the query-class pairs :func:`episode_outcomes` scores at once (32 M floats,
+#: 128 MB: 13 episodes of 5 x 75 pairs at 48 px, 3 at 84 px).
+PAIR_VALUES = 32_000_000
 
 
 def _scorer(network, features: torch.Tensor):
@@ -82,14 +85,22 @@ def _scorer(network, features: torch.Tensor):
 
 @torch.no_grad()
 def episode_outcomes(
-    network, features: torch.Tensor, labels: np.ndarray, episodes: list[Episode], batch: int = 16
+    network,
+    features: torch.Tensor,
+    labels: np.ndarray,
+    episodes: list[Episode],
+    batch: int | None = None,
 ) -> dict[str, np.ndarray]:
     """Per episode and family drawn (way order): ``episode``, ``family`` (the class index of
     ``labels``), ``tested`` and ``correct`` queries of that family (arrays of equal length).
     Episodes are scored ``batch`` at a time (all of one shape, as :func:`.sample_episodes` draws
-    them)."""
+    them); by default as many as keep a batch's query-class pairs within :data:`PAIR_VALUES`
+    embedding values (at most 16)."""
     network.eval()
     score = _scorer(network, features)
+    if batch is None and episodes:
+        pairs = episodes[0].query.size * episodes[0].support.shape[0]
+        batch = int(np.clip(PAIR_VALUES // (pairs * features[0].numel()), 1, 16))
     rows = []
     for first in range(0, len(episodes), batch):
         chunk = episodes[first : first + batch]
