@@ -7,8 +7,7 @@ that matches shapes keeps its accuracy; one that matches colours loses it. Not i
 photographs fix each object's colour.
 
 The pictures are not independent: each shows one of the ten query obstacles (a category's
-instance as it stands or turned, :data:`pipeline.world.pictures.N_PHYSICAL_OBSTACLES`), four query
-pictures or ``views_per_obstacle`` views of each. :func:`shift_changes` gives each hue shift's
+instance in the maze), four query pictures or ``views_per_obstacle`` views of each. :func:`shift_changes` gives each hue shift's
 change of accuracy with an interval that resamples obstacles, not pictures.
 """
 
@@ -19,16 +18,9 @@ from matplotlib.colors import hsv_to_rgb, rgb_to_hsv
 
 from pipeline.fewshot.settings import HUE_SHIFTS  # noqa: F401  (the colour test's turns)
 from pipeline.stats import cluster_ratio_draws, percentile_ci
-from pipeline.world.pictures import INSTANCES_PER_CATEGORY
 
 #: Bootstrap resamples of :func:`shift_changes`.
 RESAMPLES = 2000
-
-
-def obstacle_index(category: int, instance: int) -> int:
-    """The query obstacle a picture shows: ``category * 2 + instance`` (0..9; the picture id's
-    obstacle part, :func:`pipeline.world.pictures.picture_id`)."""
-    return category * INSTANCES_PER_CATEGORY + instance
 
 
 def hue_rotate(images: np.ndarray, degrees: float) -> np.ndarray:
@@ -48,7 +40,7 @@ def colour_test(
 ) -> dict:
     """The colour test's counts: correct query pictures with the original colours and with each hue
     shift (every query picture turned, the original support set), and each picture's predictions
-    and, given, its obstacle (:func:`obstacle_index`; for intervals of the drop that resample
+    and, given, its obstacle (an id per picture; for intervals of the drop that resample
     obstacles, :func:`shift_changes`). Plain numbers, for ``summary.json``."""
     cats = np.asarray(categories)
     shifts = sorted(shifted_predictions)

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .colour import hue_rotate, obstacle_index
+from .colour import hue_rotate
 from .data import load_split, read_manifest, to_tensor
 from .support_recogniser import SupportSetRecogniser
 
@@ -36,7 +36,7 @@ def views_predictions(
     base_shift: float = 0.0,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[float, np.ndarray]]:
     """The true categories of the ``views`` pictures of ``images_dir``, the obstacle each shows
-    (:func:`.colour.obstacle_index` of its manifest category and instance), the recogniser's
+    (its manifest category and instance, numbered 0, 1, ... in that order), the recogniser's
     predictions for them turned by ``base_shift`` (the recogniser's own ``query_hue_shift``; 0: as
     rendered), and per hue shift (degrees, on top of it), all against its network's original support
     set (the same pictures, size and normalisation the recogniser was loaded with)."""
@@ -54,7 +54,7 @@ def views_predictions(
     support_images = to_tensor(support.images, norm["mean"], norm["std"])
     rows = frame[frame["split"] == SPLIT].set_index("file")
     instances = rows.loc[list(views.files), "instance"].to_numpy()
-    obstacles = np.array([obstacle_index(c, i) for c, i in zip(views.labels, instances)])
+    _, obstacles = np.unique(np.stack([views.labels, instances], 1), axis=0, return_inverse=True)
 
     def predict(shift: float) -> np.ndarray:
         rec = type(recogniser)(

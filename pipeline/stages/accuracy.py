@@ -30,7 +30,7 @@ from pipeline.config.recognisers import (
     recognisers_taking,
 )
 from pipeline.fewshot.accuracy_study import run_study
-from pipeline.fewshot.colour import colour_test, obstacle_index
+from pipeline.fewshot.colour import colour_test
 from pipeline.fewshot.family_accuracy import family_study
 from pipeline.fewshot.study_tables import (
     baseline_frame,
@@ -44,7 +44,7 @@ from pipeline.files import write_atomic, write_json_atomic
 from pipeline.schemas.fewshot import AccuracyConfig
 from pipeline.stages import stage_main
 from pipeline.threads import torch_budget
-from pipeline.world.pictures import CATEGORIES, N_PICTURES, picture_category, picture_parts
+from pipeline.world.pictures import CATEGORIES, N_FACES, N_PICTURES, picture_category
 
 
 def _hue_turned_predictions(
@@ -137,7 +137,7 @@ def run(cfg: AccuracyConfig, overrides: list[str] = ()) -> dict:
     table2_frame(result).to_csv(out / "table2.csv", index=False)
     draws_frame(result, names).to_csv(out / "draws.csv", index=False)
     data = summary(result, names)
-    obstacles = [obstacle_index(*picture_parts(p)[:2]) for p in range(N_PICTURES)]
+    obstacles = [p // N_FACES for p in range(N_PICTURES)]  # a picture id's (category, instance)
     data["colour_test"] = (
         None
         if turned is None
