@@ -3,8 +3,10 @@ mean, standard deviation and a seeded 95% bootstrap interval of the mean (tables
 means with a 95% t interval (the bands of learning curves); bootstrap intervals of differences
 between cells (the claims) and of break-even levels (:func:`break_even`); Wilson intervals of
 shares of runs; stratified bootstrap over the accuracy study's random draws (Tables 1 and 2:
-:func:`stratified_means`); bootstrap p-values (:func:`bootstrap_p`) and Holm's step-down
-correction across the checks of a claim (:func:`holm`) and across the claims (:func:`holm_adjusted`).
+:func:`stratified_means`); a cluster (two-level) bootstrap for data that vary at two levels
+(:func:`cluster_ratio_draws`: meta-test families then episodes, obstacles then views); bootstrap
+p-values (:func:`bootstrap_p`) and Holm's step-down correction across the checks of a claim
+(:func:`holm`) and across the claims (:func:`holm_adjusted`).
 
 The independent unit of a trial is its run seed: the cells of an experiment (and the experiments
 recorded with the same seed and run count) share run ``r``'s obstacle placement and random
@@ -45,6 +47,60 @@ def stratified_means(values, *, resamples: int = 2000, seed: int = 0) -> np.ndar
     rng = np.random.default_rng(seed)
     index = rng.integers(0, v.shape[1], size=(resamples, *v.shape))
     return np.take_along_axis(v[None], index, axis=2).mean(axis=(1, 2))
+
+
+def cluster_ratio_draws(
+    numerators,
+    denominators,
+    clusters,
+    *,
+    within: bool,
+    resamples: int = 2000,
+    seed=0,
+    block: int = 250,
+) -> np.ndarray:
+    """Bootstrap draws of ``sum(numerators) / sum(denominators)`` (a pooled share: correct over
+    tested) resampled at the level the data vary, for units (rows) grouped in ``clusters`` (one id
+    per row).
+
+    Each draw takes as many clusters as there are, uniformly with replacement (stage 1); a cluster
+    drawn twice counts twice. With ``within`` (stage 2, a two-level bootstrap), each drawn cluster
+    then brings as many of its own units as it has, uniformly with replacement; without, it
+    brings all its units as they are (one-level cluster bootstrap). Davison and Hinkley (1997,
+    section 3.8): resampling both stages counts the within-cluster variance once more, so the
+    two-level interval errs wide by about that variance over the cluster's size (small where the
+    clusters are many units each). Stage 1 uses ``numpy.random.default_rng(seed)``, stage 2 a
+    stream spawned from the same seed, so the clusters drawn do not depend on ``within``; without
+    it, for clusters of equal size, the draws equal :func:`bootstrap_means` of the cluster means
+    with the same seed. ``block`` resamples are drawn at a time (memory), which changes no draw."""
+    num = np.asarray(numerators, dtype=float)
+    den = np.asarray(denominators, dtype=float)
+    ids, index = np.unique(np.asarray(clusters), return_inverse=True)
+    k = ids.size
+    if num.shape != den.shape or num.shape != index.shape or k == 0:
+        raise ValueError(
+            f"numerators {num.shape}, denominators {den.shape} and clusters {index.shape} must be "
+            "non-empty and of one length"
+        )
+    sizes = np.bincount(index, minlength=k)
+    order = np.argsort(index, kind="stable")
+    within_at = np.arange(index.size) - np.repeat(np.cumsum(sizes) - sizes, sizes)
+    padded = np.zeros((2, k, int(sizes.max())))
+    padded[0, index[order], within_at], padded[1, index[order], within_at] = num[order], den[order]
+    clusters_rng = np.random.default_rng(seed)
+    units_rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(1)[0])
+    out = []
+    for start in range(0, resamples, block):
+        picked = clusters_rng.integers(0, k, size=(min(block, resamples - start), k))
+        if within:
+            n = sizes[picked][..., None]  # (b, k, 1): each drawn cluster's size
+            unit = (units_rng.random((*picked.shape, padded.shape[2])) * n).astype(np.int64)
+            keep = np.arange(padded.shape[2]) < n
+            sums = np.where(keep, padded[:, picked[..., None], unit], 0.0).sum(axis=(2, 3))
+        else:
+            sums = padded[:, picked].sum(axis=(2, 3))
+        out.append(sums[0] / sums[1])
+    return np.concatenate(out)
 
 
 def percentile_ci(draws, level: float = 0.95) -> tuple[float, float]:

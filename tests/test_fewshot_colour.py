@@ -108,11 +108,16 @@ def test_the_colour_test_on_the_views_of_the_query_obstacles(tmp_path):
         metrics={},
     )
     rec = RelationRecogniser.from_files(tmp_path / "rn.pt", images)
-    cats, original, turned = views_predictions(rec, images, [360.0, 180.0])
+    cats, obstacles, original, turned = views_predictions(rec, images, [360.0, 180.0])
     assert cats.tolist() == [c for c in range(5) for _ in range(6)] and original.shape == (30,)
+    # each view's obstacle: its category's instance (0 or 1 in the synthetic manifest)
+    assert obstacles.tolist() == [2 * c + i for c in range(5) for i in (0, 0, 0, 1, 1, 1)]
     assert np.array_equal(turned[360.0], original)
-    _, shifted, _ = views_predictions(rec, images, [], base_shift=180.0)
+    _, _, shifted, _ = views_predictions(rec, images, [], base_shift=180.0)
     assert np.array_equal(shifted, turned[180.0])
-    counts = colour_test(original, turned, cats)
+    counts = colour_test(original, turned, cats, obstacles)
+    assert counts["obstacles"] == obstacles.tolist() and "obstacles" not in colour_test(
+        original, turned, cats
+    )
     assert counts["pictures"] == 30 and counts["correct_per_shift"][1] == counts["correct_original"]
     assert has_views(images) and not has_views(bare)

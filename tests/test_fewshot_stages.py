@@ -136,6 +136,50 @@ def test_meta_train_then_accuracy(tmp_path):
     assert one["colour_test"]["shifts_deg"] == [180.0]
     assert one["colour_test"]["predictions_per_shift"] == [colour["predictions_per_shift"][2]]
     assert one["config"]["hue_shifts"] == [180.0]
+    # each query picture's obstacle: its category's instance (picture id // 4)
+    assert colour["obstacles"] == [p // 4 for p in range(40)]
+    # the held-out families: study.family_episodes fresh episodes of each split (default 300),
+    # every episode's families kept (5 rows an episode), the shape the checkpoint was measured with
+    families = pd.read_csv(out / "families.csv")
+    assert len(families) == 2 * 300 * 5 and (families.tested == 5).all()
+    assert data["families"]["episode_shape"] == {"n_way": 5, "k_shot": 5, "eval_queries": 5}
+    for split, n in (("val", 5), ("test", 5)):
+        found, rows = data["families"][split], families[families.split == split]
+        assert found["families"] == n and found["episodes"] == 300
+        assert found["accuracy"] == pytest.approx(rows.correct.sum() / rows.tested.sum())
+        assert found["family_ci"][0] <= found["accuracy"] <= found["family_ci"][1]
+        assert len(found["family_names"]) == n
+    assert one["families"]["episodes_per_split"] == 300
+    few = run_stage(
+        "accuracy",
+        [
+            f"recogniser.images_dir={images}",
+            f"recogniser.checkpoint={tmp_path}/m/rn.pt",
+            "recogniser.input_size=24",
+            "recogniser.relation_padding=1",
+            f"out_dir={tmp_path}/acc2",
+            "study.repeats=1",
+            "study.hue_shifts=[]",
+            "study.family_episodes=7",
+            "progress=false",
+        ],
+    )
+    assert few["families"]["test"]["episodes"] == 7 and few["config"]["family_episodes"] == 7
+    assert len(pd.read_csv(tmp_path / "acc2" / "families.csv")) == 2 * 7 * 5
+    none = run_stage(
+        "accuracy",
+        [
+            f"recogniser.images_dir={images}",
+            f"recogniser.checkpoint={tmp_path}/m/rn.pt",
+            "recogniser.input_size=24",
+            "recogniser.relation_padding=1",
+            f"out_dir={tmp_path}/acc3",
+            "study.repeats=1",
+            "study.family_episodes=0",
+            "progress=false",
+        ],
+    )
+    assert none["families"] is None and not (tmp_path / "acc3" / "families.csv").exists()
 
 
 def test_config_errors_name_the_key(tmp_path):
@@ -155,6 +199,15 @@ def test_config_errors_name_the_key(tmp_path):
         run_stage(
             "accuracy", ["recogniser=oracle", "study.hue_shifts=[90]", f"out_dir={tmp_path}/o"]
         )
+    with pytest.raises(
+        ConfigError, match=r"config key 'study.family_episodes': it measures a meta-trained network"
+    ):
+        run_stage(
+            "accuracy",
+            ["recogniser=oracle", "study.family_episodes=5", f"out_dir={tmp_path}/o"],
+        )
+    with pytest.raises(ConfigError, match=r"config key 'study.family_episodes': must be >= 0"):
+        run_stage("accuracy", ["study.family_episodes=-1"])
     with pytest.raises(
         ConfigError, match=r"config key 'study.hue_shifts.0'.*could not be converted to Float"
     ):
@@ -274,6 +327,15 @@ def test_protonet_meta_train_accuracy_and_report_tables(tmp_path):
     )
     assert colour["hue-turned [95%]"].str.match(r"\d+/(200|100) = ").all()
     assert colour["drop, points [95%]"].str.contains(r"\[").all()
+    # the held-out families with both intervals, and the colour test per hue shift (obstacles)
+    families = pd.read_csv(tmp_path / "report" / "tables" / "recogniser_families.csv")
+    assert families.recogniser.tolist() == ["Relation Network"] * 2 + ["Prototypical Network"] * 2
+    assert families.families.tolist() == ["test (5)", "validation (5)"] * 2
+    assert families["family-level [95%]"].str.match(r"\[[\d.]+, [\d.]+\]").all()
+    shifts = pd.read_csv(tmp_path / "report" / "tables" / "colour_test_shifts.csv")
+    assert len(shifts) == 2 * 2 * 5  # recognisers x picture sets x hue shifts
+    assert shifts.pictures.str.endswith(("(40, 10 obstacles)", "(20, 10 obstacles)")).all()
+    assert shifts["change, points [95%, obstacles]"].str.match(r"[+-]\d+\.\d\d \[").all()
     assert "ours, Prototypical Network" in text
     t2 = pd.read_csv(tmp_path / "report" / "tables" / "table2.csv")
     assert (

@@ -156,3 +156,6 @@ class StudyConfig:
     """Seeds the random choice of pictures and positions."""
     hue_shifts: list[float] = setting(default_factory=lambda: list(HUE_SHIFTS))
     """The colour test's hue rotations of the query pictures, degrees (:mod:`.colour`); [] skips it."""
+    family_episodes: int = setting(300, ge=0)
+    """Fresh episodes per held-out split (validation, test) for their accuracy with intervals over
+    episodes and over families (``families.csv``, :mod:`.family_accuracy`); 0 skips it."""

@@ -34,8 +34,9 @@ def views_predictions(
     images_dir: str | Path,
     shifts: list[float],
     base_shift: float = 0.0,
-) -> tuple[np.ndarray, np.ndarray, dict[float, np.ndarray]]:
-    """The true categories of the ``views`` pictures of ``images_dir``, the recogniser's
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[float, np.ndarray]]:
+    """The true categories of the ``views`` pictures of ``images_dir``, the obstacle each shows
+    (its manifest category and instance, numbered 0, 1, ... in that order), the recogniser's
     predictions for them turned by ``base_shift`` (the recogniser's own ``query_hue_shift``; 0: as
     rendered), and per hue shift (degrees, on top of it), all against its network's original support
     set (the same pictures, size and normalisation the recogniser was loaded with)."""
@@ -51,6 +52,9 @@ def views_predictions(
             f"set's {support.class_names}"
         )
     support_images = to_tensor(support.images, norm["mean"], norm["std"])
+    rows = frame[frame["split"] == SPLIT].set_index("file")
+    instances = rows.loc[list(views.files), "instance"].to_numpy()
+    _, obstacles = np.unique(np.stack([views.labels, instances], 1), axis=0, return_inverse=True)
 
     def predict(shift: float) -> np.ndarray:
         rec = type(recogniser)(
@@ -67,6 +71,7 @@ def views_predictions(
 
     return (
         views.labels,
+        obstacles,
         predict(base_shift),
         {float(s): predict(base_shift + s) for s in shifts},
     )

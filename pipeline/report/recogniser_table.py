@@ -2,6 +2,7 @@
 accuracy quoted, the validation families' beside it, docs/fewshot.md) and whether it relies on
 colour (:mod:`pipeline.fewshot.colour`). The test figures come from the model's metrics file, the
 rest from its accuracy study's ``summary.json``; the tables' captions say how each is measured.
+Beside them, the intervals at the level the data vary (:mod:`.recogniser_intervals`).
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from pipeline.report.recogniser_intervals import families_table, shifts_table
 from pipeline.report.study import read_summary
 from pipeline.stats import bootstrap_ci, wilson_ci
 
@@ -123,6 +125,7 @@ def recogniser_section(rep, studies: list[tuple[str, Path, Path]]) -> None:
         "views of the query obstacles: the same ten obstacles from many random sides and distances "
         "in the maze (`pipeline/fewshot/views.py`).",
     )
+    families_table(rep, studies)
     colour = [r for name, _, folder in studies for r in colour_rows(name, folder)]
     if colour:
         rep.table(
@@ -133,3 +136,4 @@ def recogniser_section(rep, studies: list[tuple[str, Path, Path]]) -> None:
             "interval and the drop's (paired, in points) are bootstrap 95% intervals over the "
             "pictures. The 400 views give the test its power; the 40 query pictures are the paper's.",
         )
+        shifts_table(rep, studies, COLOUR_SETS)

@@ -69,7 +69,8 @@ class AccuracyConfig:
     recogniser: dict[str, Any] = field(default_factory=dict)
     """The recogniser group (``conf/recogniser/``), as in the trials."""
     out_dir: str = setting(nonempty=True, path=True)
-    """``baseline.csv``, ``table1.csv``, ``table2.csv`` and ``summary.json``."""
+    """``baseline.csv``, ``table1.csv``, ``table2.csv``, ``draws.csv``, ``families.csv`` and
+    ``summary.json``."""
     threads: int = setting(ge=1)
     """torch intra-op threads."""
     progress: bool = MISSING

@@ -4,10 +4,14 @@ On the rendered query and support pictures with the meta-trained checkpoint (doc
 
     python -m pipeline accuracy [recogniser=<name of conf/recogniser/>] [recogniser.checkpoint=...] [study.repeats=...]
 
-Writes ``out_dir``/baseline.csv, table1.csv, table2.csv, draws.csv (every random draw) and
-summary.json (with the colour test: the query pictures hue-turned by each of ``study.hue_shifts``,
-``pipeline.fewshot.colour``, and the same on the render's 400 ``views`` pictures of the query
-obstacles, ``pipeline.fewshot.views``) for the report stage.
+Writes ``out_dir``/baseline.csv, table1.csv, table2.csv, draws.csv (every random draw),
+families.csv (``study.family_episodes`` fresh episodes of the validation and of the test families:
+which families each drew and its queries of each classified right,
+``pipeline.fewshot.family_accuracy``) and summary.json (with the colour test: the query pictures
+hue-turned by each of ``study.hue_shifts``, ``pipeline.fewshot.colour``, and the same on the
+render's 400 ``views`` pictures of the query obstacles, ``pipeline.fewshot.views``, each picture
+with its obstacle; and the held-out families' accuracy with episode- and family-level intervals)
+for the report stage.
 """
 
 from __future__ import annotations
@@ -27,6 +31,7 @@ from pipeline.config.recognisers import (
 )
 from pipeline.fewshot.accuracy_study import run_study
 from pipeline.fewshot.colour import colour_test
+from pipeline.fewshot.family_accuracy import family_study
 from pipeline.fewshot.study_tables import (
     baseline_frame,
     draws_frame,
@@ -35,11 +40,11 @@ from pipeline.fewshot.study_tables import (
     table2_frame,
 )
 from pipeline.fewshot.views import has_views, views_predictions
-from pipeline.files import write_json_atomic
+from pipeline.files import write_atomic, write_json_atomic
 from pipeline.schemas.fewshot import AccuracyConfig
 from pipeline.stages import stage_main
 from pipeline.threads import torch_budget
-from pipeline.world.pictures import CATEGORIES, N_PICTURES, picture_category
+from pipeline.world.pictures import CATEGORIES, N_FACES, N_PICTURES, picture_category
 
 
 def _hue_turned_predictions(
@@ -81,13 +86,38 @@ def _views_colour_test(cfg: AccuracyConfig, recogniser) -> dict | None:
         return None
     if not has_views(cfg.recogniser["images_dir"]):
         return None
-    categories, original, turned = views_predictions(
+    categories, obstacles, original, turned = views_predictions(
         recogniser,
         cfg.recogniser["images_dir"],
         list(cfg.study.hue_shifts),
         float(cfg.recogniser.get("query_hue_shift", 0.0)),
     )
-    return colour_test(original, turned, categories)
+    return colour_test(original, turned, categories, obstacles)
+
+
+def _family_study(cfg: AccuracyConfig, recogniser, overrides: list[str]):
+    """The held-out families' episodes (``families.csv``) and accuracy with family-level intervals
+    (:mod:`pipeline.fewshot.family_accuracy`); None with ``study.family_episodes`` 0 or for a
+    recogniser without a trained network, which refuses the key when it is given (before the
+    study runs)."""
+    episodes = cfg.study.family_episodes
+    if getattr(recogniser, "checkpoint", None) is None or not hasattr(recogniser, "network"):
+        if episodes and any(o.lstrip("+~").startswith("study.family_episodes") for o in overrides):
+            refuse(
+                "study.family_episodes",
+                f"it measures a meta-trained network on the held-out families, and "
+                f"{cfg.recogniser['_target_']} has none; use recogniser=relation_net|protonet",
+            )
+        return None
+    if not episodes:
+        return None
+    return family_study(
+        recogniser.network,
+        recogniser.checkpoint,
+        cfg.recogniser["images_dir"],
+        episodes,
+        cfg.study.seed,
+    )
 
 
 def run(cfg: AccuracyConfig, overrides: list[str] = ()) -> dict:
@@ -96,6 +126,7 @@ def run(cfg: AccuracyConfig, overrides: list[str] = ()) -> dict:
     start = time.perf_counter()
     recogniser = build_recogniser(cfg.recogniser, substitution_way=0, carry_over=False)
     turned = _hue_turned_predictions(cfg, list(overrides))
+    families = _family_study(cfg, recogniser, list(overrides))
     names = list(CATEGORIES)
     categories = np.array([picture_category(p) for p in range(N_PICTURES)])
     result = run_study(recogniser, categories, config, progress=cfg.progress)
@@ -106,10 +137,16 @@ def run(cfg: AccuracyConfig, overrides: list[str] = ()) -> dict:
     table2_frame(result).to_csv(out / "table2.csv", index=False)
     draws_frame(result, names).to_csv(out / "draws.csv", index=False)
     data = summary(result, names)
+    obstacles = [p // N_FACES for p in range(N_PICTURES)]  # a picture id's (category, instance)
     data["colour_test"] = (
-        None if turned is None else colour_test(result.baseline_predictions, turned, categories)
+        None
+        if turned is None
+        else colour_test(result.baseline_predictions, turned, categories, obstacles)
     )
     data["colour_test_views"] = _views_colour_test(cfg, recogniser)
+    data["families"] = None if families is None else families[1]
+    if families is not None:
+        write_atomic(out / "families.csv", families[0].to_csv(index=False))
     data["config"] = {"recogniser": dict(cfg.recogniser), **asdict(config)}
     if hasattr(recogniser, "checkpoint"):
         data["checkpoint_metrics"] = recogniser.checkpoint["metrics"]
@@ -138,6 +175,17 @@ def run(cfg: AccuracyConfig, overrides: list[str] = ()) -> dict:
             f"views of the query obstacles: {views['correct_original']}/{views['pictures']} correct; "
             f"hue-turned {sum(views['correct_per_shift'])}/{n}"
         )
+    for split, words in (("test", "test"), ("val", "validation")):
+        found = (data["families"] or {}).get(split)
+        if found:
+            print(
+                f"{words} families: {100 * found['accuracy']:.2f}% over {found['episodes']} episodes; "
+                "95% interval over episodes [{:.2f}, {:.2f}], over {} families [{:.2f}, {:.2f}]".format(
+                    *(100 * x for x in found["episode_ci"]),
+                    found["families"],
+                    *(100 * x for x in found["family_ci"]),
+                )
+            )
     for n, (w, ns) in sorted(result.table2.items()):
         print(f"  {n} substitution(s): {100 * w:.2f}%  (no same picture {100 * ns:.2f}%)")
     print(f"accuracy study in {time.perf_counter() - start:.1f} s")
