@@ -206,7 +206,7 @@ def _turn_invariant_shape(obj) -> list:
 
 
 def test_the_two_obstacles_of_a_category_are_two_objects_not_one_turned():
-    """DESIGN.md: two distinct objects per category (another chair, not the same chair turned).
+    """Two distinct objects per category (another chair, not the same chair turned).
     A turn about the vertical axis keeps every part's size and height; the two instances differ
     in them, and each is its category's own build, the same on every call."""
     for c in CATEGORIES:

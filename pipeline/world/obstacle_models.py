@@ -56,6 +56,6 @@ def obstacle_instance(category: str | int, instance: int, seed: int) -> ObjectMo
     Instances 0 and 1 are the category's two physical obstacles (query pictures, views, the
     robot's maze), 2, 3, ... the support set's catalogue objects. Every instance is its own draw
     of the category's family (proportions, part styles, colours), so the maze holds two different
-    objects per category, as the paper's photographed obstacles are (DESIGN.md), not one turned."""
+    objects per category, as the paper's photographed obstacles are, not one object turned."""
     rng = np.random.default_rng(obstacle_seed(seed, category_index(category), instance))
     return build_obstacle(category, rng)

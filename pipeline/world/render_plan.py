@@ -230,7 +230,8 @@ def plan_size(cfg: PlanConfig) -> dict:
     views = 1 if cfg.views_per_obstacle else 0
     return {
         "pictures": pictures,
-        "objects": n_cat * (1 + cfg.support_per_category + views) + n_classes * per_class,
+        "objects": n_cat * (INSTANCES_PER_CATEGORY * (1 + views) + cfg.support_per_category)
+        + n_classes * per_class,
         "batches": 2 + n_classes + views,
     }
 
