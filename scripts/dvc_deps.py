@@ -329,6 +329,8 @@ def rewritten(text: str, stages: dict[str, Stage]) -> str:
         each = re.match(r"^(\s+)foreach:", line)
         if each and current and current.items != [None]:
             out += flow_list(current.items, len(each[1]), "foreach: ")
+            while "]" not in lines[i]:  # a flow list wrapped over several lines
+                i += 1
             i += 1
             continue
         key = re.match(r"^(\s+)(deps|params):\s*$", line)

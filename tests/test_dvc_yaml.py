@@ -21,7 +21,7 @@ EXPERIMENTS = STAGES["trials"]["foreach"]
 def expanded(stage: str, item: str | None = None) -> dict:
     """A stage's definition with ``${item}`` filled in (the trials foreach template)."""
     text = yaml.safe_dump(STAGES[stage]["do"] if item else STAGES[stage])
-    return yaml.safe_load(text.replace("${item}", item) if item else text)
+    return yaml.safe_load(text.replace("${item}", str(item)) if item else text)
 
 
 def all_stages() -> dict[str, dict]:

@@ -20,6 +20,7 @@ from pipeline.report import learning_curves as LC
 from pipeline.report.accuracy_curve import accuracy_curve_kind
 from pipeline.report.experiments import Cell, Experiment
 from pipeline.report.generalisation import generalisation_section
+from pipeline.report.networks import networks_section
 from pipeline.report.paper_numbers import paper_values
 from pipeline.report.parts import (
     COLLISIONS,
@@ -227,6 +228,7 @@ KINDS = {
     "generalisation": generalisation_section,
     "repetition": repetition_section,
     "robot": robot_kind,
+    "networks": networks_section,
 }
 
 

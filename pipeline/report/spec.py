@@ -26,9 +26,10 @@ KINDS = (
     "generalisation",
     "repetition",
     "robot",
+    "networks",
 )
 #: Kinds that draw one point per cell (no pooled rows, no learning curves).
-PER_CELL_KINDS = ("accuracy_curve", "generalisation", "repetition")
+PER_CELL_KINDS = ("accuracy_curve", "generalisation", "repetition", "networks")
 
 
 @dataclass

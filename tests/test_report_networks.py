@@ -1,0 +1,122 @@
+"""The networks section (pipeline/report/networks.py): each cell's spread across networks beside
+its spread across runs, intervals over runs and over networks then runs, and claim 9 per network,
+pinned on small exact cases made up here."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import yaml
+
+from pipeline.report import networks as N
+from pipeline.report.experiments import Cell
+
+
+def cell(name, method, maze, per_run, network=None):
+    checkpoint = None
+    if network is not None:
+        file = "relation_net.pt" if network == 0 else f"networks/relation_net_seed{network}.pt"
+        checkpoint = {"path": f"datasets/models/{file}"}
+    return Cell(
+        experiment="networks",
+        name=name,
+        info={
+            "method": {"name": method, "safety": "fewshot" if network is not None else "ssrl"},
+            "maze": maze,
+            "recogniser": {"kind": "relation_net", "checkpoint": checkpoint}
+            if checkpoint
+            else None,
+        },
+        layout=[],
+        obstacles={},
+        episodes=pd.DataFrame(
+            {"run": np.arange(len(per_run)), "episode": 0, "collisions": np.asarray(per_run)}
+        ),
+        recognitions=pd.DataFrame(),
+        substitutions=pd.DataFrame(),
+        config={"seed": 0, "recogniser": {}},
+    )
+
+
+class Exp:
+    def __init__(self, cells):
+        self.cells = {c.name: c for c in cells}
+        self.folder = self.name = "networks"
+
+
+def test_the_network_is_read_from_the_recorded_checkpoint():
+    assert N.network_of(cell("a", "fewshot", "5x5", [1], network=0)) == 0
+    assert N.network_of(cell("b", "fewshot", "5x5", [1], network=3)) == 3
+    assert N.network_of(cell("c", "ssrl", "5x5", [1])) is None
+
+
+def test_networks_that_agree_have_no_spread_and_equal_intervals():
+    """Three networks with the same runs: no spread across networks, and resampling networks
+    first adds nothing."""
+    runs = [4.0, 6.0, 5.0, 5.0]
+    exp = Exp([cell(f"f{k}", "fewshot", "5x5", runs, network=k) for k in range(3)])
+    (row,) = N.spread_rows(N.run_table(exp))
+    assert row["networks"] == 3 and row["each network (seed 0, 1, ...)"] == "5.00 / 5.00 / 5.00"
+    assert row["s.d. across networks"] == "0.00" and row["mean"] == "5.00"
+    assert row["s.d. across runs"] == f"{np.std(runs, ddof=1):.2f}"
+
+
+def test_networks_that_differ_widen_the_interval_over_networks():
+    """Constant runs within each network: the interval over runs collapses to the mean, the one
+    over networks spans the networks' means."""
+    exp = Exp([cell(f"f{k}", "fewshot", "5x5", [2.0 * k] * 6, network=k) for k in range(5)])
+    (row,) = N.spread_rows(N.run_table(exp))
+    assert row["95% CI, runs resampled"] == "[4.00, 4.00]"
+    lo, hi = (float(x) for x in row["95% CI, networks then runs"].strip("[]").split(", "))
+    assert 0.0 <= lo < 4.0 < hi <= 8.0
+    assert row["s.d. across networks"] == f"{np.std([0, 2, 4, 6, 8], ddof=1):.2f}"
+
+
+def test_claim_9_per_network_and_over_the_networks():
+    """SSRL 7 every run; network 0 collides 9 (holds), network 1 collides 5 (does not hold)."""
+    cells = [cell("ssrl", "ssrl", "5x5", [7.0] * 5)]
+    cells += [cell("f0", "fewshot", "5x5", [9.0] * 5, network=0)]
+    cells += [cell("f1", "fewshot", "5x5", [5.0] * 5, network=1)]
+    rows = N.claim9_rows(N.run_table(Exp(cells)))
+    assert [r["network"] for r in rows] == [
+        "seed 0",
+        "seed 1",
+        "the 2 networks (networks, then runs)",
+    ]
+    assert [r["claim 9"] for r in rows] == ["holds", "does not hold", "not resolved"]
+    assert rows[0]["few-shot − SSRL, 5x5 [95% CI]"] == "2.00 [2.00, 2.00]"
+
+
+def test_every_checkpoint_the_experiment_names_is_made_by_a_dvc_stage():
+    """The networks experiment names its checkpoints; each is the meta_train stage's or an out of
+    a networks_* stage for one of its foreach seeds, so the two lists cannot drift apart."""
+    root = Path(__file__).resolve().parents[1]
+    cells = yaml.safe_load((root / "conf/experiment/networks.yaml").read_text())["experiment"]
+    named = {c["recogniser"]["checkpoint"] for c in cells["cells"].values() if "recogniser" in c}
+    stages = yaml.safe_load((root / "dvc.yaml").read_text())["stages"]
+    made = set()
+    for stage in stages.values():
+        body = stage.get("do", stage)
+        outs = [next(iter(o)) if isinstance(o, dict) else o for o in body.get("outs", [])]
+        for item in stage.get("foreach", [None]):
+            made |= {o.replace("${item}", str(item)) for o in outs}
+    assert named and named <= made, sorted(named - made)
+    assert len(named) == 10  # five of each kind
+
+
+def test_the_section_writes_its_tables(tmp_path):
+    from pipeline.report.build import Report
+
+    rep = Report(tmp_path)
+    rng = np.random.default_rng(0)
+    cells = [cell("ssrl", "ssrl", "5x5", [7.0] * 20)]
+    cells += [
+        cell(f"f{k}", "fewshot", "5x5", 9 + k + rng.normal(0, 1, 20), network=k) for k in range(5)
+    ]
+    N.networks_section(rep, Exp(cells), [])
+    table = pd.read_csv(tmp_path / "tables" / "networks.csv")
+    assert table["networks"].tolist() == [5]
+    claim9 = pd.read_csv(tmp_path / "tables" / "networks_claim9.csv")
+    assert len(claim9) == 6 and set(claim9["claim 9"]) == {"holds"}
