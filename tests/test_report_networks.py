@@ -120,3 +120,23 @@ def test_the_section_writes_its_tables(tmp_path):
     assert table["networks"].tolist() == [5]
     claim9 = pd.read_csv(tmp_path / "tables" / "networks_claim9.csv")
     assert len(claim9) == 6 and set(claim9["claim 9"]) == {"holds"}
+    assert "Relation Network: holds for 5 of 5 networks" in "\n".join(rep.sections)
+
+
+def test_rows_come_by_recogniser_method_and_maze_size():
+    cells = [
+        cell(f"{m}{k}_{z}", m, z, [1.0, 2.0], network=k)
+        for z in ("11x11", "5x5", "7x7")
+        for m in ("fewshot_dss", "fewshot")
+        for k in range(2)
+    ]
+    rows = N.spread_rows(N.run_table(Exp(cells)))
+    assert [(r["method"], r["maze"]) for r in rows] == [
+        ("fewshot", "5x5"),
+        ("fewshot", "7x7"),
+        ("fewshot", "11x11"),
+        ("fewshot_dss", "5x5"),
+        ("fewshot_dss", "7x7"),
+        ("fewshot_dss", "11x11"),
+    ]
+    assert N.maze_cells("random:7x7:16:3") == 49 and N.maze_cells("mazes/mine.txt") == 0

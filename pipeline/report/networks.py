@@ -63,6 +63,13 @@ def run_table(exp: Experiment) -> pd.DataFrame:
     return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
 
 
+def maze_cells(maze: str) -> int:
+    """A maze's cell count from its ``<W>x<H>`` (``5x5``: 25; ``random:7x7:...``: 49), its order
+    in the tables; 0 for a layout file."""
+    found = re.search(r"(\d+)x(\d+)", maze)
+    return int(found[1]) * int(found[2]) if found else 0
+
+
 def verdict(lo: float, hi: float) -> str:
     """The claims section's rule for one check at the 95% level."""
     return "holds" if lo > 0 else "does not hold" if hi < 0 else "not resolved"
@@ -73,7 +80,10 @@ def spread_rows(runs: pd.DataFrame) -> list[dict]:
     (module docstring)."""
     rows = []
     picked = runs[runs["network"] >= 0]
-    for (label, method, maze), g in picked.groupby(["recogniser", "method", "maze"], sort=False):
+    keys = ["recogniser", "method", "cells"]
+    picked = picked.assign(cells=picked["maze"].map(maze_cells)).sort_values(keys, kind="stable")
+    for (label, method, _), g in picked.groupby(keys, sort=False):
+        maze = g["maze"].iloc[0]
         by_net = g.groupby("network")["collisions"]
         means = by_net.mean()
         runs_only = [bootstrap_means(v, seed=SEED).reshape(1, -1) for _, v in by_net]
@@ -148,9 +158,20 @@ def networks_section(rep, exp: Experiment, experiments: list[Experiment]) -> Non
     )
     rows = claim9_rows(runs)
     if rows:
+        table = pd.DataFrame(rows)
+        per_network = table[table["network"].str.startswith("seed ")]
+        counts = "; ".join(
+            f"{label}: holds for {(g['claim 9'] == 'holds').sum()} of {len(g)} networks"
+            for label, g in per_network.groupby("recogniser", sort=False)
+        )
+        rep.add(
+            f"**Claim 9 per network.** {counts}. A network's verdict is a property of that network "
+            "(its recognition of these query pictures), the verdict over the networks one of the "
+            "recipe.\n"
+        )
         rep.table(
             f"{exp.folder}_claim9",
-            pd.DataFrame(rows),
+            table,
             'Claim 9, "the performance of SSRL is slightly better than few-shot reasoning", per '
             "network and over the networks: few-shot's collisions per run minus SSRL's on the 5x5, "
             "paired on the run seeds; holds when the 95% interval lies above zero.",
