@@ -96,7 +96,9 @@ def test_params_are_the_composed_files_without_the_output_neutral_keys():
 def test_a_foreach_wrapped_over_two_lines_is_rewritten_whole():
     """The trials' foreach outgrew one line: rewriting it replaces every line of the old list
     (it once kept the second line, and dvc.yaml stopped parsing)."""
-    text = TEXT.replace("\n    foreach: [fig8,", "\n    foreach: [fig8,\n              fig8_again,", 1)
+    text = TEXT.replace(
+        "\n    foreach: [fig8,", "\n    foreach: [fig8,\n              fig8_again,", 1
+    )
     assert "fig8_again" in text
     wanted = dvc_deps.rewritten(text, STAGES)
     assert "fig8_again" not in wanted and wanted == dvc_deps.rewritten(TEXT, STAGES)
