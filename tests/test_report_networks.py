@@ -140,3 +140,17 @@ def test_rows_come_by_recogniser_method_and_maze_size():
         ("fewshot_dss", "11x11"),
     ]
     assert N.maze_cells("random:7x7:16:3") == 49 and N.maze_cells("mazes/mine.txt") == 0
+
+
+def test_a_network_names_each_picture_it_met_once():
+    """Pictures 0 and 8 (chair, kettle) met in two runs: named chair and chair, so 1 of 2 right;
+    the DSS cell's recognitions do not count (its support set changes)."""
+    static = cell("f0", "fewshot", "5x5", [1.0, 1.0], network=0)
+    static.recognitions = pd.DataFrame(
+        {"run": [0, 1, 1], "picture": [0, 8, 0], "predicted": [0, 0, 0]}
+    )
+    dss = cell("d0", "fewshot_dss", "5x5", [1.0, 1.0], network=0)
+    dss.info["method"]["dynamic_support"] = True
+    dss.recognitions = pd.DataFrame({"run": [0], "picture": [8], "predicted": [1]})
+    assert N.pictures_named(Exp([static, dss])) == {("Relation Network", 0): (1, 2)}
+    assert N.break_even_5x5([]) is None

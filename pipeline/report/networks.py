@@ -12,7 +12,10 @@ two-level bootstrap of :func:`pipeline.stats.cluster_ratio_draws`).
 Claim 9 ("the performance of SSRL is slightly better than few-shot reasoning", Figure 8, 5x5) is
 decided per network and over the five: few-shot's collisions per run minus SSRL's, paired on the
 run seeds, with the claims section's rule (holds when the 95% interval lies above zero, does not
-hold when below, not resolved otherwise).
+hold when below, not resolved otherwise). Beside each network: the query pictures it names right
+with the original support set, read from its static cells' recognitions (each picture the robot
+met, its prediction: the same in every run), against the break-even accuracy of the
+``accuracy_curve`` experiment (few-shot against SSRL on the 5x5, with its interval).
 """
 
 from __future__ import annotations
@@ -22,9 +25,11 @@ import re
 import numpy as np
 import pandas as pd
 
+from pipeline.report.accuracy_curve import break_even_table, split
 from pipeline.report.experiments import Cell, Experiment
 from pipeline.report.names import recogniser_name, recogniser_of
 from pipeline.stats import bootstrap_means, cluster_ratio_draws, percentile_ci
+from pipeline.world.pictures import picture_category
 
 RESAMPLES, SEED = 2000, 0
 #: A network's seed, from its checkpoint file (``relation_net.pt``: 0; ``..._seed3.pt``: 3).
@@ -40,6 +45,39 @@ def network_of(cell: Cell) -> int | None:
         return None
     found = SEED_IN_NAME.search(str(checkpoint))
     return int(found[1]) if found else 0
+
+
+def pictures_named(exp: Experiment) -> dict[tuple[str, int], tuple[int, int]]:
+    """(recogniser, network) -> (pictures named right, pictures met) over the network's cells with
+    the original support set (few-shot without the DSS): a static support set names a picture the
+    same way in every run."""
+    seen: dict[tuple[str, int], dict[int, int]] = {}
+    for cell in exp.cells.values():
+        kind = recogniser_of(cell.info, cell.config)
+        if not kind or cell.info["method"].get("dynamic_support") or cell.recognitions.empty:
+            continue
+        named = seen.setdefault((recogniser_name(kind), network_of(cell)), {})
+        pairs = cell.recognitions[["picture", "predicted"]].drop_duplicates()
+        named.update(zip(pairs["picture"].astype(int), pairs["predicted"].astype(int)))
+    return {
+        key: (sum(picture_category(p) == c for p, c in named.items()), len(named))
+        for key, named in seen.items()
+    }
+
+
+def break_even_5x5(experiments: list[Experiment]) -> str | None:
+    """The accuracy_curve experiment's break-even accuracy of few-shot (static support set)
+    against SSRL on the 5x5, as its table prints it (``0.5 [0.5, 0.5]``), or None."""
+    found = next((e for e in experiments if e.spec.kind == "accuracy_curve"), None)
+    if found is None:
+        return None
+    table = break_even_table(split(found))
+    row = table[
+        (table["maze"] == CLAIM9[0])
+        & (table["against"] == "SSRL")
+        & table["method"].str.contains("static")
+    ]
+    return None if row.empty else f"{row['break-even p'].iloc[0]} {row['95% CI'].iloc[0]}"
 
 
 def run_table(exp: Experiment) -> pd.DataFrame:
@@ -109,8 +147,9 @@ def spread_rows(runs: pd.DataFrame) -> list[dict]:
     return rows
 
 
-def claim9_rows(runs: pd.DataFrame) -> list[dict]:
-    """Claim 9 per network and over the networks of each recogniser (module docstring)."""
+def claim9_rows(runs: pd.DataFrame, named: dict | None = None) -> list[dict]:
+    """Claim 9 per network and over the networks of each recogniser (module docstring), with the
+    pictures each network names right (``named``: :func:`pictures_named`)."""
     maze, fewshot, ssrl = CLAIM9
     base = runs[(runs["method"] == ssrl) & (runs["maze"] == maze)].set_index("run")["collisions"]
     if base.empty:
@@ -121,13 +160,17 @@ def claim9_rows(runs: pd.DataFrame) -> list[dict]:
         diffs = g.assign(d=g["collisions"].to_numpy() - base.reindex(g["run"]).to_numpy())
         for network, n in diffs.groupby("network"):
             lo, hi = percentile_ci(bootstrap_means(n["d"], seed=SEED))
-            rows.append(claim9_row(label, f"seed {network}", n["d"].mean(), lo, hi))
+            right, met = (named or {}).get((label, network), (0, 0))
+            row = claim9_row(label, f"seed {network}", n["d"].mean(), lo, hi)
+            rows.append({**row, "query pictures right": f"{right}/{met}" if met else ""})
         draws = cluster_ratio_draws(
             diffs["d"], np.ones(len(diffs)), diffs["network"], within=True, seed=SEED
         )
         lo, hi = percentile_ci(draws)
         over = f"the {diffs['network'].nunique()} networks (networks, then runs)"
-        rows.append(claim9_row(label, over, diffs["d"].mean(), lo, hi))
+        rows.append(
+            {**claim9_row(label, over, diffs["d"].mean(), lo, hi), "query pictures right": ""}
+        )
     return rows
 
 
@@ -156,7 +199,7 @@ def networks_section(rep, exp: Experiment, experiments: list[Experiment]) -> Non
         "networks), and resampling networks, then each one's runs (a new draw of networks; "
         f"{RESAMPLES} resamples, seed {SEED}). Data: `tables/{exp.folder}_data.csv`.",
     )
-    rows = claim9_rows(runs)
+    rows = claim9_rows(runs, pictures_named(exp))
     if rows:
         table = pd.DataFrame(rows)
         per_network = table[table["network"].str.startswith("seed ")]
@@ -164,10 +207,18 @@ def networks_section(rep, exp: Experiment, experiments: list[Experiment]) -> Non
             f"{label}: holds for {(g['claim 9'] == 'holds').sum()} of {len(g)} networks"
             for label, g in per_network.groupby("recogniser", sort=False)
         )
+        even = break_even_5x5(experiments)
+        beside = (
+            f" The break-even accuracy of few-shot against SSRL on the 5x5 is {even} (the "
+            "accuracy_curve section): a network naming that share of the pictures or more need not "
+            "collide more than SSRL."
+            if even
+            else ""
+        )
         rep.add(
             f"**Claim 9 per network.** {counts}. A network's verdict is a property of that network "
             "(its recognition of these query pictures), the verdict over the networks one of the "
-            "recipe.\n"
+            f"recipe.{beside}\n"
         )
         rep.table(
             f"{exp.folder}_claim9",
