@@ -140,6 +140,8 @@ def test_rows_come_by_recogniser_method_and_maze_size():
         ("fewshot_dss", "11x11"),
     ]
     assert N.maze_cells("random:7x7:16:3") == 49 and N.maze_cells("mazes/mine.txt") == 0
+    same_size = [cell(f"f{z}", "fewshot", z, [1.0], network=0) for z in ("7x7", "random:7x7:16:3")]
+    assert len(N.spread_rows(N.run_table(Exp(same_size)))) == 2
 
 
 def test_a_network_names_each_picture_it_met_once():

@@ -118,10 +118,9 @@ def spread_rows(runs: pd.DataFrame) -> list[dict]:
     (module docstring)."""
     rows = []
     picked = runs[runs["network"] >= 0]
-    keys = ["recogniser", "method", "cells"]
+    keys = ["recogniser", "method", "cells", "maze"]  # two mazes of one size stay apart
     picked = picked.assign(cells=picked["maze"].map(maze_cells)).sort_values(keys, kind="stable")
-    for (label, method, _), g in picked.groupby(keys, sort=False):
-        maze = g["maze"].iloc[0]
+    for (label, method, _, maze), g in picked.groupby(keys, sort=False):
         by_net = g.groupby("network")["collisions"]
         means = by_net.mean()
         runs_only = [bootstrap_means(v, seed=SEED).reshape(1, -1) for _, v in by_net]
