@@ -5,8 +5,10 @@ classes that pick the checkpoint, and test classes that give the quoted accuracy
 procedural families (``metaset.py``), and two families drawn independently can be near-twins (the
 same part kinds in reversed order, or the same tiers with a handle added): a validation or test
 family that twins a training family measures memory, not few-shot learning. So families are
-compared by their *structure*, and every validation and test family is kept at least
-``min_distance`` from every training family.
+compared by their *structure*: every validation and test family is kept at least
+``min_distance`` from every training family, and every test family that far from every validation
+family as well (a test family that twins a validation family would be measured on a class the
+checkpoint was chosen on).
 
 :func:`family_distance` of two families is the sum of
 
@@ -83,9 +85,9 @@ def split_families(
     n_train: int, n_val: int, n_test: int, seed: int, min_distance: float = MIN_DISTANCE
 ) -> dict[str, list[Family]]:
     """Training, validation and test families, deterministic in ``seed``: the first ``n_train``
-    families of :func:`~pipeline.world.metaset.family_stream`, then the next families that are at
-    least ``min_distance`` from every training family, ``n_val`` for validation and ``n_test`` for
-    test, in the order drawn. Refuses (:class:`~pipeline.errors.ConfigError`, naming the render
+    families of :func:`~pipeline.world.metaset.family_stream`, then the next ``n_val`` that are at
+    least ``min_distance`` from every training family (validation), then the next ``n_test`` that
+    are that far from every training and every validation family (test), in the order drawn. Refuses (:class:`~pipeline.errors.ConfigError`, naming the render
     stage's key) a ``min_distance`` over :data:`MAX_DISTANCE`, and a split the grammar cannot give:
     :data:`MAX_MISSES` draws in a row, or 200 per held-out family in all, without one far enough."""
     for name, n in (("train", n_train), ("validation", n_val), ("test", n_test)):
@@ -94,7 +96,8 @@ def split_families(
     if min_distance < 0:
         raise ValueError(f"min_distance must be >= 0, got {min_distance}")
     n_held = n_val + n_test
-    if n_held and n_train and not min_distance <= MAX_DISTANCE:
+    kept_apart = (n_train and n_held) or (n_val and n_test)
+    if kept_apart and not min_distance <= MAX_DISTANCE:
         refuse(
             "min_family_distance",
             f"no two families are further apart than "
@@ -103,21 +106,37 @@ def split_families(
         )
     stream: Iterator[Family] = family_stream(seed)
     train = [next(stream) for _ in range(n_train)]
-    held: list[Family] = []
+    val = _draw_apart(stream, n_val, train, min_distance, "validation", n_held)
+    test = _draw_apart(stream, n_test, train + val, min_distance, "test", n_held)
+    return {"train": train, "val": val, "test": test}
+
+
+def _draw_apart(
+    stream: Iterator[Family],
+    n: int,
+    apart_from: list[Family],
+    min_distance: float,
+    split: str,
+    n_held: int,
+) -> list[Family]:
+    """The next ``n`` families of ``stream`` at least ``min_distance`` from each of ``apart_from``
+    (in the order drawn); refuses, naming ``min_family_distance``, when :data:`MAX_MISSES` draws in
+    a row, or 200 per held-out family of the split (``n_held`` in all) in all, give none."""
+    chosen: list[Family] = []
     tries, misses, limit = 0, 0, 200 * (n_held + 1)
-    while len(held) < n_held:
+    while len(chosen) < n:
         tries += 1
         misses += 1
         if tries > limit or misses > MAX_MISSES:
             refuse(
                 "min_family_distance",
-                f"only {len(held)} of {n_held} held-out "
-                f"families are at distance >= {min_distance} from the {n_train} training families "
-                f"(none in the last {misses - 1} of {tries - 1} draws); lower "
+                f"only {len(chosen)} of {n} {split} "
+                f"families are at distance >= {min_distance} from the {len(apart_from)} families "
+                f"drawn before them (none in the last {misses - 1} of {tries - 1} draws); lower "
                 "min_family_distance or the number of classes",
             )
         fam = next(stream)
-        if far_from_all(fam, train, min_distance):
-            held.append(fam)
+        if far_from_all(fam, apart_from, min_distance):
+            chosen.append(fam)
             misses = 0
-    return {"train": train, "val": held[:n_val], "test": held[n_val:]}
+    return chosen
