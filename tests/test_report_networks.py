@@ -156,3 +156,24 @@ def test_a_network_names_each_picture_it_met_once():
     dss.recognitions = pd.DataFrame({"run": [0], "picture": [8], "predicted": [1]})
     assert N.pictures_named(Exp([static, dss])) == {("Relation Network", 0): (1, 2)}
     assert N.break_even_5x5([]) is None
+
+
+def test_substitution_ways_and_a_carried_support_set_get_rows_of_their_own():
+    """Figures 9 and 10 across networks: the DSS cells of one maze differ by way and support mode,
+    so each (way, support) is a row of its own, not pooled into one fewshot_dss row."""
+    cells = []
+    for way, support, runs in ((1, "restore", [3.0, 5.0]), (2, "restore", [1.0, 1.0])):
+        for k in range(2):
+            c = cell(f"w{way}{support}{k}", "fewshot_dss", "5x5", runs, network=k)
+            c.info.update(substitution=way, support=support)
+            c.info["method"]["dynamic_support"] = True
+            cells.append(c)
+    carry = cell("carry0", "fewshot_dss", "5x5", [0.0, 2.0], network=0)
+    carry.info.update(substitution=1, support="carry")
+    carry.info["method"]["dynamic_support"] = True
+    rows = N.spread_rows(N.run_table(Exp([*cells, carry])))
+    assert [(r["method"], r["mean"], r["networks"]) for r in rows] == [
+        ("fewshot_dss way 1", "4.00", 2),
+        ("fewshot_dss way 1 carry", "1.00", 1),
+        ("fewshot_dss way 2", "1.00", 2),
+    ]

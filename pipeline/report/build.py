@@ -25,6 +25,8 @@ from pipeline.report.accuracy import accuracy_tables
 from pipeline.report.claims_section import claims_section
 from pipeline.report.experiments import ReportInputError, load_all
 from pipeline.report.headline import headline
+from pipeline.report.names import PAPER_RECOGNISER
+from pipeline.report.network_accuracy import network_accuracy_section
 from pipeline.report.scale import check_scales, scales, title_and_scale
 from pipeline.report.sections import section
 
@@ -45,6 +47,8 @@ class Inputs:
     """Other recognisers for Tables 1-2, by kind: (accuracy study folder, metrics file)."""
     models: dict[str, Path] = field(default_factory=dict)
     """The meta-trained models' metrics files by model name: ``headline.json``'s accuracies."""
+    networks_accuracy_dir: Path | None = None
+    """The other networks' accuracy studies (:mod:`pipeline.report.network_accuracy`)."""
 
 
 class Report:
@@ -233,6 +237,10 @@ def _build_parts(inputs: Inputs, parts: Parts) -> Path:
     write_json_atomic(inputs.out / "headline.json", headline(claims, inputs.models, experiments))
     parts.building("accuracy")
     accuracy_tables(rep, inputs.accuracy_dir, inputs.model_metrics, inputs.beside)
+    if inputs.networks_accuracy_dir is not None:
+        seed0 = {PAPER_RECOGNISER: inputs.accuracy_dir}
+        seed0.update((kind, folder) for kind, (folder, _) in inputs.beside.items())
+        network_accuracy_section(rep, seed0, inputs.networks_accuracy_dir)
     parts.finished()
     not_shown = []
     for exp in experiments:

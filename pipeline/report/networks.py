@@ -2,7 +2,8 @@
 one trained network? (``conf/experiment/networks.yaml``, issue 42.)
 
 Five networks of each kind (the same recipe, seeds 0-4) each run few-shot reasoning without and
-with the DSS on the paper's mazes. Per recogniser kind, method and maze the section sets the
+with the DSS on the paper's mazes, and on the 5x5 the DSS's four substitution ways (Figure 9) and
+the support set carried over (Figure 10). Per recogniser kind, method and maze the section sets the
 spread across networks (the standard deviation of the five networks' mean collisions per run)
 beside the spread across runs (within a network, averaged over the five), and gives two 95%
 intervals of the mean over networks: one that resamples runs only (for these five networks) and
@@ -80,9 +81,18 @@ def break_even_5x5(experiments: list[Experiment]) -> str | None:
     return None if row.empty else f"{row['break-even p'].iloc[0]} {row['95% CI'].iloc[0]}"
 
 
+def setting_of(cell: Cell) -> str:
+    """The cell's method, with its substitution way and support mode where the method has a
+    dynamic support set (``fewshot_dss way 2``, ``fewshot_dss way 1 carry``; Figures 9 and 10)."""
+    if not cell.info["method"].get("dynamic_support"):
+        return cell.method
+    carry = " carry" if cell.info.get("support") == "carry" else ""
+    return f"{cell.method} way {cell.info.get('substitution')}{carry}"
+
+
 def run_table(exp: Experiment) -> pd.DataFrame:
     """One row per run of every cell: recogniser (display name; none for SSRL), network seed,
-    method, maze, run and collisions."""
+    method (:func:`setting_of`), maze, run and collisions."""
     frames = []
     for cell in exp.cells.values():
         kind = recogniser_of(cell.info, cell.config)
@@ -91,7 +101,7 @@ def run_table(exp: Experiment) -> pd.DataFrame:
                 {
                     "recogniser": recogniser_name(kind) if kind else "",
                     "network": network_of(cell) if kind else -1,
-                    "method": cell.method,
+                    "method": setting_of(cell),
                     "maze": cell.maze,
                     "run": cell.runs(),
                     "collisions": cell.collisions_per_run(),

@@ -23,6 +23,8 @@ class ReportConfig:
     """The Prototypical Network's accuracy study, shown beside the Relation Network's (Tables 1-2)."""
     protonet_metrics: str = setting(nonempty=True, path=True)
     """The Prototypical Network's validation metrics (meta_train model=protonet)."""
+    networks_accuracy_dir: str = setting(nonempty=True, path=True)
+    """The other networks' accuracy studies, a ``<kind>_seed<k>`` folder each (accuracy across networks)."""
     contact_dir: str = setting(nonempty=True, path=True)
     """The render stage's contact sheets, copied to the report's figures."""
     out: str = setting(nonempty=True, path=True)

@@ -41,6 +41,7 @@ def run(cfg: ReportConfig, overrides: list[str] = ()) -> Path:
         profiles=profile_trials(),
         beside={"protonet": (Path(cfg.protonet_accuracy_dir), Path(cfg.protonet_metrics))},
         models={"relation_net": Path(cfg.model_metrics), "protonet": Path(cfg.protonet_metrics)},
+        networks_accuracy_dir=Path(cfg.networks_accuracy_dir),
     )
     try:
         index = build_report(inputs)

@@ -42,7 +42,9 @@ def test_a_family_distance_no_families_have_is_refused_by_the_schema(distance):
 
 @pytest.mark.parametrize("distance", [MAX_DISTANCE, 6.0])
 def test_a_split_the_grammar_cannot_give_stops_after_its_misses(distance):
-    with pytest.raises(ConfigError, match=r"config key 'min_family_distance': only 0 of 1 validation "):
+    with pytest.raises(
+        ConfigError, match=r"config key 'min_family_distance': only 0 of 1 validation "
+    ):
         split_families(4, 1, 1, 0, min_distance=distance)
     with pytest.raises(ConfigError, match="no two families are further apart than 7"):
         split_families(4, 1, 1, 0, min_distance=math.inf)
@@ -113,7 +115,9 @@ def test_a_large_render_says_its_pictures_size_and_time_before_planning(machine,
 def test_a_split_that_cannot_be_made_leaves_no_out_dir(monkeypatch, tmp_path):
     monkeypatch.setattr(render, "backend_problem", lambda: None)
     cfg = _render_config(tmp_path, "min_family_distance=6.5", "n_train_classes=8")
-    with pytest.raises(ConfigError, match=r"config key 'min_family_distance': only 0 of 16 validation"):
+    with pytest.raises(
+        ConfigError, match=r"config key 'min_family_distance': only 0 of 16 validation"
+    ):
         render.run(cfg)
     assert not (tmp_path / "images").exists()
 
