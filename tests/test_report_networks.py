@@ -74,19 +74,46 @@ def test_networks_that_differ_widen_the_interval_over_networks():
     assert row["s.d. across networks"] == f"{np.std([0, 2, 4, 6, 8], ddof=1):.2f}"
 
 
+def dss(name, way, per_run, network, support="restore"):
+    c = cell(name, "fewshot_dss", "5x5", per_run, network=network)
+    c.info.update(substitution=way, support=support)
+    c.info["method"]["dynamic_support"] = True
+    return c
+
+
 def test_claim_9_per_network_and_over_the_networks():
     """SSRL 7 every run; network 0 collides 9 (holds), network 1 collides 5 (does not hold)."""
     cells = [cell("ssrl", "ssrl", "5x5", [7.0] * 5)]
     cells += [cell("f0", "fewshot", "5x5", [9.0] * 5, network=0)]
     cells += [cell("f1", "fewshot", "5x5", [5.0] * 5, network=1)]
-    rows = N.claim9_rows(N.run_table(Exp(cells)))
+    claim9, *_ = N.CLAIMS
+    rows = N.claim_rows(N.run_table(Exp(cells)), claim9)
     assert [r["network"] for r in rows] == [
         "seed 0",
         "seed 1",
         "the 2 networks (networks, then runs)",
     ]
-    assert [r["claim 9"] for r in rows] == ["holds", "does not hold", "not resolved"]
-    assert rows[0]["few-shot − SSRL, 5x5 [95% CI]"] == "2.00 [2.00, 2.00]"
+    assert [r["verdict"] for r in rows] == ["holds", "does not hold", "not resolved"]
+    assert rows[0]["difference, 5x5 [95% CI]"] == "2.00 [2.00, 2.00]"
+    assert rows[0]["checks"] == "fewshot − ssrl"
+
+
+def test_claims_11_and_12_pair_each_networks_own_settings():
+    """Claim 11 holds for a network only when every way collides less than its static support
+    set; claim 12 compares restoring with carrying over the runs after the first."""
+    cells = [cell(f"f{k}", "fewshot", "5x5", [6.0] * 4, network=k) for k in range(2)]
+    cells += [dss(f"w{w}n0", w, [2.0] * 4, 0) for w in (1, 2, 3, 4)]
+    cells += [dss(f"w{w}n1", w, [2.0 if w < 4 else 8.0] * 4, 1) for w in (1, 2, 3, 4)]
+    cells += [dss("c0", 1, [9.0, 1.0, 1.0, 1.0], 0, support="carry")]
+    runs = N.run_table(Exp(cells))
+    _, claim11, claim12 = N.CLAIMS
+    rows = N.claim_rows(runs, claim11)
+    assert [r["verdict"] for r in rows[:2]] == ["holds", "does not hold"]
+    assert rows[1]["difference, 5x5 [95% CI]"].endswith("; -2.00 [-2.00, -2.00]")
+    (network0, over) = N.claim_rows(runs, claim12)
+    assert network0["difference, 5x5 [95% CI]"] == "1.00 [1.00, 1.00]"  # run 0 left out
+    assert network0["verdict"] == "holds" and over["network"].startswith("the 1 network (")
+    assert N.claim_rows(N.run_table(Exp(cells[:2])), claim11) == []  # no DSS cells: no rows
 
 
 def test_every_checkpoint_the_experiment_names_is_made_by_a_dvc_stage():
@@ -118,9 +145,11 @@ def test_the_section_writes_its_tables(tmp_path):
     N.networks_section(rep, Exp(cells), [])
     table = pd.read_csv(tmp_path / "tables" / "networks.csv")
     assert table["networks"].tolist() == [5]
-    claim9 = pd.read_csv(tmp_path / "tables" / "networks_claim9.csv")
-    assert len(claim9) == 6 and set(claim9["claim 9"]) == {"holds"}
-    assert "Relation Network: holds for 5 of 5 networks" in "\n".join(rep.sections)
+    claims = pd.read_csv(tmp_path / "tables" / "networks_claims.csv")
+    assert len(claims) == 6 and set(claims["verdict"]) == {"holds"}
+    assert "claim 9 (Figure 8) holds for Relation Network 5 of 5 networks" in "\n".join(
+        rep.sections
+    )
 
 
 def test_rows_come_by_recogniser_method_and_maze_size():

@@ -10,18 +10,22 @@ intervals of the mean over networks: one that resamples runs only (for these fiv
 one that resamples networks, then each drawn network's runs (for a new draw of networks; the
 two-level bootstrap of :func:`pipeline.stats.cluster_ratio_draws`).
 
-Claim 9 ("the performance of SSRL is slightly better than few-shot reasoning", Figure 8, 5x5) is
-decided per network and over the five: few-shot's collisions per run minus SSRL's, paired on the
-run seeds, with the claims section's rule (holds when the 95% interval lies above zero, does not
-hold when below, not resolved otherwise). Beside each network: the query pictures it names right
-with the original support set, read from its static cells' recognitions (each picture the robot
-met, its prediction: the same in every run), against the break-even accuracy of the
-``accuracy_curve`` experiment (few-shot against SSRL on the 5x5, with its interval).
+The claims that compare few-shot settings on the 5x5 (:data:`CLAIMS`: 9, Figure 8; 11, Figure 9;
+12, Figure 10) are decided per network and over the five: for each check, the collisions per run
+of the setting that should collide more minus those of the one that should collide fewer, paired
+on the run seeds (SSRL, which has no network, is paired with every network), with the claims
+section's rule (holds when the 95% interval lies above zero, does not hold when below, not
+resolved otherwise); a claim of several checks holds when each holds. Beside each network: the
+query pictures it names right with the original support set, read from its static cells'
+recognitions (each picture the robot met, its prediction: the same in every run), against the
+break-even accuracy of the ``accuracy_curve`` experiment (few-shot against SSRL on the 5x5, with
+its interval).
 """
 
 from __future__ import annotations
 
 import re
+from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
@@ -35,8 +39,50 @@ from pipeline.world.pictures import picture_category
 RESAMPLES, SEED = 2000, 0
 #: A network's seed, from its checkpoint file (``relation_net.pt``: 0; ``..._seed3.pt``: 3).
 SEED_IN_NAME = re.compile(r"_seed(\d+)\.pt$")
-#: Claim 9's maze and methods (Figure 8).
-CLAIM9 = ("5x5", "fewshot", "ssrl")
+#: The maze of the claims decided per network (Figures 8-10 are the paper's 5x5).
+CLAIM_MAZE = "5x5"
+
+
+@dataclass(frozen=True)
+class NetworkClaim:
+    """A claim of the claims section decided per network: ``more`` (a :func:`setting_of` label)
+    collides more than each of ``fewer`` (one check each); ``after_first``: over the runs after
+    the first (a carried-over support set starts as the original in the first)."""
+
+    number: int
+    source: str
+    says: str
+    more: str
+    fewer: tuple[str, ...]
+    after_first: bool = False
+
+
+CLAIMS = (
+    NetworkClaim(
+        9,
+        "Figure 8",
+        "the performance of SSRL is slightly better than few-shot reasoning",
+        "fewshot",
+        ("ssrl",),
+    ),
+    NetworkClaim(
+        11,
+        "Figure 9",
+        "[all the different substitution ways] can further reduce the collision number than "
+        "few-shot reasoning with no substitution",
+        "fewshot",
+        tuple(f"fewshot_dss way {way}" for way in (1, 2, 3, 4)),
+    ),
+    NetworkClaim(
+        12,
+        "Figure 10",
+        "the collision number can be reduced to a very low level if we do not restore the "
+        "support set",
+        "fewshot_dss way 1",
+        ("fewshot_dss way 1 carry",),
+        after_first=True,
+    ),
+)
 
 
 def network_of(cell: Cell) -> int | None:
@@ -74,7 +120,7 @@ def break_even_5x5(experiments: list[Experiment]) -> str | None:
         return None
     table = break_even_table(split(found))
     row = table[
-        (table["maze"] == CLAIM9[0])
+        (table["maze"] == CLAIM_MAZE)
         & (table["against"] == "SSRL")
         & table["method"].str.contains("static")
     ]
@@ -156,40 +202,77 @@ def spread_rows(runs: pd.DataFrame) -> list[dict]:
     return rows
 
 
-def claim9_rows(runs: pd.DataFrame, named: dict | None = None) -> list[dict]:
-    """Claim 9 per network and over the networks of each recogniser (module docstring), with the
-    pictures each network names right (``named``: :func:`pictures_named`)."""
-    maze, fewshot, ssrl = CLAIM9
-    base = runs[(runs["method"] == ssrl) & (runs["maze"] == maze)].set_index("run")["collisions"]
-    if base.empty:
-        return []
+def claim_rows(runs: pd.DataFrame, claim: NetworkClaim, named: dict | None = None) -> list[dict]:
+    """``claim`` per network and over the networks of each recogniser (module docstring), with the
+    pictures each network names right (``named``: :func:`pictures_named`); no rows without
+    records of both sides."""
+    runs = runs[runs["maze"] == CLAIM_MAZE]
+    if claim.after_first:
+        runs = runs[runs["run"] > runs["run"].min()]
     rows = []
-    cells = runs[(runs["method"] == fewshot) & (runs["maze"] == maze) & (runs["network"] >= 0)]
-    for label, g in cells.groupby("recogniser", sort=False):
-        diffs = g.assign(d=g["collisions"].to_numpy() - base.reindex(g["run"]).to_numpy())
-        for network, n in diffs.groupby("network"):
-            lo, hi = percentile_ci(bootstrap_means(n["d"], seed=SEED))
+    for label, g in runs[runs["network"] >= 0].groupby("recogniser", sort=False):
+        no_network = runs[runs["network"] < 0]
+        diffs = [paired(pd.concat([g, no_network]), claim.more, fewer) for fewer in claim.fewer]
+        if any(d.empty for d in diffs):
+            continue
+        for network in sorted(diffs[0]["network"].unique()):
+            checks = [d[d["network"] == network]["d"] for d in diffs]
+            intervals = [percentile_ci(bootstrap_means(c, seed=SEED)) for c in checks]
             right, met = (named or {}).get((label, network), (0, 0))
-            row = claim9_row(label, f"seed {network}", n["d"].mean(), lo, hi)
-            rows.append({**row, "query pictures right": f"{right}/{met}" if met else ""})
-        draws = cluster_ratio_draws(
-            diffs["d"], np.ones(len(diffs)), diffs["network"], within=True, seed=SEED
-        )
-        lo, hi = percentile_ci(draws)
-        over = f"the {diffs['network'].nunique()} networks (networks, then runs)"
-        rows.append(
-            {**claim9_row(label, over, diffs["d"].mean(), lo, hi), "query pictures right": ""}
-        )
+            rows += claim_row(label, f"seed {network}", claim, checks, intervals)
+            rows[-1]["query pictures right"] = f"{right}/{met}" if met else ""
+        intervals = [
+            percentile_ci(
+                cluster_ratio_draws(d["d"], np.ones(len(d)), d["network"], within=True, seed=SEED)
+            )
+            for d in diffs
+        ]
+        n = diffs[0]["network"].nunique()
+        over = f"the {n} network{'s' if n > 1 else ''} (networks, then runs)"
+        rows += claim_row(label, over, claim, [d["d"] for d in diffs], intervals)
+        rows[-1]["query pictures right"] = ""
     return rows
 
 
-def claim9_row(label: str, network: str, mean: float, lo: float, hi: float) -> dict:
-    return {
-        "recogniser": label,
-        "network": network,
-        "few-shot − SSRL, 5x5 [95% CI]": f"{mean:.2f} [{lo:.2f}, {hi:.2f}]",
-        "claim 9": verdict(lo, hi),
-    }
+def paired(runs: pd.DataFrame, more: str, fewer: str) -> pd.DataFrame:
+    """Per network and run: ``more``'s collisions minus ``fewer``'s (column ``d``), paired on the
+    run seeds; a side without a network (SSRL) is paired with every network of the other."""
+    networks = sorted(runs.loc[runs["network"] >= 0, "network"].unique())
+
+    def side(method: str) -> pd.DataFrame:
+        rows = runs[runs["method"] == method][["network", "run", "collisions"]]
+        if rows.empty or (rows["network"] >= 0).any():
+            return rows
+        return pd.concat([rows.assign(network=n) for n in networks])
+
+    both = side(more).merge(side(fewer), on=["network", "run"], suffixes=("_more", "_fewer"))
+    d = both["collisions_more"] - both["collisions_fewer"]
+    return pd.DataFrame({"network": both["network"], "d": d})
+
+
+def claim_row(label: str, network: str, claim: NetworkClaim, checks, intervals) -> list[dict]:
+    """One row for ``network``: each check's difference and interval, and the claim's verdict."""
+    verdicts = [verdict(lo, hi) for lo, hi in intervals]
+    overall = (
+        "holds"
+        if all(v == "holds" for v in verdicts)
+        else "does not hold"
+        if "does not hold" in verdicts
+        else "not resolved"
+    )
+    differences = "; ".join(
+        f"{c.mean():.2f} [{lo:.2f}, {hi:.2f}]" for c, (lo, hi) in zip(checks, intervals)
+    )
+    return [
+        {
+            "recogniser": label,
+            "claim": claim.number,
+            "network": network,
+            "checks": ", ".join(f"{claim.more} − {f}" for f in claim.fewer),
+            f"difference, {CLAIM_MAZE} [95% CI]": differences,
+            "verdict": overall,
+        }
+    ]
 
 
 def networks_section(rep, exp: Experiment, experiments: list[Experiment]) -> None:
@@ -208,31 +291,39 @@ def networks_section(rep, exp: Experiment, experiments: list[Experiment]) -> Non
         "networks), and resampling networks, then each one's runs (a new draw of networks; "
         f"{RESAMPLES} resamples, seed {SEED}). Data: `tables/{exp.folder}_data.csv`.",
     )
-    rows = claim9_rows(runs, pictures_named(exp))
-    if rows:
+    named = pictures_named(exp)
+    found = {claim: claim_rows(runs, claim, named) for claim in CLAIMS}
+    found = {claim: rows for claim, rows in found.items() if rows}
+    if not found:
+        return
+    counts = []
+    for claim, rows in found.items():
         table = pd.DataFrame(rows)
         per_network = table[table["network"].str.startswith("seed ")]
-        counts = "; ".join(
-            f"{label}: holds for {(g['claim 9'] == 'holds').sum()} of {len(g)} networks"
+        held = "; ".join(
+            f"{label} {(g['verdict'] == 'holds').sum()} of {len(g)}"
             for label, g in per_network.groupby("recogniser", sort=False)
         )
-        even = break_even_5x5(experiments)
-        beside = (
-            f" The break-even accuracy of few-shot against SSRL on the 5x5 is {even} (the "
-            "accuracy_curve section): a network naming that share of the pictures or more need not "
-            "collide more than SSRL."
-            if even
-            else ""
-        )
-        rep.add(
-            f"**Claim 9 per network.** {counts}. A network's verdict is a property of that network "
-            "(its recognition of these query pictures), the verdict over the networks one of the "
-            f"recipe.{beside}\n"
-        )
-        rep.table(
-            f"{exp.folder}_claim9",
-            table,
-            'Claim 9, "the performance of SSRL is slightly better than few-shot reasoning", per '
-            "network and over the networks: few-shot's collisions per run minus SSRL's on the 5x5, "
-            "paired on the run seeds; holds when the 95% interval lies above zero.",
-        )
+        counts.append(f"claim {claim.number} ({claim.source}) holds for {held} networks")
+    even = break_even_5x5(experiments)
+    beside = (
+        f" The break-even accuracy of few-shot against SSRL on the 5x5 is {even} (the "
+        "accuracy_curve section): a network naming that share of the pictures or more need not "
+        "collide more than SSRL (claim 9)."
+        if even
+        else ""
+    )
+    rep.add(
+        f"**The claims per network.** {'; '.join(counts)}. A network's verdict is a property of "
+        "that network (its recognition of these query pictures), the verdict over the networks "
+        f"one of the recipe.{beside}\n"
+    )
+    rep.table(
+        f"{exp.folder}_claims",
+        pd.DataFrame([row for rows in found.values() for row in rows]),
+        "The claims comparing few-shot settings, per network and over the networks ("
+        + "; ".join(f'{c.number}: "{c.says}"' for c in found)
+        + "): per check, collisions per run of the first setting minus the second on the 5x5, "
+        "paired on the run seeds (claim 12: the runs after the first); a claim holds when every "
+        "check's 95% interval lies above zero, does not hold when one lies below.",
+    )
