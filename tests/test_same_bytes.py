@@ -1,7 +1,9 @@
 """Records of one config are byte-identical whatever CPU kernels torch picks (issue 31;
 docs/records.md "The schema"): a Relation Network cell of each world run in two processes,
 one with ``ATEN_CPU_CAPABILITY=default``, one with ``=avx2`` (oneDNN and MKL free to pick their
-best), and the files compared. A subprocess each: the kernel path is chosen once per process."""
+best), and the files compared; so is a meta-trained checkpoint (issue 42: unpinned, one seed gave
+other weights on an AVX-512 machine). A subprocess each: the kernel path is chosen once per
+process."""
 
 import json
 import os
@@ -51,6 +53,16 @@ def under_two_kernel_paths(tmp_path_factory):
         + ["overwrite=true", "progress=false"]
         for world, runs in WORLDS.items()
     }
+    trained, classes = tmp / "meta" / "rn.pt", tmp / "classes"
+    write_synthetic_dataset(classes, n_train=6, n_val=5, per_class=10, seed=2)
+    meta_train = ["meta_train", f"images_dir={classes}", f"checkpoint={trained}", "progress=false"]
+    meta_train += [
+        f"metrics_file={tmp / 'meta' / 'm.json'}",
+        f"history_file={tmp / 'meta' / 'h.csv'}",
+    ]
+    meta_train += ["train.input_size=24", "train.relation_padding=1", "train.n_query=3"]
+    meta_train += ["train.episodes=8", "train.val_every=4", "train.val_episodes=4"]
+    meta_train += ["train.eval_episodes=4", "train.eval_queries=5"]
     got = {}
     for capability in ("default", "avx2"):
         env = {
@@ -60,7 +72,7 @@ def under_two_kernel_paths(tmp_path_factory):
             "MKL_CBWR": "AUTO",
         }
         proc = subprocess.run(
-            [sys.executable, "-c", RUN_CELLS, json.dumps(list(cells.values()))],
+            [sys.executable, "-c", RUN_CELLS, json.dumps([meta_train, *cells.values()])],
             env=env,
             cwd=ROOT,
             capture_output=True,
@@ -72,6 +84,7 @@ def under_two_kernel_paths(tmp_path_factory):
             world: {n: (tmp / world / n).read_bytes() for n in ("records.mcap", "summary.json")}
             for world in WORLDS
         }
+        got[capability]["meta_train"] = {"rn.pt": trained.read_bytes()}
     return got, tmp
 
 
@@ -86,3 +99,13 @@ def test_a_cell_gives_the_same_record_bytes_under_two_kernel_paths(
     assert len(records.recognitions) > 10 * runs and records.recognitions.score_0.notna().all()
     assert records.meta.config["recogniser"]["checkpoint"] == str(CHECKPOINT)
     assert records.meta.config["world"] == world
+
+
+@pytest.mark.skipif(not _cpu_has("avx2"), reason="this CPU has no AVX2 kernels to compare with")
+def test_meta_training_gives_the_same_checkpoint_bytes_under_two_kernel_paths(
+    under_two_kernel_paths,
+):
+    got, tmp = under_two_kernel_paths
+    assert got["default"]["meta_train"] == got["avx2"]["meta_train"]
+    info = json.loads((tmp / "meta" / "rn.train_info.json").read_text())
+    assert info["cpu_kernels"] == "default"
