@@ -108,4 +108,4 @@ def test_meta_training_gives_the_same_checkpoint_bytes_under_two_kernel_paths(
     got, tmp = under_two_kernel_paths
     assert got["default"]["meta_train"] == got["avx2"]["meta_train"]
     info = json.loads((tmp / "meta" / "rn.train_info.json").read_text())
-    assert info["cpu_kernels"] == "default"
+    assert info["cpu_kernels"] == "avx2"  # pipeline/kernels.py: TRAINING

@@ -16,8 +16,9 @@ only: test accuracy over 600 episodes with its 95% interval as ``accuracy``,
 accuracy, the selection's figures and the test's again: what the report reads; not a metric),
 ``<checkpoint stem>.train_info.json`` (timings, threads, kernel path, flags, paths: not a metric;
 named after the checkpoint, so two trainings into one folder keep theirs) and ``history_file`` (one row per
-selection evaluation). The CPU kernels are pinned (``pipeline/kernels.py``) before training, so a
-seed gives the same weights on any x86-64 machine, not only on machines of one instruction set.
+selection evaluation). The CPU kernels are pinned to the AVX2 path before training
+(``pipeline/kernels.TRAINING``), so a seed gives the same weights on any machine with AVX2, not
+only on machines of one instruction set.
 """
 
 from __future__ import annotations
@@ -33,7 +34,7 @@ from pipeline.fewshot.data import PictureSet, load_folder, load_split, read_mani
 from pipeline.fewshot.episodes import require_episodes
 from pipeline.fewshot.training import config_dict, meta_train
 from pipeline.files import write_json_atomic
-from pipeline.kernels import kernel_path, pin_kernels
+from pipeline.kernels import TRAINING, kernel_path, pin_kernels
 from pipeline.schemas.fewshot import MetaTrainConfig
 from pipeline.stages import stage_main
 
@@ -182,7 +183,7 @@ def validation_file(checkpoint: str | Path) -> Path:
 def run(cfg: MetaTrainConfig, overrides: list[str] = ()) -> dict:
     config = cfg.train
     refuse_idle_keys(cfg, list(overrides))
-    pin_kernels()  # one kernel path on every x86-64 machine: the same seed, the same weights
+    pin_kernels(TRAINING)  # one kernel path on every AVX2 machine: the same seed, the same weights
     torch.set_num_threads(cfg.threads)
     train, val, test, source = picture_sets(cfg, list(overrides))
     result = meta_train(train, val, config, progress=cfg.progress, test=test)
