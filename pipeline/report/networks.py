@@ -219,8 +219,8 @@ def claim_rows(runs: pd.DataFrame, claim: NetworkClaim, named: dict | None = Non
             checks = [d[d["network"] == network]["d"] for d in diffs]
             intervals = [percentile_ci(bootstrap_means(c, seed=SEED)) for c in checks]
             right, met = (named or {}).get((label, network), (0, 0))
-            rows += claim_row(label, f"seed {network}", claim, checks, intervals)
-            rows[-1]["query pictures right"] = f"{right}/{met}" if met else ""
+            pictures = f"{right}/{met}" if met else ""
+            rows.append(claim_row(label, f"seed {network}", claim, checks, intervals, pictures))
         intervals = [
             percentile_ci(
                 cluster_ratio_draws(d["d"], np.ones(len(d)), d["network"], within=True, seed=SEED)
@@ -229,8 +229,7 @@ def claim_rows(runs: pd.DataFrame, claim: NetworkClaim, named: dict | None = Non
         ]
         n = diffs[0]["network"].nunique()
         over = f"the {n} network{'s' if n > 1 else ''} (networks, then runs)"
-        rows += claim_row(label, over, claim, [d["d"] for d in diffs], intervals)
-        rows[-1]["query pictures right"] = ""
+        rows.append(claim_row(label, over, claim, [d["d"] for d in diffs], intervals))
     return rows
 
 
@@ -250,8 +249,11 @@ def paired(runs: pd.DataFrame, more: str, fewer: str) -> pd.DataFrame:
     return pd.DataFrame({"network": both["network"], "d": d})
 
 
-def claim_row(label: str, network: str, claim: NetworkClaim, checks, intervals) -> list[dict]:
-    """One row for ``network``: each check's difference and interval, and the claim's verdict."""
+def claim_row(
+    label: str, network: str, claim: NetworkClaim, checks, intervals, pictures: str = ""
+) -> dict:
+    """One row for ``network``: each check's difference and interval, the claim's verdict and the
+    query pictures the network names right (``pictures``)."""
     verdicts = [verdict(lo, hi) for lo, hi in intervals]
     overall = (
         "holds"
@@ -263,16 +265,15 @@ def claim_row(label: str, network: str, claim: NetworkClaim, checks, intervals) 
     differences = "; ".join(
         f"{c.mean():.2f} [{lo:.2f}, {hi:.2f}]" for c, (lo, hi) in zip(checks, intervals)
     )
-    return [
-        {
-            "recogniser": label,
-            "claim": claim.number,
-            "network": network,
-            "checks": ", ".join(f"{claim.more} − {f}" for f in claim.fewer),
-            f"difference, {CLAIM_MAZE} [95% CI]": differences,
-            "verdict": overall,
-        }
-    ]
+    return {
+        "recogniser": label,
+        "claim": claim.number,
+        "network": network,
+        "checks": ", ".join(f"{claim.more} − {f}" for f in claim.fewer),
+        f"difference, {CLAIM_MAZE} [95% CI]": differences,
+        "verdict": overall,
+        "query pictures right": pictures,
+    }
 
 
 def networks_section(rep, exp: Experiment, experiments: list[Experiment]) -> None:
