@@ -17,6 +17,10 @@ from __future__ import annotations
 import os
 from collections import Counter
 
+#: Tests keep no score files between runs (pipeline/fewshot/score_cache.py): a test that needs them
+#: names its own folder. Set before any test imports the pipeline; stages a test starts inherit it.
+os.environ["FSRL_SCORE_CACHE"] = "off"
+
 #: The pytest cache key of each test's last duration (set-up, call and tear-down, seconds).
 DURATIONS = "safenav/durations"
 

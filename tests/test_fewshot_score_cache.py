@@ -45,9 +45,9 @@ def fresh_store():
 def test_recognisers_of_one_source_share_columns_across_ways_and_runs(files):
     images, rn, _ = files
     first = RelationRecogniser.from_files(rn, images, substitution_way=1)
-    assert score_cache.statistics() == {"columns": 5, "hits": 0, "misses": 5}
+    assert score_cache.statistics() == {"columns": 5, "hits": 0, "misses": 5, "loaded": 0}
     second = RelationRecogniser.from_files(rn, images, substitution_way=3)
-    assert score_cache.statistics() == {"columns": 5, "hits": 5, "misses": 5}
+    assert score_cache.statistics() == {"columns": 5, "hits": 5, "misses": 5, "loaded": 0}
     first.start_run(0, seed=4)
     first.replace(
         0, category=2, position=0, picture_id=int(np.flatnonzero(first.query_categories == 2)[0])
@@ -67,7 +67,7 @@ def test_another_hue_or_kind_is_another_source(files):
     RelationRecogniser.from_files(rn, images)
     RelationRecogniser.from_files(rn, images, query_hue_shift=90.0)
     ProtoRecogniser.from_files(pn, images)
-    assert score_cache.statistics() == {"columns": 15, "hits": 0, "misses": 15}
+    assert score_cache.statistics() == {"columns": 15, "hits": 0, "misses": 15, "loaded": 0}
 
 
 @pytest.mark.parametrize("kind", ["relation", "proto"])
@@ -129,3 +129,91 @@ def test_a_category_state_depends_on_its_members_not_their_order(files, kind):
             rec.replace(run, category=1, position=position, picture_id=int(picture))
     assert rec.support_members(0)[1].tolist() != rec.support_members(1)[1].tolist()
     assert rec.scores(0, np.arange(40)).tobytes() == rec.scores(1, np.arange(40)).tobytes()
+
+
+# -- score files: the columns kept between runs ---------------------------------------------------
+@pytest.fixture
+def score_folder(tmp_path, monkeypatch):
+    folder = tmp_path / "scores"
+    monkeypatch.setenv(score_cache.CACHE_VARIABLE, str(folder))
+    return folder
+
+
+def test_a_trial_records_the_same_from_a_score_file_as_computed(files, score_folder):
+    images, rn, _ = files
+    layout, method = load_layout("7x7"), get_method("fewshot_dss")
+
+    def batches():
+        recogniser = RelationRecogniser.from_files(rn, images, substitution_way=2)
+        sink = ListSink()
+        result = run_trials(
+            layout, method, 6, 40, seed=5, recogniser=recogniser, sink=sink, progress=False
+        )
+        return result.summary(), sink.batches, sink.substitutions
+
+    cold = batches()
+    computed = score_cache.statistics()["misses"]
+    score_cache.save_all()
+    assert [p.suffix for p in score_folder.iterdir()] == [".npz"]
+    score_cache.clear()  # as in a new process: nothing in memory
+    warm = batches()
+    assert score_cache.statistics()["loaded"] == computed > 5
+    assert score_cache.statistics()["misses"] == 0
+    assert cold[0] == warm[0] and cold[2] == warm[2]
+    assert_same(cold[1], warm[1])
+
+
+def test_a_damaged_score_file_is_set_aside_and_written_anew(files, score_folder):
+    images, rn, _ = files
+    RelationRecogniser.from_files(rn, images)
+    score_cache.save_all()
+    (path,) = score_folder.iterdir()
+    path.write_bytes(path.read_bytes()[: path.stat().st_size // 2])
+    score_cache.clear()
+    with pytest.warns(score_cache.ScoreCacheWarning, match="not a readable score file"):
+        RelationRecogniser.from_files(rn, images)
+    assert score_cache.statistics()["misses"] == 5
+    score_cache.save_all()
+    assert len(score_cache.read_columns(path)) == 5
+
+
+def test_columns_another_process_wrote_meanwhile_are_kept(files, score_folder):
+    images, rn, _ = files
+    rec = RelationRecogniser.from_files(rn, images)
+    score_cache.save_all()
+    (path,) = score_folder.iterdir()
+    theirs = {(1, 2, 3, 4, 5): np.arange(40, dtype=np.float32)}
+    score_cache.write_columns(path, score_cache.read_columns(path) | theirs)
+    rec.start_run(0, seed=4)
+    rec.replace(
+        0, category=2, position=0, picture_id=int(np.flatnonzero(rec.query_categories == 2)[0])
+    )
+    rec.scores(0, np.arange(40))  # one new column
+    score_cache.save_all()
+    kept = score_cache.read_columns(path)
+    assert len(kept) == 7
+    np.testing.assert_array_equal(kept[1, 2, 3, 4, 5], theirs[1, 2, 3, 4, 5])
+
+
+def test_off_keeps_the_scores_in_memory_only(files, monkeypatch, tmp_path):
+    images, rn, _ = files
+    monkeypatch.setenv(score_cache.CACHE_VARIABLE, "off")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    assert score_cache.cache_folder() is None
+    RelationRecogniser.from_files(rn, images)
+    score_cache.save_all()
+    assert not list(tmp_path.rglob("*.npz"))
+
+
+def test_the_default_folder_follows_xdg_cache_home(monkeypatch, tmp_path):
+    monkeypatch.delenv(score_cache.CACHE_VARIABLE)
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    assert score_cache.cache_folder() == tmp_path / "fewshot-safe-rl" / "score-columns"
+
+
+def test_another_kernel_path_is_another_score_file(monkeypatch):
+    """A column's bits depend on the kernel path (pipeline/kernels.py): a process that took
+    another never reads this one's columns."""
+    key = score_cache.file_key("source")
+    monkeypatch.setattr(score_cache, "kernel_path", lambda: "another path")
+    assert score_cache.file_key("source") != key

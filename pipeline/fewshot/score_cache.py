@@ -12,30 +12,70 @@ them (:func:`pipeline.fewshot.support_recogniser.canonical`), so a stored column
 a recomputation would give and the records are the same bytes with and without the store.
 
 The store lives for the process: the cells of an experiment, and the cells a worker process
-runs one after another, reuse what earlier cells computed (worker processes do not share: the
-generalisation study needs a few hundred distinct columns in all). :func:`disabled` turns sharing
-off (every column is then computed as before, within a run only), for tests and benchmarks that
+runs one after another, reuse what earlier cells computed. :func:`disabled` turns sharing off
+(every column is then computed as before, within a run only), for tests and benchmarks that
 compare the two.
+
+**Between runs** the columns are kept on disk, one file a source (:func:`cache_folder`: the
+folder ``$FSRL_SCORE_CACHE`` names, by default ``$XDG_CACHE_HOME/fewshot-safe-rl/score-columns``
+or ``~/.cache/...``; ``FSRL_SCORE_CACHE=off`` keeps them in memory only). A store reads its file
+when it is made and :func:`save_all` writes what it computed since (the trials stage after each
+cell, every process at its exit), merged with what another process wrote there meanwhile,
+atomically. The file's name hashes the source with torch's version and the kernel path the
+process took (:mod:`pipeline.kernels`), the two things besides the source that decide a column's
+bits: a column read back is the column this process would compute, so the records are the same
+bytes cold or warm (tested). A file that cannot be read (damaged, another layout) is set aside
+with a warning: its columns are computed again and the file is written anew.
 """
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import hashlib
+import os
+import warnings
 from collections.abc import Callable, Iterator
+from pathlib import Path
 
 import numpy as np
 import torch
 
+from pipeline.files import atomic_output
+from pipeline.kernels import kernel_path
+
+#: The environment variable naming the folder of the score files (``off``: none).
+CACHE_VARIABLE = "FSRL_SCORE_CACHE"
+
+
+class ScoreCacheWarning(UserWarning):
+    """A score file could not be read: its columns are computed again."""
+
 
 class ColumnStore:
-    """Columns of one source by member tuple, with hit and miss counts."""
+    """Columns of one source by member tuple, with hit and miss counts; ``path``: its score file
+    (read now, written by :meth:`save`), or None."""
 
-    def __init__(self, keep: bool = True) -> None:
+    def __init__(self, keep: bool = True, path: Path | None = None) -> None:
         self._columns: dict[tuple[int, ...], np.ndarray] = {}
         self._keep = keep
         self.hits = 0
         self.misses = 0
+        self.path = path if keep else None
+        self.loaded = 0  # columns read from the file
+        self._unsaved = 0  # columns computed since the file was read or written
+        if self.path is not None:
+            self._columns.update(read_columns(self.path))
+            self.loaded = len(self._columns)
+
+    def save(self) -> None:
+        """Write the columns computed since the last read or write to :attr:`path`, with those
+        already there (another process's too)."""
+        if self.path is None or not self._unsaved:
+            return
+        theirs = read_columns(self.path, warn=False)  # a damaged one warned when it was read
+        write_columns(self.path, theirs | self._columns)
+        self._unsaved = 0
 
     def column(self, members: tuple[int, ...], compute: Callable[[], np.ndarray]) -> np.ndarray:
         """The column of ``members``, computed by ``compute`` the first time (read-only)."""
@@ -48,6 +88,7 @@ class ColumnStore:
         got.setflags(write=False)
         if self._keep:
             self._columns[members] = got
+            self._unsaved += 1
         return got
 
     def __len__(self) -> int:
@@ -57,6 +98,7 @@ class ColumnStore:
 _STORES: dict[str, ColumnStore] = {}
 _UNSHARED: list[ColumnStore] = []  # made while disabled(), counted by statistics()
 _SHARING = [True]
+_SAVED_AT_EXIT: list = []  # save_all, once registered to run at the process's exit
 
 
 def source_key(kind: str, network: torch.nn.Module, *tensors: torch.Tensor) -> str:
@@ -78,17 +120,95 @@ def store_for(source: str) -> ColumnStore:
     if not _SHARING[0]:
         _UNSHARED.append(ColumnStore(keep=False))
         return _UNSHARED[-1]
-    return _STORES.setdefault(source, ColumnStore())
+    if source not in _STORES:
+        folder = cache_folder()
+        path = None if folder is None else folder / f"{file_key(source)}.npz"
+        _STORES[source] = ColumnStore(path=path)
+        if path is not None and not _SAVED_AT_EXIT:
+            _SAVED_AT_EXIT.append(atexit.register(save_all))
+    return _STORES[source]
+
+
+def cache_folder() -> Path | None:
+    """The folder of the score files (module docstring), or None when ``FSRL_SCORE_CACHE=off``."""
+    named = os.environ.get(CACHE_VARIABLE, "")
+    if named.lower() == "off":
+        return None
+    if named:
+        return Path(named).expanduser()
+    base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
+    return Path(base) / "fewshot-safe-rl" / "score-columns"
+
+
+def file_key(source: str) -> str:
+    """The name of ``source``'s score file: the source, torch's version and the kernel path."""
+    whole = f"{source}|torch {torch.__version__}|kernels {kernel_path()}"
+    return hashlib.sha256(whole.encode()).hexdigest()[:32]
+
+
+def read_columns(path: Path, *, warn: bool = True) -> dict[tuple[int, ...], np.ndarray]:
+    """The columns of a score file by member tuple ({} when there is none, or when it cannot be
+    read: then with a :class:`ScoreCacheWarning` unless ``warn`` is False)."""
+    if not path.exists():
+        return {}
+    try:
+        with np.load(path, allow_pickle=False) as saved:  # the zip checks every array's CRC
+            out = {}
+            for name in (n for n in saved.files if n.startswith("members_")):
+                members, columns = saved[name], saved["columns_" + name.removeprefix("members_")]
+                if members.ndim != 2 or columns.ndim != 2 or len(members) != len(columns):
+                    raise ValueError(f"{name} and its columns do not fit together")
+                if columns.dtype != np.float32 or members.dtype.kind != "i":
+                    raise ValueError(f"{name}: unexpected types {members.dtype}, {columns.dtype}")
+                columns.setflags(write=False)
+                out.update(zip(map(tuple, members.tolist()), columns))
+            return out
+    except Exception as exc:  # damaged or not a score file: computed again, written anew
+        if not warn:
+            return {}
+        warnings.warn(
+            f"{path}: not a readable score file ({type(exc).__name__}: {exc}); its columns are "
+            "computed again and the file is written anew",
+            ScoreCacheWarning,
+            stacklevel=2,
+        )
+        return {}
+
+
+def write_columns(path: Path, columns: dict[tuple[int, ...], np.ndarray]) -> None:
+    """Write ``columns`` (member tuple -> column) as a score file, atomically: an array of member
+    tuples and one of columns for each tuple length, in sorted order (the same columns, the same
+    bytes)."""
+    arrays = {}
+    for k in sorted({len(m) for m in columns}):
+        keys = sorted(m for m in columns if len(m) == k)
+        arrays[f"members_{k}"] = np.array(keys, dtype=np.int64).reshape(len(keys), k)
+        arrays[f"columns_{k}"] = np.stack([columns[m] for m in keys]).astype(np.float32)
+    with atomic_output(path, fsync=False) as f:  # a cache: remade if a crash loses it
+        np.savez(f, **arrays)
+
+
+def save_all() -> None:
+    """Write every shared store's new columns to its score file. A folder that cannot be written
+    is not an error of the run: its columns are computed again next time (with a warning)."""
+    for store in list(_STORES.values()):
+        try:
+            store.save()
+        except OSError as exc:
+            warnings.warn(
+                f"{store.path}: the score columns were not kept ({exc})", ScoreCacheWarning
+            )
 
 
 def statistics() -> dict[str, int]:
-    """Columns kept, hits and misses (columns computed) over every store of this process since
-    the last :func:`clear`."""
+    """Columns kept, hits, misses (columns computed) and columns read from score files over every
+    store of this process since the last :func:`clear`."""
     stores = [*_STORES.values(), *_UNSHARED]
     return {
         "columns": sum(len(s) for s in stores),
         "hits": sum(s.hits for s in stores),
         "misses": sum(s.misses for s in stores),
+        "loaded": sum(s.loaded for s in stores),
     }
 
 
