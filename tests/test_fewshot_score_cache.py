@@ -217,3 +217,13 @@ def test_another_kernel_path_is_another_score_file(monkeypatch):
     key = score_cache.file_key("source")
     monkeypatch.setattr(score_cache, "kernel_path", lambda: "another path")
     assert score_cache.file_key("source") != key
+
+
+def test_a_folder_that_cannot_be_written_costs_a_warning_not_the_run(files, monkeypatch, tmp_path):
+    images, rn, _ = files
+    not_a_folder = tmp_path / "file"
+    not_a_folder.write_text("")
+    monkeypatch.setenv(score_cache.CACHE_VARIABLE, str(not_a_folder))
+    RelationRecogniser.from_files(rn, images)
+    with pytest.warns(score_cache.ScoreCacheWarning, match="the score columns were not kept"):
+        score_cache.save_all()

@@ -195,9 +195,8 @@ def save_all() -> None:
         try:
             store.save()
         except OSError as exc:
-            warnings.warn(
-                f"{store.path}: the score columns were not kept ({exc})", ScoreCacheWarning
-            )
+            message = f"{store.path}: the score columns were not kept ({exc})"
+            warnings.warn(message, ScoreCacheWarning, stacklevel=2)
 
 
 def statistics() -> dict[str, int]:
