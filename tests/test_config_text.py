@@ -4,6 +4,7 @@ study) is the text of its own whole config."""
 
 import json
 from dataclasses import replace
+from pathlib import Path
 
 import pytest
 import yaml
@@ -54,3 +55,19 @@ def test_every_cell_of_the_generalisation_study_records_its_own_whole_config():
         expected = whole_text({k: v for k, v in whole.items() if k not in NOT_RECORDED})
         assert recorded_config(run) == expected
         assert recorded_config(replace(run, config=replace(cell, maze="5x5"))).json != expected.json
+
+
+EXPERIMENTS = sorted(p.stem for p in Path("conf/experiment").glob("*.yaml"))
+
+
+@pytest.mark.parametrize("experiment", EXPERIMENTS)
+def test_a_cell_records_what_omegaconf_renders_of_its_config(experiment):
+    """The recorded config is read from the cell's dataclass directly, not through OmegaConf:
+    the same text, for the first cells and the last of every experiment (pinned recognisers,
+    worlds, support modes and rules come last)."""
+    overrides = [f"+experiment={experiment}", "profile=smoke"]
+    cells = list(experiment_cells(load_config("trials", overrides), overrides).items())
+    for name, cell in cells[:6] + cells[-3:]:
+        whole = OmegaConf.to_container(OmegaConf.structured(cell), resolve=True)
+        expected = whole_text({k: v for k, v in whole.items() if k not in NOT_RECORDED})
+        assert recorded_config(CellRun(name, cell, load_layout(cell.maze))) == expected, name

@@ -32,6 +32,10 @@ def _plain(o: Any) -> Any:
         return o.tolist() if hasattr(o, "tolist") else list(o)
     if isinstance(o, Path):
         return str(o)
+    if type(o).__module__.startswith("omegaconf"):  # a container inside a dataclass config
+        from omegaconf import OmegaConf
+
+        return OmegaConf.to_container(o, resolve=True)
     raise TypeError(f"cannot record a {type(o).__name__} in the metadata (value {o!r})")
 
 
