@@ -66,6 +66,38 @@ def test_seeded_and_deterministic():
     assert np.array_equal(a.predictions(0), b.predictions(5))
 
 
+def test_predictions_follow_every_change_of_the_support_set():
+    """Predictions are kept per run while its members stay the same: each substitution, placement
+    and new run changes them as a recogniser asked afresh would."""
+    kept = PaperTablesRecogniser(substitution_way=1)
+    kept.start_run(0, seed=3)
+    kept.predictions(0)  # kept from here on
+
+    def fresh() -> np.ndarray:
+        again = PaperTablesRecogniser(substitution_way=1)
+        again.start_run(0, seed=3)
+        members = kept.support_members(0)
+        for category, position in zip(*np.nonzero(members >= 0)):
+            again.replace(0, int(category), int(position), int(members[category, position]))
+        return again.predictions(0)
+
+    for picture, category in ((9, 1), (20, 2), (12, 1), (33, 4)):
+        kept.learn_from_collision(0, picture, category)
+        assert np.array_equal(kept.predictions(0), fresh())
+    kept.replace(0, category=0, position=2, picture_id=5)
+    assert np.array_equal(kept.predictions(0), fresh())
+    assert np.array_equal(kept.scores(0, np.arange(40)).argmax(axis=1), fresh())
+    kept.predictions(0)[:] = 0  # a caller's copy
+    assert np.array_equal(kept.predictions(0), fresh())
+    kept.start_run(1, seed=3)
+    before = kept.predictions(1)  # the original members, kept
+    kept.start_run(1, seed=4)  # another draw over the same members
+    again = PaperTablesRecogniser(substitution_way=1)
+    again.start_run(1, seed=4)
+    assert np.array_equal(kept.predictions(1), again.predictions(1))
+    assert not np.array_equal(before, again.predictions(1))
+
+
 @pytest.mark.parametrize("c", range(5), ids=CATEGORIES)
 def test_one_substitution_gives_table_1(c):
     """As section 4.2.1 draws it: a random picture of c into a random position of c. The chance is

@@ -88,6 +88,9 @@ class PaperTablesRecogniser:
         SupportSet(N_WAY, K_SHOT, substitution_way, 0)  # validates the way
         self.substitution_way, self.carry_over = substitution_way, carry_over
         self._runs: dict[int, tuple[SupportSet, np.ndarray, np.ndarray, np.ndarray]] = {}
+        #: run -> (its support members' bytes, its predictions under them): the runner asks after
+        #: every substitution and again for the scores of the recognitions made meanwhile
+        self._predicted: dict[int, tuple[bytes, np.ndarray]] = {}
 
     def start_run(self, run: int, seed: int) -> None:
         """Restore the original support set and draw the run's uniforms (with ``carry_over`` an
@@ -101,6 +104,7 @@ class PaperTablesRecogniser:
         v = rng.random(N_PICTURES)
         wrong = (CATEGORY + rng.integers(1, N_WAY, size=N_PICTURES)) % N_WAY
         self._runs[run] = (SupportSet(N_WAY, K_SHOT, self.substitution_way, seed), u, v, wrong)
+        self._predicted.pop(run, None)  # new draws: the same members may be named otherwise
 
     def probabilities(self, run: int) -> np.ndarray:
         """Each query picture's chance of being named right under run ``run``'s support set."""
@@ -113,9 +117,13 @@ class PaperTablesRecogniser:
     def predictions(self, run: int) -> np.ndarray:
         support, u, v, wrong = self._run(run)
         members = support.members
-        inside = np.isin(np.arange(N_PICTURES), members[members >= 0])
-        right = np.where(inside, v, u) < self.probabilities(run)
-        return np.where(right, CATEGORY, wrong).astype(np.int64)
+        known = self._predicted.get(run)
+        if known is None or known[0] != members.tobytes():
+            inside = np.isin(np.arange(N_PICTURES), members[members >= 0])
+            right = np.where(inside, v, u) < self.probabilities(run)
+            known = members.tobytes(), np.where(right, CATEGORY, wrong).astype(np.int64)
+            self._predicted[run] = known
+        return known[1].copy()
 
     def scores(self, run: int, picture_ids: np.ndarray) -> np.ndarray:
         """One-hot on the predicted category (this model has no relation scores)."""
