@@ -34,7 +34,8 @@ VARIANTS = ("warm", "cold", "oracle")
 
 
 def run(experiment: str, out: Path, cache: Path | None, oracle: bool) -> float:
-    """Wall seconds of one whole ``trials`` process into ``out`` (replaced)."""
+    """Wall seconds of one whole ``trials`` process into ``out`` (replaced). Every run writes to
+    the same ``out``: the records keep the config, ``out`` included."""
     shutil.rmtree(out, ignore_errors=True)
     cmd = [sys.executable, "-m", "pipeline", "trials", f"+experiment={experiment}"]
     cmd += ["progress=false", f"out={out}", "overwrite=true"]
@@ -66,15 +67,15 @@ def main() -> None:
     args = ap.parse_args()
     scratch = Path(args.out)
     shutil.rmtree(scratch, ignore_errors=True)
-    warm_cache = scratch / "warm-cache"
-    run(args.experiment, scratch / "warm", warm_cache, oracle=False)  # fills the warm folder
+    warm_cache, out = scratch / "warm-cache", scratch / "out"
+    run(args.experiment, out, warm_cache, oracle=False)  # fills the warm folder
     walls: dict[str, list[float]] = {v: [] for v in VARIANTS}
     for i in range(args.repeats):
         for variant in VARIANTS[i % 3 :] + VARIANTS[: i % 3]:
             cache = {"warm": warm_cache, "cold": scratch / f"cold-cache-{i}"}.get(variant)
-            walls[variant].append(
-                run(args.experiment, scratch / variant, cache, oracle=variant == "oracle")
-            )
+            walls[variant].append(run(args.experiment, out, cache, oracle=variant == "oracle"))
+            shutil.rmtree(scratch / variant, ignore_errors=True)
+            out.rename(scratch / variant)  # the last repeat's records, kept to compare
             print(f"repeat {i + 1}: {variant:<6} {walls[variant][-1]:6.1f} s", flush=True)
     ratios = {
         v: statistics.median(a / b for a, b in zip(walls[v], walls["oracle"]))
