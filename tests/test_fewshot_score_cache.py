@@ -195,9 +195,11 @@ def test_columns_another_process_wrote_meanwhile_are_kept(files, score_folder):
     np.testing.assert_array_equal(kept[1, 2, 3, 4, 5], theirs[1, 2, 3, 4, 5])
 
 
-def test_off_keeps_the_scores_in_memory_only(files, monkeypatch, tmp_path):
+@pytest.mark.parametrize("off", ["off", "OFF", "0", "false", "no", "none"])
+def test_off_keeps_the_scores_in_memory_only(files, monkeypatch, tmp_path, off):
     images, rn, _ = files
-    monkeypatch.setenv(score_cache.CACHE_VARIABLE, "off")
+    monkeypatch.chdir(tmp_path)  # not a folder named after the word either
+    monkeypatch.setenv(score_cache.CACHE_VARIABLE, off)
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
     assert score_cache.cache_folder() is None
     RelationRecogniser.from_files(rn, images)

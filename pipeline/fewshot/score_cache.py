@@ -18,10 +18,10 @@ compare the two.
 
 **Between runs** the columns are kept on disk, one file a source (:func:`cache_folder`: the
 folder ``$FSRL_SCORE_CACHE`` names, by default ``$XDG_CACHE_HOME/fewshot-safe-rl/score-columns``
-or ``~/.cache/...``; ``FSRL_SCORE_CACHE=off`` keeps them in memory only). A store reads its file
-when it is made and :func:`save_all` writes what it computed since (the trials stage after each
-cell, every process at its exit), merged with what another process wrote there meanwhile,
-atomically. The file's name hashes the source with torch's version and the kernel path the
+or ``~/.cache/...``; ``FSRL_SCORE_CACHE=off`` (or ``0``, ``false``, ``no``, ``none``) keeps them
+in memory only). A store reads its file when it is made, and every process writes what it
+computed at its exit (:func:`save_all`), merged with what the file holds then, atomically (two
+processes ending at once may each miss the other's new columns: computed again next time). The file's name hashes the source with torch's version and the kernel path the
 process took (:mod:`pipeline.kernels`), the two things besides the source that decide a column's
 bits: a column read back is the column this process would compute, so the records are the same
 bytes cold or warm (tested). A file that cannot be read (damaged, another layout) is set aside
@@ -44,8 +44,9 @@ import torch
 from pipeline.files import atomic_output
 from pipeline.kernels import kernel_path
 
-#: The environment variable naming the folder of the score files (``off``: none).
+#: The environment variable naming the folder of the score files, and the values that mean none.
 CACHE_VARIABLE = "FSRL_SCORE_CACHE"
+CACHE_OFF = frozenset({"off", "0", "false", "no", "none"})
 
 
 class ScoreCacheWarning(UserWarning):
@@ -98,7 +99,7 @@ class ColumnStore:
 _STORES: dict[str, ColumnStore] = {}
 _UNSHARED: list[ColumnStore] = []  # made while disabled(), counted by statistics()
 _SHARING = [True]
-_SAVED_AT_EXIT: list = []  # save_all, once registered to run at the process's exit
+_SAVED_AT_EXIT = [False]  # whether save_all is registered to run at the process's exit
 
 
 def source_key(kind: str, network: torch.nn.Module, *tensors: torch.Tensor) -> str:
@@ -124,15 +125,16 @@ def store_for(source: str) -> ColumnStore:
         folder = cache_folder()
         path = None if folder is None else folder / f"{file_key(source)}.npz"
         _STORES[source] = ColumnStore(path=path)
-        if path is not None and not _SAVED_AT_EXIT:
-            _SAVED_AT_EXIT.append(atexit.register(save_all))
+        if path is not None and not _SAVED_AT_EXIT[0]:
+            atexit.register(save_all)
+            _SAVED_AT_EXIT[0] = True
     return _STORES[source]
 
 
 def cache_folder() -> Path | None:
     """The folder of the score files (module docstring), or None when ``FSRL_SCORE_CACHE=off``."""
-    named = os.environ.get(CACHE_VARIABLE, "")
-    if named.lower() == "off":
+    named = os.environ.get(CACHE_VARIABLE, "").strip()
+    if named.lower() in CACHE_OFF:
         return None
     if named:
         return Path(named).expanduser()
