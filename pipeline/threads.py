@@ -12,7 +12,9 @@ the accuracy study) give torch their ``threads`` and leave numba alone.
 The budget is applied where a process starts its work: the trials stage (one process, the parent
 of workers), each worker process, the accuracy study and a Gymnasium environment that builds its
 own recogniser. torch is only told its share once it is imported, so a process that runs no
-recogniser never pays for importing it.
+recogniser never pays for importing it: a recogniser whose scores all come from the score files
+imports torch at its first missing column (:func:`import_torch`), which then gives torch the
+share the process's budget set, the count :func:`torch_threads` reported meanwhile.
 """
 
 from __future__ import annotations
@@ -23,6 +25,10 @@ from dataclasses import asdict, dataclass
 
 #: torch's threads wherever numba runs beside it (see the module docstring).
 TORCH_THREADS_BESIDE_NUMBA = 1
+
+#: The budget this process applied last (:meth:`ThreadBudget.apply`): what torch gets when it is
+#: imported later (:func:`import_torch`).
+_APPLIED: list[ThreadBudget] = []
 
 
 @dataclass(frozen=True)
@@ -44,10 +50,31 @@ class ThreadBudget:
         if self.torch is not None and torch is not None:
             if torch.get_num_threads() != self.torch:
                 torch.set_num_threads(self.torch)
+        _APPLIED[:] = [self]
         return self
 
     def as_dict(self) -> dict:
         return asdict(self)
+
+
+def import_torch():
+    """torch, imported now if it was not, with the torch share of the budget this process applied
+    (the share :meth:`ThreadBudget.apply` could not give it before it was imported)."""
+    import torch
+
+    budget = _APPLIED[0] if _APPLIED else None
+    if budget is not None and budget.torch is not None and torch.get_num_threads() != budget.torch:
+        torch.set_num_threads(budget.torch)
+    return torch
+
+
+def torch_threads() -> int:
+    """torch's intra-op threads in this process: torch's own count once imported, else the share of
+    the budget applied (what :func:`import_torch` will give it), else torch's count (imported)."""
+    torch = sys.modules.get("torch")
+    if torch is None and _APPLIED and _APPLIED[0].torch is not None:
+        return _APPLIED[0].torch
+    return import_torch().get_num_threads()
 
 
 def cores() -> int:

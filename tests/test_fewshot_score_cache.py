@@ -1,13 +1,21 @@
 """Scores computed once (pipeline/fewshot/score_cache.py): recognisers that score the same way share
 their columns, others do not, and what a trial records is the same with and without sharing."""
 
+import os
+import shutil
+import subprocess
+import sys
+import threading
+import time
+
 import numpy as np
 import pytest
 import torch
 from fakes import ListSink
 
-from pipeline.fewshot import score_cache
+from pipeline.fewshot import from_files, score_cache
 from pipeline.fewshot.checkpoint import save_checkpoint
+from pipeline.fewshot.data import DataError
 from pipeline.fewshot.model import ModelConfig, RelationNetwork
 from pipeline.fewshot.protonet import PrototypicalNetwork
 from pipeline.fewshot.recogniser import ProtoRecogniser, RelationRecogniser
@@ -229,3 +237,121 @@ def test_a_folder_that_cannot_be_written_costs_a_warning_not_the_run(files, monk
     RelationRecogniser.from_files(rn, images)
     with pytest.warns(score_cache.ScoreCacheWarning, match="the score columns were not kept"):
         score_cache.save_all()
+
+
+# -- a recogniser started from its score file (pipeline/fewshot/from_files.py) --------------------
+def _refuse_loading(monkeypatch):
+    def refuse(*args):
+        raise AssertionError("the checkpoint and pictures were loaded")
+
+    monkeypatch.setattr(from_files.Loaded, "read", refuse)
+
+
+def test_a_recogniser_whose_columns_are_all_kept_loads_no_network(files, score_folder, monkeypatch):
+    images, rn, _ = files
+    cold = RelationRecogniser.from_files(rn, images, substitution_way=2)
+    score_cache.save_all()
+    score_cache.clear()
+    _refuse_loading(monkeypatch)
+    warm = RelationRecogniser.from_files(rn, images, substitution_way=2)
+    assert warm.describe() == cold.describe()
+    assert warm.class_names == cold.class_names
+    np.testing.assert_array_equal(warm.query_categories, cold.query_categories)
+    for rec in (cold, warm):
+        rec.start_run(0, seed=3)
+    assert warm.scores(0, np.arange(40)).tobytes() == cold.scores(0, np.arange(40)).tobytes()
+
+
+def test_its_first_missing_column_loads_the_network_then(files, score_folder):
+    images, rn, _ = files
+    cold = RelationRecogniser.from_files(rn, images)
+    score_cache.save_all()
+    score_cache.clear()
+    warm = RelationRecogniser.from_files(rn, images)
+    picture = int(np.flatnonzero(cold.query_categories == 3)[0])
+    for rec in (cold, warm):
+        rec.start_run(0, seed=3)
+        rec.replace(0, category=3, position=1, picture_id=picture)  # a column not in the file
+    assert warm.scores(0, np.arange(40)).tobytes() == cold.scores(0, np.arange(40)).tobytes()
+    assert score_cache.statistics()["misses"] == 1  # the warm one's (the cold one's store is gone)
+    assert warm.checkpoint == cold.checkpoint
+    assert warm.parts.keys() == cold.parts.keys()
+
+
+def test_files_changed_under_a_started_recogniser_are_refused(files, score_folder, tmp_path):
+    images, rn, _ = files
+    checkpoint = tmp_path / "rn.pt"
+    checkpoint.write_bytes(rn.read_bytes())
+    RelationRecogniser.from_files(checkpoint, images)
+    score_cache.save_all()
+    score_cache.clear()
+    warm = RelationRecogniser.from_files(checkpoint, images)
+    checkpoint.write_bytes(checkpoint.read_bytes() + b"\0")
+    warm.start_run(0, seed=3)
+    warm.replace(0, category=4, position=1, picture_id=int(warm.query_categories.argmax()))
+    with pytest.raises(DataError, match="changed while the recogniser was in use"):
+        warm.scores(0, np.arange(40))
+
+
+def test_other_files_are_another_score_file(files, score_folder, tmp_path):
+    images, rn, _ = files
+    RelationRecogniser.from_files(rn, images)
+    copy = tmp_path / "images"
+    shutil.copytree(images, copy)
+    RelationRecogniser.from_files(rn, copy)  # the same bytes elsewhere: the same source
+    assert score_cache.statistics()["misses"] == 5
+    picture = next(p for p in sorted(copy.rglob("*.png")) if "query" in str(p))
+    picture.write_bytes(next(p for p in sorted(copy.rglob("*.png")) if p != picture).read_bytes())
+    RelationRecogniser.from_files(rn, copy)
+    score_cache.save_all()
+    assert score_cache.statistics()["misses"] == 10
+    assert len(list(score_folder.iterdir())) == 2
+
+
+def test_a_process_started_from_score_files_imports_no_torch(files, score_folder):
+    """The point of starting from the score file: a study whose columns were all computed before
+    pays neither torch's import nor the checkpoint (pipeline/threads.py gives the recorded thread
+    count; pipeline/kernels.py the kernel path)."""
+    images, rn, _ = files
+    script = (
+        "import sys\n"
+        "from pipeline.kernels import pin_kernels\n"
+        "from pipeline.threads import trials_budget\n"
+        "pin_kernels(); trials_budget(0, 1).apply()\n"
+        "from pipeline.fewshot.recogniser import RelationRecogniser\n"
+        f"rec = RelationRecogniser.from_files({str(rn)!r}, {str(images)!r})\n"
+        "rec.start_run(0, seed=1)\n"
+        "print(rec.predictions(0).tolist(), rec.describe(), 'torch' in sys.modules)\n"
+    )
+    env = {**os.environ, score_cache.CACHE_VARIABLE: str(score_folder)}
+    runs = [
+        subprocess.run(
+            [sys.executable, "-c", script], env=env, capture_output=True, text=True, check=True
+        ).stdout
+        for _ in range(2)
+    ]
+    assert runs[0].endswith(" True\n") and runs[1].endswith(" False\n")
+    assert runs[0].removesuffix(" True\n") == runs[1].removesuffix(" False\n")
+
+
+def test_processes_saving_at_once_keep_each_others_columns(score_folder, monkeypatch):
+    """A study's worker processes end together: each merges what the file holds with its own
+    columns, one after the other (a lock), so neither loses the other's."""
+    path = score_folder / "source.npz"
+    stores = [score_cache.ColumnStore(path=path) for _ in range(2)]
+    for i, store in enumerate(stores):
+        store.column((i, i), lambda i=i: np.full(40, i, dtype=np.float32))
+    read = score_cache.read_score_file
+
+    def slow_read(*args, **kwargs):  # both would read before either writes, without the lock
+        got = read(*args, **kwargs)
+        time.sleep(0.3)
+        return got
+
+    monkeypatch.setattr(score_cache, "read_score_file", slow_read)
+    savers = [threading.Thread(target=store.save) for store in stores]
+    for saver in savers:
+        saver.start()
+    for saver in savers:
+        saver.join()
+    assert set(read(path)[0]) == {(0, 0), (1, 1)}

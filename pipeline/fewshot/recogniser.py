@@ -27,20 +27,25 @@ a row (a probability per category, in [0, 1]).
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import torch
 
-from .model import ModelConfig
-from .protonet import negative_squared_distances
-from .settings import ProtoConfig
+from pipeline.threads import import_torch
+
+from .from_files import load_recogniser
+from .settings import ModelConfig, ProtoConfig
 from .support_recogniser import SupportSetRecogniser
+
+if TYPE_CHECKING:
+    import torch
 
 __all__ = ["ProtoRecogniser", "RelationRecogniser", "SupportSetRecogniser", "softmax_rows"]
 
 
 def softmax_rows(table: np.ndarray) -> np.ndarray:
     """Each row's softmax (Snell et al. eq. 2): raw scores (logits) to a probability a category."""
+    torch = import_torch()
     return torch.softmax(torch.from_numpy(table), dim=1).numpy()
 
 
@@ -67,8 +72,8 @@ class RelationRecogniser(SupportSetRecogniser):
         carry_over: bool = False,
     ) -> RelationRecogniser:
         """Load a trained Relation Network checkpoint and the pictures of ``images_dir`` (see
-        :meth:`SupportSetRecogniser._load`). ``input_size`` and ``relation_padding``, when
-        given, are the model shape the config expects; ``query_hue_shift`` turns the query pictures' hue;
+        :func:`.from_files.load_recogniser`). ``input_size`` and ``relation_padding``, when given,
+        are the model shape the config expects; ``query_hue_shift`` turns the query pictures' hue;
         ``learn_from`` which substituted pictures a query sees (:mod:`.learn_from`)."""
         shape = None
         if input_size is not None or relation_padding is not None:
@@ -76,7 +81,8 @@ class RelationRecogniser(SupportSetRecogniser):
                 input_size if input_size is not None else 84,
                 relation_padding if relation_padding is not None else 0,
             )
-        return cls._load(
+        return load_recogniser(
+            cls,
             checkpoint,
             images_dir,
             shape,
@@ -123,11 +129,12 @@ class ProtoRecogniser(SupportSetRecogniser):
         carry_over: bool = False,
     ) -> ProtoRecogniser:
         """Load a trained Prototypical Network checkpoint and the pictures of ``images_dir`` (see
-        :meth:`SupportSetRecogniser._load`). ``input_size``, when given, is the input side
-        the config expects; ``query_hue_shift`` turns the query pictures' hue; ``learn_from`` which
+        :func:`.from_files.load_recogniser`). ``input_size``, when given, is the input side the
+        config expects; ``query_hue_shift`` turns the query pictures' hue; ``learn_from`` which
         substituted pictures a query sees (:mod:`.learn_from`)."""
         shape = ProtoConfig(input_size) if input_size is not None else None
-        return cls._load(
+        return load_recogniser(
+            cls,
             checkpoint,
             images_dir,
             shape,
@@ -144,6 +151,8 @@ class ProtoRecogniser(SupportSetRecogniser):
 
     def forward(self, parts: torch.Tensor) -> np.ndarray:
         """Negative squared distances to the prototype, the mean of the members' embeddings."""
+        from .protonet import negative_squared_distances
+
         return negative_squared_distances(parts.mean(0).unsqueeze(0), self._queries)[:, 0].numpy()
 
     def scores(self, run: int, picture_ids: np.ndarray) -> np.ndarray:

@@ -20,12 +20,17 @@ compare the two.
 folder ``$FSRL_SCORE_CACHE`` names, by default ``$XDG_CACHE_HOME/fewshot-safe-rl/score-columns``
 or ``~/.cache/...``; ``FSRL_SCORE_CACHE=off`` (or ``0``, ``false``, ``no``, ``none``) keeps them
 in memory only). A store reads its file when it is made, and every process writes what it
-computed at its exit (:func:`save_all`), merged with what the file holds then, atomically (two
-processes ending at once may each miss the other's new columns: computed again next time). The file's name hashes the source with torch's version and the kernel path the
+computed at its exit (:func:`save_all`), merged with what the file holds then, atomically and
+under a lock, so the worker processes of a study, which end together, keep each other's columns. The file's name hashes the source with torch's version and the kernel path the
 process took (:mod:`pipeline.kernels`), the two things besides the source that decide a column's
 bits: a column read back is the column this process would compute, so the records are the same
 bytes cold or warm (tested). A file that cannot be read (damaged, another layout) is set aside
 with a warning: its columns are computed again and the file is written anew.
+
+A store may also keep what a recogniser loaded from files needs to start without its network
+(:attr:`ColumnStore.about`: the checkpoint's model, the pictures' categories): such a recogniser
+imports torch and loads its checkpoint only at its first column not in the file
+(:mod:`.from_files`). This module imports no torch.
 """
 
 from __future__ import annotations
@@ -33,13 +38,15 @@ from __future__ import annotations
 import atexit
 import contextlib
 import hashlib
+import importlib.metadata
+import json
 import os
 import warnings
 from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import Any
 
 import numpy as np
-import torch
 
 from pipeline.files import atomic_output
 from pipeline.kernels import kernel_path
@@ -64,18 +71,32 @@ class ColumnStore:
         self.misses = 0
         self.path = path if keep else None
         self.loaded = 0  # columns read from the file
-        self._unsaved = 0  # columns computed since the file was read or written
+        self._unsaved = 0  # columns computed (or an about given) since the file was read or written
+        self._about: dict[str, Any] | None = None
         if self.path is not None:
-            self._columns.update(read_columns(self.path))
+            columns, self._about = read_score_file(self.path)
+            self._columns.update(columns)
             self.loaded = len(self._columns)
+
+    @property
+    def about(self) -> dict[str, Any] | None:
+        """What the source's recogniser needs to start without computing (JSON-able), if known."""
+        return self._about
+
+    @about.setter
+    def about(self, about: dict[str, Any]) -> None:
+        if self._keep and about != self._about:
+            self._about = about
+            self._unsaved += 1
 
     def save(self) -> None:
         """Write the columns computed since the last read or write to :attr:`path`, with those
         already there (another process's too)."""
         if self.path is None or not self._unsaved:
             return
-        theirs = read_columns(self.path, warn=False)  # a damaged one warned when it was read
-        write_columns(self.path, theirs | self._columns)
+        with _locked(self.path):  # the workers of a study end together: none loses another's
+            theirs, their_about = read_score_file(self.path, warn=False)  # damaged: warned at read
+            write_columns(self.path, theirs | self._columns, self._about or their_about)
         self._unsaved = 0
 
     def column(self, members: tuple[int, ...], compute: Callable[[], np.ndarray]) -> np.ndarray:
@@ -102,7 +123,7 @@ _SHARING = [True]
 _SAVED_AT_EXIT = [False]  # whether save_all is registered to run at the process's exit
 
 
-def source_key(kind: str, network: torch.nn.Module, *tensors: torch.Tensor) -> str:
+def source_key(kind: str, network, *tensors) -> str:
     """The sha256 of what every column of a recogniser depends on besides its members: its kind,
     the network's parameters and buffers (names, shapes, values) and the pictures it scores."""
     h = hashlib.sha256(kind.encode())
@@ -143,19 +164,31 @@ def cache_folder() -> Path | None:
 
 
 def file_key(source: str) -> str:
-    """The name of ``source``'s score file: the source, torch's version and the kernel path."""
-    whole = f"{source}|torch {torch.__version__}|kernels {kernel_path()}"
+    """The name of ``source``'s score file: the source, torch's version and the kernel path (both
+    known without importing torch: :func:`pipeline.kernels.kernel_path`)."""
+    whole = f"{source}|torch {importlib.metadata.version('torch')}|kernels {kernel_path()}"
     return hashlib.sha256(whole.encode()).hexdigest()[:32]
 
 
 def read_columns(path: Path, *, warn: bool = True) -> dict[tuple[int, ...], np.ndarray]:
-    """The columns of a score file by member tuple ({} when there is none, or when it cannot be
-    read: then with a :class:`ScoreCacheWarning` unless ``warn`` is False)."""
+    """The columns of a score file by member tuple (:func:`read_score_file`)."""
+    return read_score_file(path, warn=warn)[0]
+
+
+def read_score_file(
+    path: Path, *, warn: bool = True
+) -> tuple[dict[tuple[int, ...], np.ndarray], dict[str, Any] | None]:
+    """The columns of a score file by member tuple and its ``about`` (({}, None) when there is no
+    file, or when it cannot be read: then with a :class:`ScoreCacheWarning` unless ``warn`` is
+    False)."""
     if not path.exists():
-        return {}
+        return {}, None
     try:
         with np.load(path, allow_pickle=False) as saved:  # the zip checks every array's CRC
             out = {}
+            about = json.loads(str(saved[ABOUT])) if ABOUT in saved.files else None
+            if about is not None and not isinstance(about, dict):
+                raise ValueError(f"{ABOUT} is not a JSON object")
             for name in (n for n in saved.files if n.startswith("members_")):
                 members, columns = saved[name], saved["columns_" + name.removeprefix("members_")]
                 if members.ndim != 2 or columns.ndim != 2 or len(members) != len(columns):
@@ -164,24 +197,30 @@ def read_columns(path: Path, *, warn: bool = True) -> dict[tuple[int, ...], np.n
                     raise ValueError(f"{name}: unexpected types {members.dtype}, {columns.dtype}")
                 columns.setflags(write=False)
                 out.update(zip(map(tuple, members.tolist()), columns))
-            return out
+            return out, about
     except Exception as exc:  # damaged or not a score file: computed again, written anew
         if not warn:
-            return {}
+            return {}, None
         warnings.warn(
             f"{path}: not a readable score file ({type(exc).__name__}: {exc}); its columns are "
             "computed again and the file is written anew",
             ScoreCacheWarning,
             stacklevel=2,
         )
-        return {}
+        return {}, None
 
 
-def write_columns(path: Path, columns: dict[tuple[int, ...], np.ndarray]) -> None:
+#: The score file's array holding :attr:`ColumnStore.about` as JSON text.
+ABOUT = "about_json"
+
+
+def write_columns(
+    path: Path, columns: dict[tuple[int, ...], np.ndarray], about: dict[str, Any] | None = None
+) -> None:
     """Write ``columns`` (member tuple -> column) as a score file, atomically: an array of member
     tuples and one of columns for each tuple length, in sorted order (the same columns, the same
-    bytes)."""
-    arrays = {}
+    bytes), and ``about`` as JSON text, when given."""
+    arrays = {} if about is None else {ABOUT: np.array(json.dumps(about, sort_keys=True))}
     for k in sorted({len(m) for m in columns}):
         keys = sorted(m for m in columns if len(m) == k)
         arrays[f"members_{k}"] = np.array(keys, dtype=np.int64).reshape(len(keys), k)
@@ -199,6 +238,21 @@ def save_all() -> None:
         except OSError as exc:
             message = f"{store.path}: the score columns were not kept ({exc})"
             warnings.warn(message, ScoreCacheWarning, stacklevel=2)
+
+
+@contextlib.contextmanager
+def _locked(path: Path) -> Iterator[None]:
+    """Hold ``path``'s lock file (``<name>.lock`` beside it) while merging into it, so processes
+    saving at once each keep the other's columns (POSIX ``flock``; elsewhere, no lock)."""
+    try:
+        import fcntl
+    except ImportError:  # not POSIX: two processes saving at once may miss each other's columns
+        yield
+        return
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path.with_name(path.name + ".lock"), "a") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file is closed
+        yield
 
 
 def statistics() -> dict[str, int]:

@@ -12,30 +12,41 @@ its substitution stream.
 
 ``learn_from`` (:mod:`.learn_from`) limits which substituted pictures a query picture's
 recognition sees; ``all``, the default, is the paper's dynamic support set.
+
+The network part (the pictures embedded, each picture's part) is made at the first column the
+score store (:mod:`.score_cache`) does not hold: a recogniser loaded from files whose columns are
+all in its score file never imports torch (:mod:`.from_files`). This module imports torch only
+there.
 """
 
 from __future__ import annotations
 
 import abc
 import hashlib
+from collections.abc import Callable
 from dataclasses import dataclass
-from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import torch
 from PIL import Image
 
 from pipeline.kernels import kernel_path
+from pipeline.threads import import_torch, torch_threads
 
-from .checkpoint import file_sha256, load_checkpoint
-from .colour import hue_rotate
-from .data import DataError, PictureSet, load_split, read_manifest, to_tensor
-from .learn_from import learning_groups, query_objects, table_by_group
-from .model import RelationNetwork
-from .protonet import PrototypicalNetwork
-from .score_cache import source_key, store_for
+from .data import to_tensor
+from .learn_from import learning_groups, table_by_group
+from .score_cache import ColumnStore, source_key, store_for
 from .support_set import SupportSet, check_picture, started
-from .training import embed_all
+
+if TYPE_CHECKING:
+    import torch
+
+    from .model import RelationNetwork
+    from .protonet import PrototypicalNetwork
+
+    Network = RelationNetwork | PrototypicalNetwork
+    #: What the network part is made from: the network, the query and the support pictures.
+    Inputs = Callable[[], tuple[Network, torch.Tensor, torch.Tensor]]
 
 
 def canonical(members: np.ndarray) -> np.ndarray:
@@ -83,6 +94,7 @@ class SupportSetRecogniser(abc.ABC):
         carry_over: bool = False,
         learn_from: str = "all",
         query_objects: np.ndarray | None = None,
+        store: ColumnStore | None = None,
     ) -> None:
         if len(support_images) != n_way * k_shot:
             raise ValueError(
@@ -90,42 +102,100 @@ class SupportSetRecogniser(abc.ABC):
             )
         if len(query_images) != len(query_categories):
             raise ValueError("query_images and query_categories differ in length")
+        if store is None:
+            # columns shared with every recogniser of this process that scores the same way
+            # (:mod:`.score_cache`): same kind, weights and pictures
+            kind = f"{type(self).__qualname__}:{self.kind}"
+            store = store_for(source_key(kind, network, query_images, support_images))
+        self._start(
+            lambda: (network, query_images, support_images),
+            store,
+            query_categories,
+            n_way=n_way,
+            k_shot=k_shot,
+            substitution_way=substitution_way,
+            carry_over=carry_over,
+            learn_from=learn_from,
+            query_objects=query_objects,
+        )
+        self.checkpoint = None  # set by the loader (:mod:`.from_files`)
+
+    def _start(
+        self,
+        inputs: Inputs,
+        store: ColumnStore,
+        query_categories: np.ndarray,
+        *,
+        n_way: int,
+        k_shot: int,
+        substitution_way: int,
+        carry_over: bool,
+        learn_from: str,
+        query_objects: np.ndarray | None,
+        checkpoint_later: bool = False,
+    ) -> None:
+        """Everything but the network part, which ``inputs`` gives when a column is first
+        computed (:meth:`_network_part`); the original support set's table, from ``store``.
+        ``checkpoint_later``: :attr:`checkpoint` is set when ``inputs`` is called."""
         cats = np.asarray(query_categories, dtype=np.int64)
         if cats.min() < 0 or cats.max() >= n_way:
             raise ValueError(f"query categories must lie in 0..{n_way - 1}")
         SupportSet(n_way, k_shot, substitution_way, 0)  # validates the way
         self.learn_from = learn_from
         self._groups = learning_groups(learn_from, cats, query_objects)
-        self.network = network.eval()
-        self._support_images = support_images
+        self._inputs, self._network, self._parts = inputs, None, None
         self.n_way, self.k_shot = n_way, k_shot
         self.substitution_way, self.carry_over = substitution_way, carry_over
         self.query_categories = cats
         self.n_pictures = len(cats)
         self.class_names: tuple[str, ...] = tuple(f"category_{c}" for c in range(n_way))
-        #: config and metrics of the checkpoint, when loaded from files
-        self.checkpoint: dict | None = None
-        with torch.no_grad():
-            query_f = _embedded(network, query_images)
-            support_f = _embedded(network, support_images)
-            query_parts, support_parts = self.prepare(query_f, support_f)
-        #: the part each support member contributes to its category's score: query picture p -> p,
-        #: original support picture j -> -(j + 1) (the member codes of support_set.py)
-        self.parts = {int(p): query_parts[p] for p in range(self.n_pictures)}
-        for j in range(len(support_parts)):
-            self.parts[-(j + 1)] = support_parts[j]
+        self._checkpoint, self._checkpoint_later = None, checkpoint_later
         self._runs: dict[int, _Run] = {}
-        # columns shared with every recogniser of this process that scores the same way
-        # (:mod:`.score_cache`): same kind, weights and pictures
-        self._store = store_for(
-            source_key(
-                f"{type(self).__qualname__}:{self.kind}", network, query_images, support_images
-            )
-        )
+        self._store = store
         self._original_members = SupportSet(n_way, k_shot, 0, 0).members
         self._original_table = np.stack(
             [self._column(members) for members in self._original_members], axis=1
         )
+
+    @property
+    def network(self) -> RelationNetwork | PrototypicalNetwork:
+        """The network (eval mode), loaded now if it was not."""
+        if self._network is None:
+            self._network_part()
+        return self._network
+
+    @property
+    def checkpoint(self) -> dict | None:
+        """The checkpoint's model, config, metrics and normalisation, when loaded from files (read
+        now if the recogniser started from its score file); None when built from tensors."""
+        if self._checkpoint_later:
+            self._network_part()
+        return self._checkpoint
+
+    @checkpoint.setter
+    def checkpoint(self, contents: dict | None) -> None:
+        self._checkpoint, self._checkpoint_later = contents, False
+
+    @property
+    def parts(self) -> dict[int, torch.Tensor]:
+        """The part each support member contributes to its category's score: query picture p ->
+        p, original support picture j -> -(j + 1) (the member codes of support_set.py)."""
+        return self._network_part()
+
+    def _network_part(self) -> dict[int, torch.Tensor]:
+        """Embed the pictures and :meth:`prepare` each picture's part, once (torch from here)."""
+        if self._parts is None:
+            torch = import_torch()  # with the process's torch threads (pipeline.threads)
+            network, query_images, support_images = self._inputs()
+            self._network, self._support_images = network.eval(), support_images
+            with torch.no_grad():
+                query_f = _embedded(network, query_images)
+                support_f = _embedded(network, support_images)
+                query_parts, support_parts = self.prepare(query_f, support_f)
+            parts = {int(p): query_parts[p] for p in range(self.n_pictures)}
+            parts.update({-(j + 1): support_parts[j] for j in range(len(support_parts))})
+            self._parts = parts
+        return self._parts
 
     # -- the two hooks a recogniser implements -------------------------------------------------
     @abc.abstractmethod
@@ -142,59 +212,6 @@ class SupportSetRecogniser(abc.ABC):
         ``parts`` (K, ...), stacked in :func:`canonical` order; all pictures in one batch, no grad.
         :meth:`predictions` takes the arg max of a row; :meth:`scores` returns rows as they are."""
 
-    # -- construction from files -------------------------------------------------------------
-    @classmethod
-    def _load(
-        cls,
-        checkpoint,
-        images_dir,
-        expected,
-        query_hue_shift,
-        substitution_way,
-        carry_over,
-        learn_from="all",
-    ):
-        """Load a ``cls.kind`` checkpoint and the query/support pictures of ``images_dir``'s
-        manifest, resized to the checkpoint's input size and normalised with its statistics.
-        ``expected``, when given, is the model shape the config expects: a checkpoint of another
-        shape or kind is refused (:class:`CheckpointError`). ``query_hue_shift`` (degrees) turns the
-        hue of the query pictures only (:mod:`.colour`, the colour test); 0 leaves them as rendered."""
-        if not np.isfinite(query_hue_shift):
-            raise ValueError(
-                f"query_hue_shift must be a finite number of degrees, got {query_hue_shift!r}"
-            )
-        network, payload = _loaded(checkpoint, expected, cls.kind)
-        size = network.config.input_size
-        frame = read_manifest(images_dir)
-        query = load_split(images_dir, "query", size, frame)
-        support = load_split(images_dir, "support", size, frame)
-        q_images, q_cats, s_images, n_way, k_shot = cls._arrange(query, support, images_dir)
-        q_images = hue_rotate(q_images, query_hue_shift)
-        norm = payload["normalisation"]
-        recogniser = cls(
-            network,
-            to_tensor(q_images, norm["mean"], norm["std"]),
-            q_cats,
-            to_tensor(s_images, norm["mean"], norm["std"]),
-            n_way=n_way,
-            k_shot=k_shot,
-            substitution_way=substitution_way,
-            carry_over=carry_over,
-            learn_from=learn_from,
-            query_objects=query_objects(frame),
-        )
-        recogniser.class_names = support.class_names
-        recogniser.checkpoint = {
-            k: payload[k] for k in ("model", "config", "metrics", "normalisation")
-        }
-        recogniser.checkpoint_file = {
-            "path": str(checkpoint),
-            "sha256": file_sha256(checkpoint),
-            "model": dict(payload["model"]),
-        }
-        recogniser.query_hue_shift = float(query_hue_shift)
-        return recogniser
-
     def describe(self) -> dict:
         """What the records keep about this recogniser: the checkpoint's path, sha256 and shape, the
         torch threads that score (``pipeline.threads``; kernels may round differently on another
@@ -205,7 +222,7 @@ class SupportSetRecogniser(abc.ABC):
             "checkpoint": getattr(self, "checkpoint_file", None),
             "substitution_way": self.substitution_way,
             "carry_over": self.carry_over,
-            "torch_threads": torch.get_num_threads(),
+            "torch_threads": torch_threads(),
             "cpu_kernels": kernel_path(),
         }
         if getattr(self, "query_hue_shift", 0.0):
@@ -213,29 +230,6 @@ class SupportSetRecogniser(abc.ABC):
         if self.learn_from != "all":
             out["learn_from"] = self.learn_from
         return out
-
-    @staticmethod
-    def _arrange(
-        query: PictureSet, support: PictureSet, images_dir
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, int]:
-        order = np.argsort(query.picture_ids, kind="stable")
-        ids = query.picture_ids[order]
-        if not np.array_equal(ids, np.arange(len(ids))):
-            raise DataError(
-                f"{images_dir}: query picture ids must be 0..{len(ids) - 1}, each once; got {ids.tolist()}"
-            )
-        counts = np.bincount(support.labels)
-        if len(set(counts.tolist())) != 1 or support.n_classes != query.n_classes:
-            raise DataError(
-                f"{images_dir}: the support split needs the same number of pictures in each of the {query.n_classes} categories; got {counts.tolist()}"
-            )
-        return (
-            query.images[order],
-            query.labels[order],
-            support.images,
-            support.n_classes,
-            int(counts[0]),
-        )
 
     # -- the Recogniser protocol -------------------------------------------------------------
     def start_run(self, run: int, seed: int) -> None:
@@ -304,11 +298,12 @@ class SupportSetRecogniser(abc.ABC):
                 f"learn_from={self.learn_from!r} groups the query pictures by their ids; other "
                 "pictures (the robot's) have none: use learn_from=all"
             )
-        size = self.network.config.input_size
+        network = self.network
+        size = network.config.input_size
         resized = np.stack([_resized(im, size) for im in images]) if len(images) else images
         norm = self.checkpoint["normalisation"]
         other = type(self)(
-            self.network,
+            network,
             to_tensor(resized, norm["mean"], norm["std"]),
             np.asarray(categories),
             self._support_images,
@@ -332,9 +327,11 @@ class SupportSetRecogniser(abc.ABC):
         key = tuple(int(m) for m in ordered)
         return self._store.column(key, lambda: self._forward(ordered))
 
-    @torch.no_grad()
     def _forward(self, ordered: np.ndarray) -> np.ndarray:
-        return self.forward(torch.stack([self.parts[int(m)] for m in ordered]))
+        parts = self._network_part()
+        torch = import_torch()
+        with torch.no_grad():
+            return self.forward(torch.stack([parts[int(m)] for m in ordered]))
 
     def _table(self, run: int) -> np.ndarray:
         state = self._run(run)
@@ -358,30 +355,6 @@ def _resized(image: np.ndarray, size: int) -> np.ndarray:
     return np.asarray(im)
 
 
-#: Networks already loaded in this process, by checkpoint file (its path, size, modification time
-#: and inode) and expected shape: the recognisers of one study (Table 3's five, a substitution way
-#: each) share one network, so their pictures are embedded once (:func:`_embedded`). A recogniser
-#: only evaluates its network (eval mode, no gradients), never changes it.
-_NETWORKS: dict[tuple, tuple[object, dict]] = {}
-MAX_NETWORKS = 8  # the oldest goes first
-
-
-def _loaded(checkpoint, expected, kind: str) -> tuple[object, dict]:
-    """:func:`load_checkpoint`, once per checkpoint file as it is on disk (a file replaced or
-    rewritten is loaded again; one that cannot be read is refused by ``load_checkpoint``)."""
-    try:
-        path = Path(checkpoint).resolve()
-        st = path.stat()
-    except (OSError, RuntimeError):  # missing, a loop of links: load_checkpoint says which
-        return load_checkpoint(checkpoint, expected, kind=kind)
-    key = (str(path), st.st_size, st.st_mtime_ns, st.st_ino, kind, repr(expected))
-    if key not in _NETWORKS:
-        if len(_NETWORKS) >= MAX_NETWORKS:
-            del _NETWORKS[next(iter(_NETWORKS))]
-        _NETWORKS[key] = load_checkpoint(checkpoint, expected, kind=kind)
-    return _NETWORKS[key]
-
-
 #: Embeddings of picture batches already embedded, by (network, the batch's bytes): the robot's
 #: cells of one process ask the same network about the same live pictures (one rendering a run)
 #: under several methods and rules. Bounded: the oldest go first.
@@ -391,6 +364,8 @@ MAX_EMBEDDINGS = 4096
 
 def _embedded(network, images: torch.Tensor) -> torch.Tensor:
     """``embed_all`` of ``images`` (eval mode), computed once per network and batch."""
+    from .training import embed_all
+
     data = images.detach().contiguous().numpy().tobytes()
     key = (id(network), hashlib.sha256(data).digest())
     if key not in _EMBEDDINGS or _EMBEDDINGS[key][0] is not network:  # an id reused
