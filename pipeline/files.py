@@ -336,23 +336,19 @@ def write_index(folder: str | Path, path: str | Path) -> Path:
     out) written to ``path`` as JSON. A small committed stand-in for a DVC-cached folder: stages
     downstream declare it as their dependency, so ``dvc repro --dry`` can hash it on a fresh clone
     where the folder does not exist yet (dvc.yaml)."""
+    import hashlib
+
     folder = Path(folder)
     files = sorted(
         p
         for p in folder.rglob("*")
         if p.is_file() and not p.relative_to(folder).as_posix().startswith(".")
     )
-    index = {p.relative_to(folder).as_posix(): file_sha256(p) for p in files}
+    index = {}
+    for p in files:
+        digest = hashlib.sha256()
+        with open(p, "rb") as f:
+            for block in iter(lambda: f.read(1 << 20), b""):
+                digest.update(block)
+        index[p.relative_to(folder).as_posix()] = digest.hexdigest()
     return write_json_atomic(path, {"folder": folder.as_posix(), "files": index})
-
-
-def file_sha256(path: str | Path) -> str:
-    """SHA-256 of a file's bytes, read in blocks (the records name the exact checkpoint a trial
-    used; a score file is keyed by the files it scores)."""
-    import hashlib
-
-    digest = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()

@@ -15,7 +15,6 @@ the process before (each library reads its variable once, at its first kernel):
 from __future__ import annotations
 
 import os
-import sys
 
 #: The variables that pin each library's kernels, and the value every x86-64 processor can run.
 PINNED = {"ATEN_CPU_CAPABILITY": "default", "ONEDNN_MAX_CPU_ISA": "SSE41", "MKL_CBWR": "COMPATIBLE"}
@@ -33,14 +32,7 @@ def pin_kernels(path: dict[str, str] = PINNED) -> None:
 
 
 def kernel_path() -> str:
-    """ATen's kernel path in this process (``default`` once :func:`pin_kernels` took effect). Before
-    torch is imported, a pinned ``default`` is the path it will take (it reads the variable at its
-    first kernel, and every x86-64 processor runs it), so asking does not import torch then."""
-    if (
-        "torch" not in sys.modules
-        and os.environ.get("ATEN_CPU_CAPABILITY") == PINNED["ATEN_CPU_CAPABILITY"]
-    ):
-        return PINNED["ATEN_CPU_CAPABILITY"]
+    """ATen's kernel path in this process (``default`` once :func:`pin_kernels` took effect)."""
     import torch
 
     return torch.backends.cpu.get_cpu_capability().lower()

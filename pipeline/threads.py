@@ -13,8 +13,8 @@ The budget is applied where a process starts its work: the trials stage (one pro
 of workers), each worker process, the accuracy study and a Gymnasium environment that builds its
 own recogniser. torch is only told its share once it is imported, so a process that runs no
 recogniser never pays for importing it: a recogniser whose scores all come from the score files
-imports torch at its first missing column (:func:`import_torch`), which then gives torch the
-share the process's budget set, the count :func:`torch_threads` reported meanwhile.
+imports torch at its first missing column, which then gives torch the share the process's budget
+set (:mod:`pipeline.torch_later`).
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ from dataclasses import asdict, dataclass
 TORCH_THREADS_BESIDE_NUMBA = 1
 
 #: The budget this process applied last (:meth:`ThreadBudget.apply`): what torch gets when it is
-#: imported later (:func:`import_torch`).
+#: imported later (:func:`pipeline.torch_later.import_torch`).
 _APPLIED: list[ThreadBudget] = []
 
 
@@ -57,24 +57,9 @@ class ThreadBudget:
         return asdict(self)
 
 
-def import_torch():
-    """torch, imported now if it was not, with the torch share of the budget this process applied
-    (the share :meth:`ThreadBudget.apply` could not give it before it was imported)."""
-    import torch
-
-    budget = _APPLIED[0] if _APPLIED else None
-    if budget is not None and budget.torch is not None and torch.get_num_threads() != budget.torch:
-        torch.set_num_threads(budget.torch)
-    return torch
-
-
-def torch_threads() -> int:
-    """torch's intra-op threads in this process: torch's own count once imported, else the share of
-    the budget applied (what :func:`import_torch` will give it), else torch's count (imported)."""
-    torch = sys.modules.get("torch")
-    if torch is None and _APPLIED and _APPLIED[0].torch is not None:
-        return _APPLIED[0].torch
-    return import_torch().get_num_threads()
+def applied_budget() -> ThreadBudget | None:
+    """The budget this process applied last (None: none yet)."""
+    return _APPLIED[0] if _APPLIED else None
 
 
 def cores() -> int:

@@ -11,6 +11,7 @@ scores of a fixed probe episode (:func:`probe`) are not finite or not of the epi
 
 from __future__ import annotations
 
+import hashlib
 import math
 from dataclasses import asdict
 from pathlib import Path
@@ -66,6 +67,15 @@ def save_checkpoint(
     with atomic_output(path) as f:
         torch.save(payload, f)
     return path
+
+
+def file_sha256(path: str | Path) -> str:
+    """SHA-256 of a file's bytes (the records name the exact checkpoint a trial used)."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
 
 
 def load_checkpoint(

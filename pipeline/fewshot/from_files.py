@@ -30,7 +30,6 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from pipeline.errors import UserError
-from pipeline.files import file_sha256
 
 from .data import MANIFEST, DataError, PictureSet, load_split, read_manifest, to_tensor
 from .learn_from import query_objects
@@ -215,6 +214,12 @@ def files_source(cls, checkpoint, images_dir, expected, query_hue_shift: float) 
     except (OSError, UserError):
         return None
     return h.hexdigest()
+
+
+def file_sha256(path: Path) -> str:
+    """The sha256 of a file's bytes, as the records name a checkpoint (``hashlib.file_digest``)."""
+    with open(path, "rb") as f:
+        return hashlib.file_digest(f, "sha256").hexdigest()
 
 
 @functools.cache

@@ -31,7 +31,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from pipeline.threads import import_torch
+from pipeline.torch_later import import_torch
 
 from .from_files import load_recogniser
 from .settings import ModelConfig, ProtoConfig

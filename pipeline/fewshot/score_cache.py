@@ -49,7 +49,7 @@ from typing import Any
 import numpy as np
 
 from pipeline.files import atomic_output
-from pipeline.kernels import kernel_path
+from pipeline.torch_later import kernel_path
 
 #: The environment variable naming the folder of the score files, and the values that mean none.
 CACHE_VARIABLE = "FSRL_SCORE_CACHE"
@@ -165,7 +165,7 @@ def cache_folder() -> Path | None:
 
 def file_key(source: str) -> str:
     """The name of ``source``'s score file: the source, torch's version and the kernel path (both
-    known without importing torch: :func:`pipeline.kernels.kernel_path`)."""
+    known without importing torch: :mod:`pipeline.torch_later`)."""
     whole = f"{source}|torch {importlib.metadata.version('torch')}|kernels {kernel_path()}"
     return hashlib.sha256(whole.encode()).hexdigest()[:32]
 

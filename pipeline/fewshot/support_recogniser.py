@@ -30,8 +30,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from PIL import Image
 
-from pipeline.kernels import kernel_path
-from pipeline.threads import import_torch, torch_threads
+from pipeline.torch_later import import_torch, kernel_path, torch_threads
 
 from .data import to_tensor
 from .learn_from import learning_groups, table_by_group
@@ -185,7 +184,7 @@ class SupportSetRecogniser(abc.ABC):
     def _network_part(self) -> dict[int, torch.Tensor]:
         """Embed the pictures and :meth:`prepare` each picture's part, once (torch from here)."""
         if self._parts is None:
-            torch = import_torch()  # with the process's torch threads (pipeline.threads)
+            torch = import_torch()  # with the process's torch threads (pipeline.torch_later)
             network, query_images, support_images = self._inputs()
             self._network, self._support_images = network.eval(), support_images
             with torch.no_grad():

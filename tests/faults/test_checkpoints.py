@@ -259,7 +259,7 @@ def _with_model(d, *extra):
 
 
 def test_a_small_model_runs_and_is_named_in_the_records(tiny_model, tmp_path):
-    from pipeline.files import file_sha256
+    from pipeline.fewshot.checkpoint import file_sha256
     from pipeline.records import read_records
 
     out = cli(
