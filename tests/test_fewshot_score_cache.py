@@ -355,3 +355,25 @@ def test_processes_saving_at_once_keep_each_others_columns(score_folder, monkeyp
     for saver in savers:
         saver.join()
     assert set(read(path)[0]) == {(0, 0), (1, 1)}
+
+
+def test_a_subclass_elsewhere_keys_its_own_code(files, tmp_path, monkeypatch):
+    """A recogniser class outside pipeline/fewshot scores with its own code: a change to its file
+    is another source, so no column computed by the old code is read back."""
+    images, rn, _ = files
+    module = tmp_path / "my_recogniser.py"
+    module.write_text(
+        "from pipeline.fewshot.recogniser import RelationRecogniser\n\n\n"
+        "class Mine(RelationRecogniser):\n    pass\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    from my_recogniser import Mine
+
+    def source():
+        from_files._code_and_versions.cache_clear()  # the code is read once a process
+        return from_files.files_source(Mine, rn, images, None, 0.0)
+
+    before = source()
+    assert before not in (None, from_files.files_source(RelationRecogniser, rn, images, None, 0.0))
+    module.write_text(module.read_text() + "\n# changed\n")
+    assert source() != before

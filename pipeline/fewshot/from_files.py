@@ -6,9 +6,10 @@ every picture. A recogniser whose columns are all in its score file (:mod:`.scor
 none of it, so the score file is keyed by the **files** instead of the tensors: the checkpoint's
 sha256, every query and support picture's bytes and file name, the manifest's bytes, the model
 shape the config expects, the hue shift, the versions of Pillow and numpy (the pictures' resizing)
-and the bytes of the modules that turn them into scores (:data:`SCORING_MODULES`); torch's version
-and the kernel path are in the file's name. The first process to load a source writes, beside its
-columns, what a recogniser needs to start without its network (:func:`about`): the checkpoint's
+and the bytes of the modules that turn them into scores (:data:`SCORING_MODULES`, and the module of
+the recogniser's class: a subclass elsewhere too); torch's version and the kernel path are in the
+file's name. The first process to load a source writes, beside its columns, what a recogniser needs
+to start without its network (:meth:`Loaded.about`): the checkpoint's
 model shape, the categories and obstacles of the query pictures, the class names. A later process
 with the same files starts from that, and imports torch, reads the checkpoint and embeds the
 pictures only at its first column not in the file, so a study whose columns were all computed
@@ -23,6 +24,7 @@ from __future__ import annotations
 import functools
 import hashlib
 import importlib.metadata
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -201,8 +203,12 @@ class Loaded:
 def files_source(cls, checkpoint, images_dir, expected, query_hue_shift: float) -> str | None:
     """The sha256 of everything a recogniser loaded from these files scores with (module
     docstring), or None when a file cannot be read (loading it then says which)."""
+    class_module = getattr(sys.modules.get(cls.__module__), "__file__", None)
+    if class_module is None:  # a class of no file (``python -c``): its code cannot be keyed
+        return None
     h = hashlib.sha256(f"{cls.__module__}.{cls.__qualname__}:{cls.kind}".encode())
-    h.update(f"|{expected!r}|{float(query_hue_shift)!r}|{_code_and_versions()}".encode())
+    code = _code_and_versions(class_module)
+    h.update(f"|{expected!r}|{float(query_hue_shift)!r}|{code}".encode())
     try:
         h.update(file_sha256(Path(checkpoint)).encode())
         folder = Path(images_dir)
@@ -223,11 +229,12 @@ def file_sha256(path: Path) -> str:
 
 
 @functools.cache
-def _code_and_versions() -> str:
-    """The sha256 of :data:`SCORING_MODULES`' bytes, and the versions of Pillow and numpy."""
+def _code_and_versions(class_module: str) -> str:
+    """The sha256 of the bytes of :data:`SCORING_MODULES` and of ``class_module`` (the file of the
+    recogniser's class), and the versions of Pillow and numpy."""
     h = hashlib.sha256()
-    for name in SCORING_MODULES:
-        h.update(Path(__file__).with_name(name).read_bytes())
+    for path in [*(Path(__file__).with_name(name) for name in SCORING_MODULES), class_module]:
+        h.update(Path(path).read_bytes())
     versions = [importlib.metadata.version(p) for p in ("pillow", "numpy")]
     return f"{h.hexdigest()}|pillow {versions[0]}|numpy {versions[1]}"
 
