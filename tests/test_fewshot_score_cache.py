@@ -171,6 +171,7 @@ def test_a_trial_records_the_same_from_a_score_file_as_computed(files, score_fol
     assert_same(cold[1], warm[1])
 
 
+@pytest.mark.filterwarnings("error::ResourceWarning")  # the damaged file is closed too
 def test_a_damaged_score_file_is_set_aside_and_written_anew(files, score_folder):
     images, rn, _ = files
     RelationRecogniser.from_files(rn, images)

@@ -184,7 +184,8 @@ def read_score_file(
     if not path.exists():
         return {}, None
     try:
-        with np.load(path, allow_pickle=False) as saved:  # the zip checks every array's CRC
+        # np.load leaves a file it opened open when the zip is damaged: this one is closed
+        with open(path, "rb") as file, np.load(file, allow_pickle=False) as saved:  # CRC-checked
             out = {}
             about = json.loads(str(saved[ABOUT])) if ABOUT in saved.files else None
             if about is not None and not isinstance(about, dict):
