@@ -46,6 +46,37 @@ def test_each_group_sees_only_its_own_substitutions():
     np.testing.assert_array_equal(table[:, 1], [-7, -7, -2, 0])  # groups 1 and 2 their own
 
 
+def test_the_table_is_each_groups_own_view_asking_only_for_the_columns_that_differ():
+    """Against the definition (every group, every category, its own column), over random
+    support sets: the same table; columns asked for only where a group gave a category a picture."""
+    rng = np.random.default_rng(0)
+    original = -np.arange(1, 26).reshape(5, 5)
+    for groups in (np.arange(40), CATEGORIES, np.repeat(np.arange(10), 4)):
+        for _ in range(20):
+            members = original.copy()
+            for _ in range(rng.integers(0, 12)):
+                picture = int(rng.integers(40))
+                members[CATEGORIES[picture], rng.integers(5)] = picture
+            asked = []
+
+            def column(m, asked=asked):
+                asked.append(tuple(m))
+                return np.sin(np.arange(40) + sum(int(x) * 1.7**k for k, x in enumerate(m)))
+
+            defined = np.empty((40, 5))
+            for group in np.unique(groups):
+                rows = groups == group
+                own = (members >= 0) & (groups[np.maximum(members, 0)] == group)
+                for c in range(5):
+                    defined[rows, c] = column(np.where(own, members, original)[c])[rows]
+            asked.clear()
+            np.testing.assert_array_equal(
+                table_by_group(column, members, original, groups), defined
+            )
+            givers = {(c, groups[m]) for c in range(5) for m in members[c] if m >= 0}
+            assert len(asked) == 5 + len(givers)
+
+
 @pytest.fixture(scope="module")
 def files(tmp_path_factory):
     root = tmp_path_factory.mktemp("learn_from")

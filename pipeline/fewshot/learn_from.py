@@ -60,16 +60,20 @@ def table_by_group(
     """The (P, C) score table when each group of query pictures sees only its own substituted
     pictures: ``members`` (C, K) the support set (a query picture id >= 0, or an original sample's
     code < 0), ``original_members`` the same slots as first filled, ``groups`` (P,) each picture's
-    group and ``column(members)`` one category's (P,) scores for those members (paper eq. 2)."""
-    n_way = len(members)
+    group and ``column(members)`` one category's (P,) scores for those members (paper eq. 2).
+
+    A group none of whose pictures category c holds sees c's original members, so its rows take
+    the original column; only the groups that gave c a picture need a column of their own (a few,
+    not one a picture: ``same_picture`` has 40 groups)."""
     substituted = members >= 0
     source = np.where(substituted, groups[np.maximum(members, 0)], -1)
-    table = np.empty((len(groups), n_way))
-    for group in np.unique(groups):
-        rows = groups == group
-        seen = np.where(substituted & (source == group), members, original_members)
-        for c in range(n_way):
-            table[rows, c] = column(seen[c])[rows]
+    table = np.empty((len(groups), len(members)))
+    for c in range(len(members)):
+        table[:, c] = column(original_members[c])
+        for group in np.unique(source[c][substituted[c]]):
+            rows = groups == group
+            seen = np.where(substituted[c] & (source[c] == group), members[c], original_members[c])
+            table[rows, c] = column(seen)[rows]
     return table
 
 
