@@ -28,7 +28,7 @@ if nb.config.THREADING_LAYER == "default":
 from pipeline.rl.codes import Learner, Outcome, Status, StepFlag
 from pipeline.rl.policy import greedy_path_is_optimal, max_allowed, select_action, td_update
 from pipeline.rl.rules import apply_action, empty_added
-from pipeline.rl.structs import Sights
+from pipeline.rl.structs import Logs, Sights
 
 
 @nb.njit(cache=True)
@@ -121,22 +121,21 @@ def _pause(state, r, ep, t, s, pend, pend_resel, col, prev, e, ret):
 
 
 @nb.njit(cache=True)
-def advance_run(
-    r, ep_limit, method, maze, sights, state, results, trace, recognitions, additions, substitution
-):
+def advance_run(r, ep_limit, method, maze, sights, state, results, logs):
     """Advance run ``r`` until episode ``ep_limit`` or a pause; returns a ``Status``.
 
     ``method`` (``MethodParams``) and ``maze`` (``MazeArrays``) are shared by all runs; every
-    array of ``sights`` (``Sights``), ``state`` (``RunState``), ``results`` (``Results``),
-    ``trace`` (``Trace``), ``recognitions``, ``additions`` and ``substitution`` has a leading run
+    array of ``sights`` (``Sights``), ``state`` (``RunState``), ``results`` (``Results``) and
+    ``logs`` (``Logs``: the trace, recognitions, additions and substitution) has a leading run
     axis. One step (Algorithm 1 lines 3-25): choose ``a`` epsilon-greedily outside A_d (eqs. 7-8);
     apply it (``rules.apply_action``), reselecting while the recogniser prevents it; on a
     collision, constrained RL decays epsilon; update Q toward the Q-learning target (eq. 9,
     bootstrapping over the allowed actions Q') or the Sarsa target; log the step, the pictures
     seen and the pairs added to A_d. A misrecognised picture with a dynamic support set pauses
-    the run (``Status.substitute``, its details in ``substitution``); a full trace pauses it
-    before an episode starts (``Status.flush``).
+    the run (``Status.substitute``, its details in ``logs.substitution``); a full trace pauses
+    it before an episode starts (``Status.flush``).
     """
+    trace, recognitions, additions, substitution = logs
     capacity = trace.states.shape[1]
     added = empty_added()
     qr, ur = state.q[r], state.unsafe[r]
@@ -205,7 +204,6 @@ def advance_run(
     return status
 
 
-# The records one by one: a parallel loop takes records of arrays, not a record of records.
 @nb.njit(cache=True, parallel=True, nogil=True)  # the record writer runs meanwhile
 def advance_batch(
     run_ids,
@@ -221,19 +219,10 @@ def advance_batch(
     additions,
     substitution,
 ):
-    """``advance_run`` for every run in ``run_ids`` in parallel; writes its ``Status`` to ``status[r]``."""
+    """``advance_run`` for every run in ``run_ids`` in parallel; writes its ``Status`` to
+    ``status[r]``. A parallel loop takes records of arrays, not a record of records: the ``Logs``
+    come in as their four parts (the runner passes ``*logs``)."""
     for k in nb.prange(run_ids.shape[0]):
         r = run_ids[k]
-        status[r] = advance_run(
-            r,
-            ep_limit,
-            method,
-            maze,
-            sights,
-            state,
-            results,
-            trace,
-            recognitions,
-            additions,
-            substitution,
-        )
+        logs = Logs(trace, recognitions, additions, substitution)
+        status[r] = advance_run(r, ep_limit, method, maze, sights, state, results, logs)

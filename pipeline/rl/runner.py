@@ -24,14 +24,12 @@ from pipeline.rl.rules import Rule
 from pipeline.rl.run_world import GRID, RunWorld, World, make_run_world
 from pipeline.rl.sink import EpisodeSink
 from pipeline.rl.structs import (
-    Additions,
+    Logs,
     MazeArrays,
     MethodParams,
-    Recognitions,
     Results,
     RunState,
     Sights,
-    Substitution,
     Trace,
 )
 from pipeline.rl.trace_pool import TRACE_CAPACITY
@@ -111,10 +109,8 @@ class Trial:
         self.results = Results.zeros(runs, self.episodes)
         capacity = max(trace_capacity, method.max_steps)
         recording = self.trace_steps  # else a trace of one step that the kernel never writes
-        self.trace = trace_pool.borrow(runs, capacity) if recording else Trace.empty(runs, 1, False)
-        self.recognitions = Recognitions.empty(runs, self.n_dangerous)
-        self.additions = Additions.empty(runs, self.n_dangerous)
-        self.substitution = Substitution.empty(runs)
+        trace = trace_pool.borrow(runs, capacity) if recording else Trace.empty(runs, 1, False)
+        self.logs = Logs.empty(trace, runs, self.n_dangerous)
         self.status = np.zeros(runs, np.int64)
         self.score_table = None  # (runs, n_dangerous, n_categories) relation scores, when asked for
         self.scored = [0] * runs  # recognitions of each run with their scores in score_table
@@ -161,7 +157,7 @@ class Trial:
     def substitute(self, r: int) -> None:
         """Run ``r`` paused on a misrecognised picture: substitute it into the support set."""
         self.score_pending(r)  # the recognitions so far, under the support set they were made with
-        sub = self.substitution
+        sub = self.logs.substitution
         picture, category = int(sub.picture[r]), int(sub.category[r])
         position = self.recogniser.learn_from_collision(self.slot(r), picture, category)
         self.answer(r)
@@ -178,9 +174,10 @@ class Trial:
         """Relation scores of run ``r``'s recognitions not yet scored (only when recording)."""
         if not self.want_scores:
             return
-        lo, hi = self.scored[r], int(self.recognitions.length[r])
+        recognitions = self.logs.recognitions
+        lo, hi = self.scored[r], int(recognitions.length[r])
         if hi > lo:
-            pictures = self.recognitions.picture[r, lo:hi].astype(np.int64)
+            pictures = recognitions.picture[r, lo:hi].astype(np.int64)
             got = np.asarray(self.recogniser.scores(self.slot(r), pictures), np.float32)
             if self.score_table is None:
                 self.score_table = np.zeros((self.runs, self.n_dangerous, got.shape[1]), np.float32)
@@ -192,7 +189,7 @@ class Trial:
         done = int(self.state.episode[r])
         if done > self.emitted[r]:
             self.sink.episodes(**self._batch(r, self.emitted[r], done))
-        self.trace.length[r] = 0
+        self.logs.trace.length[r] = 0
         self.emitted[r] = done
 
     def _rows(self, table, r: int, handed: list[int], last_ep: int) -> slice:
@@ -205,12 +202,7 @@ class Trial:
 
     def _batch(self, r: int, first_ep: int, last_ep: int) -> dict:
         """Episodes ``first_ep..last_ep-1`` of run ``r`` as the sink's columnar batch (sink.py)."""
-        results, trace, recognitions, additions = (
-            self.results,
-            self.trace,
-            self.recognitions,
-            self.additions,
-        )
+        results, (trace, recognitions, additions, _) = self.results, self.logs
         eps = slice(first_ep, last_ep)
         steps = results.steps[r, eps]
         n = int(steps.sum()) if trace.record else 0  # a sink without steps gets none
@@ -257,10 +249,7 @@ class Trial:
                 self.sights,
                 self.state,
                 self.results,
-                self.trace,
-                self.recognitions,
-                self.additions,
-                self.substitution,
+                *self.logs,
             )
             self.kernel_seconds += time.perf_counter() - started
             bar.update(int(self.state.episode[pending].sum()) - before)
@@ -299,7 +288,7 @@ class Trial:
             raise
         finally:
             bar.close()
-            trace_pool.give_back(self.trace)  # to this process's next trial of its shape
+            trace_pool.give_back(self.logs.trace)  # to this process's next trial of its shape
         return self.result()
 
     def _run_group(self, group: np.ndarray, limits: list[int], bar) -> None:

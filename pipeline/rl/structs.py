@@ -1,5 +1,6 @@
 """The named records the numba code passes around: a method's parameters, the maze's lookup
-tables, what a run's robot sees, each run's learning state, and the buffers the kernel fills.
+tables, what a run's robot sees, each run's learning state, and the buffers the kernel fills
+(:class:`Logs`).
 
 They are ``typing.NamedTuple`` classes of numpy arrays and scalars, which numba compiles as
 structs: ``state.q[r]`` costs what a positional array argument costs. In the kernel every array
@@ -225,3 +226,24 @@ class Substitution(NamedTuple):
     @classmethod
     def empty(cls, runs: int) -> Substitution:
         return cls(*(np.zeros(runs, np.int64) for _ in range(4)))
+
+
+class Logs(NamedTuple):
+    """What the kernel writes down for the runner while runs advance: the step trace, the
+    recognitions, the A_d additions and a pending substitution (one argument, not four)."""
+
+    trace: Trace
+    recognitions: Recognitions
+    additions: Additions
+    substitution: Substitution
+
+    @classmethod
+    def empty(cls, trace: Trace, runs: int, capacity: int) -> Logs:
+        """Empty logs of ``runs`` runs around ``trace``: ``capacity`` recognitions and additions
+        a run (each dangerous pair, eq. 4, is seen and joins A_d at most once a run)."""
+        return cls(
+            trace,
+            Recognitions.empty(runs, capacity),
+            Additions.empty(runs, capacity),
+            Substitution.empty(runs),
+        )
