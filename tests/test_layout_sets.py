@@ -3,6 +3,7 @@
 ``workers`` giving the same bytes as one process."""
 
 import hashlib
+import multiprocessing
 
 import pytest
 from omegaconf import OmegaConf
@@ -184,3 +185,5 @@ def test_workers_give_the_same_bytes_as_one_process(tmp_path):
     (tmp_path / "out").rename(tmp_path / "one")
     run_stage("trials", [*args, "workers=2"])
     assert digest(tmp_path / "out") == one and len(one) == 3 * 7 * 2 + 1
+    # the idle workers are ended when the stage returns (not left to wind down on their own)
+    assert multiprocessing.active_children() == []
