@@ -372,9 +372,18 @@ def test_a_subclass_elsewhere_keys_its_own_code(files, tmp_path, monkeypatch):
 
     def source():
         from_files._code_and_versions.cache_clear()  # the code is read once a process
-        return from_files.files_source(Mine, rn, images, None, 0.0)
+        return from_files.files_source(Mine, from_files.RecogniserFiles(rn, images))
 
     before = source()
-    assert before not in (None, from_files.files_source(RelationRecogniser, rn, images, None, 0.0))
+    theirs = from_files.files_source(RelationRecogniser, from_files.RecogniserFiles(rn, images))
+    assert before not in (None, theirs)
     module.write_text(module.read_text() + "\n# changed\n")
     assert source() != before
+
+
+@pytest.mark.parametrize("shift", [float("nan"), float("inf")])
+def test_a_hue_shift_that_is_no_number_of_degrees_is_refused(shift):
+    """The files a recogniser is loaded from refuse a hue shift that turns no hue (before any
+    file is read)."""
+    with pytest.raises(ValueError, match="query_hue_shift must be a finite number of degrees"):
+        from_files.RecogniserFiles("no.pt", "no-images", None, shift)

@@ -57,31 +57,36 @@ SCORING_MODULES = (
 )
 
 
+@dataclass(frozen=True)
+class RecogniserFiles:
+    """What a recogniser is loaded from: a trained ``checkpoint`` and the query and support
+    pictures of ``images_dir``'s manifest; ``expected``, when given, the model shape the config
+    expects (a checkpoint of another shape or kind is refused, ``CheckpointError``);
+    ``query_hue_shift`` (degrees) turns the hue of the query pictures only (:mod:`.colour`, the
+    colour test; 0 leaves them as rendered)."""
+
+    checkpoint: str | Path
+    images_dir: str | Path
+    expected: Any = None
+    query_hue_shift: float = 0.0
+
+    def __post_init__(self):
+        if not np.isfinite(self.query_hue_shift):
+            raise ValueError(
+                f"query_hue_shift must be a finite number of degrees, got {self.query_hue_shift!r}"
+            )
+
+
 def load_recogniser(
-    cls: type[SupportSetRecogniser],
-    checkpoint,
-    images_dir,
-    expected,
-    query_hue_shift: float,
-    substitution_way: int,
-    carry_over: bool,
-    learn_from: str = "all",
+    cls: type[SupportSetRecogniser], files: RecogniserFiles, **settings: Any
 ) -> SupportSetRecogniser:
-    """A ``cls`` recogniser of a ``cls.kind`` checkpoint and the query and support pictures of
-    ``images_dir``'s manifest, resized to the checkpoint's input size and normalised with its
-    statistics. ``expected``, when given, is the model shape the config expects: a checkpoint of
-    another shape or kind is refused (``CheckpointError``). ``query_hue_shift`` (degrees) turns the
-    hue of the query pictures only (:mod:`.colour`, the colour test); 0 leaves them as rendered.
-    Started from its score file when that knows it (module docstring), else loaded now."""
-    if not np.isfinite(query_hue_shift):
-        raise ValueError(
-            f"query_hue_shift must be a finite number of degrees, got {query_hue_shift!r}"
-        )
-    source = files_source(cls, checkpoint, images_dir, expected, query_hue_shift)
+    """A ``cls`` recogniser of ``files`` (a ``cls.kind`` checkpoint), its pictures resized to the
+    checkpoint's input size and normalised with its statistics; ``settings``: the recogniser's
+    ``substitution_way``, ``carry_over`` and ``learn_from``. Started from its score file when that
+    knows it (module docstring), else loaded now."""
+    source = files_source(cls, files)
     store = store_for(source) if source is not None else None
-    read = functools.partial(Loaded.read, cls, checkpoint, images_dir, expected, query_hue_shift)
-    settings = {"substitution_way": substitution_way, "carry_over": carry_over}
-    settings["learn_from"] = learn_from
+    read = functools.partial(Loaded.read, cls, files)
     about = store.about if store is not None else None
     if about is not None:
         recogniser = _started_from(cls, store, source, read, settings)
@@ -104,11 +109,11 @@ def load_recogniser(
             store.about = about
     recogniser.class_names = tuple(about["class_names"])
     recogniser.checkpoint_file = {
-        "path": str(checkpoint),
+        "path": str(files.checkpoint),
         "sha256": about["checkpoint_sha256"],
         "model": dict(about["model"]),
     }
-    recogniser.query_hue_shift = float(query_hue_shift)
+    recogniser.query_hue_shift = float(files.query_hue_shift)
     return recogniser
 
 
@@ -122,11 +127,11 @@ def _started_from(
     recogniser = cls.__new__(cls)
 
     def network_inputs():
-        args = read.args  # cls, checkpoint, images_dir, expected, query_hue_shift
-        if files_source(*args) != source:
+        files = read.args[1]
+        if files_source(cls, files) != source:
             raise DataError(
-                f"the checkpoint {args[1]} or the pictures of {args[2]} changed while the "
-                "recogniser was in use; run again"
+                f"the checkpoint {files.checkpoint} or the pictures of {files.images_dir} changed "
+                "while the recogniser was in use; run again"
             )
         loaded = read()
         recogniser.checkpoint = loaded.checkpoint
@@ -162,9 +167,10 @@ class Loaded:
     class_names: tuple[str, ...]
 
     @classmethod
-    def read(cls_, kind_class, checkpoint, images_dir, expected, query_hue_shift) -> Loaded:
+    def read(cls_, kind_class, files: RecogniserFiles) -> Loaded:
         """Load the checkpoint (once per file, :func:`network_of`) and the pictures."""
-        network, payload = network_of(checkpoint, expected, kind_class.kind)
+        checkpoint, images_dir = files.checkpoint, files.images_dir
+        network, payload = network_of(checkpoint, files.expected, kind_class.kind)
         size = network.config.input_size
         frame = read_manifest(images_dir)
         query = load_split(images_dir, "query", size, frame)
@@ -172,7 +178,7 @@ class Loaded:
         q_images, q_cats, s_images, n_way, k_shot = _arranged(query, support, images_dir)
         from .colour import hue_rotate  # matplotlib's colour conversions: only when loading
 
-        q_images = hue_rotate(q_images, query_hue_shift)
+        q_images = hue_rotate(q_images, files.query_hue_shift)
         norm = payload["normalisation"]
         return cls_(
             network=network,
@@ -200,18 +206,18 @@ class Loaded:
         }
 
 
-def files_source(cls, checkpoint, images_dir, expected, query_hue_shift: float) -> str | None:
-    """The sha256 of everything a recogniser loaded from these files scores with (module
+def files_source(cls, files: RecogniserFiles) -> str | None:
+    """The sha256 of everything a ``cls`` recogniser loaded from ``files`` scores with (module
     docstring), or None when a file cannot be read (loading it then says which)."""
     class_module = getattr(sys.modules.get(cls.__module__), "__file__", None)
     if class_module is None:  # a class of no file (``python -c``): its code cannot be keyed
         return None
     h = hashlib.sha256(f"{cls.__module__}.{cls.__qualname__}:{cls.kind}".encode())
     code = _code_and_versions(class_module)
-    h.update(f"|{expected!r}|{float(query_hue_shift)!r}|{code}".encode())
+    h.update(f"|{files.expected!r}|{float(files.query_hue_shift)!r}|{code}".encode())
     try:
-        h.update(file_sha256(Path(checkpoint)).encode())
-        folder = Path(images_dir)
+        h.update(file_sha256(Path(files.checkpoint)).encode())
+        folder = Path(files.images_dir)
         h.update((folder / MANIFEST).read_bytes())
         frame = read_manifest(folder)
         files = frame.loc[frame["split"].isin(["query", "support"]), "file"]

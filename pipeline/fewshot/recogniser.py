@@ -33,7 +33,7 @@ import numpy as np
 
 from pipeline.torch_later import import_torch
 
-from .from_files import load_recogniser
+from .from_files import RecogniserFiles, load_recogniser
 from .settings import ModelConfig, ProtoConfig
 from .support_recogniser import SupportSetRecogniser
 
@@ -81,15 +81,13 @@ class RelationRecogniser(SupportSetRecogniser):
                 input_size if input_size is not None else 84,
                 relation_padding if relation_padding is not None else 0,
             )
+        files = RecogniserFiles(checkpoint, images_dir, shape, query_hue_shift)
         return load_recogniser(
             cls,
-            checkpoint,
-            images_dir,
-            shape,
-            query_hue_shift,
-            substitution_way,
-            carry_over,
-            learn_from,
+            files,
+            substitution_way=substitution_way,
+            carry_over=carry_over,
+            learn_from=learn_from,
         )
 
     def prepare(self, query_features, support_features):
@@ -133,15 +131,13 @@ class ProtoRecogniser(SupportSetRecogniser):
         config expects; ``query_hue_shift`` turns the query pictures' hue; ``learn_from`` which
         substituted pictures a query sees (:mod:`.learn_from`)."""
         shape = ProtoConfig(input_size) if input_size is not None else None
+        files = RecogniserFiles(checkpoint, images_dir, shape, query_hue_shift)
         return load_recogniser(
             cls,
-            checkpoint,
-            images_dir,
-            shape,
-            query_hue_shift,
-            substitution_way,
-            carry_over,
-            learn_from,
+            files,
+            substitution_way=substitution_way,
+            carry_over=carry_over,
+            learn_from=learn_from,
         )
 
     def prepare(self, query_features, support_features):
