@@ -14,15 +14,16 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from pipeline.errors import UserError
 from pipeline.files import disk_problem, size_text, write_atomic
 from pipeline.records import FileMeta, Records, RecordsError, read_records
 
-from .draw import Replay
-from .notes import empty_views, first_recognition
-from .story import ReplayError, Story
+from .notes import ReplayError, empty_views, first_recognition
+
+if TYPE_CHECKING:
+    from .story import Story
 
 APPLICATION = "fewshot_safe_rl_replay"
 #: The recorded config's ``world`` values (``pipeline/config/experiment.WORLDS``).
@@ -42,6 +43,8 @@ def drawing_of(rec, recs: Records, run: int, worlds: Worlds) -> Story:
     meta = recs.meta
     world = (meta.config if isinstance(meta.config, dict) else {}).get("world") or GRID_WORLD
     if world == GRID_WORLD:
+        from .draw import Replay  # the drawing modules load with Rerun (.notes)
+
         return Replay(rec, recs, run)
     if world != ROBOT_WORLD:
         raise ReplayError(

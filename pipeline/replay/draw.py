@@ -8,6 +8,7 @@ support set and its substitutions, the events.
 from __future__ import annotations
 
 import numpy as np
+import rerun as rr
 
 from pipeline.records import Records
 from pipeline.records import schema as S
@@ -28,6 +29,7 @@ class Replay(Story):
         self.moves = moves[:, ::-1]  # as (x, y)
         self.q = {e: v for (_, r, e), v in recs.q_values.items() if r == run}
         self.tick = 0  # the global step the episode being drawn starts at
+        self.visits = np.zeros(self.shape[0] * self.width, np.int64)  # the states visited so far
 
     # ---------------------------------------------------------------- geometry and clock
     def xy(self, cells) -> np.ndarray:
@@ -36,8 +38,6 @@ class Replay(Story):
         return np.stack([cols, rows], axis=1).astype(np.float32) + 0.5
 
     def boxes(self, cells, size: float, **kw):
-        import rerun as rr
-
         return rr.Boxes2D(
             mins=self.xy(cells) - size / 2, sizes=np.full((len(cells), 2), size), **kw
         )
@@ -60,8 +60,6 @@ class Replay(Story):
     def draw_static(self) -> None:
         """The maze (cells; obstacles in their category colours, named in the legend right of the
         maze and on hover, so no text covers the robot), the series."""
-        import rerun as rr
-
         grid = np.array([list(r) for r in self.meta.maze["layout"]]).ravel()
         free = np.flatnonzero(grid != "X")
         self.log(
@@ -110,28 +108,18 @@ class Replay(Story):
         self.log("metrics/return", rr.SeriesLines(names="return"), static=True)
 
     # ---------------------------------------------------------------- what changes
-    def log_unsafe(self) -> None:
-        """The unsafe set A_d so far, as red arrows."""
-        import rerun as rr
-
-        arr = np.array(self.ad, dtype=np.int64).reshape(-1, 2)
-        self.log(
-            "maze/unsafe",
-            rr.Arrows2D(
-                origins=self.xy(arr[:, 0]),
-                vectors=self.moves[arr[:, 1]] * 0.45,
-                colors=RED,
-                radii=0.04,
-                draw_order=3.0,
-            )
-            if len(arr)
-            else rr.Clear(recursive=False),
+    def unsafe_arrows(self, pairs: np.ndarray):
+        """A_d as red arrows in the maze."""
+        return rr.Arrows2D(
+            origins=self.xy(pairs[:, 0]),
+            vectors=self.moves[pairs[:, 1]] * 0.45,
+            colors=RED,
+            radii=0.04,
+            draw_order=3.0,
         )
 
     def heat(self, entity: str, values: np.ndarray, what: str) -> None:
         """``values`` per cell as a heat map aligned with the maze (one pixel a cell), with its range below."""
-        import rerun as rr
-
         rgb, lo, hi = heat_rgb(values.reshape(self.shape), log=what == "visits")
         self.log(entity, rr.Image(rgb, draw_order=-5.0))
         self.log(
@@ -144,28 +132,18 @@ class Replay(Story):
             ),
         )
 
-    def draw(self, episodes: list[int], empty: EmptyViews) -> None:
-        """Every step of ``episodes`` (consecutive recorded episodes of the run), after what the run
-        held before them: A_d, the support set and the visits; ``empty``: why views stay empty."""
-        first = episodes[0]
-        self.draw_static()
-        self.rec.set_time("step", sequence=0)
-        self.rec.set_time("episode", sequence=first)
-        self.begin(first, empty)
-        visits = np.bincount(
-            self.steps[self.steps.episode < first].state.to_numpy(),
-            minlength=self.shape[0] * self.width,
-        )
-        tick = 0
-        for e in episodes:
-            self.rec.set_time("step", sequence=tick)
-            self.rec.set_time("episode", sequence=e)
-            tick = self.episode(e, tick, visits)
+    def begin(self, first: int, empty: EmptyViews) -> None:
+        """What every replay starts from (:meth:`.story.Story.begin`), and the visits of the run's
+        earlier episodes."""
+        super().begin(first, empty)
+        earlier = self.steps[self.steps.episode < first].state.to_numpy()
+        self.visits = np.bincount(earlier, minlength=self.visits.size)
 
-    def episode(self, e: int, tick: int, visits: np.ndarray) -> int:
-        """Episode ``e`` from global step ``tick``; ``visits`` grows by its states. Returns the next tick."""
-        import rerun as rr
-
+    def episode(self, e: int, start: float) -> int:
+        """Episode ``e`` from global step ``start``; the visits grow by its states. Returns the next
+        episode's first step."""
+        tick, visits = int(start), self.visits
+        self.at(tick)
         ep = self.steps[self.steps.episode == e]
         states, actions, flags = (
             ep.state.to_numpy(),

@@ -10,6 +10,8 @@ import io
 from collections.abc import Sequence
 
 import numpy as np
+import rerun as rr
+import rerun.blueprint as rrb
 
 from pipeline import palette
 
@@ -55,8 +57,6 @@ def blueprint(
     legend (``legend``: the entity of a text document, if any), the support set grid (``grid``: its
     bounds) and the events; the time panel on ``timeline`` (the viewer's choice when None);
     ``shares``: the three columns' widths."""
-    import rerun.blueprint as rrb
-
     V, H = rrb.Vertical, rrb.Horizontal
     if picture is None:
         picture = rrb.Spatial2DView(origin="recognition/picture", name="picture seen")
@@ -92,8 +92,6 @@ def blueprint(
 def maze_views(name: str, heat_name: str, height: int, width: int, maze: Bounds):
     """The grid's views: the maze (titled with the recording's ``name``; ``maze``: its bounds) over
     the heat map (``heat_name``) and the return."""
-    import rerun.blueprint as rrb
-
     heat = _view2d(
         ((0, width), (0, height + 0.8)),
         origin="/",
@@ -108,8 +106,6 @@ def maze_views(name: str, heat_name: str, height: int, width: int, maze: Bounds)
 
 
 def _view2d(bounds: Bounds, **kw):
-    import rerun.blueprint as rrb
-
     return rrb.Spatial2DView(
         visual_bounds=rrb.VisualBounds2D(x_range=bounds[0], y_range=bounds[1]), **kw
     )
@@ -117,8 +113,6 @@ def _view2d(bounds: Bounds, **kw):
 
 def categories_context(names: Sequence[str]):
     """Class id ``c`` -> category name and colour, for every entity (obstacles, legend, grid rows)."""
-    import rerun as rr
-
     return rr.AnnotationContext(
         [rr.AnnotationInfo(id=c, label=name, color=colour(c)) for c, name in enumerate(names)]
     )
@@ -161,8 +155,6 @@ class SupportGrid:
 
     def frame(self, has_pictures: bool) -> None:
         """The row names and, for a file without support pictures, the note (static)."""
-        import rerun as rr
-
         n = len(self.names)
         self.rec.log(
             "support/categories",
@@ -197,8 +189,6 @@ class SupportGrid:
 
     def put(self, category: int, position: int, png: bytes, mark: str | None = None) -> None:
         """Show ``png`` as shot ``position`` of ``category``; ``mark``: when it was substituted."""
-        import rerun as rr
-
         entity = f"support/{category}/{position}"
         self.rec.log(
             entity,
@@ -213,8 +203,6 @@ class SupportGrid:
 
     def log_marks(self) -> None:
         """Frame the substituted pictures, each labelled with when it came in."""
-        import rerun as rr
-
         cells = sorted(self.marks)
         self.rec.log(
             "support/substituted",

@@ -31,6 +31,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import rerun as rr
+import rerun.blueprint as rrb
 
 from pipeline import palette
 from pipeline.records import Records
@@ -63,6 +65,7 @@ class RobotReplay(Story):
     (:class:`pipeline.robot.replay.RobotRun`, checked)."""
 
     picture_entity = f"{WORLD}/robot/camera/image"
+    unsafe_entity = f"{WORLD}/unsafe"
 
     def __init__(self, rec, recs: Records, run: int, robot):
         super().__init__(rec, recs, run)
@@ -99,8 +102,6 @@ class RobotReplay(Story):
         """The viewer's layout: the whole maze in 3D from the south (the legend beside it in
         view) over the return and collisions so far, the live picture through the camera, and the
         views every replay has, with the legend in words."""
-        import rerun.blueprint as rrb
-
         (x0, x1), (y0, y1) = self.floor()
         legend = self.legend_at()
         position, target = overview_eye(  # the floor, its walls and the legend with its names
@@ -128,8 +129,6 @@ class RobotReplay(Story):
     def draw_static(self) -> None:
         """The scene, the start and goal tiles, a dot under each obstacle in its category's colour
         (named on hover), the robot (its pose: per tick, :meth:`episode`), the legend, the series."""
-        import rerun as rr
-
         self.log(WORLD, rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
         log_scene(self.rec, *self.robot.scene(), root=f"{WORLD}/scene")
         robot, cell = self.robot, self.robot.cell
@@ -183,41 +182,18 @@ class RobotReplay(Story):
         )
 
     # ---------------------------------------------------------------- what changes
-    def log_unsafe(self) -> None:
-        """A_d so far as red arrows on the floor, from each pair's cell centre toward its move."""
-        import rerun as rr
-
-        pairs = np.array(self.ad, dtype=np.int64).reshape(-1, 2)
-        if not len(pairs):
-            self.log(f"{WORLD}/unsafe", rr.Clear(recursive=False))
-            return
+    def unsafe_arrows(self, pairs: np.ndarray):
+        """A_d as red arrows on the floor, from each pair's cell centre toward its move."""
         heading, reach, n = self.robot.headings(pairs[:, 1]), 0.45 * self.robot.cell, len(pairs)
-        self.log(
-            f"{WORLD}/unsafe",
-            rr.Arrows3D(
-                origins=np.c_[self.robot.centres(pairs[:, 0]), np.full(n, 0.03)],
-                vectors=np.c_[reach * np.cos(heading), reach * np.sin(heading), np.zeros(n)],
-                colors=RED,
-                radii=0.02,
-            ),
+        return rr.Arrows3D(
+            origins=np.c_[self.robot.centres(pairs[:, 0]), np.full(n, 0.03)],
+            vectors=np.c_[reach * np.cos(heading), reach * np.sin(heading), np.zeros(n)],
+            colors=RED,
+            radii=0.02,
         )
-
-    def draw(self, episodes: list[int], empty: EmptyViews) -> None:
-        """Every step of ``episodes``, back to back on ``sim_time``, after what the run's earlier
-        episodes left: A_d and the support set."""
-        self.draw_static()
-        self.at(0.0)
-        self.rec.set_time("episode", sequence=episodes[0])
-        self.begin(episodes[0], empty)
-        start = 0.0
-        for e in episodes:
-            self.rec.set_time("episode", sequence=e)
-            start = self.episode(e, start)
 
     def episode(self, e: int, start: float) -> float:
         """Episode ``e`` from ``start`` (s on ``sim_time``); returns when the next one starts."""
-        import rerun as rr
-
         steps, seen = self.steps[self.steps.episode == e], self.recog[self.recog.episode == e]
         self.path, self.start = self.robot.episode(e, steps, seen), start
         poses, n = self.path.poses, len(self.path.poses)
@@ -260,8 +236,6 @@ class RobotReplay(Story):
     def log_series(self, index, rewards: np.ndarray, starts: np.ndarray) -> None:
         """The episode's return so far at each step's end (steps begin at the ticks ``starts``) and
         its collisions so far, a step up at each contact; ``index``: ticks -> time columns."""
-        import rerun as rr
-
         ends = np.r_[0, starts[1:], len(self.path.poses) - 1][: len(rewards) + 1]
         self.rec.send_columns(
             "metrics/return",
@@ -281,8 +255,6 @@ class RobotReplay(Story):
         """The path on the floor up to every tick: ``world/path`` through its corners so far (a row
         at each corner, :func:`.scene3d.corners`), ``world/path/leg`` from the last corner to the
         robot (a row a tick); together the path within 2 mm, in little data."""
-        import rerun as rr
-
         xy = self.path.poses[:, 1:3]
         floor = np.c_[xy, np.full(len(xy), PATH_HEIGHT)]
         kept = corners(xy)
@@ -338,8 +310,6 @@ class RobotReplay(Story):
 
     def log_marks(self, name: str, marks: list, rgb, radius: float) -> None:
         """The episode's ``marks`` (x, y, label) so far as balls of ``rgb`` at ``world/<name>``."""
-        import rerun as rr
-
         self.log(
             f"{WORLD}/{name}",
             rr.Points3D(

@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import rerun as rr
 
 from pipeline import palette
 from pipeline.world.renderer_env import mujoco
@@ -38,8 +39,6 @@ HEADING = 0.4  # m: the heading arrow's length
 def log_scene(rec, model, data, root: str, skip_body: str = "robot") -> None:
     """Every drawn static geom of a compiled MuJoCo world as ``<root>/<geom>`` (group 0-2: not the
     collision boxes), but those of the body ``skip_body``."""
-    import rerun as rr
-
     G = mujoco.mjtGeom
     skip = model.body(skip_body).id
     for g in range(model.ngeom):
@@ -168,8 +167,6 @@ def log_robot(rec, root: str, half_sizes, camera) -> None:
     """The robot in its own frame ``root`` (x forward, z up; its pose: ``root``'s transform): its
     body box labelled *robot*, an arrow over it for its heading, and its camera (``root/camera``:
     ``camera``'s position and a pinhole, under which the live pictures go)."""
-    import rerun as rr
-
     colour = palette.rgb(palette.ROBOT)
     rec.log(
         f"{root}/body",
