@@ -1,25 +1,13 @@
-"""The robot's replay in 3D (:class:`RobotReplay`; issue 30, docs/robot3d.md "Replay"): one run of
-a robot cell's records drawn into a Rerun recording stream on the timelines ``sim_time`` (the
-simulated seconds; a whole run: its episodes back to back), ``step`` (the steps, counted across the
-replayed episodes, as on the grid) and ``episode``.
+"""The robot's replay in 3D (:class:`RobotReplay`; docs/robot3d.md "Replay"): one run of a robot
+cell's records drawn into a Rerun recording stream on the timelines ``sim_time`` (the simulated
+seconds; a whole run: its episodes back to back), ``step`` (the steps, counted across the replayed
+episodes, as on the grid) and ``episode``. Its entities: the robot's table in docs/replay.md.
 
 Everything 3D lies under ``world`` (z up), and the only 2D content there is the camera's picture,
-under its pinhole:
-
-* ``world/scene``: the maze as MuJoCo builds it for the run (:func:`.scene3d.log_scene`);
-  ``world/cells``: the start and goal tiles; ``world/obstacles``: a dot in its category's colour under
-  each obstacle (named on hover, as on the grid); ``world/legend``: categories and marks, named,
-  beside the maze;
-* ``world/robot``: the robot's pose at 10 Hz, carrying its body (labelled), its heading (an arrow)
-  and its camera (``world/robot/camera``, a pinhole), whose ``image`` is the live picture of each
-  recognition, taken where the robot stood; the picture's own 2D view looks through it;
-* ``world/path``: the path so far; ``world/collisions``: a big red ball where its box met an
-  obstacle; ``world/stops``: a ball in the reselection colour before each obstacle it recognised and
-  stopped for; ``world/unsafe``: A_d (eqs. 7-8) as red arrows on the floor.
-
-Beside the scene: the return and collisions of the episode so far (``metrics``), the legend in
-words (``legend``), and what every world's replay shows (:class:`.story.Story`): the recognition
-views, the support set, the events (collisions ERROR, stops WARN), each at the moment it happened.
+under its pinhole (``world/robot/camera``): the picture's own 2D view looks through it. Beside the
+scene: the return and collisions of the episode so far (``metrics``), the legend in words
+(``legend``), and what every world's replay shows (:class:`.story.Story`), each at the moment it
+happened.
 
 What the robot's records say (its path, its moments, its world) comes from a
 :class:`pipeline.robot.replay.RobotRun`, handed in by :func:`.build.build_replay`'s ``worlds``
@@ -57,6 +45,8 @@ WORLD = "world"
 HIT_RADIUS, STOP_RADIUS, LEGEND_RADIUS = 0.12, 0.09, 0.1  # m: the marks' balls
 MARK_HEIGHT, PATH_HEIGHT = 0.15, 0.02  # m above the floor
 STOP_AHEAD = 0.3  # of a cell: a stop's ball, ahead of the robot that stopped
+#: The marks an episode leaves in the scene (``world/<name>``): their balls' colour and radius.
+MARK_STYLES = {"collisions": (RED, HIT_RADIUS), "stops": (ORANGE, STOP_RADIUS)}
 
 
 class RobotReplay(Story):
@@ -73,8 +63,8 @@ class RobotReplay(Story):
         side = float(robot.camera.size)
         self.picture_box = ((0.0, 0.0), (side, side))
         self.robot, self.path, self.start, self.step0 = robot, None, 0.0, 0
-        self.hits: list[tuple[float, float, str]] = []  # the episode's marks so far
-        self.stops: list[tuple[float, float, str]] = []
+        #: The episode's marks so far (x, y, label), by name (:data:`MARK_STYLES`).
+        self.marks: dict[str, list[tuple[float, float, str]]] = {}
 
     # ---------------------------------------------------------------- the clock
     def when(self, t: int, picture: int | None = None, contact: bool = False) -> float:
@@ -210,9 +200,9 @@ class RobotReplay(Story):
 
         self.at(start)
         self.log_unsafe()
-        self.hits, self.stops = [], []
-        for marks in ("collisions", "stops"):
-            self.log(f"{WORLD}/{marks}", rr.Clear(recursive=False))
+        self.marks = {name: [] for name in MARK_STYLES}
+        for name in self.marks:
+            self.log(f"{WORLD}/{name}", rr.Clear(recursive=False))
         self.rec.send_columns(
             f"{WORLD}/robot",
             indexes=index(np.arange(n)),
@@ -225,9 +215,8 @@ class RobotReplay(Story):
         self.log_series(index, steps.reward.to_numpy(np.float64), starts)
         for t in sorted(self.path.contact_tick):
             self.at(self.when(t, contact=True), t)
-            x, y = self.contact(t)
-            self.hits.append((x, y, f"collision: ep {e} step {t}{self.collided_where(t)}"))
-            self.log_marks("collisions", self.hits, RED, HIT_RADIUS)
+            label = f"collision: ep {e} step {t}{self.collided_where(t)}"
+            self.add_mark("collisions", *self.contact(t), label)
         states, actions, flags = (steps[c].to_numpy() for c in ("state", "action", "flags"))
         self.events(e, states, actions, flags)
         self.step0 += len(steps)
@@ -258,25 +247,18 @@ class RobotReplay(Story):
         xy = self.path.poses[:, 1:3]
         floor = np.c_[xy, np.full(len(xy), PATH_HEIGHT)]
         kept = corners(xy)
-        self.rec.send_columns(
-            f"{WORLD}/path",
-            indexes=index(kept),
-            columns=rr.LineStrips3D.columns(
-                strips=[floor[kept[: i + 1]] for i in range(len(kept))],
-                colors=np.tile(ROBOT, (len(kept), 1)).astype(np.uint8),
-                radii=np.full(len(kept), 0.012, np.float32),
-            ),
-        )
         last = kept[np.searchsorted(kept, np.arange(len(xy)), side="right") - 1]
-        self.rec.send_columns(
-            f"{WORLD}/path/leg",
-            indexes=index(np.arange(len(xy))),
-            columns=rr.LineStrips3D.columns(
-                strips=[floor[[a, b]] for a, b in zip(last, range(len(xy)))],
-                colors=np.tile(ROBOT, (len(xy), 1)).astype(np.uint8),
-                radii=np.full(len(xy), 0.012, np.float32),
-            ),
-        )
+        for entity, ticks, strips in (
+            (f"{WORLD}/path", kept, [floor[kept[: i + 1]] for i in range(len(kept))]),
+            (f"{WORLD}/path/leg", np.arange(len(xy)), [floor[[c, i]] for i, c in enumerate(last)]),
+        ):
+            n = len(ticks)
+            lines = rr.LineStrips3D.columns(
+                strips=strips,
+                colors=np.tile(ROBOT, (n, 1)).astype(np.uint8),
+                radii=np.full(n, 0.012, np.float32),
+            )
+            self.rec.send_columns(entity, indexes=index(ticks), columns=lines)
 
     def contact(self, t: int) -> tuple[float, float]:
         """Where step ``t``'s collision touched (x, y in m)."""
@@ -299,24 +281,23 @@ class RobotReplay(Story):
         tick = int(self.path.pictures[number])
         x, y, yaw = self.path.poses[tick, 1:4]
         ahead = STOP_AHEAD * self.robot.cell
-        self.stops.append(
-            (
-                float(x + ahead * math.cos(yaw)),
-                float(y + ahead * math.sin(yaw)),
-                f"stop: step {int(r.step)}, recognised {self.cat(int(r.predicted))}",
-            )
-        )
-        self.log_marks("stops", self.stops, ORANGE, STOP_RADIUS)
+        x, y = float(x + ahead * math.cos(yaw)), float(y + ahead * math.sin(yaw))
+        label = f"stop: step {int(r.step)}, recognised {self.cat(int(r.predicted))}"
+        self.add_mark("stops", x, y, label)
 
-    def log_marks(self, name: str, marks: list, rgb, radius: float) -> None:
-        """The episode's ``marks`` (x, y, label) so far as balls of ``rgb`` at ``world/<name>``."""
+    def add_mark(self, name: str, x: float, y: float, label: str) -> None:
+        """Add the mark ``label`` at (``x``, ``y``) to the episode's ``name`` marks, and show them
+        all so far as balls at ``world/<name>`` (:data:`MARK_STYLES`)."""
+        marks, (rgb, radius) = self.marks[name], MARK_STYLES[name]
+        marks.append((x, y, label))
+        xs, ys, labels = zip(*marks)
         self.log(
             f"{WORLD}/{name}",
             rr.Points3D(
-                [[x, y, MARK_HEIGHT] for x, y, _ in marks],
+                np.c_[xs, ys, np.full(len(marks), MARK_HEIGHT)],
                 radii=radius,
                 colors=[rgb],
-                labels=[label for _, _, label in marks],
+                labels=list(labels),
                 show_labels=False,
             ),
         )

@@ -46,7 +46,9 @@ def log_scene(rec, model, data, root: str, skip_body: str = "robot") -> None:
             continue
         colour = (np.clip(model.geom_rgba[g], 0, 1) * 255).astype(np.uint8)
         pos, xmat, size = data.geom_xpos[g], data.geom_xmat[g].reshape(3, 3), model.geom_size[g]
-        quat = rr.Quaternion(xyzw=_quat_xyzw(xmat))
+        # the geom's orientation and colour, as every posed shape takes them; a rod's length and radius
+        posed = dict(quaternions=[rr.Quaternion(xyzw=_quat_xyzw(xmat))], colors=[colour])
+        rod = dict(lengths=[2 * size[1]], radii=[size[0]], **posed)
         kind = model.geom_type[g]
         if kind == G.mjGEOM_MESH:
             m = model.geom_dataid[g]
@@ -61,37 +63,14 @@ def log_scene(rec, model, data, root: str, skip_body: str = "robot") -> None:
             half = [[size[0], size[1], 0.001]]
             shape = rr.Boxes3D(centers=[pos], half_sizes=half, colors=[FLOOR], fill_mode="solid")
         elif kind == G.mjGEOM_BOX:
-            shape = rr.Boxes3D(
-                centers=[pos],
-                half_sizes=[size],
-                quaternions=[quat],
-                colors=[colour],
-                fill_mode="solid",
-            )
+            shape = rr.Boxes3D(centers=[pos], half_sizes=[size], fill_mode="solid", **posed)
         elif kind == G.mjGEOM_CYLINDER:
-            shape = rr.Cylinders3D(
-                centers=[pos],
-                lengths=[2 * size[1]],
-                radii=[size[0]],
-                colors=[colour],
-                quaternions=[quat],
-            )
+            shape = rr.Cylinders3D(centers=[pos], **rod)
         elif kind == G.mjGEOM_CAPSULE:  # rerun's capsule starts at its base
-            shape = rr.Capsules3D(
-                translations=[pos - xmat[:, 2] * size[1]],
-                lengths=[2 * size[1]],
-                radii=[size[0]],
-                colors=[colour],
-                quaternions=[quat],
-            )
+            shape = rr.Capsules3D(translations=[pos - xmat[:, 2] * size[1]], **rod)
         elif kind in (G.mjGEOM_SPHERE, G.mjGEOM_ELLIPSOID):
-            shape = rr.Ellipsoids3D(
-                centers=[pos],
-                half_sizes=[[size[0]] * 3 if kind == G.mjGEOM_SPHERE else size],
-                quaternions=[quat],
-                colors=[colour],
-                fill_mode="solid",
-            )
+            half = [size[0]] * 3 if kind == G.mjGEOM_SPHERE else size
+            shape = rr.Ellipsoids3D(centers=[pos], half_sizes=[half], fill_mode="solid", **posed)
         else:
             continue
         rec.log(f"{root}/{model.geom(g).name or f'geom{g}'}", shape, static=True)
@@ -124,12 +103,8 @@ def overview_eye(x_range, y_range) -> tuple[list[float], list[float]]:
     target = [(x0 + x1) / 2, (y0 + y1) / 2, 0.0]
     distance = 0.5 * math.hypot(x1 - x0, y1 - y0) / math.sin(math.radians(FIT_FOV / 2))
     up = math.radians(ELEVATION)
-    position = [
-        target[0],
-        target[1] - distance * math.cos(up),
-        distance * math.sin(up),
-    ]
-    return position, target
+    south_and_above = [0.0, -math.cos(up), math.sin(up)]
+    return [centre + distance * way for centre, way in zip(target, south_and_above)], target
 
 
 def corners(xy: np.ndarray, tol: float = 0.002) -> np.ndarray:
