@@ -14,7 +14,7 @@ from pipeline.records import Records
 from pipeline.records import schema as S
 
 from .notes import EmptyViews
-from .panels import heat_rgb, legend_positions, maze_views
+from .panels import heat_rgb, legend_positions, maze_views, note
 from .story import FREE, GOAL, NESW, ORANGE, RED, ROBOT, START, Story
 
 
@@ -62,49 +62,28 @@ class Replay(Story):
         maze and on hover, so no text covers the robot), the series."""
         grid = np.array([list(r) for r in self.meta.maze["layout"]]).ravel()
         free = np.flatnonzero(grid != "X")
-        self.log(
-            "maze/cells",
-            self.boxes(
-                free,
-                1.0,
-                draw_order=0.0,
-                colors=np.array(
-                    [{"S": START, "G": GOAL}.get(ch, FREE) for ch in grid[free]], np.uint8
-                ),
-            ),
-            static=True,
-        )
+        colours = np.array([{"S": START, "G": GOAL}.get(ch, FREE) for ch in grid[free]], np.uint8)
+        self.log("maze/cells", self.boxes(free, 1.0, draw_order=0.0, colors=colours), static=True)
         if obstacles := self.meta.obstacles.get(self.run, []):  # this run's assignment
-            self.log(
-                "maze/obstacles",
-                self.boxes(
-                    [o["cell"] for o in obstacles],
-                    0.9,
-                    draw_order=1.0,
-                    class_ids=[o["category"] for o in obstacles],
-                    show_labels=False,
-                    labels=[self.obstacle_label(o) for o in obstacles],
-                ),
-                static=True,
+            boxes = self.boxes(
+                [o["cell"] for o in obstacles],
+                0.9,
+                draw_order=1.0,
+                class_ids=[o["category"] for o in obstacles],
+                show_labels=False,
+                labels=[self.obstacle_label(o) for o in obstacles],
             )
+            self.log("maze/obstacles", boxes, static=True)
             n = len(self.labels)
             at = legend_positions(*self.shape, n + 2)[0]
-            self.log(
-                "maze/legend",
-                rr.Points2D(at[:n], radii=0.15, class_ids=np.arange(n), show_labels=True),
-                static=True,
-            )
-            self.log(
-                "maze/legend/cells",
-                rr.Points2D(at[n:], radii=0.15, colors=[START, GOAL], labels=["start", "goal"]),
-                static=True,
-            )
-        else:
-            self.log(
-                "maze/obstacles",
-                self.boxes(np.flatnonzero(grid == "X"), 0.9, colors=[90, 90, 90], draw_order=1.0),
-                static=True,
-            )
+            legend = rr.Points2D(at[:n], radii=0.15, class_ids=np.arange(n), show_labels=True)
+            self.log("maze/legend", legend, static=True)
+            ends = rr.Points2D(at[n:], radii=0.15, colors=[START, GOAL], labels=["start", "goal"])
+            self.log("maze/legend/cells", ends, static=True)
+        else:  # no assignment recorded: the obstacle cells in grey
+            cells = np.flatnonzero(grid == "X")
+            boxes = self.boxes(cells, 0.9, colors=[90, 90, 90], draw_order=1.0)
+            self.log("maze/obstacles", boxes, static=True)
         self.log("metrics/return", rr.SeriesLines(names="return"), static=True)
 
     # ---------------------------------------------------------------- what changes
@@ -122,15 +101,8 @@ class Replay(Story):
         """``values`` per cell as a heat map aligned with the maze (one pixel a cell), with its range below."""
         rgb, lo, hi = heat_rgb(values.reshape(self.shape), log=what == "visits")
         self.log(entity, rr.Image(rgb, draw_order=-5.0))
-        self.log(
-            f"{entity}/range",
-            rr.Points2D(
-                [[self.shape[1] / 2, self.shape[0] + 0.4]],
-                radii=0.01,
-                labels=[f"{what}: {lo:.4g} (dark) .. {hi:.4g} (yellow)"],
-                show_labels=True,
-            ),
-        )
+        below = [self.shape[1] / 2, self.shape[0] + 0.4]
+        self.log(f"{entity}/range", note(below, f"{what}: {lo:.4g} (dark) .. {hi:.4g} (yellow)"))
 
     def begin(self, first: int, empty: EmptyViews) -> None:
         """What every replay starts from (:meth:`.story.Story.begin`), and the visits of the run's

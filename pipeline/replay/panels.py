@@ -20,11 +20,9 @@ MARK = palette.rgb(palette.RESELECTED)  # the frame of a substituted support pic
 RAMP = np.array(
     [[68, 1, 84], [59, 82, 139], [33, 145, 140], [94, 201, 98], [253, 231, 37]], np.float64
 )
-PITCH = (
-    1.12,
-    1.5,
-)  # support grid: a picture is 1 x 1 scene units, its neighbours PITCH further (x, y),
-# leaving room under it for the label of a substitution
+#: The support grid: a picture is 1 x 1 scene units, its neighbours PITCH further (x, y), leaving
+#: room under it for the label of a substitution.
+PITCH = (1.12, 1.5)
 
 
 def colour(category: int) -> np.ndarray:
@@ -111,6 +109,11 @@ def _view2d(bounds: Bounds, **kw):
     )
 
 
+def note(at, text: str, **kw):
+    """``text`` at the 2D point ``at``, on a dot too small to see (``kw``: more of its fields)."""
+    return rr.Points2D([at], radii=0.01, labels=[text], show_labels=True, **kw)
+
+
 def categories_context(names: Sequence[str]):
     """Class id ``c`` -> category name and colour, for every entity (obstacles, legend, grid rows)."""
     return rr.AnnotationContext(
@@ -123,13 +126,12 @@ def heat_rgb(values: np.ndarray, log: bool = False) -> tuple[np.ndarray, float, 
     (``log``: of log(1 + value), for counts); returns the image, the minimum and the maximum."""
     v = np.asarray(values, np.float64)
     lo, hi = float(v.min()), float(v.max())
-    scaled = (
-        np.log1p(v - lo) / np.log1p(hi - lo)
-        if log and hi > lo
-        else (v - lo) / (hi - lo)
-        if hi > lo
-        else v * 0
-    )
+    if not hi > lo:  # one value everywhere: all dark
+        scaled = v * 0
+    elif log:
+        scaled = np.log1p(v - lo) / np.log1p(hi - lo)
+    else:
+        scaled = (v - lo) / (hi - lo)
     x = np.linspace(0.0, 1.0, len(RAMP))
     rgb = np.stack([np.interp(scaled, x, RAMP[:, i]) for i in range(3)], axis=-1)
     return np.round(rgb).astype(np.uint8), lo, hi
@@ -156,32 +158,17 @@ class SupportGrid:
     def frame(self, has_pictures: bool) -> None:
         """The row names and, for a file without support pictures, the note (static)."""
         n = len(self.names)
-        self.rec.log(
-            "support/categories",
-            rr.Points2D(
-                [[-0.8, c * PITCH[1] + 0.35] for c in range(n)],
-                radii=0.12,
-                class_ids=np.arange(n),
-                show_labels=True,
-            ),
-            static=True,
+        rows = rr.Points2D(
+            [[-0.8, c * PITCH[1] + 0.35] for c in range(n)],
+            radii=0.12,
+            class_ids=np.arange(n),
+            show_labels=True,
         )
-        if (
-            not has_pictures
-        ):  # in the middle of the grid, over whatever substituted pictures come in
-            self.rec.log(
-                "support/note",
-                rr.Points2D(
-                    [[self.shots * PITCH[0] / 2, n * PITCH[1] / 2]],
-                    radii=0.01,
-                    colors=[[90, 90, 90]],
-                    show_labels=True,
-                    labels=[
-                        "this file holds no support pictures:\nthe grid shows substituted ones only"
-                    ],
-                ),
-                static=True,
-            )
+        self.rec.log("support/categories", rows, static=True)
+        if not has_pictures:  # the note: in the middle, over whatever substituted pictures come in
+            middle = [self.shots * PITCH[0] / 2, n * PITCH[1] / 2]
+            text = "this file holds no support pictures:\nthe grid shows substituted ones only"
+            self.rec.log("support/note", note(middle, text, colors=[[90, 90, 90]]), static=True)
 
     def bounds(self) -> Bounds:
         """What the view shows: the grid and the row names left of it."""
@@ -189,13 +176,8 @@ class SupportGrid:
 
     def put(self, category: int, position: int, png: bytes, mark: str | None = None) -> None:
         """Show ``png`` as shot ``position`` of ``category``; ``mark``: when it was substituted."""
-        entity = f"support/{category}/{position}"
-        self.rec.log(
-            entity,
-            rr.Transform3D(
-                translation=[position * PITCH[0], category * PITCH[1], 0], scale=picture_scale(png)
-            ),
-        )
+        entity, at = f"support/{category}/{position}", [position * PITCH[0], category * PITCH[1], 0]
+        self.rec.log(entity, rr.Transform3D(translation=at, scale=picture_scale(png)))
         self.rec.log(entity, rr.EncodedImage(contents=png, media_type="image/png"))
         if mark is not None:
             self.marks[(category, position)] = mark

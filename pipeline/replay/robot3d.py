@@ -124,52 +124,38 @@ class RobotReplay(Story):
         robot, cell = self.robot, self.robot.cell
         obstacles = robot.obstacles
         under = robot.centres([o["cell"] for o in obstacles])
-        self.log(
-            f"{WORLD}/obstacles",
-            rr.Points3D(
-                np.c_[under, np.full(len(under), 0.01)],
-                radii=0.08,
-                class_ids=[o["category"] for o in obstacles],
-                labels=[self.obstacle_label(o) for o in obstacles],
-                show_labels=False,
-            ),
-            static=True,
+        dots = rr.Points3D(
+            np.c_[under, np.full(len(under), 0.01)],
+            radii=0.08,
+            class_ids=[o["category"] for o in obstacles],
+            labels=[self.obstacle_label(o) for o in obstacles],
+            show_labels=False,
         )
+        self.log(f"{WORLD}/obstacles", dots, static=True)
         ends = robot.centres([robot.layout.start, robot.layout.goal])
-        self.log(
-            f"{WORLD}/cells",
-            rr.Boxes3D(
-                centers=np.c_[ends, np.full(2, 0.004)],
-                half_sizes=[[0.45 * cell, 0.45 * cell, 0.002]] * 2,
-                colors=[palette.rgb(MARKS["start"]), palette.rgb(MARKS["goal"])],
-                labels=["start", "goal"],
-                show_labels=True,
-                fill_mode="solid",
-            ),
-            static=True,
+        tiles = rr.Boxes3D(
+            centers=np.c_[ends, np.full(2, 0.004)],
+            half_sizes=[[0.45 * cell, 0.45 * cell, 0.002]] * 2,
+            colors=[palette.rgb(MARKS["start"]), palette.rgb(MARKS["goal"])],
+            labels=["start", "goal"],
+            show_labels=True,
+            fill_mode="solid",
         )
+        self.log(f"{WORLD}/cells", tiles, static=True)
         log_robot(self.rec, f"{WORLD}/robot", robot.half_sizes, robot.camera)
         n, at = len(self.labels), self.legend_at()
-        self.log(
-            f"{WORLD}/legend",
-            rr.Points3D(
-                np.c_[at, np.full(len(at), MARK_HEIGHT)],
-                radii=LEGEND_RADIUS,
-                colors=[colour(c) for c in range(n)] + [palette.rgb(h) for h in MARKS.values()],
-                labels=self.labels + list(MARKS),
-                show_labels=True,
-            ),
-            static=True,
+        legend = rr.Points3D(
+            np.c_[at, np.full(len(at), MARK_HEIGHT)],
+            radii=LEGEND_RADIUS,
+            colors=[colour(c) for c in range(n)] + [palette.rgb(h) for h in MARKS.values()],
+            labels=self.labels + list(MARKS),
+            show_labels=True,
         )
-        self.log(
-            "legend",
-            rr.TextDocument(legend_text(self.labels), media_type="text/markdown"),
-            static=True,
-        )
-        self.log("metrics/return", rr.SeriesLines(names="return", colors=[ROBOT]), static=True)
-        self.log(
-            "metrics/collisions", rr.SeriesLines(names="collisions", colors=[RED]), static=True
-        )
+        self.log(f"{WORLD}/legend", legend, static=True)
+        words = rr.TextDocument(legend_text(self.labels), media_type="text/markdown")
+        self.log("legend", words, static=True)
+        for name, rgb in (("return", ROBOT), ("collisions", RED)):
+            self.log(f"metrics/{name}", rr.SeriesLines(names=name, colors=[rgb]), static=True)
 
     # ---------------------------------------------------------------- what changes
     def unsafe_arrows(self, pairs: np.ndarray):

@@ -186,10 +186,8 @@ class Story(abc.ABC):
         support = {k: (png, None) for k, png in self.meta.support_pictures.items()}
         for s in self.subs[self.subs.episode < first].itertuples():
             if int(s.picture) in self.meta.pictures:
-                support[(int(s.category), int(s.position))] = (
-                    self.meta.pictures[int(s.picture)],
-                    self.mark(s),
-                )
+                png = self.meta.pictures[int(s.picture)]
+                support[(int(s.category), int(s.position))] = (png, self.mark(s))
         for (c, p), (png, mark) in sorted(support.items()):
             self.grid.put(c, p, png, mark)
 

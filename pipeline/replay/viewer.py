@@ -130,10 +130,8 @@ def serve_web(rrd: str | Path, web: WebAddress) -> None:
     end; the server never outlives this call. It starts empty and gets the recording over gRPC
     (:func:`send_recording`), so it sleeps while no viewer asks for anything."""
     cmd = server_command(web)
-    env = {
-        "RUST_LOG": "warn",
-        **os.environ,
-    }  # Rerun's own log repeats the address without the recording
+    # quieted: Rerun's own log repeats the address without the recording
+    env = {"RUST_LOG": "warn", **os.environ}
     # preexec_fn: this stage starts no threads, so the fork-unsafety it warns of does not apply
     proc = subprocess.Popen(cmd, env=env, start_new_session=True, preexec_fn=_die_with_parent)  # noqa: PLW1509
     try:
