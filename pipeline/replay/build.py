@@ -2,12 +2,10 @@
 docs/records.md "Replay it in Rerun"). Moves, action and category names come from the file's maze
 metadata; a file without moves gets :data:`.story.NESW`, there and nowhere else.
 
-A grid cell is drawn by :class:`.draw.Replay` (timelines ``step``, global across the replayed
-episodes, and ``episode``); a robot cell, one whose recorded config says ``world: robot3d``, by
-:class:`.robot3d.RobotReplay` in 3D (timeline ``sim_time``), with what the robot's records say read
-by the world's own reader (``worlds``: :func:`pipeline.robot.replay.robot_run`, which the stage
-``replay`` hands in). Both read the one record file through :func:`pipeline.records.read_records`
-and share what is not the world's (:class:`.story.Story`).
+The recorded config's ``world`` picks the drawing (:func:`drawing_of`): the grid's
+:class:`.draw.Replay`, or the robot's :class:`.robot3d.RobotReplay` in 3D with the run as the
+world's own reader reads it (``worlds``: :func:`pipeline.robot.replay.robot_run`, which the stage
+``replay`` hands in). Both read the one record file through :func:`pipeline.records.read_records`.
 """
 
 from __future__ import annotations

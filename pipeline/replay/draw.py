@@ -1,8 +1,7 @@
 """The grid's replay (:class:`Replay`): one run of the records drawn into a Rerun recording stream
 on the timelines ``step`` and ``episode``: the maze, the obstacles in their category colours, the
 unsafe set, the robot's path, the return and the visits (or max Q) per cell; and what every
-world's replay shows (:class:`.story.Story`): every recognition with its scores and verdict, the
-support set and its substitutions, the events.
+world's replay shows (:class:`.story.Story`).
 """
 
 from __future__ import annotations
@@ -117,11 +116,8 @@ class Replay(Story):
         tick, visits = int(start), self.visits
         self.at(tick)
         ep = self.steps[self.steps.episode == e]
-        states, actions, flags = (
-            ep.state.to_numpy(),
-            ep.action.to_numpy().astype(np.int64),
-            ep["flags"].to_numpy(),
-        )
+        states, flags = ep.state.to_numpy(), ep["flags"].to_numpy()
+        actions = ep.action.to_numpy().astype(np.int64)
         n, at = len(states), self.xy(states)
         self.log_unsafe()
         if e - 1 in self.q:  # the Q table the episode starts from
@@ -131,39 +127,22 @@ class Replay(Story):
                 rr.TimeColumn("step", sequence=np.arange(tick, tick + n)),
                 rr.TimeColumn("episode", sequence=np.full(n, e)),
             ]
-            colours = np.where(
-                (flags & S.FLAG_COLLIDED)[:, None] != 0,
-                RED,
-                np.where((flags & S.FLAG_RESELECTED)[:, None] != 0, ORANGE, ROBOT),
-            )
-            for entity, columns in (
-                (
-                    "maze/robot",
-                    rr.Points2D.columns(
-                        positions=at,
-                        radii=np.full(n, 0.25, np.float32),
-                        colors=np.tile(ROBOT, (n, 1)),
-                    ),
+            collided, reselected = (flags & S.FLAG_COLLIDED) != 0, (flags & S.FLAG_RESELECTED) != 0
+            colours = np.where(collided[:, None], RED, np.where(reselected[:, None], ORANGE, ROBOT))
+            robot, radii = np.tile(ROBOT, (n, 1)), np.full(n, 0.25, np.float32)
+            by_entity = {
+                "maze/robot": rr.Points2D.columns(positions=at, radii=radii, colors=robot),
+                "maze/robot/action": rr.Arrows2D.columns(
+                    origins=at, vectors=self.moves[actions] * 0.4, colors=colours.astype(np.uint8)
                 ),
-                (
-                    "maze/robot/action",
-                    rr.Arrows2D.columns(
-                        origins=at,
-                        vectors=self.moves[actions] * 0.4,
-                        colors=colours.astype(np.uint8),
-                    ),
+                "maze/robot/trajectory": rr.LineStrips2D.columns(
+                    strips=[at[: t + 1] for t in range(n)], colors=robot
                 ),
-                (
-                    "maze/robot/trajectory",
-                    rr.LineStrips2D.columns(
-                        strips=[at[: t + 1] for t in range(n)], colors=np.tile(ROBOT, (n, 1))
-                    ),
+                "metrics/return": rr.Scalars.columns(
+                    scalars=np.cumsum(ep.reward.to_numpy(np.float64))
                 ),
-                (
-                    "metrics/return",
-                    rr.Scalars.columns(scalars=np.cumsum(ep.reward.to_numpy(np.float64))),
-                ),
-            ):
+            }
+            for entity, columns in by_entity.items():
                 self.rec.send_columns(entity, indexes=ticks, columns=columns)
         if not self.q:
             self.heat("derived/visits", visits, "visits")

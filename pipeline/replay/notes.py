@@ -14,6 +14,9 @@ from dataclasses import dataclass
 from pipeline.errors import UserError
 from pipeline.records import Records
 
+#: Why a run holds no recognition.
+NO_RECOGNITION = "the method recognises no pictures, or the robot never moved toward an obstacle"
+
 
 class ReplayError(UserError):
     """The run/episode is not in the records, or they cannot be drawn; ``key`` is the config key to
@@ -46,10 +49,9 @@ def first_recognition(recs: Records, run: int) -> tuple[int, str]:
         why = f"the first of run {run} with a recognition; recognitions in episodes {shown(seen)}"
         return seen[0], why
     recorded = sorted(int(e) for e in recs.episodes.episode[recs.episodes.run == run])
-    return recorded[0], (
-        f"the first recorded of run {run}, which holds no recognition (the method recognises no "
-        "pictures, or the robot never moved toward an obstacle)"
-    )
+    return recorded[
+        0
+    ], f"the first recorded of run {run}, which holds no recognition ({NO_RECOGNITION})"
 
 
 @dataclass(frozen=True)
@@ -72,10 +74,7 @@ def empty_views(recs: Records, run: int, episodes: list[int]) -> EmptyViews:
     seen = episodes_with(recs.recognitions, run)
     here = [e for e in seen if e in set(episodes)]
     if not seen:
-        why = (
-            f"no recognition in run {run}: the method recognises no pictures, or the robot never "
-            "moved toward an obstacle"
-        )
+        why = f"no recognition in run {run}: {NO_RECOGNITION}"
         return EmptyViews(why, why)
     if not here:
         why = (

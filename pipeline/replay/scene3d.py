@@ -143,41 +143,31 @@ def log_robot(rec, root: str, half_sizes, camera) -> None:
     body box labelled *robot*, an arrow over it for its heading, and its camera (``root/camera``:
     ``camera``'s position and a pinhole, under which the live pictures go)."""
     colour = palette.rgb(palette.ROBOT)
-    rec.log(
-        f"{root}/body",
-        rr.Boxes3D(
-            centers=[[0.0, 0.0, half_sizes[2]]],
-            half_sizes=[half_sizes],
-            colors=[colour],
-            labels=["robot"],
-            show_labels=True,
-            fill_mode="solid",
-        ),
-        static=True,
+    body = rr.Boxes3D(
+        centers=[[0.0, 0.0, half_sizes[2]]],
+        half_sizes=[half_sizes],
+        colors=[colour],
+        labels=["robot"],
+        show_labels=True,
+        fill_mode="solid",
     )
-    rec.log(
-        f"{root}/heading",
-        rr.Arrows3D(
-            origins=[[0.0, 0.0, 2 * half_sizes[2] + 0.03]],
-            vectors=[[HEADING, 0.0, 0.0]],
-            colors=[colour],
-            radii=0.025,
-        ),
-        static=True,
+    rec.log(f"{root}/body", body, static=True)
+    heading = rr.Arrows3D(
+        origins=[[0.0, 0.0, 2 * half_sizes[2] + 0.03]],
+        vectors=[[HEADING, 0.0, 0.0]],
+        colors=[colour],
+        radii=0.025,
     )
-    rec.log(
-        f"{root}/camera",
-        rr.Transform3D(translation=camera.position),
-        rr.Pinhole(  # in pixels (fov_y with aspect_ratio would size the image plane 1 x 1)
-            focal_length=camera.size / 2 / math.tan(math.radians(camera.fov_y) / 2),
-            width=camera.size,
-            height=camera.size,
-            camera_xyz=rr.ViewCoordinates.FLU,  # the body's axes: x forward, z up
-            image_plane_distance=0.25,
-            color=colour,
-        ),
-        static=True,
+    rec.log(f"{root}/heading", heading, static=True)
+    pinhole = rr.Pinhole(  # in pixels (fov_y with aspect_ratio would size the image plane 1 x 1)
+        focal_length=camera.size / 2 / math.tan(math.radians(camera.fov_y) / 2),
+        width=camera.size,
+        height=camera.size,
+        camera_xyz=rr.ViewCoordinates.FLU,  # the body's axes: x forward, z up
+        image_plane_distance=0.25,
+        color=colour,
     )
+    rec.log(f"{root}/camera", rr.Transform3D(translation=camera.position), pinhole, static=True)
 
 
 def legend_text(categories: list[str]) -> str:

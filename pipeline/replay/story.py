@@ -299,9 +299,8 @@ class Story(abc.ABC):
             {int(t): list(g.itertuples()) for t, g in df[df.episode == e].groupby("step")}
             for df in (ep_recog, self.unsafe, self.subs)
         )
-        for t in sorted(
-            {int(x) for x in np.flatnonzero(flags)} | seen.keys() | added.keys() | swapped.keys()
-        ):
+        flagged = {int(x) for x in np.flatnonzero(flags)}
+        for t in sorted(flagged | seen.keys() | added.keys() | swapped.keys()):
             where = f"run {self.run} ep {e} step {t}: "
             f = int(flags[t]) if t < len(flags) else 0
             if f:
