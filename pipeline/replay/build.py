@@ -2,27 +2,26 @@
 docs/records.md "Replay it in Rerun"). Moves, action and category names come from the file's maze
 metadata; a file without moves gets :data:`.story.NESW`, there and nowhere else.
 
-A grid cell is drawn by :class:`.draw.Replay` (timelines ``step``, global across the replayed
-episodes, and ``episode``); a robot cell, one whose recorded config says ``world: robot3d``, by
-:class:`.robot3d.RobotReplay` in 3D (timeline ``sim_time``), with what the robot's records say read
-by the world's own reader (``worlds``: :func:`pipeline.robot.replay.robot_run`, which the stage
-``replay`` hands in). Both read the one record file through :func:`pipeline.records.read_records`
-and share what is not the world's (:class:`.story.Story`).
+The recorded config's ``world`` picks the drawing (:func:`drawing_of`): the grid's
+:class:`.draw.Replay`, or the robot's :class:`.robot3d.RobotReplay` in 3D with the run as the
+world's own reader reads it (``worlds``: :func:`pipeline.robot.replay.robot_run`, which the stage
+``replay`` hands in). Both read the one record file through :func:`pipeline.records.read_records`.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from pipeline.errors import UserError
 from pipeline.files import disk_problem, size_text, write_atomic
 from pipeline.records import FileMeta, Records, RecordsError, read_records
 
-from .draw import Replay
-from .notes import empty_views, first_recognition
-from .story import ReplayError, Story
+from .notes import ReplayError, empty_views, first_recognition
+
+if TYPE_CHECKING:
+    from .story import Story
 
 APPLICATION = "fewshot_safe_rl_replay"
 #: The recorded config's ``world`` values (``pipeline/config/experiment.WORLDS``).
@@ -42,6 +41,8 @@ def drawing_of(rec, recs: Records, run: int, worlds: Worlds) -> Story:
     meta = recs.meta
     world = (meta.config if isinstance(meta.config, dict) else {}).get("world") or GRID_WORLD
     if world == GRID_WORLD:
+        from .draw import Replay  # the drawing modules load with Rerun (.notes)
+
         return Replay(rec, recs, run)
     if world != ROBOT_WORLD:
         raise ReplayError(

@@ -1,19 +1,19 @@
 """The grid's replay (:class:`Replay`): one run of the records drawn into a Rerun recording stream
 on the timelines ``step`` and ``episode``: the maze, the obstacles in their category colours, the
 unsafe set, the robot's path, the return and the visits (or max Q) per cell; and what every
-world's replay shows (:class:`.story.Story`): every recognition with its scores and verdict, the
-support set and its substitutions, the events.
+world's replay shows (:class:`.story.Story`).
 """
 
 from __future__ import annotations
 
 import numpy as np
+import rerun as rr
 
 from pipeline.records import Records
 from pipeline.records import schema as S
 
 from .notes import EmptyViews
-from .panels import heat_rgb, legend_positions, maze_views
+from .panels import heat_rgb, legend_positions, maze_views, note
 from .story import FREE, GOAL, NESW, ORANGE, RED, ROBOT, START, Story
 
 
@@ -28,6 +28,7 @@ class Replay(Story):
         self.moves = moves[:, ::-1]  # as (x, y)
         self.q = {e: v for (_, r, e), v in recs.q_values.items() if r == run}
         self.tick = 0  # the global step the episode being drawn starts at
+        self.visits = np.zeros(self.shape[0] * self.width, np.int64)  # the states visited so far
 
     # ---------------------------------------------------------------- geometry and clock
     def xy(self, cells) -> np.ndarray:
@@ -36,8 +37,6 @@ class Replay(Story):
         return np.stack([cols, rows], axis=1).astype(np.float32) + 0.5
 
     def boxes(self, cells, size: float, **kw):
-        import rerun as rr
-
         return rr.Boxes2D(
             mins=self.xy(cells) - size / 2, sizes=np.full((len(cells), 2), size), **kw
         )
@@ -60,118 +59,65 @@ class Replay(Story):
     def draw_static(self) -> None:
         """The maze (cells; obstacles in their category colours, named in the legend right of the
         maze and on hover, so no text covers the robot), the series."""
-        import rerun as rr
-
         grid = np.array([list(r) for r in self.meta.maze["layout"]]).ravel()
         free = np.flatnonzero(grid != "X")
-        self.log(
-            "maze/cells",
-            self.boxes(
-                free,
-                1.0,
-                draw_order=0.0,
-                colors=np.array(
-                    [{"S": START, "G": GOAL}.get(ch, FREE) for ch in grid[free]], np.uint8
-                ),
-            ),
-            static=True,
-        )
+        colours = np.array([{"S": START, "G": GOAL}.get(ch, FREE) for ch in grid[free]], np.uint8)
+        self.log("maze/cells", self.boxes(free, 1.0, draw_order=0.0, colors=colours), static=True)
         if obstacles := self.meta.obstacles.get(self.run, []):  # this run's assignment
-            self.log(
-                "maze/obstacles",
-                self.boxes(
-                    [o["cell"] for o in obstacles],
-                    0.9,
-                    draw_order=1.0,
-                    class_ids=[o["category"] for o in obstacles],
-                    show_labels=False,
-                    labels=[self.obstacle_label(o) for o in obstacles],
-                ),
-                static=True,
+            boxes = self.boxes(
+                [o["cell"] for o in obstacles],
+                0.9,
+                draw_order=1.0,
+                class_ids=[o["category"] for o in obstacles],
+                show_labels=False,
+                labels=[self.obstacle_label(o) for o in obstacles],
             )
+            self.log("maze/obstacles", boxes, static=True)
             n = len(self.labels)
             at = legend_positions(*self.shape, n + 2)[0]
-            self.log(
-                "maze/legend",
-                rr.Points2D(at[:n], radii=0.15, class_ids=np.arange(n), show_labels=True),
-                static=True,
-            )
-            self.log(
-                "maze/legend/cells",
-                rr.Points2D(at[n:], radii=0.15, colors=[START, GOAL], labels=["start", "goal"]),
-                static=True,
-            )
-        else:
-            self.log(
-                "maze/obstacles",
-                self.boxes(np.flatnonzero(grid == "X"), 0.9, colors=[90, 90, 90], draw_order=1.0),
-                static=True,
-            )
+            legend = rr.Points2D(at[:n], radii=0.15, class_ids=np.arange(n), show_labels=True)
+            self.log("maze/legend", legend, static=True)
+            ends = rr.Points2D(at[n:], radii=0.15, colors=[START, GOAL], labels=["start", "goal"])
+            self.log("maze/legend/cells", ends, static=True)
+        else:  # no assignment recorded: the obstacle cells in grey
+            cells = np.flatnonzero(grid == "X")
+            boxes = self.boxes(cells, 0.9, colors=[90, 90, 90], draw_order=1.0)
+            self.log("maze/obstacles", boxes, static=True)
         self.log("metrics/return", rr.SeriesLines(names="return"), static=True)
 
     # ---------------------------------------------------------------- what changes
-    def log_unsafe(self) -> None:
-        """The unsafe set A_d so far, as red arrows."""
-        import rerun as rr
-
-        arr = np.array(self.ad, dtype=np.int64).reshape(-1, 2)
-        self.log(
-            "maze/unsafe",
-            rr.Arrows2D(
-                origins=self.xy(arr[:, 0]),
-                vectors=self.moves[arr[:, 1]] * 0.45,
-                colors=RED,
-                radii=0.04,
-                draw_order=3.0,
-            )
-            if len(arr)
-            else rr.Clear(recursive=False),
+    def unsafe_arrows(self, pairs: np.ndarray):
+        """A_d as red arrows in the maze."""
+        return rr.Arrows2D(
+            origins=self.xy(pairs[:, 0]),
+            vectors=self.moves[pairs[:, 1]] * 0.45,
+            colors=RED,
+            radii=0.04,
+            draw_order=3.0,
         )
 
     def heat(self, entity: str, values: np.ndarray, what: str) -> None:
         """``values`` per cell as a heat map aligned with the maze (one pixel a cell), with its range below."""
-        import rerun as rr
-
         rgb, lo, hi = heat_rgb(values.reshape(self.shape), log=what == "visits")
         self.log(entity, rr.Image(rgb, draw_order=-5.0))
-        self.log(
-            f"{entity}/range",
-            rr.Points2D(
-                [[self.shape[1] / 2, self.shape[0] + 0.4]],
-                radii=0.01,
-                labels=[f"{what}: {lo:.4g} (dark) .. {hi:.4g} (yellow)"],
-                show_labels=True,
-            ),
-        )
+        below = [self.shape[1] / 2, self.shape[0] + 0.4]
+        self.log(f"{entity}/range", note(below, f"{what}: {lo:.4g} (dark) .. {hi:.4g} (yellow)"))
 
-    def draw(self, episodes: list[int], empty: EmptyViews) -> None:
-        """Every step of ``episodes`` (consecutive recorded episodes of the run), after what the run
-        held before them: A_d, the support set and the visits; ``empty``: why views stay empty."""
-        first = episodes[0]
-        self.draw_static()
-        self.rec.set_time("step", sequence=0)
-        self.rec.set_time("episode", sequence=first)
-        self.begin(first, empty)
-        visits = np.bincount(
-            self.steps[self.steps.episode < first].state.to_numpy(),
-            minlength=self.shape[0] * self.width,
-        )
-        tick = 0
-        for e in episodes:
-            self.rec.set_time("step", sequence=tick)
-            self.rec.set_time("episode", sequence=e)
-            tick = self.episode(e, tick, visits)
+    def begin(self, first: int, empty: EmptyViews) -> None:
+        """What every replay starts from (:meth:`.story.Story.begin`), and the visits of the run's
+        earlier episodes."""
+        super().begin(first, empty)
+        earlier = self.steps[self.steps.episode < first].state.to_numpy()
+        self.visits = np.bincount(earlier, minlength=self.visits.size)
 
-    def episode(self, e: int, tick: int, visits: np.ndarray) -> int:
-        """Episode ``e`` from global step ``tick``; ``visits`` grows by its states. Returns the next tick."""
-        import rerun as rr
-
+    def episode(self, e: int, start: float) -> int:
+        """Episode ``e`` from global step ``start``; the visits grow by its states. Returns the next
+        episode's first step."""
+        tick, visits = int(start), self.visits
+        self.at(tick)
         ep = self.steps[self.steps.episode == e]
-        states, actions, flags = (
-            ep.state.to_numpy(),
-            ep.action.to_numpy().astype(np.int64),
-            ep["flags"].to_numpy(),
-        )
+        states, flags = ep.state.to_numpy(), ep["flags"].to_numpy()
+        actions = ep.action.to_numpy().astype(np.int64)
         n, at = len(states), self.xy(states)
         self.log_unsafe()
         if e - 1 in self.q:  # the Q table the episode starts from
@@ -181,39 +127,22 @@ class Replay(Story):
                 rr.TimeColumn("step", sequence=np.arange(tick, tick + n)),
                 rr.TimeColumn("episode", sequence=np.full(n, e)),
             ]
-            colours = np.where(
-                (flags & S.FLAG_COLLIDED)[:, None] != 0,
-                RED,
-                np.where((flags & S.FLAG_RESELECTED)[:, None] != 0, ORANGE, ROBOT),
-            )
-            for entity, columns in (
-                (
-                    "maze/robot",
-                    rr.Points2D.columns(
-                        positions=at,
-                        radii=np.full(n, 0.25, np.float32),
-                        colors=np.tile(ROBOT, (n, 1)),
-                    ),
+            collided, reselected = (flags & S.FLAG_COLLIDED) != 0, (flags & S.FLAG_RESELECTED) != 0
+            colours = np.where(collided[:, None], RED, np.where(reselected[:, None], ORANGE, ROBOT))
+            robot, radii = np.tile(ROBOT, (n, 1)), np.full(n, 0.25, np.float32)
+            by_entity = {
+                "maze/robot": rr.Points2D.columns(positions=at, radii=radii, colors=robot),
+                "maze/robot/action": rr.Arrows2D.columns(
+                    origins=at, vectors=self.moves[actions] * 0.4, colors=colours.astype(np.uint8)
                 ),
-                (
-                    "maze/robot/action",
-                    rr.Arrows2D.columns(
-                        origins=at,
-                        vectors=self.moves[actions] * 0.4,
-                        colors=colours.astype(np.uint8),
-                    ),
+                "maze/robot/trajectory": rr.LineStrips2D.columns(
+                    strips=[at[: t + 1] for t in range(n)], colors=robot
                 ),
-                (
-                    "maze/robot/trajectory",
-                    rr.LineStrips2D.columns(
-                        strips=[at[: t + 1] for t in range(n)], colors=np.tile(ROBOT, (n, 1))
-                    ),
+                "metrics/return": rr.Scalars.columns(
+                    scalars=np.cumsum(ep.reward.to_numpy(np.float64))
                 ),
-                (
-                    "metrics/return",
-                    rr.Scalars.columns(scalars=np.cumsum(ep.reward.to_numpy(np.float64))),
-                ),
-            ):
+            }
+            for entity, columns in by_entity.items():
                 self.rec.send_columns(entity, indexes=ticks, columns=columns)
         if not self.q:
             self.heat("derived/visits", visits, "visits")

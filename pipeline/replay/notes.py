@@ -1,14 +1,30 @@
-"""Why a view of the replay is empty, in words: the episode the replay opens on when none is asked
-for (:func:`first_recognition`), and for each view that would otherwise say only "No data" the
-reason (:func:`empty_views`): the method recognises no pictures, this episode holds no
-recognition (and which episodes do), or the recogniser records no scores.
+"""What the replay says in words before it draws: why it cannot (:class:`ReplayError`), the episode
+it opens on when none is asked for (:func:`first_recognition`), and for each view that would
+otherwise say only "No data" the reason (:func:`empty_views`): the method recognises no pictures,
+this episode holds no recognition (and which episodes do), or the recogniser records no scores.
+
+Nothing here needs Rerun: ``import pipeline.replay`` (the stage's checks before any work) stays
+light, and the drawing modules load with Rerun when a recording is drawn (:func:`.build.drawing_of`).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+from pipeline.errors import UserError
 from pipeline.records import Records
+
+#: Why a run holds no recognition.
+NO_RECOGNITION = "the method recognises no pictures, or the robot never moved toward an obstacle"
+
+
+class ReplayError(UserError):
+    """The run/episode is not in the records, or they cannot be drawn; ``key`` is the config key to
+    blame (``"file"`` for a record file that cannot be read or drawn)."""
+
+    def __init__(self, message: str, key: str = "run/episode"):
+        super().__init__(message)
+        self.key = key
 
 
 def episodes_with(frame, run: int) -> list[int]:
@@ -30,14 +46,12 @@ def first_recognition(recs: Records, run: int) -> tuple[int, str]:
     recognition, else the first recorded; with a sentence saying which and why."""
     seen = episodes_with(recs.recognitions, run)
     if seen:
-        return seen[
-            0
-        ], f"the first of run {run} with a recognition; recognitions in episodes {shown(seen)}"
+        why = f"the first of run {run} with a recognition; recognitions in episodes {shown(seen)}"
+        return seen[0], why
     recorded = sorted(int(e) for e in recs.episodes.episode[recs.episodes.run == run])
-    return recorded[0], (
-        f"the first recorded of run {run}, which holds no recognition (the method recognises no "
-        "pictures, or the robot never moved toward an obstacle)"
-    )
+    return recorded[
+        0
+    ], f"the first recorded of run {run}, which holds no recognition ({NO_RECOGNITION})"
 
 
 @dataclass(frozen=True)
@@ -60,10 +74,7 @@ def empty_views(recs: Records, run: int, episodes: list[int]) -> EmptyViews:
     seen = episodes_with(recs.recognitions, run)
     here = [e for e in seen if e in set(episodes)]
     if not seen:
-        why = (
-            f"no recognition in run {run}: the method recognises no pictures, or the robot never "
-            "moved toward an obstacle"
-        )
+        why = f"no recognition in run {run}: {NO_RECOGNITION}"
         return EmptyViews(why, why)
     if not here:
         why = (
@@ -76,32 +87,3 @@ def empty_views(recs: Records, run: int, episodes: list[int]) -> EmptyViews:
     if not scores or rows[scores].isna().all().all():
         return EmptyViews(None, "the recogniser records no scores (it names a category only)")
     return EmptyViews(None, None)
-
-
-def log_empty(
-    rec, empty: EmptyViews, picture: str = "recognition/picture", box=((-1.0, -1.0), (1.0, 1.0))
-) -> None:
-    """Say in the picture and recognition views why they stay empty (static: for every step);
-    ``picture``: the entity of the pictures, whose view shows ``box`` (two corners) without them."""
-    import rerun as rr
-
-    if empty.recognition is None:
-        return
-    rec.log(
-        "recognition/result",
-        rr.TextDocument(
-            f"### No recognition to show\n\n{empty.recognition}.", media_type="text/markdown"
-        ),
-        static=True,
-    )
-    (x0, y0), (x1, y1) = box
-    rec.log(  # the corners keep the label, centred on the middle point, inside the view
-        f"{picture}/note",
-        rr.Points2D(
-            [[x0, y0], [(x0 + x1) / 2, (y0 + y1) / 2], [x1, y1]],
-            radii=[0.0, 0.01, 0.0],
-            labels=["", "no picture seen: see the recognition view", ""],
-            show_labels=True,
-        ),
-        static=True,
-    )

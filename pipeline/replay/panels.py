@@ -10,6 +10,8 @@ import io
 from collections.abc import Sequence
 
 import numpy as np
+import rerun as rr
+import rerun.blueprint as rrb
 
 from pipeline import palette
 
@@ -18,11 +20,9 @@ MARK = palette.rgb(palette.RESELECTED)  # the frame of a substituted support pic
 RAMP = np.array(
     [[68, 1, 84], [59, 82, 139], [33, 145, 140], [94, 201, 98], [253, 231, 37]], np.float64
 )
-PITCH = (
-    1.12,
-    1.5,
-)  # support grid: a picture is 1 x 1 scene units, its neighbours PITCH further (x, y),
-# leaving room under it for the label of a substitution
+#: The support grid: a picture is 1 x 1 scene units, its neighbours PITCH further (x, y), leaving
+#: room under it for the label of a substitution.
+PITCH = (1.12, 1.5)
 
 
 def colour(category: int) -> np.ndarray:
@@ -55,8 +55,6 @@ def blueprint(
     legend (``legend``: the entity of a text document, if any), the support set grid (``grid``: its
     bounds) and the events; the time panel on ``timeline`` (the viewer's choice when None);
     ``shares``: the three columns' widths."""
-    import rerun.blueprint as rrb
-
     V, H = rrb.Vertical, rrb.Horizontal
     if picture is None:
         picture = rrb.Spatial2DView(origin="recognition/picture", name="picture seen")
@@ -92,8 +90,6 @@ def blueprint(
 def maze_views(name: str, heat_name: str, height: int, width: int, maze: Bounds):
     """The grid's views: the maze (titled with the recording's ``name``; ``maze``: its bounds) over
     the heat map (``heat_name``) and the return."""
-    import rerun.blueprint as rrb
-
     heat = _view2d(
         ((0, width), (0, height + 0.8)),
         origin="/",
@@ -108,17 +104,18 @@ def maze_views(name: str, heat_name: str, height: int, width: int, maze: Bounds)
 
 
 def _view2d(bounds: Bounds, **kw):
-    import rerun.blueprint as rrb
-
     return rrb.Spatial2DView(
         visual_bounds=rrb.VisualBounds2D(x_range=bounds[0], y_range=bounds[1]), **kw
     )
 
 
+def note(at, text: str, **kw):
+    """``text`` at the 2D point ``at``, on a dot too small to see (``kw``: more of its fields)."""
+    return rr.Points2D([at], radii=0.01, labels=[text], show_labels=True, **kw)
+
+
 def categories_context(names: Sequence[str]):
     """Class id ``c`` -> category name and colour, for every entity (obstacles, legend, grid rows)."""
-    import rerun as rr
-
     return rr.AnnotationContext(
         [rr.AnnotationInfo(id=c, label=name, color=colour(c)) for c, name in enumerate(names)]
     )
@@ -129,13 +126,12 @@ def heat_rgb(values: np.ndarray, log: bool = False) -> tuple[np.ndarray, float, 
     (``log``: of log(1 + value), for counts); returns the image, the minimum and the maximum."""
     v = np.asarray(values, np.float64)
     lo, hi = float(v.min()), float(v.max())
-    scaled = (
-        np.log1p(v - lo) / np.log1p(hi - lo)
-        if log and hi > lo
-        else (v - lo) / (hi - lo)
-        if hi > lo
-        else v * 0
-    )
+    if not hi > lo:  # one value everywhere: all dark
+        scaled = v * 0
+    elif log:
+        scaled = np.log1p(v - lo) / np.log1p(hi - lo)
+    else:
+        scaled = (v - lo) / (hi - lo)
     x = np.linspace(0.0, 1.0, len(RAMP))
     rgb = np.stack([np.interp(scaled, x, RAMP[:, i]) for i in range(3)], axis=-1)
     return np.round(rgb).astype(np.uint8), lo, hi
@@ -161,35 +157,18 @@ class SupportGrid:
 
     def frame(self, has_pictures: bool) -> None:
         """The row names and, for a file without support pictures, the note (static)."""
-        import rerun as rr
-
         n = len(self.names)
-        self.rec.log(
-            "support/categories",
-            rr.Points2D(
-                [[-0.8, c * PITCH[1] + 0.35] for c in range(n)],
-                radii=0.12,
-                class_ids=np.arange(n),
-                show_labels=True,
-            ),
-            static=True,
+        rows = rr.Points2D(
+            [[-0.8, c * PITCH[1] + 0.35] for c in range(n)],
+            radii=0.12,
+            class_ids=np.arange(n),
+            show_labels=True,
         )
-        if (
-            not has_pictures
-        ):  # in the middle of the grid, over whatever substituted pictures come in
-            self.rec.log(
-                "support/note",
-                rr.Points2D(
-                    [[self.shots * PITCH[0] / 2, n * PITCH[1] / 2]],
-                    radii=0.01,
-                    colors=[[90, 90, 90]],
-                    show_labels=True,
-                    labels=[
-                        "this file holds no support pictures:\nthe grid shows substituted ones only"
-                    ],
-                ),
-                static=True,
-            )
+        self.rec.log("support/categories", rows, static=True)
+        if not has_pictures:  # the note: in the middle, over whatever substituted pictures come in
+            middle = [self.shots * PITCH[0] / 2, n * PITCH[1] / 2]
+            text = "this file holds no support pictures:\nthe grid shows substituted ones only"
+            self.rec.log("support/note", note(middle, text, colors=[[90, 90, 90]]), static=True)
 
     def bounds(self) -> Bounds:
         """What the view shows: the grid and the row names left of it."""
@@ -197,15 +176,8 @@ class SupportGrid:
 
     def put(self, category: int, position: int, png: bytes, mark: str | None = None) -> None:
         """Show ``png`` as shot ``position`` of ``category``; ``mark``: when it was substituted."""
-        import rerun as rr
-
-        entity = f"support/{category}/{position}"
-        self.rec.log(
-            entity,
-            rr.Transform3D(
-                translation=[position * PITCH[0], category * PITCH[1], 0], scale=picture_scale(png)
-            ),
-        )
+        entity, at = f"support/{category}/{position}", [position * PITCH[0], category * PITCH[1], 0]
+        self.rec.log(entity, rr.Transform3D(translation=at, scale=picture_scale(png)))
         self.rec.log(entity, rr.EncodedImage(contents=png, media_type="image/png"))
         if mark is not None:
             self.marks[(category, position)] = mark
@@ -213,8 +185,6 @@ class SupportGrid:
 
     def log_marks(self) -> None:
         """Frame the substituted pictures, each labelled with when it came in."""
-        import rerun as rr
-
         cells = sorted(self.marks)
         self.rec.log(
             "support/substituted",

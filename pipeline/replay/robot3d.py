@@ -1,25 +1,13 @@
-"""The robot's replay in 3D (:class:`RobotReplay`; issue 30, docs/robot3d.md "Replay"): one run of
-a robot cell's records drawn into a Rerun recording stream on the timelines ``sim_time`` (the
-simulated seconds; a whole run: its episodes back to back), ``step`` (the steps, counted across the
-replayed episodes, as on the grid) and ``episode``.
+"""The robot's replay in 3D (:class:`RobotReplay`; docs/robot3d.md "Replay"): one run of a robot
+cell's records drawn into a Rerun recording stream on the timelines ``sim_time`` (the simulated
+seconds; a whole run: its episodes back to back), ``step`` (the steps, counted across the replayed
+episodes, as on the grid) and ``episode``. Its entities: the robot's table in docs/replay.md.
 
 Everything 3D lies under ``world`` (z up), and the only 2D content there is the camera's picture,
-under its pinhole:
-
-* ``world/scene``: the maze as MuJoCo builds it for the run (:func:`.scene3d.log_scene`);
-  ``world/cells``: the start and goal tiles; ``world/obstacles``: a dot in its category's colour under
-  each obstacle (named on hover, as on the grid); ``world/legend``: categories and marks, named,
-  beside the maze;
-* ``world/robot``: the robot's pose at 10 Hz, carrying its body (labelled), its heading (an arrow)
-  and its camera (``world/robot/camera``, a pinhole), whose ``image`` is the live picture of each
-  recognition, taken where the robot stood; the picture's own 2D view looks through it;
-* ``world/path``: the path so far; ``world/collisions``: a big red ball where its box met an
-  obstacle; ``world/stops``: a ball in the reselection colour before each obstacle it recognised and
-  stopped for; ``world/unsafe``: A_d (eqs. 7-8) as red arrows on the floor.
-
-Beside the scene: the return and collisions of the episode so far (``metrics``), the legend in
-words (``legend``), and what every world's replay shows (:class:`.story.Story`): the recognition
-views, the support set, the events (collisions ERROR, stops WARN), each at the moment it happened.
+under its pinhole (``world/robot/camera``): the picture's own 2D view looks through it. Beside the
+scene: the return and collisions of the episode so far (``metrics``), the legend in words
+(``legend``), and what every world's replay shows (:class:`.story.Story`), each at the moment it
+happened.
 
 What the robot's records say (its path, its moments, its world) comes from a
 :class:`pipeline.robot.replay.RobotRun`, handed in by :func:`.build.build_replay`'s ``worlds``
@@ -31,6 +19,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import rerun as rr
+import rerun.blueprint as rrb
 
 from pipeline import palette
 from pipeline.records import Records
@@ -55,6 +45,8 @@ WORLD = "world"
 HIT_RADIUS, STOP_RADIUS, LEGEND_RADIUS = 0.12, 0.09, 0.1  # m: the marks' balls
 MARK_HEIGHT, PATH_HEIGHT = 0.15, 0.02  # m above the floor
 STOP_AHEAD = 0.3  # of a cell: a stop's ball, ahead of the robot that stopped
+#: The marks an episode leaves in the scene (``world/<name>``): their balls' colour and radius.
+MARK_STYLES = {"collisions": (RED, HIT_RADIUS), "stops": (ORANGE, STOP_RADIUS)}
 
 
 class RobotReplay(Story):
@@ -63,6 +55,7 @@ class RobotReplay(Story):
     (:class:`pipeline.robot.replay.RobotRun`, checked)."""
 
     picture_entity = f"{WORLD}/robot/camera/image"
+    unsafe_entity = f"{WORLD}/unsafe"
 
     def __init__(self, rec, recs: Records, run: int, robot):
         super().__init__(rec, recs, run)
@@ -70,8 +63,8 @@ class RobotReplay(Story):
         side = float(robot.camera.size)
         self.picture_box = ((0.0, 0.0), (side, side))
         self.robot, self.path, self.start, self.step0 = robot, None, 0.0, 0
-        self.hits: list[tuple[float, float, str]] = []  # the episode's marks so far
-        self.stops: list[tuple[float, float, str]] = []
+        #: The episode's marks so far (x, y, label), by name (:data:`MARK_STYLES`).
+        self.marks: dict[str, list[tuple[float, float, str]]] = {}
 
     # ---------------------------------------------------------------- the clock
     def when(self, t: int, picture: int | None = None, contact: bool = False) -> float:
@@ -99,8 +92,6 @@ class RobotReplay(Story):
         """The viewer's layout: the whole maze in 3D from the south (the legend beside it in
         view) over the return and collisions so far, the live picture through the camera, and the
         views every replay has, with the legend in words."""
-        import rerun.blueprint as rrb
-
         (x0, x1), (y0, y1) = self.floor()
         legend = self.legend_at()
         position, target = overview_eye(  # the floor, its walls and the legend with its names
@@ -128,96 +119,57 @@ class RobotReplay(Story):
     def draw_static(self) -> None:
         """The scene, the start and goal tiles, a dot under each obstacle in its category's colour
         (named on hover), the robot (its pose: per tick, :meth:`episode`), the legend, the series."""
-        import rerun as rr
-
         self.log(WORLD, rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
         log_scene(self.rec, *self.robot.scene(), root=f"{WORLD}/scene")
         robot, cell = self.robot, self.robot.cell
         obstacles = robot.obstacles
         under = robot.centres([o["cell"] for o in obstacles])
-        self.log(
-            f"{WORLD}/obstacles",
-            rr.Points3D(
-                np.c_[under, np.full(len(under), 0.01)],
-                radii=0.08,
-                class_ids=[o["category"] for o in obstacles],
-                labels=[self.obstacle_label(o) for o in obstacles],
-                show_labels=False,
-            ),
-            static=True,
+        dots = rr.Points3D(
+            np.c_[under, np.full(len(under), 0.01)],
+            radii=0.08,
+            class_ids=[o["category"] for o in obstacles],
+            labels=[self.obstacle_label(o) for o in obstacles],
+            show_labels=False,
         )
+        self.log(f"{WORLD}/obstacles", dots, static=True)
         ends = robot.centres([robot.layout.start, robot.layout.goal])
-        self.log(
-            f"{WORLD}/cells",
-            rr.Boxes3D(
-                centers=np.c_[ends, np.full(2, 0.004)],
-                half_sizes=[[0.45 * cell, 0.45 * cell, 0.002]] * 2,
-                colors=[palette.rgb(MARKS["start"]), palette.rgb(MARKS["goal"])],
-                labels=["start", "goal"],
-                show_labels=True,
-                fill_mode="solid",
-            ),
-            static=True,
+        tiles = rr.Boxes3D(
+            centers=np.c_[ends, np.full(2, 0.004)],
+            half_sizes=[[0.45 * cell, 0.45 * cell, 0.002]] * 2,
+            colors=[palette.rgb(MARKS["start"]), palette.rgb(MARKS["goal"])],
+            labels=["start", "goal"],
+            show_labels=True,
+            fill_mode="solid",
         )
+        self.log(f"{WORLD}/cells", tiles, static=True)
         log_robot(self.rec, f"{WORLD}/robot", robot.half_sizes, robot.camera)
         n, at = len(self.labels), self.legend_at()
-        self.log(
-            f"{WORLD}/legend",
-            rr.Points3D(
-                np.c_[at, np.full(len(at), MARK_HEIGHT)],
-                radii=LEGEND_RADIUS,
-                colors=[colour(c) for c in range(n)] + [palette.rgb(h) for h in MARKS.values()],
-                labels=self.labels + list(MARKS),
-                show_labels=True,
-            ),
-            static=True,
+        legend = rr.Points3D(
+            np.c_[at, np.full(len(at), MARK_HEIGHT)],
+            radii=LEGEND_RADIUS,
+            colors=[colour(c) for c in range(n)] + [palette.rgb(h) for h in MARKS.values()],
+            labels=self.labels + list(MARKS),
+            show_labels=True,
         )
-        self.log(
-            "legend",
-            rr.TextDocument(legend_text(self.labels), media_type="text/markdown"),
-            static=True,
-        )
-        self.log("metrics/return", rr.SeriesLines(names="return", colors=[ROBOT]), static=True)
-        self.log(
-            "metrics/collisions", rr.SeriesLines(names="collisions", colors=[RED]), static=True
-        )
+        self.log(f"{WORLD}/legend", legend, static=True)
+        words = rr.TextDocument(legend_text(self.labels), media_type="text/markdown")
+        self.log("legend", words, static=True)
+        for name, rgb in (("return", ROBOT), ("collisions", RED)):
+            self.log(f"metrics/{name}", rr.SeriesLines(names=name, colors=[rgb]), static=True)
 
     # ---------------------------------------------------------------- what changes
-    def log_unsafe(self) -> None:
-        """A_d so far as red arrows on the floor, from each pair's cell centre toward its move."""
-        import rerun as rr
-
-        pairs = np.array(self.ad, dtype=np.int64).reshape(-1, 2)
-        if not len(pairs):
-            self.log(f"{WORLD}/unsafe", rr.Clear(recursive=False))
-            return
+    def unsafe_arrows(self, pairs: np.ndarray):
+        """A_d as red arrows on the floor, from each pair's cell centre toward its move."""
         heading, reach, n = self.robot.headings(pairs[:, 1]), 0.45 * self.robot.cell, len(pairs)
-        self.log(
-            f"{WORLD}/unsafe",
-            rr.Arrows3D(
-                origins=np.c_[self.robot.centres(pairs[:, 0]), np.full(n, 0.03)],
-                vectors=np.c_[reach * np.cos(heading), reach * np.sin(heading), np.zeros(n)],
-                colors=RED,
-                radii=0.02,
-            ),
+        return rr.Arrows3D(
+            origins=np.c_[self.robot.centres(pairs[:, 0]), np.full(n, 0.03)],
+            vectors=np.c_[reach * np.cos(heading), reach * np.sin(heading), np.zeros(n)],
+            colors=RED,
+            radii=0.02,
         )
-
-    def draw(self, episodes: list[int], empty: EmptyViews) -> None:
-        """Every step of ``episodes``, back to back on ``sim_time``, after what the run's earlier
-        episodes left: A_d and the support set."""
-        self.draw_static()
-        self.at(0.0)
-        self.rec.set_time("episode", sequence=episodes[0])
-        self.begin(episodes[0], empty)
-        start = 0.0
-        for e in episodes:
-            self.rec.set_time("episode", sequence=e)
-            start = self.episode(e, start)
 
     def episode(self, e: int, start: float) -> float:
         """Episode ``e`` from ``start`` (s on ``sim_time``); returns when the next one starts."""
-        import rerun as rr
-
         steps, seen = self.steps[self.steps.episode == e], self.recog[self.recog.episode == e]
         self.path, self.start = self.robot.episode(e, steps, seen), start
         poses, n = self.path.poses, len(self.path.poses)
@@ -234,9 +186,9 @@ class RobotReplay(Story):
 
         self.at(start)
         self.log_unsafe()
-        self.hits, self.stops = [], []
-        for marks in ("collisions", "stops"):
-            self.log(f"{WORLD}/{marks}", rr.Clear(recursive=False))
+        self.marks = {name: [] for name in MARK_STYLES}
+        for name in self.marks:
+            self.log(f"{WORLD}/{name}", rr.Clear(recursive=False))
         self.rec.send_columns(
             f"{WORLD}/robot",
             indexes=index(np.arange(n)),
@@ -249,9 +201,8 @@ class RobotReplay(Story):
         self.log_series(index, steps.reward.to_numpy(np.float64), starts)
         for t in sorted(self.path.contact_tick):
             self.at(self.when(t, contact=True), t)
-            x, y = self.contact(t)
-            self.hits.append((x, y, f"collision: ep {e} step {t}{self.collided_where(t)}"))
-            self.log_marks("collisions", self.hits, RED, HIT_RADIUS)
+            label = f"collision: ep {e} step {t}{self.collided_where(t)}"
+            self.add_mark("collisions", *self.contact(t), label)
         states, actions, flags = (steps[c].to_numpy() for c in ("state", "action", "flags"))
         self.events(e, states, actions, flags)
         self.step0 += len(steps)
@@ -260,8 +211,6 @@ class RobotReplay(Story):
     def log_series(self, index, rewards: np.ndarray, starts: np.ndarray) -> None:
         """The episode's return so far at each step's end (steps begin at the ticks ``starts``) and
         its collisions so far, a step up at each contact; ``index``: ticks -> time columns."""
-        import rerun as rr
-
         ends = np.r_[0, starts[1:], len(self.path.poses) - 1][: len(rewards) + 1]
         self.rec.send_columns(
             "metrics/return",
@@ -281,30 +230,21 @@ class RobotReplay(Story):
         """The path on the floor up to every tick: ``world/path`` through its corners so far (a row
         at each corner, :func:`.scene3d.corners`), ``world/path/leg`` from the last corner to the
         robot (a row a tick); together the path within 2 mm, in little data."""
-        import rerun as rr
-
         xy = self.path.poses[:, 1:3]
         floor = np.c_[xy, np.full(len(xy), PATH_HEIGHT)]
         kept = corners(xy)
-        self.rec.send_columns(
-            f"{WORLD}/path",
-            indexes=index(kept),
-            columns=rr.LineStrips3D.columns(
-                strips=[floor[kept[: i + 1]] for i in range(len(kept))],
-                colors=np.tile(ROBOT, (len(kept), 1)).astype(np.uint8),
-                radii=np.full(len(kept), 0.012, np.float32),
-            ),
-        )
         last = kept[np.searchsorted(kept, np.arange(len(xy)), side="right") - 1]
-        self.rec.send_columns(
-            f"{WORLD}/path/leg",
-            indexes=index(np.arange(len(xy))),
-            columns=rr.LineStrips3D.columns(
-                strips=[floor[[a, b]] for a, b in zip(last, range(len(xy)))],
-                colors=np.tile(ROBOT, (len(xy), 1)).astype(np.uint8),
-                radii=np.full(len(xy), 0.012, np.float32),
-            ),
-        )
+        for entity, ticks, strips in (
+            (f"{WORLD}/path", kept, [floor[kept[: i + 1]] for i in range(len(kept))]),
+            (f"{WORLD}/path/leg", np.arange(len(xy)), [floor[[c, i]] for i, c in enumerate(last)]),
+        ):
+            n = len(ticks)
+            lines = rr.LineStrips3D.columns(
+                strips=strips,
+                colors=np.tile(ROBOT, (n, 1)).astype(np.uint8),
+                radii=np.full(n, 0.012, np.float32),
+            )
+            self.rec.send_columns(entity, indexes=index(ticks), columns=lines)
 
     def contact(self, t: int) -> tuple[float, float]:
         """Where step ``t``'s collision touched (x, y in m)."""
@@ -327,26 +267,23 @@ class RobotReplay(Story):
         tick = int(self.path.pictures[number])
         x, y, yaw = self.path.poses[tick, 1:4]
         ahead = STOP_AHEAD * self.robot.cell
-        self.stops.append(
-            (
-                float(x + ahead * math.cos(yaw)),
-                float(y + ahead * math.sin(yaw)),
-                f"stop: step {int(r.step)}, recognised {self.cat(int(r.predicted))}",
-            )
-        )
-        self.log_marks("stops", self.stops, ORANGE, STOP_RADIUS)
+        x, y = float(x + ahead * math.cos(yaw)), float(y + ahead * math.sin(yaw))
+        label = f"stop: step {int(r.step)}, recognised {self.cat(int(r.predicted))}"
+        self.add_mark("stops", x, y, label)
 
-    def log_marks(self, name: str, marks: list, rgb, radius: float) -> None:
-        """The episode's ``marks`` (x, y, label) so far as balls of ``rgb`` at ``world/<name>``."""
-        import rerun as rr
-
+    def add_mark(self, name: str, x: float, y: float, label: str) -> None:
+        """Add the mark ``label`` at (``x``, ``y``) to the episode's ``name`` marks, and show them
+        all so far as balls at ``world/<name>`` (:data:`MARK_STYLES`)."""
+        marks, (rgb, radius) = self.marks[name], MARK_STYLES[name]
+        marks.append((x, y, label))
+        xs, ys, labels = zip(*marks)
         self.log(
             f"{WORLD}/{name}",
             rr.Points3D(
-                [[x, y, MARK_HEIGHT] for x, y, _ in marks],
+                np.c_[xs, ys, np.full(len(marks), MARK_HEIGHT)],
                 radii=radius,
                 colors=[rgb],
-                labels=[label for _, _, label in marks],
+                labels=list(labels),
                 show_labels=False,
             ),
         )

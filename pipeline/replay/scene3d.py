@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import rerun as rr
 
 from pipeline import palette
 from pipeline.world.renderer_env import mujoco
@@ -38,8 +39,6 @@ HEADING = 0.4  # m: the heading arrow's length
 def log_scene(rec, model, data, root: str, skip_body: str = "robot") -> None:
     """Every drawn static geom of a compiled MuJoCo world as ``<root>/<geom>`` (group 0-2: not the
     collision boxes), but those of the body ``skip_body``."""
-    import rerun as rr
-
     G = mujoco.mjtGeom
     skip = model.body(skip_body).id
     for g in range(model.ngeom):
@@ -47,7 +46,9 @@ def log_scene(rec, model, data, root: str, skip_body: str = "robot") -> None:
             continue
         colour = (np.clip(model.geom_rgba[g], 0, 1) * 255).astype(np.uint8)
         pos, xmat, size = data.geom_xpos[g], data.geom_xmat[g].reshape(3, 3), model.geom_size[g]
-        quat = rr.Quaternion(xyzw=_quat_xyzw(xmat))
+        # the geom's orientation and colour, as every posed shape takes them; a rod's length and radius
+        posed = dict(quaternions=[rr.Quaternion(xyzw=_quat_xyzw(xmat))], colors=[colour])
+        rod = dict(lengths=[2 * size[1]], radii=[size[0]], **posed)
         kind = model.geom_type[g]
         if kind == G.mjGEOM_MESH:
             m = model.geom_dataid[g]
@@ -62,37 +63,14 @@ def log_scene(rec, model, data, root: str, skip_body: str = "robot") -> None:
             half = [[size[0], size[1], 0.001]]
             shape = rr.Boxes3D(centers=[pos], half_sizes=half, colors=[FLOOR], fill_mode="solid")
         elif kind == G.mjGEOM_BOX:
-            shape = rr.Boxes3D(
-                centers=[pos],
-                half_sizes=[size],
-                quaternions=[quat],
-                colors=[colour],
-                fill_mode="solid",
-            )
+            shape = rr.Boxes3D(centers=[pos], half_sizes=[size], fill_mode="solid", **posed)
         elif kind == G.mjGEOM_CYLINDER:
-            shape = rr.Cylinders3D(
-                centers=[pos],
-                lengths=[2 * size[1]],
-                radii=[size[0]],
-                colors=[colour],
-                quaternions=[quat],
-            )
+            shape = rr.Cylinders3D(centers=[pos], **rod)
         elif kind == G.mjGEOM_CAPSULE:  # rerun's capsule starts at its base
-            shape = rr.Capsules3D(
-                translations=[pos - xmat[:, 2] * size[1]],
-                lengths=[2 * size[1]],
-                radii=[size[0]],
-                colors=[colour],
-                quaternions=[quat],
-            )
+            shape = rr.Capsules3D(translations=[pos - xmat[:, 2] * size[1]], **rod)
         elif kind in (G.mjGEOM_SPHERE, G.mjGEOM_ELLIPSOID):
-            shape = rr.Ellipsoids3D(
-                centers=[pos],
-                half_sizes=[[size[0]] * 3 if kind == G.mjGEOM_SPHERE else size],
-                quaternions=[quat],
-                colors=[colour],
-                fill_mode="solid",
-            )
+            half = [size[0]] * 3 if kind == G.mjGEOM_SPHERE else size
+            shape = rr.Ellipsoids3D(centers=[pos], half_sizes=[half], fill_mode="solid", **posed)
         else:
             continue
         rec.log(f"{root}/{model.geom(g).name or f'geom{g}'}", shape, static=True)
@@ -125,12 +103,8 @@ def overview_eye(x_range, y_range) -> tuple[list[float], list[float]]:
     target = [(x0 + x1) / 2, (y0 + y1) / 2, 0.0]
     distance = 0.5 * math.hypot(x1 - x0, y1 - y0) / math.sin(math.radians(FIT_FOV / 2))
     up = math.radians(ELEVATION)
-    position = [
-        target[0],
-        target[1] - distance * math.cos(up),
-        distance * math.sin(up),
-    ]
-    return position, target
+    south_and_above = [0.0, -math.cos(up), math.sin(up)]
+    return [centre + distance * way for centre, way in zip(target, south_and_above)], target
 
 
 def corners(xy: np.ndarray, tol: float = 0.002) -> np.ndarray:
@@ -168,44 +142,32 @@ def log_robot(rec, root: str, half_sizes, camera) -> None:
     """The robot in its own frame ``root`` (x forward, z up; its pose: ``root``'s transform): its
     body box labelled *robot*, an arrow over it for its heading, and its camera (``root/camera``:
     ``camera``'s position and a pinhole, under which the live pictures go)."""
-    import rerun as rr
-
     colour = palette.rgb(palette.ROBOT)
-    rec.log(
-        f"{root}/body",
-        rr.Boxes3D(
-            centers=[[0.0, 0.0, half_sizes[2]]],
-            half_sizes=[half_sizes],
-            colors=[colour],
-            labels=["robot"],
-            show_labels=True,
-            fill_mode="solid",
-        ),
-        static=True,
+    body = rr.Boxes3D(
+        centers=[[0.0, 0.0, half_sizes[2]]],
+        half_sizes=[half_sizes],
+        colors=[colour],
+        labels=["robot"],
+        show_labels=True,
+        fill_mode="solid",
     )
-    rec.log(
-        f"{root}/heading",
-        rr.Arrows3D(
-            origins=[[0.0, 0.0, 2 * half_sizes[2] + 0.03]],
-            vectors=[[HEADING, 0.0, 0.0]],
-            colors=[colour],
-            radii=0.025,
-        ),
-        static=True,
+    rec.log(f"{root}/body", body, static=True)
+    heading = rr.Arrows3D(
+        origins=[[0.0, 0.0, 2 * half_sizes[2] + 0.03]],
+        vectors=[[HEADING, 0.0, 0.0]],
+        colors=[colour],
+        radii=0.025,
     )
-    rec.log(
-        f"{root}/camera",
-        rr.Transform3D(translation=camera.position),
-        rr.Pinhole(  # in pixels (fov_y with aspect_ratio would size the image plane 1 x 1)
-            focal_length=camera.size / 2 / math.tan(math.radians(camera.fov_y) / 2),
-            width=camera.size,
-            height=camera.size,
-            camera_xyz=rr.ViewCoordinates.FLU,  # the body's axes: x forward, z up
-            image_plane_distance=0.25,
-            color=colour,
-        ),
-        static=True,
+    rec.log(f"{root}/heading", heading, static=True)
+    pinhole = rr.Pinhole(  # in pixels (fov_y with aspect_ratio would size the image plane 1 x 1)
+        focal_length=camera.size / 2 / math.tan(math.radians(camera.fov_y) / 2),
+        width=camera.size,
+        height=camera.size,
+        camera_xyz=rr.ViewCoordinates.FLU,  # the body's axes: x forward, z up
+        image_plane_distance=0.25,
+        color=colour,
     )
+    rec.log(f"{root}/camera", rr.Transform3D(translation=camera.position), pinhole, static=True)
 
 
 def legend_text(categories: list[str]) -> str:

@@ -1,14 +1,14 @@
-"""What happened in one run of the records, drawn the same way in every world's replay (issue 30:
-the replay of a robot cell and of a grid cell share their drawing code): the names of categories
-and actions (the file's maze metadata), the recognition views (the picture seen, its relation
-scores (eq. 2) and the verdict: the robot stopped or drove on), the events log, the support set
-(section 3.3) and the unsafe set A_d (eqs. 7-8).
+"""What happened in one run of the records, drawn the same way in every world's replay: the names
+of categories and actions (the file's maze metadata), the recognition views (the picture seen, its
+relation scores (eq. 2) and the verdict: the robot stopped or drove on), the events log, the
+support set (section 3.3) and the unsafe set A_d (eqs. 7-8).
 
 :class:`Story` draws them. A world's replay subclasses it with its scene and its clock:
 :class:`.draw.Replay` (the grid, timeline ``step``) and
 :class:`.robot3d.RobotReplay` (the robot in 3D, timeline ``sim_time``). A subclass
-says when a step's events happened (:meth:`Story.when`, :meth:`Story.at`) and draws A_d in its
-scene (:meth:`Story.log_unsafe`).
+draws what does not change and each episode (:meth:`Story.draw_static`, :meth:`Story.episode`),
+says when a step's events happened (:meth:`Story.when`, :meth:`Story.at`) and how A_d looks in
+its scene (:meth:`Story.unsafe_arrows`).
 """
 
 from __future__ import annotations
@@ -16,13 +16,13 @@ from __future__ import annotations
 import abc
 
 import numpy as np
+import rerun as rr
 
 from pipeline import palette
-from pipeline.errors import UserError
 from pipeline.records import Records
 from pipeline.records import schema as S
 
-from .notes import EmptyViews, log_empty
+from .notes import EmptyViews, ReplayError
 from .panels import SupportGrid, blueprint, categories_context, colour
 
 #: (d_row, d_col) of files without moves
@@ -35,24 +35,17 @@ FREE, START, GOAL, RED, ORANGE, ROBOT = map(
 )
 
 
-class ReplayError(UserError):
-    """The run/episode is not in the records, or they cannot be drawn; ``key`` is the config key to
-    blame (``"file"`` for a record file that cannot be read or drawn)."""
-
-    def __init__(self, message: str, key: str = "run/episode"):
-        super().__init__(message)
-        self.key = key
-
-
 class Story(abc.ABC):
     """Run ``run`` of the records ``recs``, told into the recording stream ``rec``: what every
-    world's replay shows. Subclasses set :meth:`when` / :meth:`at` and :meth:`log_unsafe`, and may
-    mark a step's outcome in their scene (:meth:`stopped`, :meth:`collided_where`)."""
+    world's replay shows. Subclasses draw the world (the abstract methods), and may mark a step's
+    outcome in their scene (:meth:`stopped`, :meth:`collided_where`)."""
 
     #: Where the picture seen goes (a 2D image: never inside a 3D space without a pinhole above
     #: it), and the corners of what its view shows when no picture comes.
     picture_entity = "recognition/picture"
     picture_box = ((-1.0, -1.0), (1.0, 1.0))
+    #: Where the world's scene shows A_d.
+    unsafe_entity = "maze/unsafe"
 
     def __init__(self, rec, recs: Records, run: int):
         meta, mz = recs.meta, recs.meta.maze
@@ -116,8 +109,6 @@ class Story(abc.ABC):
 
     def log(self, entity: str, what, level: str = "INFO", **kw) -> None:
         """Log an archetype, or a text as a TextLog line of ``level``."""
-        import rerun as rr
-
         self.rec.log(entity, rr.TextLog(what, level=level) if isinstance(what, str) else what, **kw)
 
     # ---------------------------------------------------------------- the world's (a subclass's)
@@ -126,9 +117,13 @@ class Story(abc.ABC):
         """The viewer's layout (:meth:`layout` around the world's views); ``name``: the recording's."""
 
     @abc.abstractmethod
-    def draw(self, episodes: list[int], empty: EmptyViews) -> None:
-        """Every step of ``episodes`` (consecutive recorded episodes of the run), after what the run
-        held before them (:meth:`begin`); ``empty``: why views stay empty."""
+    def draw_static(self) -> None:
+        """What does not change: the world's scene, its legend, the series."""
+
+    @abc.abstractmethod
+    def episode(self, e: int, start: float) -> float:
+        """Every step of episode ``e`` from ``start`` on the world's timeline (at the time of its
+        first step); returns where the next episode starts."""
 
     @abc.abstractmethod
     def when(self, t: int, picture: int | None = None, contact: bool = False) -> float:
@@ -141,8 +136,9 @@ class Story(abc.ABC):
         episode being drawn when given."""
 
     @abc.abstractmethod
-    def log_unsafe(self) -> None:
-        """Draw A_d (``self.ad``, pairs (cell, action)) in the world's scene, at the current time."""
+    def unsafe_arrows(self, pairs: np.ndarray):
+        """A_d's ``pairs`` (cell, action; at least one) in the world's scene: arrows from each
+        pair's cell toward its move."""
 
     def stopped(self, r, number: int) -> None:
         """Recognition ``r`` (the episode's ``number``-th) stopped the robot before the obstacle:
@@ -154,6 +150,19 @@ class Story(abc.ABC):
         return ""
 
     # ---------------------------------------------------------------- what does not change
+    def draw(self, episodes: list[int], empty: EmptyViews) -> None:
+        """Every step of ``episodes`` (consecutive recorded episodes of the run, back to back on the
+        world's timeline), after what the run held before them (:meth:`begin`); ``empty``: why
+        views stay empty."""
+        self.draw_static()
+        self.at(0.0)
+        self.rec.set_time("episode", sequence=episodes[0])
+        self.begin(episodes[0], empty)
+        start = 0.0
+        for e in episodes:
+            self.rec.set_time("episode", sequence=e)
+            start = self.episode(e, start)
+
     def layout(self, world, empty: EmptyViews, **views):
         """The viewer's layout around the world's views ``world`` (and ``views``: the picture view
         and the legend, :func:`.panels.blueprint`); the scores view says in its name why it is
@@ -166,7 +175,7 @@ class Story(abc.ABC):
         names and colours, why empty views are empty, and A_d and the support set as the run's
         earlier episodes left them."""
         self.log("/", categories_context(self.labels), static=True)
-        log_empty(self.rec, empty, self.picture_entity, self.picture_box)
+        self.log_empty(empty)
         self.ad = self.unsafe[self.unsafe.episode < first][["state", "action"]].to_numpy().tolist()
         self.start_support(first)
 
@@ -177,10 +186,8 @@ class Story(abc.ABC):
         support = {k: (png, None) for k, png in self.meta.support_pictures.items()}
         for s in self.subs[self.subs.episode < first].itertuples():
             if int(s.picture) in self.meta.pictures:
-                support[(int(s.category), int(s.position))] = (
-                    self.meta.pictures[int(s.picture)],
-                    self.mark(s),
-                )
+                png = self.meta.pictures[int(s.picture)]
+                support[(int(s.category), int(s.position))] = (png, self.mark(s))
         for (c, p), (png, mark) in sorted(support.items()):
             self.grid.put(c, p, png, mark)
 
@@ -189,21 +196,34 @@ class Story(abc.ABC):
         """The label of a substituted support picture: when it came in."""
         return f"ep {int(s.episode)} t {int(s.step)}"
 
+    def log_empty(self, empty: EmptyViews) -> None:
+        """Say in the picture and recognition views why they stay empty (static: for every step);
+        the picture's view shows :attr:`picture_box` (two corners) without pictures."""
+        if empty.recognition is None:
+            return
+        self.log(
+            "recognition/result",
+            rr.TextDocument(
+                f"### No recognition to show\n\n{empty.recognition}.", media_type="text/markdown"
+            ),
+            static=True,
+        )
+        (x0, y0), (x1, y1) = self.picture_box
+        self.log(  # the corners keep the label, centred on the middle point, inside the view
+            f"{self.picture_entity}/note",
+            rr.Points2D(
+                [[x0, y0], [(x0 + x1) / 2, (y0 + y1) / 2], [x1, y1]],
+                radii=[0.0, 0.01, 0.0],
+                labels=["", "no picture seen: see the recognition view", ""],
+                show_labels=True,
+            ),
+            static=True,
+        )
+
     # ---------------------------------------------------------------- the recognition views
-    def picture(self, entity: str, pid: int) -> None:
-        """Picture ``pid`` of the file (a grid's query picture, a robot's live picture)."""
-        import rerun as rr
-
-        if pid in self.meta.pictures:
-            self.log(
-                entity, rr.EncodedImage(contents=self.meta.pictures[pid], media_type="image/png")
-            )
-
     def scores(self, r) -> list[float] | None:
         """The relation scores of recognition ``r`` by category (None when the file has none), each
         category its own bar chart: the chart's legend names the bars."""
-        import rerun as rr
-
         sc = np.array([getattr(r, c) for c in self.score_cols], dtype=np.float32)
         if not self.score_cols or np.isnan(sc).all():
             return None
@@ -216,11 +236,12 @@ class Story(abc.ABC):
         return sc.tolist()
 
     def recognition(self, r, e: int, t: int, verdict: str) -> None:
-        """The picture seen, its labelled scores, and what was predicted, what is true, the
-        ``verdict`` and a table of the scores."""
-        import rerun as rr
-
-        self.picture(self.picture_entity, int(r.picture))
+        """The picture seen (the file's picture: a grid's query picture, a robot's live picture), its
+        labelled scores, and what was predicted, what is true, the ``verdict`` and a table of the
+        scores; and the line of the events log that says so."""
+        if int(r.picture) in self.meta.pictures:
+            png = self.meta.pictures[int(r.picture)]
+            self.log(self.picture_entity, rr.EncodedImage(contents=png, media_type="image/png"))
         sc = self.scores(r)
         table = (
             ""
@@ -243,6 +264,11 @@ class Story(abc.ABC):
                 media_type="text/markdown",
             ),
         )
+        self.log(
+            "events",
+            f"run {self.run} ep {e} step {t}: picture {int(r.picture)}: predicted "
+            f"{self.cat(int(r.predicted))}, true {self.cat(int(r.true))} ({right}): {verdict}",
+        )
 
     def verdict(self, r, drove_on: bool, flags: int, substituted: bool) -> str:
         """What recognition ``r`` led to, from what the step did (any decision rule): the robot
@@ -258,6 +284,12 @@ class Story(abc.ABC):
         )
 
     # ---------------------------------------------------------------- what changes
+    def log_unsafe(self) -> None:
+        """A_d so far (``self.ad``) in the world's scene (:meth:`unsafe_arrows`), at the current time."""
+        pairs = np.array(self.ad, dtype=np.int64).reshape(-1, 2)
+        arrows = self.unsafe_arrows(pairs) if len(pairs) else rr.Clear(recursive=False)
+        self.log(self.unsafe_entity, arrows)
+
     def events(self, e: int, states, actions, flags) -> None:
         """The steps of episode ``e`` where something happened, each at its moment (:meth:`when`):
         flags, recognitions, A_d additions, substitutions."""
@@ -267,13 +299,15 @@ class Story(abc.ABC):
             {int(t): list(g.itertuples()) for t, g in df[df.episode == e].groupby("step")}
             for df in (ep_recog, self.unsafe, self.subs)
         )
-        for t in sorted(
-            {int(x) for x in np.flatnonzero(flags)} | seen.keys() | added.keys() | swapped.keys()
-        ):
+        flagged = {int(x) for x in np.flatnonzero(flags)}
+        for t in sorted(flagged | seen.keys() | added.keys() | swapped.keys()):
             where = f"run {self.run} ep {e} step {t}: "
             f = int(flags[t]) if t < len(flags) else 0
             if f:
                 self.at(self.when(t, contact=bool(f & S.FLAG_COLLIDED)), t)
+                level = (
+                    "ERROR" if f & S.FLAG_COLLIDED else "WARN" if f & S.FLAG_RESELECTED else "INFO"
+                )
                 self.log(
                     "events",
                     f"{where}cell {int(states[t])} action {self.act(int(actions[t]))}: "
@@ -282,11 +316,7 @@ class Story(abc.ABC):
                         for name, bit in S.FLAG_NAMES.items()
                         if f & bit
                     ),
-                    level="ERROR"
-                    if f & S.FLAG_COLLIDED
-                    else "WARN"
-                    if f & S.FLAG_RESELECTED
-                    else "INFO",
+                    level=level,
                 )
             rows, subs = seen.get(t, []), swapped.get(t, [])
             for i, r in enumerate(rows):
@@ -294,14 +324,7 @@ class Story(abc.ABC):
                 drove_on = i == len(rows) - 1 and executed and bool(f & S.FLAG_COLLIDED)
                 substituted = any(int(s.picture) == int(r.picture) for s in subs)
                 self.at(self.when(t, picture=number[r.Index]), t)
-                verdict = self.verdict(r, drove_on, f, substituted)
-                self.recognition(r, e, t, verdict)
-                right = "right" if int(r.predicted) == int(r.true) else "wrong"
-                self.log(
-                    "events",
-                    f"{where}picture {int(r.picture)}: predicted {self.cat(int(r.predicted))}, "
-                    f"true {self.cat(int(r.true))} ({right}): {verdict}",
-                )
+                self.recognition(r, e, t, self.verdict(r, drove_on, f, substituted))
                 if not drove_on:
                     self.stopped(r, number[r.Index])
             self.additions(e, t, added.get(t, []), rows, number)

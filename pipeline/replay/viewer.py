@@ -1,15 +1,13 @@
 """The viewer process of a replay: the Rerun web server, or the desktop viewer, started for one
 ``.rrd`` recording and stopped with the command that started it (the stage ``replay``).
 
-``serve_web`` starts the Rerun CLI of the rerun-sdk wheel as an empty web server and sends it the
-recording over gRPC (:func:`send_recording`): given the file, rerun 0.41's server keeps a core busy
-for as long as it runs. It prints the one address that opens the recording
-(``http://127.0.0.1:<web_port>?url=rerun+http://127.0.0.1:<grpc_port>/proxy``, URL-encoded); the
-bare web port only opens Rerun's welcome page. The server lives and dies with the command: Ctrl-C
-or SIGTERM stop it, and so does the command's death on Linux (parent-death signal). Both ports are
-checked before any work (:func:`web_address`: a busy one is refused naming its key; port 0 picks a
-free one), and a bind address off the loopback needs ``allow_remote``. The desktop viewer needs a
-display: without one it is refused before any work (:func:`check_display`).
+``serve_web`` starts the Rerun CLI of the rerun-sdk wheel as an empty web server, sends it the
+recording over gRPC (:func:`send_recording`: why not the file) and prints the one address that
+opens the recording (``http://127.0.0.1:<web_port>?url=rerun+http://127.0.0.1:<grpc_port>/proxy``,
+URL-encoded); the bare web port only opens Rerun's welcome page. The server lives and dies with the
+command: Ctrl-C or SIGTERM stop it, and so does the command's death on Linux (parent-death signal).
+What a viewer needs is checked before any work: the ports and the bind address
+(:func:`web_address`), a display (:func:`check_display`).
 """
 
 from __future__ import annotations
@@ -130,10 +128,8 @@ def serve_web(rrd: str | Path, web: WebAddress) -> None:
     end; the server never outlives this call. It starts empty and gets the recording over gRPC
     (:func:`send_recording`), so it sleeps while no viewer asks for anything."""
     cmd = server_command(web)
-    env = {
-        "RUST_LOG": "warn",
-        **os.environ,
-    }  # Rerun's own log repeats the address without the recording
+    # quieted: Rerun's own log repeats the address without the recording
+    env = {"RUST_LOG": "warn", **os.environ}
     # preexec_fn: this stage starts no threads, so the fork-unsafety it warns of does not apply
     proc = subprocess.Popen(cmd, env=env, start_new_session=True, preexec_fn=_die_with_parent)  # noqa: PLW1509
     try:
