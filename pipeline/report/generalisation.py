@@ -13,18 +13,14 @@ size (a between-size claim, so no per-layout fraction); collisions against layou
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pandas as pd
 
 from pipeline.report import figures_beyond as FB
 from pipeline.report.checks import Claim, Data, checked
-from pipeline.report.claims import (
-    DSS_REDUCES,
-    FEWER_THAN_CONSTRAINED,
-    FIGURE_8,
-    TABLE3_ORDER,
-    Fewer,
-)
+from pipeline.report.claims import FEWER_THAN_CONSTRAINED, FIGURE_8, TABLE3_READINGS, Fewer
 from pipeline.report.experiments import Experiment
 from pipeline.report.formats import estimate, share, verdict
 from pipeline.report.layout_cells import (
@@ -52,14 +48,7 @@ CLAIMS = (
     ),
     Fewer("Table 3", "Sarsa has more collisions than Q-learning", (("sarsa", "qlearning"),)),
     FEWER_THAN_CONSTRAINED,
-    Fewer(
-        "Table 3",
-        "collisions fall in the order of its rows: Sarsa, constrained RL, our method without, "
-        "with the dynamic support set",
-        TABLE3_ORDER,
-        quoted=False,
-    ),
-    Fewer("Table 3", "the dynamic support set reduces collisions", DSS_REDUCES, quoted=False),
+    *(replace(claim, says=claim.says.replace(" on every maze", "")) for claim in TABLE3_READINGS),
 )
 
 

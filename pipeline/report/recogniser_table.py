@@ -77,14 +77,18 @@ def recogniser_row(name: str, metrics: Path, accuracy_dir: Path) -> dict:
     return row
 
 
+def colour_tests(accuracy_dir: Path) -> list[tuple[str, dict]]:
+    """The picture sets of :data:`COLOUR_SETS` the study's colour test measured: (words, the
+    test's ``summary.json`` entry)."""
+    summary = read_summary(accuracy_dir) or {}
+    found = [(words, summary.get(key)) for key, words in COLOUR_SETS.items()]
+    return [(words, colour) for words, colour in found if colour and colour["shifts_deg"]]
+
+
 def colour_rows(name: str, accuracy_dir: Path) -> list[dict]:
     """The colour test's rows of one recogniser: one per picture set the study measured."""
-    summary = read_summary(accuracy_dir) or {}
     rows = []
-    for key, words in COLOUR_SETS.items():
-        colour = summary.get(key)
-        if not colour or not colour["shifts_deg"]:
-            continue
+    for words, colour in colour_tests(accuracy_dir):
         cats = np.asarray(colour["categories"])
         turned = np.asarray(colour["predictions_per_shift"])  # (shifts, pictures)
         original = (np.asarray(colour["predictions_original"]) == cats).astype(float)
@@ -136,7 +140,7 @@ def recogniser_section(rep, studies: list[tuple[str, Path, Path]]) -> None:
             "interval and the drop's (paired, in points) are bootstrap 95% intervals over the "
             "pictures. The 400 views give the test its power; the 40 query pictures are the paper's.",
         )
-        shifts_table(rep, studies, COLOUR_SETS)
+        shifts_table(rep, studies)
 
 
 def family_rows(name: str, accuracy_dir: Path) -> list[dict]:
@@ -159,15 +163,13 @@ def family_rows(name: str, accuracy_dir: Path) -> list[dict]:
     ]
 
 
-def shift_rows(name: str, accuracy_dir: Path, sets: dict[str, str]) -> list[dict]:
-    """One row per picture set of ``sets`` (``summary.json`` key: words) and hue shift: the
-    accuracy as rendered and hue-turned, and the change in points with its interval over
-    obstacles; sets without obstacle ids (an older study) are left out."""
-    summary = read_summary(accuracy_dir) or {}
+def shift_rows(name: str, accuracy_dir: Path) -> list[dict]:
+    """One row per picture set (:func:`colour_tests`) and hue shift: the accuracy as rendered and
+    hue-turned, and the change in points with its interval over obstacles; sets without obstacle
+    ids (an older study) are left out."""
     rows = []
-    for key, words in sets.items():
-        colour = summary.get(key)
-        if not colour or not colour["shifts_deg"] or "obstacles" not in colour:
+    for words, colour in colour_tests(accuracy_dir):
+        if "obstacles" not in colour:
             continue
         changes = shift_changes(
             colour["categories"],
@@ -218,9 +220,9 @@ def families_table(rep, studies: list[tuple[str, Path, Path]]) -> None:
     )
 
 
-def shifts_table(rep, studies: list[tuple[str, Path, Path]], sets: dict[str, str]) -> None:
+def shifts_table(rep, studies: list[tuple[str, Path, Path]]) -> None:
     """The colour test per hue shift (module docstring), when a study kept the obstacles."""
-    rows = [r for name, _, folder in studies for r in shift_rows(name, folder, sets)]
+    rows = [r for name, _, folder in studies for r in shift_rows(name, folder)]
     if rows:
         rep.table(
             "colour_test_shifts",
