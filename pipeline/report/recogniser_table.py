@@ -35,6 +35,15 @@ COLOUR_SETS = {
     "colour_test": "the 40 query pictures",
     "colour_test_views": "views of the query obstacles",
 }
+#: The caption of the colour test per hue shift (:func:`shifts_table`).
+SHIFTS_CAPTION = (
+    "Colour test per hue shift: accuracy as rendered and with every picture's hue turned, "
+    "and the change (turned minus as rendered, picture by picture) in points with a 95% "
+    "percentile-bootstrap interval that resamples the obstacles (each with all its "
+    f"pictures; {RESAMPLES} resamples), not the pictures: the pictures of one obstacle "
+    "are not independent. An obstacle is a category's instance in the maze (the "
+    "manifest's category and instance; `pipeline/fewshot/colour.py`)."
+)
 #: The held-out splits as the families' table names them, in its order.
 SPLIT_WORDS = {"test": "test", "val": "validation"}
 
@@ -224,13 +233,4 @@ def shifts_table(rep, studies: list[tuple[str, Path, Path]]) -> None:
     """The colour test per hue shift (module docstring), when a study kept the obstacles."""
     rows = [r for name, _, folder in studies for r in shift_rows(name, folder)]
     if rows:
-        rep.table(
-            "colour_test_shifts",
-            pd.DataFrame(rows),
-            "Colour test per hue shift: accuracy as rendered and with every picture's hue turned, "
-            "and the change (turned minus as rendered, picture by picture) in points with a 95% "
-            "percentile-bootstrap interval that resamples the obstacles (each with all its "
-            f"pictures; {RESAMPLES} resamples), not the pictures: the pictures of one obstacle "
-            "are not independent. An obstacle is a category's instance in the maze (the "
-            "manifest's category and instance; `pipeline/fewshot/colour.py`).",
-        )
+        rep.table("colour_test_shifts", pd.DataFrame(rows), SHIFTS_CAPTION)
