@@ -18,6 +18,7 @@ from matplotlib.ticker import MaxNLocator
 
 from pipeline import palette
 from pipeline.report import figures as F
+from pipeline.report.formats import interval
 from pipeline.report.names import PAPER_RECOGNISER, recogniser_colour, recogniser_name
 from pipeline.report.recogniser_table import recogniser_section
 from pipeline.report.study import RESAMPLES, SEED, VARIANTS, Estimate, Study, read_summary
@@ -47,8 +48,7 @@ def percent(value, estimate: Estimate | None = None) -> str:
         return ""
     if estimate is None or estimate.draws is None:
         return f"{100 * value:.2f}%"
-    lo, hi = estimate.ci()
-    return f"{100 * value:.2f}% [{100 * lo:.2f}, {100 * hi:.2f}]"
+    return f"{100 * value:.2f}% {interval(*estimate.ci(), scale=100)}"
 
 
 def intervals_note(study: Study) -> str:

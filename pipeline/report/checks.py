@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from pipeline.report import formats
 from pipeline.report.experiments import Cell, Experiment
 from pipeline.report.names import PAPER_RECOGNISER, method_name, recogniser_of
 from pipeline.report.paper_numbers import paper_for
@@ -64,7 +65,7 @@ class Check:
     def judge(self, low: float, high: float) -> str:
         """The verdict of an interval ``[low, high]``."""
         if self.expect == ">":
-            return "holds" if low > 0 else "does not hold" if high < 0 else "not resolved"
+            return formats.verdict(low, high)
         inside = -self.margin <= low and high <= self.margin
         outside = low > self.margin or high < -self.margin
         return "holds" if inside else "does not hold" if outside else "not resolved"
@@ -85,7 +86,7 @@ class Check:
 
     def text(self) -> str:
         scale, digits = (100, 1) if self.unit.startswith(("percentage", "share")) else (1, 2)
-        numbers = f"{scale * self.estimate:.{digits}f} [{scale * self.low:.{digits}f}, {scale * self.high:.{digits}f}]"
+        numbers = formats.estimate(self.estimate, self.low, self.high, digits, scale)
         paper = f"; paper: {self.paper}" if self.paper else ""
         margin = f"; comparable within ±{self.margin:.2f}" if self.expect == "≈" else ""
         if self.untestable:
@@ -173,11 +174,7 @@ class Claim:
         verdicts = [v for v in every if v != NOT_TESTABLE]
         if self.missing or not every:
             return "not checked"
-        if not verdicts:
-            return NOT_TESTABLE
-        if "does not hold" in verdicts:
-            return "does not hold"
-        return "holds" if all(v == "holds" for v in verdicts) else "not resolved"
+        return formats.combined(verdicts) if verdicts else NOT_TESTABLE
 
 
 def across_claims(claims: list[Claim], level: float = LEVEL) -> list[str]:
@@ -257,9 +254,7 @@ class Data:
     def arm(self, *args, first: int = 0, **kw) -> Arm:
         """The cells' collisions per run (from run index ``first`` on)."""
         cells = self.cells(*args, **kw)
-        values = pd.concat(
-            [pd.Series(c.collisions_per_run(), index=c.runs()) for c in cells], axis=1
-        ).mean(axis=1)
+        values = pd.concat([c.collisions_by_run() for c in cells], axis=1).mean(axis=1)
         return Arm(values[values.index >= first], cells)
 
     def paper(self, arm: Arm) -> str:

@@ -71,6 +71,22 @@ FEWER_THAN_CONSTRAINED = Fewer(
 TABLE3_ORDER = tuple(pairwise(("sarsa", "constrained", "fewshot", "fewshot_dss")))
 #: The dynamic support set's gain, as Table 3 shows it.
 DSS_REDUCES = (("fewshot", "fewshot_dss"),)
+#: What Table 3 shows without the paper saying it in words (our reading of the table).
+TABLE3_READINGS = (
+    Fewer(
+        "Table 3",
+        "collisions fall in the order of its rows on every maze: Sarsa, constrained RL, "
+        "our method without, with the dynamic support set",
+        TABLE3_ORDER,
+        quoted=False,
+    ),
+    Fewer(
+        "Table 3",
+        "the dynamic support set reduces collisions on every maze",
+        DSS_REDUCES,
+        quoted=False,
+    ),
+)
 
 
 def rl_claims(data: Data) -> list[Claim]:
@@ -194,23 +210,7 @@ def rl_claims(data: Data) -> list[Claim]:
             ],
         ),
         on_every_maze(FEWER_THAN_CONSTRAINED),
-        on_every_maze(  # what Table 3 shows without the paper saying it in words
-            Fewer(
-                "Table 3",
-                "collisions fall in the order of its rows on every maze: Sarsa, constrained RL, "
-                "our method without, with the dynamic support set",
-                TABLE3_ORDER,
-                quoted=False,
-            )
-        ),
-        on_every_maze(
-            Fewer(
-                "Table 3",
-                "the dynamic support set reduces collisions on every maze",
-                DSS_REDUCES,
-                quoted=False,
-            )
-        ),
+        *(on_every_maze(claim) for claim in TABLE3_READINGS),
         checked(
             "Table 3",
             "the gain of the dynamic support set (collisions without minus with it) grows with the maze",

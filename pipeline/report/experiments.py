@@ -44,8 +44,12 @@ class Cell:
     def maze(self) -> str:
         return self.info["maze"]
 
+    def collisions_by_run(self) -> pd.Series:
+        """Collisions per run, indexed by run (:meth:`runs`): cells that share run seeds pair by it."""
+        return self.episodes.groupby("run")["collisions"].sum()
+
     def collisions_per_run(self) -> np.ndarray:
-        return self.episodes.groupby("run")["collisions"].sum().to_numpy()
+        return self.collisions_by_run().to_numpy()
 
     def runs(self) -> np.ndarray:
         """The run indices, in the order of :meth:`collisions_per_run` and the rows of the

@@ -60,9 +60,7 @@ class LayoutCells:
             if method not in self.cells:
                 raise Missing(f"no records of {method} on {self.maze}")
             cell = self.cells[method]
-            self._arms[method] = Arm(
-                pd.Series(cell.collisions_per_run(), index=cell.runs()), [cell]
-            )
+            self._arms[method] = Arm(cell.collisions_by_run(), [cell])
         return self._arms[method]
 
     def mean(self, method: str) -> float:
@@ -162,11 +160,7 @@ def feature_rows(df: pd.DataFrame) -> list[dict]:
             m = on[on["method"] == method]
             x, y = m[feature].to_numpy(float), m["collisions_mean"].to_numpy(float)
             line = fit(x, y)
-            r = (
-                float(np.corrcoef(x, y)[0, 1])
-                if line is not None and np.ptp(y) > 0
-                else float("nan")
-            )
+            correlated = line is not None and np.ptp(y) > 0
             out.append(
                 {
                     "size": size,
@@ -175,7 +169,7 @@ def feature_rows(df: pd.DataFrame) -> list[dict]:
                     "slope (collisions per unit) [95% CI]": (
                         f"{line[0]:.3g} [{line[2]:.3g}, {line[3]:.3g}]" if line else no_line(x)
                     ),
-                    "r": "" if np.isnan(r) else f"{r:.2f}",
+                    "r": f"{np.corrcoef(x, y)[0, 1]:.2f}" if correlated else "",
                     "feature range": f"{int(x.min())}-{int(x.max())}",
                 }
             )

@@ -74,27 +74,18 @@ def row_styles(rows: list[list]) -> list[dict]:
     (:data:`pipeline.palette.SERIES`) instead of shades that would tell them apart poorly."""
     methods = [[recorded(cell)[0]["method"] for cell in cells] for cells in rows]
     keys = [" / ".join(sorted({method_name(m) for m in row})) for row in methods]
-    if len(rows) > 1 and len(set(keys)) == 1:  # one method throughout: its colour tells nothing
-        return [
-            {
-                "color": palette.series(k),
-                "ls": DASHES[k % len(DASHES)],
-                "marker": MARKERS[k % len(MARKERS)],
-            }
-            for k in range(len(rows))
-        ]
+    one_method = len(rows) > 1 and len(set(keys)) == 1  # then its colour tells nothing
     out = []
     for i, key in enumerate(keys):
         peers = [j for j, other in enumerate(keys) if other == key]
-        k = peers.index(i)
+        k = i if one_method else peers.index(i)
         one = methods[i][0] if " / " not in key else None
         colour = (method_colour(one) if one is not None else None) or "#7f7f7f"
-        shared = len(peers) > 1
         out.append(
             {
-                "color": shade(colour, k, len(peers)),
+                "color": palette.series(k) if one_method else shade(colour, k, len(peers)),
                 "ls": DASHES[k % len(DASHES)],
-                "marker": MARKERS[k % len(MARKERS)] if shared else None,
+                "marker": MARKERS[k % len(MARKERS)] if len(peers) > 1 else None,
             }
         )
     return out

@@ -30,6 +30,7 @@ import pandas as pd
 
 from pipeline import palette
 from pipeline.report import figures as F
+from pipeline.report import formats
 from pipeline.report.names import recogniser_colour, recogniser_name
 from pipeline.report.study import RESAMPLES, SEED, Study, read_summary
 from pipeline.stats import cluster_ratio_draws, percentile_ci
@@ -110,8 +111,8 @@ def sd(values: np.ndarray) -> str:
 
 
 def interval(draws: np.ndarray) -> str:
-    lo, hi = percentile_ci(draws)
-    return f"[{100 * lo:.2f}, {100 * hi:.2f}]"
+    """The percentile interval of ``draws`` in percent."""
+    return formats.interval(*percentile_ci(draws), scale=100)
 
 
 def spread_rows(folders: dict[str, dict[int, Path]]) -> list[dict]:

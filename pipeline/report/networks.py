@@ -32,7 +32,9 @@ import pandas as pd
 
 from pipeline.report.accuracy_curve import break_even_table, split
 from pipeline.report.experiments import Cell, Experiment
+from pipeline.report.formats import combined, estimate, interval, verdict
 from pipeline.report.names import recogniser_name, recogniser_of
+from pipeline.report.parts import section_data
 from pipeline.stats import bootstrap_means, cluster_ratio_draws, percentile_ci
 from pipeline.world.pictures import picture_category
 
@@ -164,11 +166,6 @@ def maze_cells(maze: str) -> int:
     return int(found[1]) * int(found[2]) if found else 0
 
 
-def verdict(lo: float, hi: float) -> str:
-    """The claims section's rule for one check at the 95% level."""
-    return "holds" if lo > 0 else "does not hold" if hi < 0 else "not resolved"
-
-
 def spread_rows(runs: pd.DataFrame) -> list[dict]:
     """Per recogniser, method and maze: each network's mean, the spreads and the two intervals
     (module docstring)."""
@@ -184,7 +181,6 @@ def spread_rows(runs: pd.DataFrame) -> list[dict]:
         both = cluster_ratio_draws(
             g["collisions"], np.ones(len(g)), g["network"], within=True, seed=SEED
         )
-        lo, hi = percentile_ci(both)
         rows.append(
             {
                 "recogniser": label,
@@ -195,8 +191,8 @@ def spread_rows(runs: pd.DataFrame) -> list[dict]:
                 "mean": f"{means.mean():.2f}",
                 "s.d. across networks": f"{means.std(ddof=1):.2f}" if len(means) > 1 else "",
                 "s.d. across runs": f"{by_net.std(ddof=1).mean():.2f}",
-                "95% CI, runs resampled": f"[{over_runs[0]:.2f}, {over_runs[1]:.2f}]",
-                "95% CI, networks then runs": f"[{lo:.2f}, {hi:.2f}]",
+                "95% CI, runs resampled": interval(*over_runs),
+                "95% CI, networks then runs": interval(*percentile_ci(both)),
             }
         )
     return rows
@@ -254,24 +250,14 @@ def claim_row(
 ) -> dict:
     """One row for ``network``: each check's difference and interval, the claim's verdict and the
     query pictures the network names right (``pictures``)."""
-    verdicts = [verdict(lo, hi) for lo, hi in intervals]
-    overall = (
-        "holds"
-        if all(v == "holds" for v in verdicts)
-        else "does not hold"
-        if "does not hold" in verdicts
-        else "not resolved"
-    )
-    differences = "; ".join(
-        f"{c.mean():.2f} [{lo:.2f}, {hi:.2f}]" for c, (lo, hi) in zip(checks, intervals)
-    )
+    differences = "; ".join(estimate(c.mean(), *ci) for c, ci in zip(checks, intervals))
     return {
         "recogniser": label,
         "claim": claim.number,
         "network": network,
         "checks": ", ".join(f"{claim.more} − {f}" for f in claim.fewer),
         f"difference, {CLAIM_MAZE} [95% CI]": differences,
-        "verdict": overall,
+        "verdict": combined([verdict(lo, hi) for lo, hi in intervals]),
         "query pictures right": pictures,
     }
 
@@ -279,10 +265,8 @@ def claim_row(
 def networks_section(rep, exp: Experiment, experiments: list[Experiment]) -> None:
     """The section (module docstring)."""
     runs = run_table(exp)
-    if runs.empty:
-        rep.add("No cell of this experiment is recorded.\n")
+    if not section_data(rep, exp, runs, "No cell of this experiment is recorded.\n"):
         return
-    rep.data(f"{exp.folder}_data", runs)
     rep.table(
         exp.folder,
         pd.DataFrame(spread_rows(runs)),

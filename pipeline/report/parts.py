@@ -38,6 +38,16 @@ def file_name(exp: Experiment, part: str, maze: str | None) -> str:
     return f"{exp.folder}_{part}{'' if maze is None else '_' + safe(maze)}"
 
 
+def section_data(rep, exp: Experiment, data: pd.DataFrame, none: str) -> bool:
+    """A per-cell section's data as ``tables/<folder>_data.csv``; without any, the sentence
+    ``none`` instead. Whether there was data (the section goes on)."""
+    if data.empty:
+        rep.add(none)
+        return False
+    rep.data(f"{exp.folder}_data", data)
+    return True
+
+
 def collision_row(
     exp: Experiment, row: Row, cells: list[Cell], paper: dict[str, PaperValue]
 ) -> dict:

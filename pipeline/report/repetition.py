@@ -25,12 +25,21 @@ import pandas as pd
 from pipeline.report.checks import Data, Missing
 from pipeline.report.experiments import Cell, Experiment
 from pipeline.report.figures_beyond import gain_curves
+from pipeline.report.formats import estimate, interval
 from pipeline.report.names import PAPER_RECOGNISER, recogniser_name, recogniser_of
-from pipeline.report.repetition_sources import learn_from, sources_section
-from pipeline.world.generate import is_spec, parse_spec
+from pipeline.report.parts import section_data
+from pipeline.report.repetition_sources import (
+    SETTINGS,
+    by_layout,
+    layout_row,
+    source_rows,
+    sources_section,
+)
 from pipeline.world.pictures import N_PHYSICAL_OBSTACLES
 
 RESAMPLES, SEED = 2000, 0
+#: Few-shot reasoning without and with the DSS, every substituted picture seen (the split's ends).
+WITHOUT, WITH = SETTINGS[0], SETTINGS[-1]
 
 
 def table3_paper(experiments: list[Experiment]) -> dict[str, tuple[float, float]]:
@@ -57,23 +66,13 @@ def layout_rows(exp: Experiment) -> pd.DataFrame:
     without and with the DSS, and their paired per-run difference's mean (the layout's gain).
     Cells whose recogniser sees only some substituted pictures (``learn_from``) are the split's
     (:mod:`.repetition_sources`), not these rows'."""
-    found: dict[tuple[str, str], dict[str, Cell]] = {}
-    for cell in exp.cells.values():
-        if is_spec(cell.maze) and learn_from(cell) == "all":
-            found.setdefault((cell.maze, recogniser_label(cell)), {})[cell.method] = cell
     rows = []
-    for (maze, label), cells in found.items():
-        if {"fewshot", "fewshot_dss"} <= set(cells):
-            without, with_ = (
-                pd.Series(cells[m].collisions_per_run(), index=cells[m].runs())
-                for m in ("fewshot", "fewshot_dss")
-            )
-            spec = parse_spec(maze)
+    for (maze, label), cells in by_layout(exp, recogniser_label).items():
+        if {WITHOUT, WITH} <= set(cells):
+            without, with_ = cells[WITHOUT].collisions_by_run(), cells[WITH].collisions_by_run()
             rows.append(
-                {
-                    "recogniser": label,
-                    "r": spec.obstacles / N_PHYSICAL_OBSTACLES,
-                    "layout": maze,
+                layout_row(label, maze)
+                | {
                     "runs": len(without),
                     "without_dss": without.mean(),
                     "with_dss": with_.mean(),
@@ -117,8 +116,9 @@ def curve_table(df: pd.DataFrame) -> tuple[list[dict], dict[str, dict]]:
                     "runs per layout": int(at["runs"].iloc[0]),
                     "few-shot without DSS": f"{at['without_dss'].mean():.2f}",
                     "with DSS": f"{at['with_dss'].mean():.2f}",
-                    "DSS gain [95% CI]": f"{gain[i]:.2f} [{glo[i]:.2f}, {ghi[i]:.2f}]",
-                    "relative gain [95% CI]": f"{100 * rel[i]:.1f}% [{100 * rlo[i]:.1f}, {100 * rhi[i]:.1f}]",
+                    "DSS gain [95% CI]": estimate(gain[i], glo[i], ghi[i]),
+                    "relative gain [95% CI]": f"{100 * rel[i]:.1f}% "
+                    + interval(rlo[i], rhi[i], 1, 100),
                 }
             )
     return rows, curves
@@ -179,7 +179,7 @@ def verdict(df: pd.DataFrame, t3: dict, label: str) -> tuple[list[dict], dict]:
                 "scale": scale,
                 f"11x11 at r = {r_large:g} − at r = {r_small:g} ({label})": fmt(point[k]),
                 "Table 3: 11x11 − 5x5 (ours)": fmt(point[k + 1]),
-                "repetition's share [95% CI]": f"{100 * est:.0f}% [{100 * lo:.0f}, {100 * hi:.0f}]",
+                "repetition's share [95% CI]": f"{100 * est:.0f}% {interval(lo, hi, 0, 100)}",
             }
         )
         numbers[scale] = (est, lo, hi, point[k] * unit, point[k + 1] * unit)
@@ -199,10 +199,8 @@ def words(share: float, lo: float, hi: float) -> str:
 def repetition_section(rep, exp: Experiment, experiments: list[Experiment]) -> None:
     """The section (module docstring)."""
     df = layout_rows(exp)
-    if df.empty:
-        rep.add("No layout of this experiment has both few-shot cells.\n")
+    if not section_data(rep, exp, df, "No layout of this experiment has both few-shot cells.\n"):
         return
-    rep.data(f"{exp.folder}_data", df)
     rows, curves = curve_table(df)
     t3 = table3_arms(experiments)
     beside = {
@@ -235,7 +233,9 @@ def repetition_section(rep, exp: Experiment, experiments: list[Experiment]) -> N
         "The DSS gain against r (mean collisions per run over layouts; the gain paired on each layout's "
         "run seeds), with 95% bootstrap intervals over layouts (2000 resamples, seed 0).",
     )
-    sources_section(rep, exp, recogniser_label, RESAMPLES, SEED)
+    sources = source_rows(exp, recogniser_label)
+    if not sources.empty:  # the experiment has learn_from cells
+        sources_section(rep, exp, sources, RESAMPLES, SEED)
     label = recogniser_name(PAPER_RECOGNISER)
     if label not in curves or not {"5x5", "11x11"} <= set(t3):
         rep.add(f"No verdict: it needs the {label}'s cells here and Table 3's 5x5 and 11x11.\n")
@@ -254,8 +254,9 @@ def repetition_section(rep, exp: Experiment, experiments: list[Experiment]) -> N
     net = curves[label]
     extra = (
         f" At r = {net['r'][0]:g}, where a substituted picture is never seen again, the {label} still gains "
-        f"{100 * net['relative'][0][0]:.1f}% [{100 * net['relative'][1][0]:.1f}, "
-        f"{100 * net['relative'][2][0]:.1f}]: what a new support picture teaches it about the others."
+        f"{100 * net['relative'][0][0]:.1f}% "
+        f"{interval(net['relative'][1][0], net['relative'][2][0], 1, 100)}: what a new support "
+        "picture teaches it about the others."
     )
     if fixed is not None:
         c = curves[fixed]
@@ -267,7 +268,7 @@ def repetition_section(rep, exp: Experiment, experiments: list[Experiment]) -> N
     rep.add(
         f"**Verdict.** Table 3's relative DSS gain grows by {t3_pts:.1f} points from the 5x5 (r = {r_small:g}) "
         f"to the 11x11 (r = {r_large:g}); at one size, raising r from {r_small:g} to {r_large:g} raises it by "
-        f"{rep_pts:.1f} points: repetition accounts for {100 * est:.0f}% [{100 * lo:.0f}, {100 * hi:.0f}] of the "
+        f"{rep_pts:.1f} points: repetition accounts for {100 * est:.0f}% {interval(lo, hi, 0, 100)} of the "
         f"growth, {words(est, lo, hi)}"
         + ("; the rest comes with the maze's size at the same repetition." if est < 1 else ".")
         + f"{extra}\n"

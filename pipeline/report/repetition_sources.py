@@ -20,10 +20,13 @@ bootstrap interval over layouts, as the section's other tables.
 
 from __future__ import annotations
 
+from itertools import pairwise
+
 import numpy as np
 import pandas as pd
 
 from pipeline.report.experiments import Cell, Experiment
+from pipeline.report.formats import estimate
 from pipeline.world.generate import is_spec, parse_spec
 from pipeline.world.pictures import N_PHYSICAL_OBSTACLES
 
@@ -49,29 +52,37 @@ def learn_from(cell: Cell) -> str:
     return str(((cell.config or {}).get("recogniser") or {}).get("learn_from", "all"))
 
 
-def source_rows(exp: Experiment, label_of) -> pd.DataFrame:
-    """One row per (layout, recogniser) that has all five settings: r, and each source's gain (the
-    layout's mean over run seeds of the paired step) and the whole gain. ``label_of(cell)``
-    names the recogniser (without its ``learn_from``)."""
+def by_layout(exp: Experiment, label_of) -> dict[tuple[str, str], dict[tuple[str, str], Cell]]:
+    """The cells on generated layouts by (layout, recogniser), then by setting (method,
+    ``learn_from``); ``label_of(cell)`` names the recogniser (without its ``learn_from``)."""
     found: dict[tuple[str, str], dict[tuple[str, str], Cell]] = {}
     for cell in exp.cells.values():
         if is_spec(cell.maze):
             key = (cell.maze, label_of(cell))
             found.setdefault(key, {})[(cell.method, learn_from(cell))] = cell
+    return found
+
+
+def layout_row(label: str, maze: str) -> dict:
+    """The first columns of a layout's row: the recogniser, r and the layout."""
+    return {
+        "recogniser": label,
+        "r": parse_spec(maze).obstacles / N_PHYSICAL_OBSTACLES,
+        "layout": maze,
+    }
+
+
+def source_rows(exp: Experiment, label_of) -> pd.DataFrame:
+    """One row per (layout, recogniser) that has all five settings: r, and each source's gain (the
+    layout's mean over run seeds of the paired step) and the whole gain (``label_of``:
+    :func:`by_layout`)."""
     rows = []
-    for (maze, label), cells in found.items():
-        if not set(SETTINGS) <= set(cells):
-            continue
-        runs = [pd.Series(cells[s].collisions_per_run(), index=cells[s].runs()) for s in SETTINGS]
-        steps = [(a - b).mean() for a, b in zip(runs[:-1], runs[1:])]
-        row = {
-            "recogniser": label,
-            "r": parse_spec(maze).obstacles / N_PHYSICAL_OBSTACLES,
-            "layout": maze,
-        }
-        row.update(dict(zip(SOURCES, steps)))
-        row["whole gain"] = (runs[0] - runs[-1]).mean()
-        rows.append(row)
+    for (maze, label), cells in by_layout(exp, label_of).items():
+        if set(SETTINGS) <= set(cells):
+            runs = [cells[s].collisions_by_run() for s in SETTINGS]
+            steps = [(a - b).mean() for a, b in pairwise(runs)]
+            whole = {"whole gain": (runs[0] - runs[-1]).mean()}
+            rows.append(layout_row(label, maze) | dict(zip(SOURCES, steps)) | whole)
     return pd.DataFrame(rows)
 
 
@@ -88,22 +99,19 @@ def split_table(df: pd.DataFrame, resamples: int, seed: int) -> tuple[list[dict]
         point = values.mean(axis=0)
         lo, hi = np.quantile(boot, [0.025, 0.975], axis=0)
         row = {"recogniser": label, "r": f"{r:g}", "layouts": len(g)}
-        row["whole DSS gain [95% CI]"] = f"{point[-1]:.2f} [{lo[-1]:.2f}, {hi[-1]:.2f}]"
+        row["whole DSS gain [95% CI]"] = estimate(point[-1], lo[-1], hi[-1])
         for k, source in enumerate(SOURCES):
             numbers[(label, r, source)] = (point[k], lo[k], hi[k])
             share = 100 * point[k] / point[-1] if point[-1] else np.nan
-            row[f"{source} [95% CI]"] = f"{point[k]:.2f} [{lo[k]:.2f}, {hi[k]:.2f}] ({share:.0f}%)"
+            row[f"{source} [95% CI]"] = f"{estimate(point[k], lo[k], hi[k])} ({share:.0f}%)"
         numbers[(label, r, "whole gain")] = (point[-1], lo[-1], hi[-1])
         rows.append(row)
     return rows, numbers
 
 
-def sources_section(rep, exp: Experiment, label_of, resamples: int, seed: int) -> None:
-    """The split's table and a sentence on the smallest r (module docstring); nothing when the
-    experiment has no ``learn_from`` cells."""
-    df = source_rows(exp, label_of)
-    if df.empty:
-        return
+def sources_section(rep, exp: Experiment, df: pd.DataFrame, resamples: int, seed: int) -> None:
+    """The split's table and a sentence on the smallest r (module docstring) from the rows of
+    :func:`source_rows` (``df``: not empty)."""
     rows, numbers = split_table(df, resamples, seed)
     rep.table(
         f"{exp.folder}_sources",
@@ -115,14 +123,10 @@ def sources_section(rep, exp: Experiment, label_of, resamples: int, seed: int) -
     )
     label, r = df.sort_values("r").iloc[0][["recogniser", "r"]]
     whole = numbers[(label, r, "whole gain")]
-    parts = "; ".join(
-        f"{source} {numbers[(label, r, source)][0]:.2f} "
-        f"[{numbers[(label, r, source)][1]:.2f}, {numbers[(label, r, source)][2]:.2f}]"
-        for source in SOURCES
-    )
+    parts = "; ".join(f"{source} {estimate(*numbers[(label, r, source)])}" for source in SOURCES)
     rep.add(
-        f"**Where the gain comes from.** At r = {r:g} the {label}'s DSS gain of {whole[0]:.2f} "
-        f"[{whole[1]:.2f}, {whole[2]:.2f}] collisions per run splits into: {parts}. The category's "
+        f"**Where the gain comes from.** At r = {r:g} the {label}'s DSS gain of {estimate(*whole)} "
+        f"collisions per run splits into: {parts}. The category's "
         "two obstacles are two different objects, so the third step is what a picture of one chair "
         "teaches about another.\n"
     )

@@ -14,6 +14,7 @@ import numpy as np
 import pandas as pd
 
 from pipeline.report.figures_beyond import difference_figure
+from pipeline.report.formats import estimate
 from pipeline.report.robot_cells import Pair, check_cell, pairs, read_extra, recogniser, rule
 from pipeline.rl.rules import Rule
 from pipeline.stats import bootstrap_difference, describe, wilson_ci
@@ -33,13 +34,12 @@ RULE_WORDS = {
 def mean_ci(values) -> str:
     """``mean [lo, hi]``: the mean over runs and its 95% bootstrap interval."""
     d = describe(values)
-    return f"{d['mean']:.2f} [{d['ci_low']:.2f}, {d['ci_high']:.2f}]"
+    return estimate(d["mean"], d["ci_low"], d["ci_high"])
 
 
 def paired_difference(a, b) -> str:
     """``mean(a - b) [lo, hi]``: run ``i`` of ``a`` and of ``b`` share a seed (paired bootstrap)."""
-    estimate, lo, hi = bootstrap_difference(a, b, paired=True)
-    return f"{estimate:+.2f} [{lo:+.2f}, {hi:+.2f}]"
+    return estimate(*bootstrap_difference(a, b, paired=True), sign="+")
 
 
 def pair_table(chosen: list[Pair], several_recognisers: bool) -> pd.DataFrame:
@@ -165,8 +165,7 @@ def accuracy_table(few: list[Pair]) -> pd.DataFrame:
         for column in columns:
             sel = seen[(seen["rule"] == r) & (seen["column"] == column) & (seen["true"] == c)]
             share, n = float((sel["predicted"] == c).mean()) if len(sel) else 0.0, len(sel)
-            lo, hi = wilson_ci(share, n)
-            row[column] = f"{share:.2f} [{lo:.2f}, {hi:.2f}] (n={n})" if n else "-"
+            row[column] = f"{estimate(share, *wilson_ci(share, n))} (n={n})" if n else "-"
         rows.append(row)
     return pd.DataFrame(rows)
 

@@ -113,7 +113,7 @@ def per_run(cell: Cell, extra: Extra) -> PerRun:
     at most once a run: it then joins A_d); a right stop's prediction names the true category, a
     false stop's another."""
     runs = cell.runs()
-    collisions = cell.episodes.groupby("run")["collisions"].sum().reindex(runs).to_numpy()
+    collisions = cell.collisions_per_run()
     seen = cell.recognitions
     stop = pd.MultiIndex.from_frame(seen[STOP_KEY].astype("int64")).isin(
         pd.MultiIndex.from_frame(extra.recognised)

@@ -21,7 +21,7 @@ from pipeline.report.accuracy_curve import accuracy_curve_kind
 from pipeline.report.experiments import Cell, Experiment
 from pipeline.report.generalisation import generalisation_section
 from pipeline.report.networks import networks_section
-from pipeline.report.paper_numbers import paper_values
+from pipeline.report.paper_numbers import PaperValue, paper_values
 from pipeline.report.parts import (
     COLLISIONS,
     collision_row,
@@ -33,6 +33,7 @@ from pipeline.report.parts import (
 from pipeline.report.pooling import collisions, convergence, describe_runs, pool_note, pooled
 from pipeline.report.repetition import repetition_section
 from pipeline.report.robot import robot_kind
+from pipeline.report.spec import Row
 from pipeline.stats import describe, fmt
 
 
@@ -64,6 +65,12 @@ PAPER_NOTE = (
 )
 
 
+def row_marks(rows: list[tuple[Row, list[Cell]]], paper: dict[str, PaperValue]) -> dict:
+    """How a figure of the rows marks them: the paper's number of each (None without one) and
+    each row's style (:func:`~pipeline.report.parts.styles_of`)."""
+    return {"paper": [paper.get(row.key) for row, _ in rows], "styles": styles_of(rows)}
+
+
 def default_kind(rep, exp: Experiment, experiments: list[Experiment], bars: bool = False) -> None:
     """A table of collisions per run (``bars``: and a bar chart of them), learning curves, the
     support set's accuracy over the run; the paper's numbers beside ours where another section
@@ -84,8 +91,7 @@ def default_kind(rep, exp: Experiment, experiments: list[Experiment], bars: bool
             f"{exp.spec.title or exp.name} (ours)",
             "collisions per run",
             rep.out / "figures" / name,
-            paper=[paper.get(r.key) for r, _ in rows],
-            styles=styles_of(rows),
+            **row_marks(rows, paper),
         )
         rep.figure(
             f"figures/{name}",
@@ -126,8 +132,7 @@ def long_term_kind(rep, exp: Experiment, experiments: list[Experiment]) -> None:
         {row.label: v for row, v in values},
         f"{exp.spec.title or exp.name} (ours)",
         rep.out / "figures" / name,
-        paper=[paper.get(row.key) for row, _ in values],
-        styles=styles_of(rows),
+        **row_marks(rows, paper),
     )
     rep.figure(
         f"figures/{name}",
