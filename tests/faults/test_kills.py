@@ -97,14 +97,17 @@ def _wait_for_cells(stage: subprocess.Popen, out: Path, timeout=120.0) -> None:
         time.sleep(0.1)
 
 
+def two_worker_stage(out: Path, episodes: int):
+    """A ``workers=2`` trials stage of Figure 9's cells, long enough to be stopped mid-run."""
+    args = ["+experiment=fig9", "recogniser=oracle", "workers=2", "runs=100", "progress=false"]
+    return trials_process(*args, f"episodes={episodes}", f"out={out}")
+
+
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux /proc")
 def test_workers_end_when_their_stage_is_killed(tmp_path):
     """``kill -9`` of a ``workers=2`` stage: its worker processes (and the resource tracker they
     kept alive) end within seconds instead of running on as orphans."""
-    stage = trials_process(
-        "+experiment=fig9", "recogniser=oracle", "workers=2", "runs=100", "episodes=4000",
-        "progress=false", f"out={tmp_path}",
-    )  # fmt: skip
+    stage = two_worker_stage(tmp_path, episodes=4000)
     children: list[int] = []
     try:
         t0 = time.time()
@@ -128,10 +131,7 @@ def test_workers_end_when_their_stage_is_killed(tmp_path):
 def test_a_terminated_multi_worker_stage_says_one_line(tmp_path):
     """SIGTERM of a ``workers=2`` stage: the one line saying where the finished cells are, and no
     warning after it (the workers make no semaphore the resource tracker would report)."""
-    stage = trials_process(
-        "+experiment=fig9", "recogniser=oracle", "workers=2", "runs=100", "episodes=20000",
-        "progress=false", f"out={tmp_path}",
-    )  # fmt: skip
+    stage = two_worker_stage(tmp_path, episodes=20000)
     try:
         _wait_for_cells(stage, tmp_path)
         stage.send_signal(signal.SIGTERM)
