@@ -136,11 +136,9 @@ class SafeNavigationEnv(gym.Env):
         self._params = MethodParams.of(self.method, rule)
         if not 0.0 < float(threshold) <= 1.0:
             raise ValueError(f"threshold={threshold}: must lie in (0, 1]")
-        self.rule, self.threshold, self.world_model = (
-            Rule(self._params.rule),
-            float(threshold),
-            world,
-        )
+        self.rule = Rule(self._params.rule)
+        self.threshold = float(threshold)
+        self.world_model = world
         self._sees_pictures = reasons_with_pictures(self._params.safety)
         if isinstance(recogniser, str):
             raise TypeError(
@@ -167,9 +165,9 @@ class SafeNavigationEnv(gym.Env):
         # what apply_action reads of the method and the maze, as plain tuples (see _apply_action)
         self._records = tuple(self._params), tuple(MazeArrays.of(self.layout, self.geometry))
         self._new_run(0)
+        self.state, self.t = self.layout.start, 0  # until reset(), which starts them again
 
     def _new_run(self, seed: int) -> None:
-        self.run_seed = seed
         self.world = self.world_model.run_world(self.geometry, seed, self.run_id)
         self.unsafe = np.zeros((self.layout.n_cells, 4), dtype=np.bool_)
         n_pictures = max(1, len(self.world_model.picture_category))
@@ -185,8 +183,6 @@ class SafeNavigationEnv(gym.Env):
         if self._sees_pictures:
             self.recogniser.start_run(self.run_id, run_seeds(seed, self.run_id).recogniser)
             self._answer()
-        self.state = self.layout.start
-        self.t = 0
 
     def _answer(self) -> None:
         """The recogniser's answers under the run's current support set (as the runner's)."""
@@ -199,8 +195,19 @@ class SafeNavigationEnv(gym.Env):
     def action_mask(self, state: int | None = None) -> np.ndarray:
         return (~self.unsafe[self.state if state is None else state]).astype(np.int8)
 
-    def _info(self, **extra) -> dict:
-        return {"action_mask": self.action_mask(), "step": self.t, **extra}
+    def _info(
+        self, prevented=False, collided=False, picture=-1, recognition=None, flags=0, added=()
+    ) -> dict:
+        return {
+            "action_mask": self.action_mask(),
+            "step": self.t,
+            "prevented": prevented,
+            "collided": collided,
+            "picture": picture,
+            "recognition": recognition,
+            "flags": flags,
+            "added": list(added),
+        }
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
@@ -208,9 +215,7 @@ class SafeNavigationEnv(gym.Env):
             self._new_run(int(seed))
         self.state = self.layout.start
         self.t = 0
-        return self.state, self._info(
-            prevented=False, collided=False, picture=-1, recognition=None, flags=0, added=[]
-        )
+        return self.state, self._info()
 
     def step(self, action):
         a = int(action)
@@ -229,44 +234,27 @@ class SafeNavigationEnv(gym.Env):
                 "predicted": int(self.predicted[picture]),
                 "true": int(self.world.true_category[o]),
             }
-        if out == Outcome.prevented:
-            return (
-                s,
-                0.0,
-                False,
-                False,
-                self._info(
-                    prevented=True,
-                    collided=False,
-                    picture=int(picture),
-                    recognition=recognition,
-                    flags=0,
-                    added=added,
-                ),
-            )
-        collided = out == Outcome.collided
+        prevented, collided = out == Outcome.prevented, out == Outcome.collided
         if collided and self._params.dynamic and picture >= 0:
             self.recogniser.learn_from_collision(self.run_id, int(picture), recognition["true"])
             self._answer()
-        self.t += 1
-        self.state = int(s2)
-        truncated = (not terminated) and self.t >= self.method.max_steps
-        if truncated:
-            flags |= StepFlag.truncated
-        return (
-            self.state,
-            float(reward),
-            bool(terminated),
-            bool(truncated),
-            self._info(
-                prevented=False,
-                collided=collided,
-                picture=int(picture),
-                recognition=recognition,
-                flags=int(flags),
-                added=added,
-            ),
+        # a prevented action stays in s (reward 0, flags 0) and is no move: the counter waits
+        truncated = False
+        if not prevented:
+            self.t += 1
+            self.state = int(s2)
+            truncated = (not terminated) and self.t >= self.method.max_steps
+            if truncated:
+                flags |= StepFlag.truncated
+        info = self._info(
+            prevented=prevented,
+            collided=collided,
+            picture=int(picture),
+            recognition=recognition,
+            flags=int(flags),
+            added=added,
         )
+        return self.state, float(reward), bool(terminated), truncated, info
 
     def render(self):
         """``rgb_array``: the top-down picture; ``ansi``: the text grid (see Render modes)."""

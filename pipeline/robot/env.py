@@ -114,9 +114,7 @@ class SafeNavigation3DEnv(SafeNavigationEnv):
 
     def _new_run(self, seed: int) -> None:
         super()._new_run(seed)
-        if self._sim is not None:
-            self._sim.close()
-            self._sim = None
+        self.close()  # the new run's maze is built in MuJoCo on first use (_robot_sim)
         self._pictures: dict[tuple[int, int], np.ndarray] = {}  # (cell, heading) -> pixels
         self._obstacles = self.world.placement.as_records(self.layout.obstacles)
 
