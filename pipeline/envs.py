@@ -9,13 +9,11 @@ keywords of :class:`pipeline.rl.gym_env.SafeNavigationEnv`, and the recogniser a
 
 Why here: the environment lives in ``rl``, which never imports ``fewshot`` (the science
 packages stay independent; README "Layout"), and a recogniser by name may be the Relation Network
-of ``fewshot``. Building recognisers from ``conf/recogniser/<name>.yaml`` is
+of ``fewshot``. This module is wiring like the stages: its resolver, ``make_recogniser``, loads
+``conf/recogniser/<name>.yaml`` and hands it to the trials stage's builder,
 :func:`pipeline.config.recognisers.build_recogniser` (its ``_target_`` and the argument check
-against the target's signature). This module is wiring like the stages (beside them: neither imports
-the other): it loads the yaml and hands it to that same function, so the trials stage and
-``gymnasium.make`` build a recogniser through one path, and the ``rl`` environment only ever
-receives an object. ``make_recogniser`` is the resolver. Nothing here is imported by
-``import pipeline``.
+against the target's signature), so both build a recogniser through one path and the ``rl``
+environment only ever receives an object. Nothing here is imported by ``import pipeline``.
 
 Relative paths in a yaml (``relation_net``: ``datasets/...``) are read from the working directory,
 as in the stages: run from the project root or pass absolute paths in ``recogniser_options``.
@@ -95,8 +93,8 @@ def recogniser_for(
             f"be one of {', '.join(map(str, SUBSTITUTION_WAYS))} (paper section 3.3)",
         )
     if isinstance(recogniser, str):
-        _check_name(recogniser)
         if not spec.uses_recogniser:
+            _check_name(recogniser)  # built for no method, but a wrong name is refused all the same
             return None
         way = substitution if spec.dynamic_support else 0
         return make_recogniser(recogniser, options, substitution_way=way)

@@ -1,5 +1,6 @@
 """What ``gymnasium.make("SafeNav3D-<maze>-v0", ...)`` calls: the robot environment
-(:class:`pipeline.robot.env.SafeNavigation3DEnv`) with its recogniser of live pictures.
+(:class:`pipeline.robot.env.SafeNavigation3DEnv`, whose docstring tells its observations by
+``obs_type``, its ``info`` and ``render()``) with its recogniser of live pictures::
 
     gymnasium.make("SafeNav3D-5x5-v0", method="fewshot_dss", recogniser="relation_net",
                    render_mode="rgb_array")
@@ -9,10 +10,6 @@
 :func:`pipeline.envs.recogniser_for`) or a recogniser object; the environment asks it about live
 pictures (:func:`pipeline.robot.live.live`: the few-shot networks score the live picture, the
 models of recognition answer as for the grid's query picture).
-``render()`` is the maze from above and behind the robot; the live picture of a step is
-``info["camera"]`` (None when the robot took none). ``obs_type`` (``"state"``, ``"pixels"``,
-``"state+pixels"``: :data:`pipeline.robot.env.OBS_TYPES`) makes the camera's picture of every step
-(part of) the observation. ``info["cost"]`` is 1.0 on a collision;
 :class:`pipeline.envs.SixValueStep` gives Safety-Gymnasium's six-value ``step``.
 """
 

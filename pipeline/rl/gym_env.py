@@ -43,9 +43,9 @@ Truncation
 Safety guarantee
     When the chosen action runs into an obstacle and the decision rule stops it (``rule``:
     ``paper``, the recogniser names its category; ``open_set``, its top score reaches ``threshold``;
-    ``range``, always; ``rules.Rule``), the action is not executed: ``step`` returns the same cell with reward 0, ``info["prevented"] = True`` and
-    the updated mask; the step counter does not advance, and the agent should choose again
-    (Algorithm 1, lines 4-10).
+    ``range``, always; ``rules.Rule``), the action is not executed: ``step`` returns the same cell
+    with reward 0, ``info["prevented"] = True`` and the updated mask; the step counter does not
+    advance, and the agent should choose again (Algorithm 1, lines 4-10).
 
 Runs and episodes
     ``reset(seed=s)`` starts a new independent run: obstacle placement drawn from
@@ -55,28 +55,23 @@ Runs and episodes
 Arguments
     ``maze`` (built-in name or ``Layout``), ``method`` (name in ``conf/method/`` or
     ``MethodSpec``), ``recogniser`` (an object of the ``pipeline.rl.recogniser.Recogniser``
-    protocol; needed by the methods that reason with pictures, ``fewshot`` and ``fewshot_dss``),
-    ``run``, ``render_mode``, ``tile_size`` (pixels per cell of ``rgb_array``), ``rule`` and
-    ``threshold`` (the decision rule), ``world`` (``rl.run_world``: the grid, or the camera robot's
-    ``RobotWorld``, which ``SafeNav3D-*`` passes). This class lives in
-    ``rl`` and so never imports ``fewshot`` or the configs: recognisers by name (``"relation_net"``,
-    ``"oracle"``, ``"fixed_accuracy"``, the files of ``conf/recogniser/``) are built by
-    ``pipeline.envs.make_env``, the entry point of the registered ids, which then constructs this
-    class.
+    protocol, needed by the methods that reason with pictures, ``fewshot`` and ``fewshot_dss``; by
+    name through ``pipeline.envs.make_env``, as ``rl`` never imports ``fewshot``), ``run``,
+    ``render_mode``, ``tile_size`` (pixels per cell of ``rgb_array``), ``rule`` and ``threshold``
+    (the decision rule), ``world`` (``rl.run_world``: the grid, or the camera robot's
+    ``RobotWorld``, which ``SafeNav3D-*`` passes).
 
 Render modes
-    ``"rgb_array"``: the maze from above, ``width * tile_size`` wide, a legend strip under it, uint8:
-    obstacles in the colour of their category, the start cell, the goal an oval, each (s, a) of
-    A_d a bar on the edge of cell s toward a, the robot a disc (the one palette,
-    ``pipeline/palette.py``: the replay and the report use the same colours; drawing in
-    ``pipeline.rl.gym_render``). ``"ansi"``: the same as a text grid (obstacles as category digits).
-    ``metadata["render_fps"]`` is 4.
+    ``"rgb_array"``: the maze from above, ``width * tile_size`` wide, a legend strip under it, uint8
+    (drawn by ``pipeline.rl.gym_render`` in the one palette of ``pipeline/palette.py``: the replay
+    and the report use the same colours). ``"ansi"``: the same as a text grid (obstacles as
+    category digits). ``metadata["render_fps"]`` is 4.
 
 Registered configurations
     ``SafeNav-5x5-v0``, ``SafeNav-7x7-v0``, ``SafeNav-11x11-v0`` (that maze only) and
-    ``SafeNav-v0`` (any ``maze=``, 5x5 by default): method ``shield``, ``max_episode_steps=200``; registered on ``import pipeline`` (or ``gymnasium.make("pipeline:SafeNav-5x5-v0")``),
-    see ``pipeline/__init__.py``. Other methods and recognisers by keyword:
-    ``gymnasium.make("SafeNav-5x5-v0", method="fewshot_dss", recogniser="oracle")``.
+    ``SafeNav-v0`` (any ``maze=``, 5x5 by default): method ``shield``, ``max_episode_steps=200``,
+    registered on ``import pipeline`` (``pipeline.registration``). Other methods and recognisers
+    by keyword: ``gymnasium.make("SafeNav-5x5-v0", method="fewshot_dss", recogniser="oracle")``.
 """
 
 from __future__ import annotations
@@ -195,19 +190,10 @@ class SafeNavigationEnv(gym.Env):
     def action_mask(self, state: int | None = None) -> np.ndarray:
         return (~self.unsafe[self.state if state is None else state]).astype(np.int8)
 
-    def _info(
-        self, prevented=False, collided=False, picture=-1, recognition=None, flags=0, added=()
-    ) -> dict:
-        return {
-            "action_mask": self.action_mask(),
-            "step": self.t,
-            "prevented": prevented,
-            "collided": collided,
-            "picture": picture,
-            "recognition": recognition,
-            "flags": flags,
-            "added": list(added),
-        }
+    def _info(self, **seen) -> dict:
+        """``info``: the action mask, the move counter and what the step saw (``reset``: nothing)."""
+        nothing = dict(prevented=False, collided=False, picture=-1, recognition=None, flags=0)
+        return {"action_mask": self.action_mask(), "step": self.t, **nothing, "added": [], **seen}
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)

@@ -154,10 +154,9 @@ class SafeNavigation3DEnv(SafeNavigationEnv):
         return parts if self.obs_type == "state+pixels" else parts[self.obs_type]
 
     def _camera(self, cell: int) -> np.ndarray:
-        """The forward camera's picture from the centre of ``cell``, facing the robot's heading:
-        the pose it re-localises to, from which the live pictures are taken too. The run's maze
-        stands still, so a picture is a function of the cell and the heading: each is rendered
-        once a run and handed out as a copy."""
+        """The forward camera's picture from the centre of ``cell``, facing the robot's heading
+        (the pose it re-localises to; module docstring), rendered once a run (the maze stands
+        still) and handed out as a copy."""
         key = (int(cell), self._path.heading)
         if key not in self._pictures:
             sim = self._robot_sim()
