@@ -5,9 +5,9 @@ SafeNavigation3DEnv
 
 :class:`pipeline.rl.gym_env.SafeNavigationEnv` in the robot's world
 (:class:`~pipeline.robot.live_world.RobotWorld`): the same observation (the robot's cell; the
-camera's picture by ``obs_type``, below), actions
-(0 N, 1 E, 2 S, 3 W), rewards, A_d, decision rule (``rule``, ``threshold``) and self-recovery, with
-the same code (``rules.apply_action``). What the robot world changes:
+camera's picture by ``obs_type``, below), actions (0 N, 1 E, 2 S, 3 W), rewards, A_d, decision
+rule (``rule``, ``threshold``) and self-recovery, with the same code (``rules.apply_action``). What
+the robot world changes:
 
 * the pictures: a method that reasons with pictures is asked about the **live picture** the robot's
   camera takes from the cell's centre facing the obstacle (any recogniser by name:
@@ -60,8 +60,7 @@ from pipeline.robot.sim import RobotSim
 from pipeline.robot.world import MAX_SEEN_OBSTACLES
 from pipeline.world.maze import Layout, load_layout
 
-#: What ``reset`` and ``step`` return (module docstring): the keys of Gymnasium's
-#: ``AddRenderObservation``, ``"state"`` and ``"pixels"``, alone or together.
+#: The observations of ``obs_type`` (module docstring): Gymnasium's keys, alone or together.
 OBS_TYPES = ("state", "pixels", "state+pixels")
 
 
@@ -131,14 +130,14 @@ class SafeNavigation3DEnv(SafeNavigationEnv):
         if info["picture"] >= 0:
             self._path.look(s, int(action))
             camera = self.world_model.image(info["picture"])
-            scores = np.asarray(self.recogniser.scores(self.run_id, [info["picture"]]))[0]
+            scores = np.asarray(self.recogniser.scores(self.run_id, [info["picture"]]))[0].tolist()
         if not info["prevented"]:
             self._path.move(s, int(action), info["flags"])
         hit = self._path.contacts[contacts:]
         contact = tuple(float(v) for v in hit[0][1:]) if hit else None
         info.update(
             camera=camera,
-            scores=None if scores is None else scores.tolist(),
+            scores=scores,
             contact=contact,
             sim_time=(self._path.ticks - since) / 10.0,
             poses=self._path.poses(since).tolist(),
