@@ -9,13 +9,11 @@ keywords of :class:`pipeline.rl.gym_env.SafeNavigationEnv`, and the recogniser a
 
 Why here: the environment lives in ``rl``, which never imports ``fewshot`` (the science
 packages stay independent; README "Layout"), and a recogniser by name may be the Relation Network
-of ``fewshot``. Building recognisers from ``conf/recogniser/<name>.yaml`` is
+of ``fewshot``. This module is wiring like the stages: its resolver, ``make_recogniser``, loads
+``conf/recogniser/<name>.yaml`` and hands it to the trials stage's builder,
 :func:`pipeline.config.recognisers.build_recogniser` (its ``_target_`` and the argument check
-against the target's signature). This module is wiring like the stages (beside them: neither imports
-the other): it loads the yaml and hands it to that same function, so the trials stage and
-``gymnasium.make`` build a recogniser through one path, and the ``rl`` environment only ever
-receives an object. ``make_recogniser`` is the resolver. Nothing here is imported by
-``import pipeline``.
+against the target's signature), so both build a recogniser through one path and the ``rl``
+environment only ever receives an object. Nothing here is imported by ``import pipeline``.
 
 Relative paths in a yaml (``relation_net``: ``datasets/...``) are read from the working directory,
 as in the stages: run from the project root or pass absolute paths in ``recogniser_options``.
@@ -26,6 +24,7 @@ from __future__ import annotations
 import functools
 import importlib.util
 import numbers
+import os
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
@@ -94,8 +93,8 @@ def recogniser_for(
             f"be one of {', '.join(map(str, SUBSTITUTION_WAYS))} (paper section 3.3)",
         )
     if isinstance(recogniser, str):
-        _check_name(recogniser)
         if not spec.uses_recogniser:
+            _check_name(recogniser)  # built for no method, but a wrong name is refused all the same
             return None
         way = substitution if spec.dynamic_support else 0
         return make_recogniser(recogniser, options, substitution_way=way)
@@ -106,12 +105,24 @@ def recogniser_for(
     return recogniser
 
 
-def human_rendering(env_class: type, refuse_without_window: Callable[[], None]) -> Callable:
-    """An environment factory that also takes ``render_mode="human"``: ``refuse_without_window()``
-    refuses at once what a window needs and is missing (not at the first ``render()``), then the
-    factory's ``rgb_array`` environment is shown in a window by Gymnasium's ``HumanRendering``.
+def human_rendering(env_class: type, instead: str, needs_display: bool = False) -> Callable:
+    """An environment factory that also takes ``render_mode="human"``: the factory's ``rgb_array``
+    environment shown in a window by Gymnasium's ``HumanRendering``. What a window needs is checked
+    at once (not at the first ``render()``): pygame, and a display if ``needs_display``; without
+    them ``render_mode="human"`` is refused, naming ``instead`` (the render modes to use).
     ``gymnasium.make`` reads the render modes from the entry point, so the factory lists
     ``env_class``'s and ``human``, which then reaches it."""
+
+    def refuse_without_window() -> None:
+        if importlib.util.find_spec("pygame") is None:
+            raise ValueError(
+                "render_mode='human' opens a window through pygame, which is not installed "
+                f"(pip install pygame); or use {instead}"
+            )
+        if needs_display and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+            raise ValueError(
+                "render_mode='human' needs a display (DISPLAY is not set); use render_mode='rgb_array'"
+            )
 
     def decorate(make: Callable) -> Callable:
         @functools.wraps(make)
@@ -130,15 +141,20 @@ def human_rendering(env_class: type, refuse_without_window: Callable[[], None]) 
     return decorate
 
 
-def _refuse_human_without_pygame() -> None:
-    if importlib.util.find_spec("pygame") is None:
-        raise ValueError(
-            "render_mode='human' opens a window through pygame, which is not installed "
-            "(pip install pygame); or use render_mode='rgb_array' (frames) or 'ansi' (text)"
-        )
+def refuse_another_maze(
+    asked: str | Layout | None, registered_maze: str, env_id: str, any_maze_id: str | None = None
+) -> None:
+    """An id names the maze it runs: ``registered_maze`` (the id's, ``SafeNav-7x7-v0``) refuses
+    another ``asked`` maze, naming ``any_maze_id`` (``SafeNav-v0``, which takes any) if there is one."""
+    if asked is None or asked == registered_maze:
+        return
+    message = f"maze={asked!r}: {env_id} is the {registered_maze} maze"
+    if any_maze_id is not None:
+        message += f"; for another maze use gymnasium.make({any_maze_id!r}, maze={asked!r})"
+    raise ValueError(message)
 
 
-@human_rendering(SafeNavigationEnv, _refuse_human_without_pygame)
+@human_rendering(SafeNavigationEnv, instead="render_mode='rgb_array' (frames) or 'ansi' (text)")
 def make_env(
     maze: str | Layout | None = None,
     method: str | MethodSpec = "shield",
@@ -151,23 +167,14 @@ def make_env(
     tile_size: int = 32,
     registered_maze: str | None = None,
 ) -> SafeNavigationEnv:
-    """A :class:`SafeNavigationEnv`; ``recogniser`` an object or a name of
-    ``conf/recogniser/``.
-
-    A name is built only for the methods that reason with pictures (like the trials stage); with
-    ``fewshot_dss`` the recogniser gets substitution way ``substitution`` (1-4, section 3.3), as
-    ``substitution=`` does for the trials stage. Each ``reset(seed=...)`` restores its support set.
-    ``registered_maze``: the maze of the id (``SafeNav-7x7-v0``); another ``maze`` is refused, so
-    an id never names a maze it does not run (``SafeNav-v0`` takes any; ``maze`` defaults to 5x5).
-    ``render_mode="human"`` shows the ``rgb_array`` frames in a window (:func:`human_rendering`),
-    refused at once when pygame is not installed."""
+    """A :class:`SafeNavigationEnv`; ``recogniser`` an object or a name of ``conf/recogniser/``,
+    built with ``recogniser_options`` and ``substitution`` (1-4, section 3.3) as
+    :func:`recogniser_for` says. Each ``reset(seed=...)`` restores its support set.
+    ``registered_maze``: the maze of the id (:func:`refuse_another_maze`; ``SafeNav-v0`` takes
+    any, ``maze`` defaults to 5x5). ``render_mode="human"``: :func:`human_rendering`."""
     if registered_maze is not None:
         asked = getattr(maze, "name", maze)
-        if maze is not None and asked != registered_maze:
-            raise ValueError(
-                f"maze={asked!r}: SafeNav-{registered_maze}-v0 is the {registered_maze} maze; "
-                f"for another maze use gymnasium.make('SafeNav-v0', maze={asked!r})"
-            )
+        refuse_another_maze(asked, registered_maze, f"SafeNav-{registered_maze}-v0", "SafeNav-v0")
         maze = registered_maze
     spec = method if isinstance(method, MethodSpec) else get_method(method)
     recogniser = recogniser_for(spec, recogniser, recogniser_options, substitution)

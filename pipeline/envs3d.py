@@ -1,5 +1,6 @@
 """What ``gymnasium.make("SafeNav3D-<maze>-v0", ...)`` calls: the robot environment
-(:class:`pipeline.robot.env.SafeNavigation3DEnv`) with its recogniser of live pictures.
+(:class:`pipeline.robot.env.SafeNavigation3DEnv`, whose docstring tells its observations by
+``obs_type``, its ``info`` and ``render()``) with its recogniser of live pictures::
 
     gymnasium.make("SafeNav3D-5x5-v0", method="fewshot_dss", recogniser="relation_net",
                    render_mode="rgb_array")
@@ -9,10 +10,6 @@
 :func:`pipeline.envs.recogniser_for`) or a recogniser object; the environment asks it about live
 pictures (:func:`pipeline.robot.live.live`: the few-shot networks score the live picture, the
 models of recognition answer as for the grid's query picture).
-``render()`` is the maze from above and behind the robot; the live picture of a step is
-``info["camera"]`` (None when the robot took none). ``obs_type`` (``"state"``, ``"pixels"``,
-``"state+pixels"``: :data:`pipeline.robot.env.OBS_TYPES`) makes the camera's picture of every step
-(part of) the observation. ``info["cost"]`` is 1.0 on a collision;
 :class:`pipeline.envs.SixValueStep` gives Safety-Gymnasium's six-value ``step``.
 """
 
@@ -21,29 +18,17 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from pipeline.envs import human_rendering, recogniser_for
+from pipeline.envs import human_rendering, recogniser_for, refuse_another_maze
 from pipeline.rl.methods import MethodSpec, get_method
 from pipeline.robot.env import SafeNavigation3DEnv
 from pipeline.robot.limits import DEFAULT_CELL, DEFAULT_TIMESTEP
 
 
-def _refuse_human_without_a_window() -> None:
-    """``render_mode="human"`` needs pygame and a display: a clear refusal without them."""
-    import importlib.util
-    import os
-
-    if importlib.util.find_spec("pygame") is None:
-        raise ValueError(
-            "render_mode='human' opens a window through pygame, which is not installed "
-            "(pip install pygame); or use render_mode='rgb_array' (frames from env.render())"
-        )
-    if not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY"):
-        raise ValueError(
-            "render_mode='human' needs a display (DISPLAY is not set); use render_mode='rgb_array'"
-        )
-
-
-@human_rendering(SafeNavigation3DEnv, _refuse_human_without_a_window)
+@human_rendering(
+    SafeNavigation3DEnv,
+    instead="render_mode='rgb_array' (frames from env.render())",
+    needs_display=True,
+)
 def make_env3d(
     maze: str | None = None,
     method: str | MethodSpec = "shield",
@@ -60,15 +45,11 @@ def make_env3d(
     obs_type: str = "state",
     registered_maze: str | None = None,
 ) -> SafeNavigation3DEnv:
-    """The robot environment; ``registered_maze`` (the id's) refuses another ``maze``.
-    ``render_mode="human"`` shows ``rgb_array`` frames in a window
-    (:func:`pipeline.envs.human_rendering`; it needs pygame and a display): refused at once without
-    them."""
+    """The robot environment; ``registered_maze`` (the id's) refuses another ``maze``
+    (:func:`pipeline.envs.refuse_another_maze`). ``render_mode="human"``:
+    :func:`pipeline.envs.human_rendering` (it needs pygame and a display)."""
     if registered_maze is not None:
-        if maze is not None and maze != registered_maze:
-            raise ValueError(
-                f"maze={maze!r}: SafeNav3D-{registered_maze}-v0 is the {registered_maze} maze"
-            )
+        refuse_another_maze(maze, registered_maze, f"SafeNav3D-{registered_maze}-v0")
         maze = registered_maze
     spec = method if isinstance(method, MethodSpec) else get_method(method)
     return SafeNavigation3DEnv(  # it asks any recogniser about live pictures (robot.live.live)

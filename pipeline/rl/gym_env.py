@@ -43,9 +43,9 @@ Truncation
 Safety guarantee
     When the chosen action runs into an obstacle and the decision rule stops it (``rule``:
     ``paper``, the recogniser names its category; ``open_set``, its top score reaches ``threshold``;
-    ``range``, always; ``rules.Rule``), the action is not executed: ``step`` returns the same cell with reward 0, ``info["prevented"] = True`` and
-    the updated mask; the step counter does not advance, and the agent should choose again
-    (Algorithm 1, lines 4-10).
+    ``range``, always; ``rules.Rule``), the action is not executed: ``step`` returns the same cell
+    with reward 0, ``info["prevented"] = True`` and the updated mask; the step counter does not
+    advance, and the agent should choose again (Algorithm 1, lines 4-10).
 
 Runs and episodes
     ``reset(seed=s)`` starts a new independent run: obstacle placement drawn from
@@ -55,28 +55,23 @@ Runs and episodes
 Arguments
     ``maze`` (built-in name or ``Layout``), ``method`` (name in ``conf/method/`` or
     ``MethodSpec``), ``recogniser`` (an object of the ``pipeline.rl.recogniser.Recogniser``
-    protocol; needed by the methods that reason with pictures, ``fewshot`` and ``fewshot_dss``),
-    ``run``, ``render_mode``, ``tile_size`` (pixels per cell of ``rgb_array``), ``rule`` and
-    ``threshold`` (the decision rule), ``world`` (``rl.run_world``: the grid, or the camera robot's
-    ``RobotWorld``, which ``SafeNav3D-*`` passes). This class lives in
-    ``rl`` and so never imports ``fewshot`` or the configs: recognisers by name (``"relation_net"``,
-    ``"oracle"``, ``"fixed_accuracy"``, the files of ``conf/recogniser/``) are built by
-    ``pipeline.envs.make_env``, the entry point of the registered ids, which then constructs this
-    class.
+    protocol, needed by the methods that reason with pictures, ``fewshot`` and ``fewshot_dss``; by
+    name through ``pipeline.envs.make_env``, as ``rl`` never imports ``fewshot``), ``run``,
+    ``render_mode``, ``tile_size`` (pixels per cell of ``rgb_array``), ``rule`` and ``threshold``
+    (the decision rule), ``world`` (``rl.run_world``: the grid, or the camera robot's
+    ``RobotWorld``, which ``SafeNav3D-*`` passes).
 
 Render modes
-    ``"rgb_array"``: the maze from above, ``width * tile_size`` wide, a legend strip under it, uint8:
-    obstacles in the colour of their category, the start cell, the goal an oval, each (s, a) of
-    A_d a bar on the edge of cell s toward a, the robot a disc (the one palette,
-    ``pipeline/palette.py``: the replay and the report use the same colours; drawing in
-    ``pipeline.rl.gym_render``). ``"ansi"``: the same as a text grid (obstacles as category digits).
-    ``metadata["render_fps"]`` is 4.
+    ``"rgb_array"``: the maze from above, ``width * tile_size`` wide, a legend strip under it, uint8
+    (drawn by ``pipeline.rl.gym_render`` in the one palette of ``pipeline/palette.py``: the replay
+    and the report use the same colours). ``"ansi"``: the same as a text grid (obstacles as
+    category digits). ``metadata["render_fps"]`` is 4.
 
 Registered configurations
     ``SafeNav-5x5-v0``, ``SafeNav-7x7-v0``, ``SafeNav-11x11-v0`` (that maze only) and
-    ``SafeNav-v0`` (any ``maze=``, 5x5 by default): method ``shield``, ``max_episode_steps=200``; registered on ``import pipeline`` (or ``gymnasium.make("pipeline:SafeNav-5x5-v0")``),
-    see ``pipeline/__init__.py``. Other methods and recognisers by keyword:
-    ``gymnasium.make("SafeNav-5x5-v0", method="fewshot_dss", recogniser="oracle")``.
+    ``SafeNav-v0`` (any ``maze=``, 5x5 by default): method ``shield``, ``max_episode_steps=200``,
+    registered on ``import pipeline`` (``pipeline.registration``). Other methods and recognisers
+    by keyword: ``gymnasium.make("SafeNav-5x5-v0", method="fewshot_dss", recogniser="oracle")``.
 """
 
 from __future__ import annotations
@@ -136,11 +131,9 @@ class SafeNavigationEnv(gym.Env):
         self._params = MethodParams.of(self.method, rule)
         if not 0.0 < float(threshold) <= 1.0:
             raise ValueError(f"threshold={threshold}: must lie in (0, 1]")
-        self.rule, self.threshold, self.world_model = (
-            Rule(self._params.rule),
-            float(threshold),
-            world,
-        )
+        self.rule = Rule(self._params.rule)
+        self.threshold = float(threshold)
+        self.world_model = world
         self._sees_pictures = reasons_with_pictures(self._params.safety)
         if isinstance(recogniser, str):
             raise TypeError(
@@ -167,9 +160,9 @@ class SafeNavigationEnv(gym.Env):
         # what apply_action reads of the method and the maze, as plain tuples (see _apply_action)
         self._records = tuple(self._params), tuple(MazeArrays.of(self.layout, self.geometry))
         self._new_run(0)
+        self.state, self.t = self.layout.start, 0  # until reset(), which starts them again
 
     def _new_run(self, seed: int) -> None:
-        self.run_seed = seed
         self.world = self.world_model.run_world(self.geometry, seed, self.run_id)
         self.unsafe = np.zeros((self.layout.n_cells, 4), dtype=np.bool_)
         n_pictures = max(1, len(self.world_model.picture_category))
@@ -185,8 +178,6 @@ class SafeNavigationEnv(gym.Env):
         if self._sees_pictures:
             self.recogniser.start_run(self.run_id, run_seeds(seed, self.run_id).recogniser)
             self._answer()
-        self.state = self.layout.start
-        self.t = 0
 
     def _answer(self) -> None:
         """The recogniser's answers under the run's current support set (as the runner's)."""
@@ -199,8 +190,10 @@ class SafeNavigationEnv(gym.Env):
     def action_mask(self, state: int | None = None) -> np.ndarray:
         return (~self.unsafe[self.state if state is None else state]).astype(np.int8)
 
-    def _info(self, **extra) -> dict:
-        return {"action_mask": self.action_mask(), "step": self.t, **extra}
+    def _info(self, **seen) -> dict:
+        """``info``: the action mask, the move counter and what the step saw (``reset``: nothing)."""
+        nothing = dict(prevented=False, collided=False, picture=-1, recognition=None, flags=0)
+        return {"action_mask": self.action_mask(), "step": self.t, **nothing, "added": [], **seen}
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
@@ -208,9 +201,7 @@ class SafeNavigationEnv(gym.Env):
             self._new_run(int(seed))
         self.state = self.layout.start
         self.t = 0
-        return self.state, self._info(
-            prevented=False, collided=False, picture=-1, recognition=None, flags=0, added=[]
-        )
+        return self.state, self._info()
 
     def step(self, action):
         a = int(action)
@@ -229,44 +220,27 @@ class SafeNavigationEnv(gym.Env):
                 "predicted": int(self.predicted[picture]),
                 "true": int(self.world.true_category[o]),
             }
-        if out == Outcome.prevented:
-            return (
-                s,
-                0.0,
-                False,
-                False,
-                self._info(
-                    prevented=True,
-                    collided=False,
-                    picture=int(picture),
-                    recognition=recognition,
-                    flags=0,
-                    added=added,
-                ),
-            )
-        collided = out == Outcome.collided
+        prevented, collided = out == Outcome.prevented, out == Outcome.collided
         if collided and self._params.dynamic and picture >= 0:
             self.recogniser.learn_from_collision(self.run_id, int(picture), recognition["true"])
             self._answer()
-        self.t += 1
-        self.state = int(s2)
-        truncated = (not terminated) and self.t >= self.method.max_steps
-        if truncated:
-            flags |= StepFlag.truncated
-        return (
-            self.state,
-            float(reward),
-            bool(terminated),
-            bool(truncated),
-            self._info(
-                prevented=False,
-                collided=collided,
-                picture=int(picture),
-                recognition=recognition,
-                flags=int(flags),
-                added=added,
-            ),
+        # a prevented action stays in s (reward 0, flags 0) and is no move: the counter waits
+        truncated = False
+        if not prevented:
+            self.t += 1
+            self.state = int(s2)
+            truncated = (not terminated) and self.t >= self.method.max_steps
+            if truncated:
+                flags |= StepFlag.truncated
+        info = self._info(
+            prevented=prevented,
+            collided=collided,
+            picture=int(picture),
+            recognition=recognition,
+            flags=int(flags),
+            added=added,
         )
+        return self.state, float(reward), bool(terminated), truncated, info
 
     def render(self):
         """``rgb_array``: the top-down picture; ``ansi``: the text grid (see Render modes)."""

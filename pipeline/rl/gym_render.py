@@ -48,9 +48,8 @@ def rgb_frame(
     maze on top, the legend strip (:func:`legend_strip`) below.
 
     ``categories[o]`` is the category of obstacle ``o`` (the order of ``layout.obstacles``),
-    ``unsafe`` the (n_cells, 4) A_d, ``robot`` the robot's cell."""
-    if tile < 8:
-        raise ValueError(f"tile size {tile} too small to draw: use 8 pixels or more")
+    ``unsafe`` the (n_cells, 4) A_d, ``robot`` the robot's cell; ``tile`` 8 pixels or more (the
+    environment's check of ``tile_size``)."""
     h, w = layout.height, layout.width
     img = np.empty((h * tile, w * tile, 3), dtype=np.uint8)
     img[:] = GRID_RGB
@@ -85,11 +84,9 @@ def legend_strip(width: int) -> np.ndarray:
 
     font = ImageFont.load_default(size=10)
     probe = ImageDraw.Draw(Image.new("RGB", (1, 1)))
-    entries = [
-        (name, colour, 14 + probe.textlength(name, font=font) + 8) for name, colour in LEGEND
-    ]
     lines, x = [[]], 0.0
-    for name, colour, w in entries:
+    for name, colour in LEGEND:
+        w = 14 + probe.textlength(name, font=font) + 8  # swatch, name, gap
         if x + w > width and lines[-1]:
             lines.append([])
             x = 0.0

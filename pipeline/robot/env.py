@@ -5,9 +5,9 @@ SafeNavigation3DEnv
 
 :class:`pipeline.rl.gym_env.SafeNavigationEnv` in the robot's world
 (:class:`~pipeline.robot.live_world.RobotWorld`): the same observation (the robot's cell; the
-camera's picture by ``obs_type``, below), actions
-(0 N, 1 E, 2 S, 3 W), rewards, A_d, decision rule (``rule``, ``threshold``) and self-recovery, with
-the same code (``rules.apply_action``). What the robot world changes:
+camera's picture by ``obs_type``, below), actions (0 N, 1 E, 2 S, 3 W), rewards, A_d, decision
+rule (``rule``, ``threshold``) and self-recovery, with the same code (``rules.apply_action``). What
+the robot world changes:
 
 * the pictures: a method that reasons with pictures is asked about the **live picture** the robot's
   camera takes from the cell's centre facing the obstacle (any recogniser by name:
@@ -60,8 +60,7 @@ from pipeline.robot.sim import RobotSim
 from pipeline.robot.world import MAX_SEEN_OBSTACLES
 from pipeline.world.maze import Layout, load_layout
 
-#: What ``reset`` and ``step`` return (module docstring): the keys of Gymnasium's
-#: ``AddRenderObservation``, ``"state"`` and ``"pixels"``, alone or together.
+#: The observations of ``obs_type`` (module docstring): Gymnasium's keys, alone or together.
 OBS_TYPES = ("state", "pixels", "state+pixels")
 
 
@@ -114,9 +113,7 @@ class SafeNavigation3DEnv(SafeNavigationEnv):
 
     def _new_run(self, seed: int) -> None:
         super()._new_run(seed)
-        if self._sim is not None:
-            self._sim.close()
-            self._sim = None
+        self.close()  # the new run's maze is built in MuJoCo on first use (_robot_sim)
         self._pictures: dict[tuple[int, int], np.ndarray] = {}  # (cell, heading) -> pixels
         self._obstacles = self.world.placement.as_records(self.layout.obstacles)
 
@@ -133,14 +130,14 @@ class SafeNavigation3DEnv(SafeNavigationEnv):
         if info["picture"] >= 0:
             self._path.look(s, int(action))
             camera = self.world_model.image(info["picture"])
-            scores = np.asarray(self.recogniser.scores(self.run_id, [info["picture"]]))[0]
+            scores = np.asarray(self.recogniser.scores(self.run_id, [info["picture"]]))[0].tolist()
         if not info["prevented"]:
             self._path.move(s, int(action), info["flags"])
         hit = self._path.contacts[contacts:]
         contact = tuple(float(v) for v in hit[0][1:]) if hit else None
         info.update(
             camera=camera,
-            scores=None if scores is None else scores.tolist(),
+            scores=scores,
             contact=contact,
             sim_time=(self._path.ticks - since) / 10.0,
             poses=self._path.poses(since).tolist(),
@@ -156,10 +153,9 @@ class SafeNavigation3DEnv(SafeNavigationEnv):
         return parts if self.obs_type == "state+pixels" else parts[self.obs_type]
 
     def _camera(self, cell: int) -> np.ndarray:
-        """The forward camera's picture from the centre of ``cell``, facing the robot's heading:
-        the pose it re-localises to, from which the live pictures are taken too. The run's maze
-        stands still, so a picture is a function of the cell and the heading: each is rendered
-        once a run and handed out as a copy."""
+        """The forward camera's picture from the centre of ``cell``, facing the robot's heading
+        (the pose it re-localises to; module docstring), rendered once a run (the maze stands
+        still) and handed out as a copy."""
         key = (int(cell), self._path.heading)
         if key not in self._pictures:
             sim = self._robot_sim()
