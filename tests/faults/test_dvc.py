@@ -147,6 +147,15 @@ def changed(value):
 
 @pytest.mark.slow  # real `dvc commit` and `dvc status` in a copy; fast: the derived listing above
 @pytest.mark.skipif(not DVC.exists(), reason="dvc is not installed beside this python")
+def stage_items(name: str, stage) -> list[str | None]:
+    """The items DVC names a stage's runs by: the experiments of the trials' ``foreach``, a
+    ``foreach`` list of its own (the networks' seeds), or None for a plain stage."""
+    if stage.items != [None]:
+        return stage.items
+    own = yaml.safe_load(TEXT)["stages"][name].get("foreach")
+    return [str(item) for item in own] if own else [None]
+
+
 def test_dvc_status_names_every_stage_for_every_module_folder_and_key(tmp_path):
     repo = tmp_path / "repo"
     for root in dvc_deps.derived_roots():
@@ -169,7 +178,7 @@ def test_dvc_status_names_every_stage_for_every_module_folder_and_key(tmp_path):
     status = yaml.safe_load(dvc("status", "--json"))
     problems = []
     for name, stage in STAGES.items():
-        for item in stage.items:
+        for item in stage_items(name, stage):
             key = f"{name}@{item}" if item else name
             seen = {}
             for entry in status.get(key, []):
