@@ -145,8 +145,6 @@ def changed(value):
     return ["changed", value]
 
 
-@pytest.mark.slow  # real `dvc commit` and `dvc status` in a copy; fast: the derived listing above
-@pytest.mark.skipif(not DVC.exists(), reason="dvc is not installed beside this python")
 def stage_items(name: str, stage) -> list[str | None]:
     """The items DVC names a stage's runs by: the experiments of the trials' ``foreach``, a
     ``foreach`` list of its own (the networks' seeds), or None for a plain stage."""
@@ -156,6 +154,8 @@ def stage_items(name: str, stage) -> list[str | None]:
     return [str(item) for item in own] if own else [None]
 
 
+@pytest.mark.slow  # real `dvc commit` and `dvc status` in a copy; fast: the derived listing above
+@pytest.mark.skipif(not DVC.exists(), reason="dvc is not installed beside this python")
 def test_dvc_status_names_every_stage_for_every_module_folder_and_key(tmp_path):
     repo = tmp_path / "repo"
     for root in dvc_deps.derived_roots():
