@@ -387,3 +387,30 @@ def test_a_hue_shift_that_is_no_number_of_degrees_is_refused(shift):
     file is read)."""
     with pytest.raises(ValueError, match="query_hue_shift must be a finite number of degrees"):
         from_files.RecogniserFiles("no.pt", "no-images", None, shift)
+
+
+def test_columns_computed_in_worker_processes_are_kept(files, score_folder, tmp_path):
+    """A trials stage with two workers: the columns its workers computed are in the score file
+    when the stage returns (each worker saves its store as it ends; a worker killed instead
+    would lose them, and the next run would load the network again)."""
+    from pipeline.stages import run_stage
+
+    images, rn, _ = files
+    run_stage(
+        "trials",
+        [
+            "+experiment=fig9",
+            f"recogniser.checkpoint={rn}",
+            f"recogniser.images_dir={images}",
+            "recogniser.input_size=24",
+            "recogniser.relation_padding=1",
+            "runs=2",
+            "episodes=5",
+            "workers=2",
+            "progress=false",
+            f"out={tmp_path / 'out'}",
+        ],
+    )
+    (kept,) = score_folder.glob("*.npz")
+    columns, about = score_cache.read_score_file(kept)
+    assert about is not None and len(columns) >= 5  # at least the original support set's

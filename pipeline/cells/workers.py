@@ -137,10 +137,11 @@ def worker_pool(
         for future in [pool.submit(_check_recogniser, c) for c in light]:
             future.result()
         yield pool
-    finally:
-        # after the last result every cell's records are closed: the idle workers are ended, not
-        # left to wind down their interpreters (numba's, torch's), which took about a second
+    except BaseException:
         stop(pool)
+        raise
+    # a worker that ends on its own saves the score columns it computed (score_cache, at exit)
+    pool.shutdown()
 
 
 def run_parallel(
@@ -171,8 +172,7 @@ def recogniser_check_key(cfg) -> str:
 
 
 def stop(pool: ProcessPoolExecutor) -> None:
-    """Cancel the cells not started and end the workers this pool started (SIGTERM: a worker
-    between cells holds nothing; one in a cell leaves its staging folder to the stage)."""
+    """Cancel the cells not started and end the workers this pool started."""
     processes = list((getattr(pool, "_processes", None) or {}).values())
     pool.shutdown(wait=False, cancel_futures=True)
     for process in processes:
