@@ -220,8 +220,8 @@ def files_source(cls, files: RecogniserFiles) -> str | None:
         folder = Path(files.images_dir)
         h.update((folder / MANIFEST).read_bytes())
         frame = read_manifest(folder)
-        files = frame.loc[frame["split"].isin(["query", "support"]), "file"]
-        for name in sorted(files.astype(str)):
+        pictures = frame.loc[frame["split"].isin(["query", "support"]), "file"]
+        for name in sorted(pictures.astype(str)):
             h.update(f"|{name}|{file_sha256(folder / name)}".encode())
     except (OSError, UserError):
         return None
