@@ -309,9 +309,14 @@ def test_bad_input_is_refused_with_a_message_naming_it(tmp_path):
             "states: values -1..2 outside 0..4294967295",
         ),
         (
-            make_batch([_episode(actions=np.array([0, 1, 2**32], np.int64))]),
+            make_batch([_episode(actions=np.array([0, 1, 2**27], np.int64))]),
             ValueError,
-            "actions: values 0..4294967296 outside",
+            "actions: values 0..134217728 outside 0..134217727",  # action * 32 + flags: a uint32
+        ),
+        (
+            make_batch([_episode(flags=np.array([0, 32, 1], np.uint8))]),
+            ValueError,
+            "flags: values 0..32 outside 0..31",  # five flag bits
         ),
         (
             make_batch([_episode(summary=dict(_episode()["summary"], violations=1))]),
@@ -601,6 +606,8 @@ def _runtime_flat(data: list[bytes]) -> dict:
                 ),
                 np.array([len(x) for x in raw], np.int64),
             )
+    pairs, n = out["Steps", "transitions"]  # two values a step
+    out["Steps", "transitions"] = pairs.reshape(-1, 2), n // 2
     return out
 
 
@@ -629,7 +636,7 @@ def test_raw_view_decoding_equals_the_protobuf_runtime(tmp_path):
         for b in groups:
             w.episodes(**b)
     wide = [d for _, d in scan(tmp_path / "wide.mcap").messages["/episodes"]]
-    assert max(S.EpisodeBatch.FromString(d).steps.states[0] for d in wide) >= 70000
+    assert max(S.EpisodeBatch.FromString(d).steps.transitions[0] for d in wide) >= 70000
     same(wide)
     states = read_records(tmp_path / "wide.mcap").steps.query(
         "run == 0 and episode in [5, 6, 7, 8, 9]"
@@ -649,20 +656,20 @@ def test_raw_view_decoding_equals_the_protobuf_runtime(tmp_path):
     assert np.isnan(cols["recognitions"]["score_0"]).sum() > 0  # group 3: no scores
     # other valid encodings of the same values: re-serialized by the real classes, then read the same
     one = S.EpisodeBatch.FromString(data[0])
-    states = one.steps.states
-    tail = S.EpisodeBatch(steps=S.Steps(states=states[len(states) // 2 :]))
-    one.steps.ClearField("states")
-    one.steps.states.extend(states[: len(states) // 2])
+    pairs = one.steps.transitions
+    tail = S.EpisodeBatch(steps=S.Steps(transitions=pairs[len(pairs) // 2 :]))
+    one.steps.ClearField("transitions")
+    one.steps.transitions.extend(pairs[: len(pairs) // 2])
     split = (
         one.SerializeToString(deterministic=True) + tail.SerializeToString()
     )  # a packed field in two
     unknown = data[0] + bytes([(15 << 3) | 0, 1])  # an unknown field 15
     long_code = S.EpisodeBatch.FromString(data[0])
-    long_code.steps.flags[0] = 200  # a two-byte varint in a code column
+    long_code.steps.transitions[1] = 200  # a two-byte varint in a code column
     for odd in (split, unknown, long_code.SerializeToString()):
         same([odd])
     np.testing.assert_array_equal(
-        codec.decode_batches([split], "v")["steps"]["state"], np.asarray(states, np.int32)
+        codec.decode_batches([split], "v")["steps"]["state"], np.asarray(pairs[::2], np.int32)
     )
 
 
@@ -678,20 +685,20 @@ def test_code_columns_of_every_size_read_back_exactly():
             rng.integers(0, 2**32, 500) >> rng.integers(0, 32, 500),
         ]
     )
-    parts = [values[:7], values[7:7], values[7:], values[:3] % 128]
+    parts = [values[:8], values[8:8], values[7:], values[:4] % 128]  # whole pairs
     data = [
         S.EpisodeBatch(
-            run=1, steps=S.Steps(states=v.tolist(), actions=(v % 4).tolist())
+            run=1, steps=S.Steps(transitions=v.tolist()), recognitions=S.CLASSES["Recognitions"](action=v % 4)
         ).SerializeToString()
         for v in parts
     ]
     got, want = codec._flat(data), _runtime_flat(data)
-    for k in (("Steps", "states"), ("Steps", "actions")):
+    for k in (("Steps", "transitions"), ("Recognitions", "action")):
         np.testing.assert_array_equal(got[k][0], want[k][0])
-        assert got[k][1].tolist() == [len(v) for v in parts]
+        assert got[k][1].tolist() == [len(v) // (2 if k[1] == "transitions" else 1) for v in parts]
     cut = codec.VIEWS["EpisodeBatch"](
         steps=codec.VIEWS["Steps"](
-            states=codec._payload("Steps", codec.COLUMNS["Steps"][0], np.array([300]))[:1]
+            transitions=codec._payload("Steps", codec.TRANSITIONS, np.array([300, 1]))[:1]
         )
     )
     with pytest.raises(ValueError, match="whole value"):
@@ -728,7 +735,9 @@ def test_the_file_is_self_describing_for_generic_protobuf_readers(tmp_path):
     eps = decoded["/episodes"]
     assert [type(m).DESCRIPTOR.full_name for m in eps[:1]] == ["fsrl.records.EpisodeBatch"]
     assert len(eps) == 1 and list(eps[0].episode) == [0, 1, 2]
-    assert list(eps[0].steps.states) == np.concatenate([f["states"] for f in written]).tolist()
+    pairs = np.stack([np.concatenate([f[k] for f in written]) for k in ("states", "actions", "flags")])
+    assert list(eps[0].steps.transitions[0::2]) == pairs[0].tolist()
+    assert list(eps[0].steps.transitions[1::2]) == (pairs[1] * 32 + pairs[2]).tolist()
     assert list(eps[0].summary.return_) == [f["summary"]["return_"] for f in written]
     assert decoded["/pictures/5"][0].format == "png" and decoded["/pictures/5"][0].data == tiny_png(
         5
@@ -741,20 +750,23 @@ def test_the_file_is_self_describing_for_generic_protobuf_readers(tmp_path):
 
 
 def test_a_file_of_an_older_record_format_is_refused_in_one_line():
-    """tests/data/format4.mcap was written by the format-4 writer: its episode batches have another schema
-    record, so reading it is refused, naming its format, not misread; so is a schema record of another kind."""
+    """tests/data/format4.mcap and format6.mcap were written by the writers of those formats: their
+    episode batches have another schema record, so reading them is refused, naming the format, not
+    misread; so is a schema record of another kind."""
     from pipeline.records import RecordsError
     from pipeline.records.codec import OUR_SCHEMA, FormatError, check_schema
 
     with pytest.raises(
         RecordsError,
         match=r"format4\.mcap: its episode batches use record format 4; this reader "
-        r"reads format 6: re-run the trials that wrote it",
+        r"reads format 7: re-run the trials that wrote it",
     ):
         read_records(Path(__file__).parent / "data" / "format4.mcap")
+    with pytest.raises(RecordsError, match=r"format6\.mcap: .* record format 6; this reader reads format 7"):
+        read_records(Path(__file__).parent / "data" / "format6.mcap")  # the format before pairs
     check_schema(None, None)  # lost: this writer's is assumed
     check_schema(OUR_SCHEMA, S.LIBRARY)
-    with pytest.raises(FormatError, match="use another record schema; this reader reads format 6"):
+    with pytest.raises(FormatError, match="use another record schema; this reader reads format 7"):
         check_schema(b"\x0a\x03abc", "someone else/1")
 
 

@@ -11,15 +11,16 @@ from typing import Any
 
 import numpy as np
 
-from .codec import COLUMNS, FIXED, REWARDS, SMALL_REWARDS, SUBS
-from .schema import BOOL, CODE, F32, F64, I32, MESSAGES, U32, Field
-from .step_columns import CODE_COLUMNS, scan_steps
+from .codec import COLUMNS, FIXED, REWARDS, SMALL_REWARDS, SUBS, TRANSITIONS
+from .schema import BOOL, CODE, F32, F64, I32, MESSAGES, TRANSITION_PARTS, U32, Field
+from .step_columns import PART_LIMITS, scan_steps
 
 _RANGE = {I32: (-(2**31), 2**31), U32: (0, 2**31), CODE: (0, 2**32)}  # of integer fields' values
 OPTIONAL = frozenset({"q_values", "substitutions"})  # sink batch keys that may be left out
 BATCH_KEYS = frozenset(
     {f.name for f in MESSAGES["EpisodeBatch"]} - {"n_actions"} - OPTIONAL
-    | {f.key or f.name for f in COLUMNS["Steps"]}
+    | {key for key, _, _ in TRANSITION_PARTS}
+    | {REWARDS.name}
 )
 
 
@@ -59,19 +60,19 @@ def _column(a: Any, f: Field, n: int | None, where: str) -> np.ndarray:
 
 def _steps(batch: Mapping[str, Any], n: int, where: str) -> dict[str, np.ndarray]:
     """The step columns of a batch of ``n`` steps checked, as payload arrays, in one pass
-    (:mod:`.step_columns`): one byte a value where every value fits in one."""
-    fields = {f.key or f.name: f for f in COLUMNS["Steps"] if f.name != SMALL_REWARDS.name}
-    arrays = {k: _array(batch[k], f, n, f"{where}.{k}") for k, f in fields.items()}
-    found = scan_steps(*(arrays[k] for k in CODE_COLUMNS), arrays["rewards"])
-    lo, hi = _RANGE[CODE]
-    out = {}
-    for j, name in enumerate(CODE_COLUMNS):
-        low, high = found.low[j], found.high[j]
-        if low < lo or high >= hi:
-            raise ValueError(f"{where}.{name}: values {low}..{high} outside {lo}..{hi - 1}")
-        out[name] = arrays[name] if found.one_byte[j] is None else found.one_byte[j]
+    (:mod:`.step_columns`): the cells, actions and flags as ``transitions`` pairs."""
+    parts = {
+        key: _array(batch[key], TRANSITIONS, n, f"{where}.{key}") for key, _, _ in TRANSITION_PARTS
+    }
+    rewards = _array(batch[REWARDS.name], REWARDS, n, f"{where}.{REWARDS.name}")
+    found = scan_steps(*parts.values(), rewards)
+    for low, high, key in zip(found.low, found.high, parts):
+        if low < 0 or high >= PART_LIMITS[key]:
+            limit = PART_LIMITS[key] - 1
+            raise ValueError(f"{where}.{key}: values {low}..{high} outside 0..{limit}")
+    out = {TRANSITIONS.name: found.transitions}
     if found.small_rewards is None:
-        return out | {REWARDS.name: arrays["rewards"].astype(FIXED[REWARDS.type], copy=False)}
+        return out | {REWARDS.name: rewards.astype(FIXED[REWARDS.type], copy=False)}
     return out | {SMALL_REWARDS.name: found.small_rewards}
 
 

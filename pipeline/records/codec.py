@@ -19,13 +19,14 @@ import numpy as np
 from google.protobuf import descriptor_pb2
 
 from . import schema as S
-from .schema import CODE, F32, F64, I32, MESSAGES, SMALL, U32, Field
+from .schema import CODE, F32, F64, FLAG_BITS, I32, MESSAGES, SMALL, U32, Field
 
 SUBS = {f.name: f.type for f in MESSAGES["EpisodeBatch"] if isinstance(f.type, str)}
 COLUMNS = {
     m: [f for f in fs if f.repeated and not isinstance(f.type, str)] for m, fs in MESSAGES.items()
 }
 REWARDS, SMALL_REWARDS = (f for f in COLUMNS["Steps"] if f.column == "reward")  # one per batch
+TRANSITIONS = COLUMNS["Steps"][0]  # two values a step: S.TRANSITION_PARTS
 FIXED = {F32: "<f4", F64: "<f8", U32: "<u4", I32: "<i4"}  # fixed-width fields; others varints
 OUR_SCHEMA = S.file_descriptor_set(S.EpisodeBatch)
 VIEWS = S.message_classes(view=True)
@@ -126,6 +127,10 @@ def _flat(data: list[bytes]) -> dict:
                 return getattr(S.CLASSES[msg].FromString(whole), name)
 
             out[msg, f.name] = _values([getattr(m, f.name) for m in msgs[msg]], f, column)
+    values, n = out["Steps", TRANSITIONS.name]
+    if (n % 2).any():
+        raise ValueError(f"Steps.{TRANSITIONS.name} does not hold whole pairs")
+    out["Steps", TRANSITIONS.name] = values.reshape(-1, 2), n // 2  # one pair a step
     return out
 
 
@@ -136,16 +141,25 @@ def decode_batches(data: list[bytes], name: str) -> dict:
     return _columns(_flat(data), name)
 
 
-def _frame(flat: dict, msg: str, head: dict, **given: np.ndarray) -> dict:
-    """The frame columns of ``msg``'s fields in field order (``given``: columns already built)."""
+def _frame(flat: dict, msg: str, head: dict) -> dict:
+    """The frame columns of ``msg``'s fields in field order."""
     out = dict(head)
     for f in COLUMNS[msg]:
         if f.name != "scores":
-            v = given.get(f.column, flat[msg, f.name][0])
-            out[f.column] = (
-                v if f.column in given else v != 0 if f.dtype == "bool" else v.astype(f.dtype)
-            )
+            v = flat[msg, f.name][0]
+            out[f.column] = v != 0 if f.dtype == "bool" else v.astype(f.dtype)
     return out
+
+
+def _transitions(pair: np.ndarray, reward: np.ndarray) -> dict[str, np.ndarray]:
+    """The steps frame's ``state``, ``action``, ``reward`` and ``flags`` from the
+    ``Steps.transitions`` pairs (rows: state, action * 32 + flags)."""
+    code = pair[:, 1]
+    parts = (pair[:, 0], code >> FLAG_BITS, code & (2**FLAG_BITS - 1))
+    state, action, flags = (
+        v.astype(dtype) for v, (_, _, dtype) in zip(parts, S.TRANSITION_PARTS, strict=True)
+    )
+    return {"state": state, "action": action, "reward": reward, "flags": flags}
 
 
 def _columns(flat: dict, name: str) -> dict[str, Any]:
@@ -155,7 +169,7 @@ def _columns(flat: dict, name: str) -> dict[str, Any]:
     count = {k: v[1] for k, v in flat.items() if isinstance(k, tuple)}
     n_eps = count["EpisodeBatch", "episode"]
     lens = flat["EpisodeSummaries", "steps"][0].astype(np.int64)
-    if not count["Steps", "states"].any():  # recorded without steps (record=episodes)
+    if not count["Steps", TRANSITIONS.name].any():  # recorded without steps (record=episodes)
         lens = np.zeros_like(lens)
     n_float, n_small = count["Steps", REWARDS.name], count["Steps", SMALL_REWARDS.name]
     if ((n_float > 0) & (n_small > 0)).any():
@@ -184,7 +198,7 @@ def _columns(flat: dict, name: str) -> dict[str, Any]:
     reward[~small] = flat["Steps", REWARDS.name][0]
     step = (np.arange(len(starts)) - starts).astype(np.int32)
     head = {"run": np.repeat(ep_run, lens), "episode": np.repeat(ep_ep, lens), "step": step}
-    steps = _frame(flat, "Steps", head, reward=reward)
+    steps = head | _transitions(flat["Steps", TRANSITIONS.name][0], reward)
     steps |= {flag: (steps["flags"] & bit) != 0 for flag, bit in S.FLAG_NAMES.items()}
 
     rec, unsafe, subs = (

@@ -13,9 +13,10 @@ from foxglove_schemas_protobuf.CompressedImage_pb2 import CompressedImage  # noq
 from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
 from mcap_protobuf.schema import build_file_descriptor_set
 
-# 6: format 5 without its unused Substitution message; 5: substitutions in the batches;
+# 7: a step's cell, action and flags as one column of pairs (Steps.transitions); 6: format 5
+# without its unused Substitution message; 5: substitutions in the batches;
 # 4: states as codes; 3: fixed-width packed columns; 2: varint columns; 1: one Episode each
-FORMAT_VERSION = "6"
+FORMAT_VERSION = "7"
 PACKAGE = "fsrl.records"
 LIBRARY = "pipeline.records/" + FORMAT_VERSION  # the header's library string of this writer's files
 TOPIC_EPISODES = "/episodes"
@@ -23,6 +24,7 @@ TOPIC_PICTURES = "/pictures"  # + "/<picture id>"
 TOPIC_SUPPORT = "/support"  # + "/<category>/<position>"
 
 FLAG_NAMES = {"reselected": 1, "collided": 2, "recovered": 4, "goal": 8, "truncated": 16}
+FLAG_BITS = 5  # flags are below 2**FLAG_BITS: Steps.transitions holds action * 32 + flags
 FLAG_RESELECTED, FLAG_COLLIDED, FLAG_RECOVERED, FLAG_GOAL, FLAG_TRUNCATED = FLAG_NAMES.values()
 SOURCE_NAMES = ("recognition", "collision", "ssrl_rule")
 
@@ -73,6 +75,14 @@ class Field(NamedTuple):
     repeated: bool = True
 
 
+#: What ``Steps.transitions`` holds a step, in order: (sink batch key, frame column, dtype); the
+#: second value is action * 32 + flags (flags below 32). Fields 1, 2 and 4 were format 6's columns.
+TRANSITION_PARTS = (
+    ("states", "state", "int32"),
+    ("actions", "action", "int8"),
+    ("flags", "flags", "uint8"),
+)
+
 # message -> fields. Frames: EpisodeSummaries and EpisodeBatch.episode -> episodes; Steps -> steps;
 # Recognitions -> recognitions; UnsafeAdditions -> unsafe; Substitutions -> substitutions.
 MESSAGES: dict[str, list[Field]] = {
@@ -85,11 +95,11 @@ MESSAGES: dict[str, list[Field]] = {
         Field("epsilon", 6, F64, "epsilon", "float64"),  # at the end of the episode
         Field("greedy_optimal", 7, BOOL, "greedy_optimal", "bool"),  # greedy policy optimal after
     ],
-    "Steps": [  # one entry per executed step of the batch's episodes, concatenated
-        Field("states", 1, CODE, "state", "int32"),  # cell row * width + col before the step
-        Field("actions", 2, CODE, "action", "int8"),  # index into the maze record's actions
-        Field("rewards", 3, F32, "reward", "float32"),
-        Field("flags", 4, CODE, "flags", "uint8"),  # FLAG_NAMES bits
+    "Steps": [  # the steps of the batch's episodes, concatenated
+        # two values a step (TRANSITION_PARTS): the cell before the step (row * width + col), then
+        # action * 32 + flags (an index into the maze record's actions; FLAG_NAMES bits)
+        Field("transitions", 6, CODE),
+        Field("rewards", 3, F32, "reward", "float32"),  # one a step
         # a batch whose rewards are all whole numbers in -64..63 (the rules give -1, 0, 1) has them
         # here, one byte each, instead of in ``rewards`` (4 bytes each)
         Field("small_rewards", 5, SMALL, "reward", "float32", key="rewards"),

@@ -1,13 +1,15 @@
 """A batch's step columns (``states``, ``actions``, ``flags``, ``rewards``: one entry a step) checked
 and turned into their payloads in one compiled pass (docs/records.md "The writer").
 
-The step columns are nearly all of a recording's bytes. Checked and encoded by numpy, each column
-went through six to ten whole-array operations (ranges, casts, the reward test, the zigzag), about
-10 ns of CPU a step; two compiled loops read each value once. It gives what the codec
-(:mod:`.codec`) writes: a code column whose values are all below 128 as their own bytes (the
-varint of such a value is the value), and the rewards as signed bytes when they are all whole
-numbers in -64..63 (``Steps.small_rewards``). What does not fit goes on as before: a code column
-with larger values through the Protobuf runtime, rewards as float32.
+The step columns are nearly all of a recording's bytes. The cell, the action and the flags of a
+step go into one column of pairs, ``Steps.transitions``: the cell, then ``action * 32 + flags``.
+Pairs, not three columns: a learnt path repeats the same pairs from episode to episode, long
+matches that zstd finds quickly, so the file is smaller and compressed faster (a third fewer bytes
+a step and about 30% less compression time, ``python -m benchmarks.records_overhead``). When every
+value of the pairs is below 128 (the cells of a maze up to 128 cells, four actions) each is its own
+varint byte and the pass writes them; larger values go through the Protobuf runtime (the codec,
+:mod:`.codec`). The rewards go as signed bytes when they are all whole numbers in -64..63
+(``Steps.small_rewards``), else as float32.
 """
 
 from __future__ import annotations
@@ -17,29 +19,45 @@ from typing import NamedTuple
 import numba as nb
 import numpy as np
 
-CODE_COLUMNS = ("states", "actions", "flags")  # in the order of :class:`StepColumns`' bounds
+from .schema import FLAG_BITS
+
+#: The values a step column may take (below these): what the pairs' uint32 varints hold.
+PART_LIMITS = {"states": 2**32, "actions": 2 ** (32 - FLAG_BITS), "flags": 2**FLAG_BITS}
 SMALL_REWARDS = (-64, 63)  # a sint32 zigzag varint of one byte
 
 
 class StepColumns(NamedTuple):
-    """What :func:`scan_steps` found: per code column its lowest and highest value and, when all
-    are in 0..127, its bytes; the rewards as int8 when all are whole in -64..63, else None."""
+    """What :func:`scan_steps` found: per code column its lowest and highest value, the
+    ``transitions`` pairs (uint8 when every value is below 128, else int64), and the rewards as
+    int8 when all are whole in -64..63, else None."""
 
     low: tuple[int, int, int]
     high: tuple[int, int, int]
-    one_byte: tuple[np.ndarray | None, np.ndarray | None, np.ndarray | None]
+    transitions: np.ndarray
     small_rewards: np.ndarray | None
 
 
 @nb.njit(cache=True, nogil=True)
-def _code_bytes(values, out):
-    """Fill ``out`` with the low byte of each of ``values``; return their lowest and highest."""
-    low = high = np.int64(values[0]) if values.shape[0] else np.int64(0)
-    for i in range(values.shape[0]):  # one loop the compiler vectorises
-        v = np.int64(values[i])
-        low, high = min(low, v), max(high, v)
-        out[i] = np.uint8(v & 0xFF)
-    return low, high
+def _pair_bytes(states, actions, flags, out):
+    """Fill ``out`` with the low bytes of the pairs (state, action * 32 + flags); return the
+    lowest and highest state, action and flag. One loop, no branch: the compiler vectorises it."""
+    n = states.shape[0]
+    bounds = np.zeros(6, np.int64)
+    if n == 0:
+        return bounds
+    s_lo = s_hi = np.int64(states[0])
+    a_lo = a_hi = np.int64(actions[0])
+    f_lo = f_hi = np.int64(flags[0])
+    for i in range(n):
+        s, a, f = np.int64(states[i]), np.int64(actions[i]), np.int64(flags[i])
+        s_lo, s_hi = min(s_lo, s), max(s_hi, s)
+        a_lo, a_hi = min(a_lo, a), max(a_hi, a)
+        f_lo, f_hi = min(f_lo, f), max(f_hi, f)
+        out[2 * i] = np.uint8(s & 0xFF)
+        out[2 * i + 1] = np.uint8((a * 32 + f) & 0xFF)
+    bounds[0], bounds[1], bounds[2] = s_lo, a_lo, f_lo
+    bounds[3], bounds[4], bounds[5] = s_hi, a_hi, f_hi
+    return bounds
 
 
 @nb.njit(cache=True, nogil=True)
@@ -57,14 +75,22 @@ def _small_rewards(rewards, out):
     return fits
 
 
+def pairs(states: np.ndarray, actions: np.ndarray, flags: np.ndarray) -> np.ndarray:
+    """The ``transitions`` values of in-range columns, as int64: state, action * 32 + flags."""
+    codes = actions.astype(np.int64) * (1 << FLAG_BITS) + flags
+    return np.stack([states.astype(np.int64), codes], axis=1).ravel()
+
+
 def scan_steps(
     states: np.ndarray, actions: np.ndarray, flags: np.ndarray, rewards: np.ndarray
 ) -> StepColumns:
     """One pass over four 1-D columns of equal length: integer ``states``, ``actions``, ``flags``
-    (booleans count as 0/1) and float ``rewards``."""
+    (booleans count as 0/1) and float ``rewards``. The pairs mean nothing when a column is out of
+    its range (the caller refuses it, :mod:`.batch_check`)."""
     columns = [a.view(np.uint8) if a.dtype.kind == "b" else a for a in (states, actions, flags)]
-    codes, small = np.empty((len(columns), len(states)), np.uint8), np.empty(len(rewards), np.int8)
-    bounds = [_code_bytes(a, out) for a, out in zip(columns, codes)]
-    low, high = (tuple(int(b[k]) for b in bounds) for k in (0, 1))
-    one_byte = tuple(codes[j] if low[j] >= 0 and high[j] < 128 else None for j in range(3))
-    return StepColumns(low, high, one_byte, small if _small_rewards(rewards, small) else None)
+    out, small = np.empty(2 * len(states), np.uint8), np.empty(len(rewards), np.int8)
+    bounds = _pair_bytes(*columns, out)
+    low, high = tuple(int(b) for b in bounds[:3]), tuple(int(b) for b in bounds[3:])
+    fits = min(low) >= 0 and high[0] < 128 and high[1] < 4 and high[2] < 1 << FLAG_BITS
+    transitions = out if fits else pairs(*columns)
+    return StepColumns(low, high, transitions, small if _small_rewards(rewards, small) else None)
