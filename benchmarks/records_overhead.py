@@ -334,23 +334,19 @@ def bench_codec(path: Path, repeats: int) -> dict:
 
     states = np.random.default_rng(0).integers(128, 16384, 1_000_000)
     raw = _numpy_varints(states)
-    assert (
-        raw
-        == codec.VIEWS["Steps"]
-        .FromString(S.Steps(states=states.tolist()).SerializeToString())
-        .states
-    )
+    as_runtime = S.Steps(transitions=states.tolist()).SerializeToString()
+    assert raw == codec.VIEWS["Steps"].FromString(as_runtime).transitions
     assert np.array_equal(_numpy_unvarints(raw), states)
-    message = codec.VIEWS["Steps"](states=raw).SerializeToString()  # a Steps message holding them
+    message = codec.VIEWS["Steps"](transitions=raw).SerializeToString()  # a Steps message of them
     ms = {
         "decode_views": _best(lambda: codec._flat(data), repeats),
         "decode_runtime": _best(runtime, repeats),
         "varints_write_runtime": _best(
-            lambda: codec._payload("Steps", codec.COLUMNS["Steps"][0], states), repeats
+            lambda: codec._payload("Steps", codec.TRANSITIONS, states), repeats
         ),
         "varints_write_numpy": _best(lambda: _numpy_varints(states), repeats),
         "varints_read_runtime": _best(
-            lambda: np.array(S.Steps.FromString(message).states), repeats
+            lambda: np.array(S.Steps.FromString(message).transitions), repeats
         ),
         "varints_read_numpy": _best(lambda: _numpy_unvarints(raw), repeats),
     }

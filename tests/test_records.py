@@ -688,7 +688,9 @@ def test_code_columns_of_every_size_read_back_exactly():
     parts = [values[:8], values[8:8], values[7:], values[:4] % 128]  # whole pairs
     data = [
         S.EpisodeBatch(
-            run=1, steps=S.Steps(transitions=v.tolist()), recognitions=S.CLASSES["Recognitions"](action=v % 4)
+            run=1,
+            steps=S.Steps(transitions=v.tolist()),
+            recognitions=S.CLASSES["Recognitions"](action=v % 4),
         ).SerializeToString()
         for v in parts
     ]
@@ -735,7 +737,9 @@ def test_the_file_is_self_describing_for_generic_protobuf_readers(tmp_path):
     eps = decoded["/episodes"]
     assert [type(m).DESCRIPTOR.full_name for m in eps[:1]] == ["fsrl.records.EpisodeBatch"]
     assert len(eps) == 1 and list(eps[0].episode) == [0, 1, 2]
-    pairs = np.stack([np.concatenate([f[k] for f in written]) for k in ("states", "actions", "flags")])
+    pairs = np.stack(
+        [np.concatenate([f[k] for f in written]) for k in ("states", "actions", "flags")]
+    )
     assert list(eps[0].steps.transitions[0::2]) == pairs[0].tolist()
     assert list(eps[0].steps.transitions[1::2]) == (pairs[1] * 32 + pairs[2]).tolist()
     assert list(eps[0].summary.return_) == [f["summary"]["return_"] for f in written]
@@ -762,7 +766,9 @@ def test_a_file_of_an_older_record_format_is_refused_in_one_line():
         r"reads format 7: re-run the trials that wrote it",
     ):
         read_records(Path(__file__).parent / "data" / "format4.mcap")
-    with pytest.raises(RecordsError, match=r"format6\.mcap: .* record format 6; this reader reads format 7"):
+    with pytest.raises(
+        RecordsError, match=r"format6\.mcap: .* record format 6; this reader reads format 7"
+    ):
         read_records(Path(__file__).parent / "data" / "format6.mcap")  # the format before pairs
     check_schema(None, None)  # lost: this writer's is assumed
     check_schema(OUR_SCHEMA, S.LIBRARY)

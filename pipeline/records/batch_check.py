@@ -1,6 +1,7 @@
 """Checking an episode batch (``pipeline/rl/sink.py``) before it is encoded: every key present,
 every column 1-D, of its length and in its field's range, cast to the dtype the codec writes
-(:mod:`.codec`). Errors name the batch, the column and what was wrong.
+(:mod:`.codec`; a code column as uint8 when every value is below 128, its own varint byte, else as
+int64). Errors name the batch, the column and what was wrong.
 """
 
 from __future__ import annotations
@@ -55,7 +56,11 @@ def _column(a: Any, f: Field, n: int | None, where: str) -> np.ndarray:
     (lo, hi), info = _RANGE[f.type], _iinfo(a.dtype)  # checked only where the dtype reaches out
     if len(a) and (info.min < lo and int(a.min()) < lo or info.max >= hi and int(a.max()) >= hi):
         raise ValueError(f"{where}: values {int(a.min())}..{int(a.max())} outside {lo}..{hi - 1}")
-    return a if f.type == CODE else a.astype(FIXED[f.type], copy=False)
+    if f.type != CODE:
+        return a.astype(FIXED[f.type], copy=False)
+    # a code column: bytes when every value is its own varint byte, else int64 for the runtime
+    one_byte = info.max < 128 or not len(a) or int(a.max()) < 128
+    return a.astype(np.uint8 if one_byte else np.int64, copy=False)
 
 
 def _steps(batch: Mapping[str, Any], n: int, where: str) -> dict[str, np.ndarray]:

@@ -33,11 +33,13 @@ VIEWS = S.message_classes(view=True)
 
 
 def _payload(msg: str, f: Field, a: np.ndarray) -> bytes:
-    if f.type == CODE and len(a) and int(a.max()) >= 128:  # varints of several bytes: the runtime
+    """A checked column's payload: a code column of uint8 (every value below 128, its own
+    varint byte: :mod:`.batch_check`) as it is, of another dtype through the runtime."""
+    if f.type == CODE and a.dtype == np.uint8:
+        return a.tobytes()
+    if f.type == CODE:  # varints of several bytes: the runtime
         whole = S.CLASSES[msg](**{f.name: a.tolist()}).SerializeToString()
         return getattr(VIEWS[msg].FromString(whole), f.name)
-    if f.type == CODE:  # values below 128 are their own varint byte
-        return a.astype(np.uint8, copy=False).tobytes()
     if f.type == SMALL:  # sint32 zigzag of values in -64..63, one byte each: 0,-1,1 -> 0,1,2
         small = a.astype(np.int8, copy=False)
         return ((small << 1) ^ (small >> 7)).view(np.uint8).tobytes()

@@ -32,13 +32,14 @@ STEP_NS = 1_000_000  # 1 ms
 EPISODE_NS = 1_000 * STEP_NS  # 1 s: at most 1,000 steps an episode
 RUN_NS = 1_000_000 * EPISODE_NS  # 10^6 s: at most 10^6 episodes a run
 MAX_RUN = (2**63 - 1) // RUN_NS - 1  # about 9,000 runs
+MAX_STEP, MAX_EPISODE = EPISODE_NS // STEP_NS, RUN_NS // EPISODE_NS  # a step, an episode below
 
 
 def log_time_ns(run: int, episode: int, step: int = 0) -> int:
     """Timestamp (ns) of ``step`` of ``episode`` of ``run``: deterministic, never the wall clock."""
     for what, v, n in (
-        ("step", step, EPISODE_NS // STEP_NS),
-        ("episode", episode, RUN_NS // EPISODE_NS),
+        ("step", step, MAX_STEP),
+        ("episode", episode, MAX_EPISODE),
         ("run", run, MAX_RUN + 1),
     ):
         if not 0 <= v < n:

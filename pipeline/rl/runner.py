@@ -87,6 +87,7 @@ class Trial:
         self.world = world
         self.worlds = [world.run_world(geometry, seed, run_offset + r) for r in range(runs)]
         self.picture_category = np.asarray(world.picture_category)
+        self.seen_category = [self.picture_category[w.seen] for w in self.worlds]
         self._allocate(geometry, trace_capacity)
 
     def _allocate(self, geometry: Geometry, trace_capacity: int) -> None:
@@ -127,8 +128,8 @@ class Trial:
         """Accuracy of run ``r``'s current support set on the pictures the run can meet (the
         grid's 40 query pictures; the robot's live pictures of the run)."""
         seen = self.worlds[r].seen
-        right = self.sights.predicted[r, seen] == self.picture_category[seen]
-        return np.count_nonzero(right) / max(1, len(seen))
+        right = np.count_nonzero(self.sights.predicted[r, seen] == self.seen_category[r])
+        return right / max(1, len(seen))
 
     def answer(self, r: int) -> None:
         """Run ``r``'s recogniser answers under its current support set: the predicted category of
