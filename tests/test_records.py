@@ -832,3 +832,24 @@ def test_rewards_are_stored_in_one_byte_when_whole_and_small_and_read_back_exact
     slow = codec._columns(_runtime_flat(data), "r")
     np.testing.assert_array_equal(slow["steps"]["reward"], want)
     assert slow["steps"]["reward"].dtype == np.float32
+
+
+def test_the_obstacles_metadata_is_the_json_of_each_runs_obstacles():
+    """The writer puts the obstacles' JSON together as text: the text ``to_json`` gives of
+    ``{run: [{key: int}]}`` (keys sorted as strings), for a list or a dict of runs, numpy ints."""
+    from pipeline.records.config_text import to_json
+    from pipeline.records.writer import OBSTACLE_KEYS, _obstacles_json
+
+    rng = np.random.default_rng(0)
+
+    def obstacle():
+        return {k: np.int64(v) for k, v in zip(OBSTACLE_KEYS, rng.integers(-3, 200, 5))}
+
+    as_list = [[obstacle() for _ in range(n)] for n in (0, 1, 3, 12)]
+    as_dict = {np.int32(r): obs for r, obs in zip((12, 2, 0, 101), as_list)}
+    for runs in (as_list, as_dict, [], {}):
+        items = runs.items() if isinstance(runs, dict) else enumerate(runs)
+        expected = {
+            str(int(r)): [{k: int(o[k]) for k in OBSTACLE_KEYS} for o in obs] for r, obs in items
+        }
+        assert _obstacles_json(runs) == to_json(expected)
