@@ -37,13 +37,14 @@ MAX_STEP, MAX_EPISODE = EPISODE_NS // STEP_NS, RUN_NS // EPISODE_NS  # a step, a
 
 def log_time_ns(run: int, episode: int, step: int = 0) -> int:
     """Timestamp (ns) of ``step`` of ``episode`` of ``run``: deterministic, never the wall clock."""
-    for what, v, n in (
-        ("step", step, MAX_STEP),
-        ("episode", episode, MAX_EPISODE),
-        ("run", run, MAX_RUN + 1),
-    ):
-        if not 0 <= v < n:
-            raise ValueError(f"{what} {v} out of range 0..{n - 1} for a record timestamp")
+    if not (0 <= step < MAX_STEP and 0 <= episode < MAX_EPISODE and 0 <= run <= MAX_RUN):
+        for what, v, n in (
+            ("step", step, MAX_STEP),
+            ("episode", episode, MAX_EPISODE),
+            ("run", run, MAX_RUN + 1),
+        ):
+            if not 0 <= v < n:
+                raise ValueError(f"{what} {v} out of range 0..{n - 1} for a record timestamp")
     return run * RUN_NS + episode * EPISODE_NS + step * STEP_NS
 
 

@@ -224,9 +224,8 @@ class RecordWriter:
         and the support set's accuracy on the query pictures after it; ``picture = -1``
         (position -1): the support set a run starts with. Written with its episode's batch."""
         self._check()
-        run, episode, step = int(run), int(episode), int(step)
-        if not (0 <= step < S.MAX_STEP and 0 <= episode < S.MAX_EPISODE and 0 <= run <= S.MAX_RUN):
-            S.log_time_ns(run, episode, step)  # raises naming what is out of range
+        run = int(run)
+        S.log_time_ns(run, int(episode), int(step))  # range check
         self._subs.setdefault(run, []).append(
             (episode, step, picture, category, position, support_accuracy)
         )
