@@ -4,13 +4,14 @@ and turned into their payloads in one compiled pass (docs/records.md "The writer
 The step columns are nearly all of a recording's bytes. The cell, the action and the flags of a
 step go into one column of pairs, ``Steps.transitions``: the cell, then ``action * 32 + flags``.
 Pairs, not three columns: a learnt path repeats the same pairs from episode to episode, long
-matches that zstd finds quickly: on the 11x11 paper-scale trial the step columns compress to 28%
-fewer bytes in 30% less time than three columns (the whole file 21% fewer bytes,
-``python -m benchmarks.records_overhead``). When every
-value of the pairs is below 128 (the cells of a maze up to 128 cells, four actions) each is its own
-varint byte and the pass writes them; larger values go through the Protobuf runtime (the codec,
-:mod:`.codec`). The rewards go as signed bytes when they are all whole numbers in -64..63
-(``Steps.small_rewards``), else as float32.
+matches that zstd finds quickly. On the 11x11 paper-scale trial the step columns compress to 28%
+fewer bytes in 30% less time than as three columns, and the whole file has 21% fewer bytes
+(``python -m benchmarks.records_overhead``).
+
+When every value of the pairs is below 128 (the cells of a maze up to 128 cells, four actions),
+each is its own varint byte and the pass writes them; larger values go through the Protobuf
+runtime (the codec, :mod:`.codec`). The rewards go as signed bytes when they are all whole
+numbers in -64..63 (``Steps.small_rewards``), else as float32.
 """
 
 from __future__ import annotations
