@@ -25,6 +25,7 @@ from .schema import FLAG_BITS
 
 #: The values a step column may take (below these): what the pairs' uint32 varints hold.
 PART_LIMITS = {"states": 2**32, "actions": 2 ** (32 - FLAG_BITS), "flags": 2**FLAG_BITS}
+ONE_BYTE_ACTIONS = 128 >> FLAG_BITS  # actions below this keep action * 32 + flags below 128
 SMALL_REWARDS = (-64, 63)  # a sint32 zigzag varint of one byte
 
 
@@ -56,7 +57,7 @@ def _pair_bytes(states, actions, flags, out):
         a_lo, a_hi = min(a_lo, a), max(a_hi, a)
         f_lo, f_hi = min(f_lo, f), max(f_hi, f)
         out[2 * i] = np.uint8(s & 0xFF)
-        out[2 * i + 1] = np.uint8((a * 32 + f) & 0xFF)
+        out[2 * i + 1] = np.uint8(((a << FLAG_BITS) + f) & 0xFF)
     bounds[0], bounds[1], bounds[2] = s_lo, a_lo, f_lo
     bounds[3], bounds[4], bounds[5] = s_hi, a_hi, f_hi
     return bounds
@@ -79,7 +80,7 @@ def _small_rewards(rewards, out):
 
 def pairs(states: np.ndarray, actions: np.ndarray, flags: np.ndarray) -> np.ndarray:
     """The ``transitions`` values of in-range columns, as int64: state, action * 32 + flags."""
-    codes = actions.astype(np.int64) * (1 << FLAG_BITS) + flags
+    codes = (actions.astype(np.int64) << FLAG_BITS) + flags
     return np.stack([states.astype(np.int64), codes], axis=1).ravel()
 
 
@@ -93,6 +94,7 @@ def scan_steps(
     out, small = np.empty(2 * len(states), np.uint8), np.empty(len(rewards), np.int8)
     bounds = _pair_bytes(*columns, out)
     low, high = tuple(int(b) for b in bounds[:3]), tuple(int(b) for b in bounds[3:])
-    fits = min(low) >= 0 and high[0] < 128 and high[1] < 4 and high[2] < 1 << FLAG_BITS
+    fits = min(low) >= 0 and high[0] < 128 and high[1] < ONE_BYTE_ACTIONS
+    fits = fits and high[2] < PART_LIMITS["flags"]
     transitions = out if fits else pairs(*columns)
     return StepColumns(low, high, transitions, small if _small_rewards(rewards, small) else None)
